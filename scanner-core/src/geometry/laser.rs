@@ -1,0 +1,278 @@
+//! The laser plane of one frame, from the stripe's 3-D points on the two board planes (paper
+//! section 2B, Fig. 4).
+//!
+//! The stripe crosses the left plane along `MN` and the right plane along `QR`; both lines meet
+//! the crease `L_c`, in theory at one point (`S = T`). Two estimators:
+//! - [`paper`]: fit `MN` and `QR`, intersect each with `L_c` (`S`, `T`), move both lines through
+//!   the midpoint of `S` and `T`, and take the plane of the two corrected lines.
+//! - [`least_squares`]: a plane over all board-stripe points, seeded by a small deterministic
+//!   RANSAC and refined by iterated least squares with 3σ trimming, so glints and object pixels
+//!   mistaken for board pixels are rejected rather than averaged in.
+//!
+//! Both report a [`LaserQuality`] (residuals in mm, and `|S − T|` for the paper's construction)
+//! so that the caller can reject a bad frame, and both refuse the degenerate frames of `NOTES.md`:
+//! a stripe on one plane only, and a laser plane (nearly) through the camera centre.
+
+use nalgebra::{Point3, Vector3};
+
+use super::board::Board;
+use super::fit::{fit_line, fit_plane};
+use super::plane::Plane;
+use crate::{GeomError, Real};
+
+/// Tuning of the laser-plane estimators. Lengths in mm.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LaserFitConfig<T> {
+    /// Fewest stripe points each board plane must contribute (after outlier rejection).
+    pub min_points_per_side: usize,
+    /// Smallest accepted sine of the angle under which the camera sees the laser plane: the
+    /// plane's distance from the camera centre over the distance of the stripe points. Below it
+    /// every ray grazes the plane and triangulation is meaningless.
+    pub min_view_sin: T,
+    /// Outlier threshold floor (mm): points closer to the plane are never rejected.
+    pub inlier_tol: T,
+    /// Outlier threshold of the RANSAC seed relative to the points' distance from the camera.
+    pub inlier_tol_rel: T,
+    /// Residuals beyond this many RMS (and beyond `inlier_tol`) are outliers.
+    pub outlier_sigmas: T,
+    /// Largest number of refit rounds.
+    pub max_rounds: usize,
+}
+
+impl<T: Real> Default for LaserFitConfig<T> {
+    fn default() -> Self {
+        Self {
+            min_points_per_side: 5,
+            min_view_sin: T::lit(0.05),
+            inlier_tol: T::lit(0.25),
+            inlier_tol_rel: T::lit(0.002),
+            outlier_sigmas: T::lit(3.0),
+            max_rounds: 10,
+        }
+    }
+}
+
+/// How well the stripe's board points agree with the laser plane.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LaserQuality<T> {
+    /// RMS distance of the used points from the plane, mm.
+    pub rms: T,
+    /// Largest distance of a used point from the plane, mm.
+    pub max: T,
+    /// Points used in the final fit.
+    pub used: usize,
+    /// Points rejected as outliers.
+    pub rejected: usize,
+    /// `|S − T|`, mm: the gap between the crease crossings of the two stripe lines (paper's
+    /// construction only).
+    pub st_gap: Option<T>,
+}
+
+/// A laser plane with its quality.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LaserPlane<T: Real> {
+    /// The plane, normal towards the camera.
+    pub plane: Plane<T>,
+    /// Its quality figures.
+    pub quality: LaserQuality<T>,
+}
+
+fn check_sides<T: Real>(
+    left: &[Point3<T>],
+    right: &[Point3<T>],
+    cfg: &LaserFitConfig<T>,
+) -> Result<(), GeomError> {
+    let need = cfg.min_points_per_side.max(2);
+    match (left.len() >= need, right.len() >= need) {
+        (true, true) => Ok(()),
+        (false, false) => Err(GeomError::TooFewPoints {
+            needed: need,
+            got: left.len().max(right.len()),
+        }),
+        _ => Err(GeomError::OnePlaneOnly),
+    }
+}
+
+fn check_view<T: Real>(
+    plane: &Plane<T>,
+    centroid: &Point3<T>,
+    cfg: &LaserFitConfig<T>,
+) -> Result<(), GeomError> {
+    let dist = centroid.coords.norm();
+    if !(plane.offset().abs() > cfg.min_view_sin * dist) {
+        return Err(GeomError::PlaneThroughCamera);
+    }
+    Ok(())
+}
+
+/// Residuals of the points in `pts` that pass `keep`.
+fn residuals<'a, T: Real>(
+    plane: &Plane<T>,
+    pts: impl Iterator<Item = &'a Point3<T>>,
+) -> (T, T, usize) {
+    let (mut s2, mut max, mut n) = (T::zero(), T::zero(), 0usize);
+    for p in pts {
+        let r = plane.signed_distance(p).abs();
+        s2 += r * r;
+        max = max.max(r);
+        n += 1;
+    }
+    let rms = if n > 0 {
+        (s2 / T::lit(n as f64)).sqrt()
+    } else {
+        T::zero()
+    };
+    (rms, max, n)
+}
+
+/// The paper's construction (Fig. 4) from the stripe's points on the left and right planes.
+///
+/// # Errors
+/// [`GeomError::OnePlaneOnly`] / [`GeomError::TooFewPoints`], [`GeomError::Collinear`] (a side's
+/// points coincide), [`GeomError::Parallel`] (a stripe line parallel to the crease, so `S` or `T`
+/// does not exist), [`GeomError::PlaneThroughCamera`], [`GeomError::NotFinite`].
+pub fn paper<T: Real>(
+    board: &Board<T>,
+    left: &[Point3<T>],
+    right: &[Point3<T>],
+    cfg: &LaserFitConfig<T>,
+) -> Result<LaserPlane<T>, GeomError> {
+    check_sides(left, right, cfg)?;
+    let mn = fit_line(left.iter().copied())?;
+    let qr = fit_line(right.iter().copied())?;
+    let min_sin = T::lit(0.02);
+    let (s, _) = mn.line.closest_points(board.crease(), min_sin)?;
+    let (t, _) = qr.line.closest_points(board.crease(), min_sin)?;
+    let mid = Point3::from((s.coords + t.coords) / T::lit(2.0));
+    // Corrected lines: from the midpoint of S and T through each side's centroid.
+    let d1 = mn.line.point() - mid;
+    let d2 = qr.line.point() - mid;
+    let normal: Vector3<T> = d1.cross(&d2);
+    if !(normal.norm() > T::lit(1e-3) * d1.norm() * d2.norm()) {
+        return Err(GeomError::Collinear);
+    }
+    let plane = Plane::from_point_normal(&mid, &normal)?.facing_camera();
+    check_view(&plane, &mid, cfg)?;
+    let (rms, max, used) = residuals(&plane, left.iter().chain(right));
+    Ok(LaserPlane {
+        plane,
+        quality: LaserQuality {
+            rms,
+            max,
+            used,
+            rejected: 0,
+            st_gap: Some((s - t).norm()),
+        },
+    })
+}
+
+/// Candidate planes the RANSAC seed tries.
+const SEED_HYPOTHESES: u32 = 24;
+
+/// A small deterministic RANSAC: planes through one left point and two right points or the
+/// reverse, chosen by a fixed pseudo-random sequence; returns the one with the most inliers.
+fn seed<T: Real>(
+    left: &[Point3<T>],
+    right: &[Point3<T>],
+    cfg: &LaserFitConfig<T>,
+) -> Option<(Plane<T>, T)> {
+    let mut state: u32 = 0x9E37_79B9 ^ (left.len() as u32).wrapping_mul(31) ^ right.len() as u32;
+    let mut next = |n: usize| {
+        // xorshift32
+        state ^= state << 13;
+        state ^= state >> 17;
+        state ^= state << 5;
+        state as usize % n
+    };
+    let mut best: Option<(Plane<T>, T, usize)> = None;
+    for h in 0..SEED_HYPOTHESES {
+        let (one, two) = if h % 2 == 0 {
+            (left, right)
+        } else {
+            (right, left)
+        };
+        let a = one[next(one.len())];
+        let b = two[next(two.len())];
+        let c = two[next(two.len())];
+        let Ok(plane) = Plane::from_point_normal(&a, &(b - a).cross(&(c - a))) else {
+            continue;
+        };
+        let centroid = Point3::from((a.coords + b.coords + c.coords) / T::lit(3.0));
+        let tol = cfg
+            .inlier_tol
+            .max(cfg.inlier_tol_rel * centroid.coords.norm());
+        let count = left
+            .iter()
+            .chain(right)
+            .filter(|p| plane.signed_distance(p).abs() <= tol)
+            .count();
+        if best.as_ref().is_none_or(|b| count > b.2) {
+            best = Some((plane, tol, count));
+        }
+    }
+    best.map(|(p, tol, _)| (p, tol))
+}
+
+/// Least-squares laser plane over all board-stripe points, with outlier rejection.
+///
+/// # Errors
+/// [`GeomError::OnePlaneOnly`] / [`GeomError::TooFewPoints`] (also when outliers leave a side
+/// with too few points), [`GeomError::Collinear`], [`GeomError::PlaneThroughCamera`],
+/// [`GeomError::NotFinite`], [`GeomError::NoConvergence`].
+pub fn least_squares<T: Real>(
+    left: &[Point3<T>],
+    right: &[Point3<T>],
+    cfg: &LaserFitConfig<T>,
+) -> Result<LaserPlane<T>, GeomError> {
+    check_sides(left, right, cfg)?;
+    if !left
+        .iter()
+        .chain(right)
+        .all(|p| crate::real::all_finite(&p.coords))
+    {
+        return Err(GeomError::NotFinite);
+    }
+    let (mut plane, mut tol) = seed(left, right, cfg).ok_or(GeomError::Collinear)?;
+    let mut used = usize::MAX;
+    let mut fit = None;
+    for _ in 0..cfg.max_rounds.max(1) {
+        let current = plane;
+        let inliers = left
+            .iter()
+            .chain(right)
+            .copied()
+            .filter(move |p| current.signed_distance(p).abs() <= tol);
+        let f = fit_plane(inliers)?;
+        plane = f.plane;
+        let stable = f.count == used;
+        used = f.count;
+        tol = cfg.inlier_tol.max(cfg.outlier_sigmas * f.rms);
+        fit = Some(f);
+        if stable {
+            break;
+        }
+    }
+    let fit = fit.ok_or(GeomError::NoConvergence)?;
+    // The final inlier set is judged with the final plane and threshold.
+    let keep = |p: &&Point3<T>| plane.signed_distance(p).abs() <= tol;
+    let need = cfg.min_points_per_side.max(2);
+    let (nl, nr) = (
+        left.iter().filter(keep).count(),
+        right.iter().filter(keep).count(),
+    );
+    if nl < need || nr < need {
+        return Err(GeomError::OnePlaneOnly);
+    }
+    check_view(&plane, &fit.centroid, cfg)?;
+    let (rms, max, used) = residuals(&plane, left.iter().chain(right).filter(keep));
+    Ok(LaserPlane {
+        plane,
+        quality: LaserQuality {
+            rms,
+            max,
+            used,
+            rejected: left.len() + right.len() - used,
+            st_gap: None,
+        },
+    })
+}
