@@ -210,20 +210,16 @@ impl<T: Real> Camera<T> {
         if self.distortion.is_none() {
             return Ok(target);
         }
-        let tol = T::lit(8.0) * T::EPSILON * (T::one() + target.norm());
+        // Newton converges quadratically: iterate until the step is at rounding level, so the
+        // answer is as good as the float type allows (a residual test alone stops early).
+        let scale = T::one() + target.norm();
         let mut x = target;
         for _ in 0..UNDISTORT_MAX_STEPS {
             let (d, j) = self.distortion.apply_with_jacobian(x);
             let residual = d - target;
-            if !crate::real::all_finite(&residual) {
-                return Err(GeomError::NoConvergence);
-            }
             let det = j.determinant();
-            if det <= T::zero() {
+            if !crate::real::all_finite(&residual) || !(det > T::zero()) {
                 return Err(GeomError::NoConvergence);
-            }
-            if residual.norm() <= tol {
-                return Ok(x);
             }
             // 2×2 inverse written out: det > 0 was checked.
             let step = Vector2::new(
@@ -231,11 +227,16 @@ impl<T: Real> Camera<T> {
                 j.m11 * residual.y - j.m21 * residual.x,
             ) / det;
             x -= step;
+            if step.norm() <= T::lit(2.0) * T::EPSILON * scale {
+                break;
+            }
         }
-        // Near convergence Newton may stall on round-off slightly above `tol`: accept a residual a
-        // few ulps larger, nothing more.
+        // Accept only a true solution in the invertible region, whatever the steps did.
         let (d, j) = self.distortion.apply_with_jacobian(x);
-        if (d - target).norm() <= T::lit(64.0) * tol && j.determinant() > T::zero() {
+        if (d - target).norm() <= T::lit(64.0) * T::EPSILON * scale
+            && j.determinant() > T::zero()
+            && crate::real::all_finite(&x)
+        {
             Ok(x)
         } else {
             Err(GeomError::NoConvergence)

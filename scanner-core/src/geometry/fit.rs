@@ -1,7 +1,7 @@
 //! Least-squares plane and line fits over point sets, without storing the points.
 //!
 //! Both fits take a cloneable iterator and read it twice: once for the centroid, once for the
-//! centred scatter matrix, which keeps `f32` accurate for points far from the origin.
+//! centred scatter matrix, which stays accurate for points far from the origin.
 
 use nalgebra::{Matrix3, Point3, SymmetricEigen, Vector3};
 
@@ -53,39 +53,43 @@ where
     T: Real,
     I: Iterator<Item = Point3<T>> + Clone,
 {
-    let mut sum = Vector3::zeros();
+    // Accumulated and solved in f64 whatever T is: a few hundred flops per fit, and an `f32`
+    // frame's plane is then limited by its points' rounding, not by the 3×3 eigen-solve.
+    let wide = |p: Point3<T>| Vector3::new(p.x.to_f64(), p.y.to_f64(), p.z.to_f64());
+    let mut sum = Vector3::<f64>::zeros();
     let mut count = 0usize;
     for p in points.clone() {
         if !all_finite(&p.coords) {
             return Err(GeomError::NotFinite);
         }
-        sum += p.coords;
+        sum += wide(p);
         count += 1;
     }
     if count < needed {
         return Err(GeomError::TooFewPoints { needed, got: count });
     }
-    let centroid = Point3::from(sum / T::lit(count as f64));
-    let mut m = Matrix3::zeros();
+    let centroid = sum / count as f64;
+    let mut m = Matrix3::<f64>::zeros();
     for p in points {
-        let v = p - centroid;
+        let v = wide(p) - centroid;
         m += v * v.transpose();
     }
-    if !m.iter().all(|v| v.finite()) {
+    if !m.iter().all(|v| v.is_finite()) {
         return Err(GeomError::NotFinite);
     }
     let eig =
-        SymmetricEigen::try_new(m, T::EPSILON, EIGEN_MAX_ITER).ok_or(GeomError::NoConvergence)?;
+        SymmetricEigen::try_new(m, f64::EPSILON, EIGEN_MAX_ITER).ok_or(GeomError::NoConvergence)?;
     let mut order = [0usize, 1, 2];
     order.sort_unstable_by(|&a, &b| {
         eig.eigenvalues[a]
             .partial_cmp(&eig.eigenvalues[b])
             .unwrap_or(core::cmp::Ordering::Equal)
     });
+    let narrow = |v: Vector3<f64>| v.map(T::lit);
     Ok(Scatter {
-        centroid,
-        values: order.map(|i| eig.eigenvalues[i].max(T::zero())),
-        vectors: order.map(|i| eig.eigenvectors.column(i).into_owned()),
+        centroid: Point3::from(narrow(centroid)),
+        values: order.map(|i| T::lit(eig.eigenvalues[i].max(0.0))),
+        vectors: order.map(|i| narrow(eig.eigenvectors.column(i).into_owned())),
         count,
     })
 }

@@ -88,19 +88,19 @@ impl<T: Real> Plane<T> {
         if !(len > T::zero()) || !len.finite() {
             return Err(GeomError::BadParameter("ray must be non-zero"));
         }
-        let unit = ray / len;
-        let cos = self.normal.dot(&unit);
-        if cos.abs() <= min_sin {
+        // The ray is scaled by -d / (n·ray) as it is: normalising it first adds a rounding.
+        let dot = self.normal.dot(ray);
+        if dot.abs() <= min_sin * len {
             return Err(GeomError::Grazing);
         }
         if self.d == T::zero() {
             return Err(GeomError::PlaneThroughCamera);
         }
-        let s = -self.d / cos;
+        let s = -self.d / dot;
         if s <= T::zero() {
             return Err(GeomError::BehindCamera);
         }
-        let p = Point3::from(unit * s);
+        let p = Point3::from(ray * s);
         if all_finite(&p.coords) {
             Ok(p)
         } else {
