@@ -207,6 +207,9 @@ impl<T: Real> Camera<T> {
             return Err(GeomError::NotFinite);
         }
         let target = Vector2::new((pixel.x - self.cx) / self.fx, (pixel.y - self.cy) / self.fy);
+        if !crate::real::all_finite(&target) {
+            return Err(GeomError::NotFinite);
+        }
         if self.distortion.is_none() {
             return Ok(target);
         }

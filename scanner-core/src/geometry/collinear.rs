@@ -3,7 +3,8 @@
 //!
 //! `A`, `B`, `C` lie on one line with `B` the midpoint and `|AB| = |BC| = m`. Their images are the
 //! rays `A'`, `B'`, `C'` (the paper's `(x, y, d_z)`, or [`Camera::pixel_to_ray`]'s `(x_n, y_n,
-//! 1)`: only the direction matters), and `A = t1·A'`, `B = t2·B'`, `C = t3·C'`.
+//! 1)`; any positive scale, each ray is put on the image plane `z = 1` first), and
+//! `A = t1·A'`, `B = t2·B'`, `C = t3·C'`.
 //!
 //! Two forms are given:
 //! - [`paper`]: eq. 1–6 as printed (they are correct, see `NOTES.md`).
@@ -54,11 +55,18 @@ fn points(rays: &[Vector3<f64>; 3], t: [f64; 3]) -> Result<[Point3<f64>; 3], Geo
     }
 }
 
-/// Rescales rays so that the largest has unit length: the forms below are homogeneous in the
-/// rays, and this keeps every intermediate near 1.
-fn normalised(rays: &[Vector3<f64>; 3]) -> (f64, [Vector3<f64>; 3]) {
-    let s = rays.iter().map(|r| r.norm()).fold(0.0, f64::max);
-    (s, rays.map(|r| r / s))
+/// Puts the rays on the common image plane `z = 1` (the paper's image points up to the factor
+/// `d_z`), which both forms assume: `t2 = (t1 + t3)/2` holds only for rays of equal depth.
+fn on_image_plane(rays: &[Vector3<f64>; 3]) -> Result<[Vector3<f64>; 3], GeomError> {
+    if !rays.iter().all(|r| r.z > 0.0) {
+        return Err(GeomError::BehindCamera);
+    }
+    let out = rays.map(|r| r / r.z);
+    if out.iter().all(all_finite) {
+        Ok(out)
+    } else {
+        Err(GeomError::NotFinite)
+    }
 }
 
 /// The paper's closed form, eq. 1–6, for rays `[A', B', C']` and spacing `m`.
@@ -68,9 +76,14 @@ fn normalised(rays: &[Vector3<f64>; 3]) -> (f64, [Vector3<f64>; 3]) {
 /// [`GeomError::IllConditioned`] where a denominator vanishes or a radicand is negative.
 pub fn paper(rays: &[Vector3<f64>; 3], m: f64) -> Result<[Point3<f64>; 3], GeomError> {
     check(rays, m)?;
-    let (scale, [a1, b1, c1]) = normalised(rays);
+    let [a1, b1, c1] = on_image_plane(rays)?;
     if (a1 - b1).norm() < COINCIDENT || (b1 - c1).norm() < COINCIDENT {
         return Err(GeomError::CoincidentPoints);
+    }
+    // The midpoint images between the ends. Eq. 1–6 use distances only and would return a
+    // "solution" for images out of order.
+    if !((a1 - b1).dot(&(c1 - b1)) < 0.0) {
+        return Err(GeomError::IllConditioned);
     }
     // eq. 2 and 3 (a, b, c as 3-D differences: equal to the paper's 2-D ones when the rays share
     // the image plane z = d_z)
@@ -105,7 +118,7 @@ pub fn paper(rays: &[Vector3<f64>; 3], m: f64) -> Result<[Point3<f64>; 3], GeomE
         return Err(GeomError::IllConditioned);
     }
     let (s1, s3) = (r1.sqrt(), r3.sqrt());
-    points(rays, [s1 / scale, (s1 + s3) / 2.0 / scale, s3 / scale])
+    points(&[a1, b1, c1], [s1, (s1 + s3) / 2.0, s3])
 }
 
 /// The better-conditioned form for rays `[A', B', C']` and spacing `m`.
@@ -116,7 +129,7 @@ pub fn paper(rays: &[Vector3<f64>; 3], m: f64) -> Result<[Point3<f64>; 3], GeomE
 /// `C'`).
 pub fn solve(rays: &[Vector3<f64>; 3], m: f64) -> Result<[Point3<f64>; 3], GeomError> {
     check(rays, m)?;
-    let (scale, [a1, b1, c1]) = normalised(rays);
+    let [a1, b1, c1] = on_image_plane(rays)?;
     let u = a1 - b1;
     let v = b1 - c1;
     let uu = u.norm_squared();
@@ -134,5 +147,5 @@ pub fn solve(rays: &[Vector3<f64>; 3], m: f64) -> Result<[Point3<f64>; 3], GeomE
     }
     let t3 = 2.0 * m / span;
     let t1 = rho * t3;
-    points(rays, [t1 / scale, (t1 + t3) / 2.0 / scale, t3 / scale])
+    points(&[a1, b1, c1], [t1, (t1 + t3) / 2.0, t3])
 }
