@@ -266,3 +266,5 @@ pub fn rel(a: &Point3<f64>, b: &Point3<f64>) -> f64 {
 pub fn rel32(a: &Point3<f32>, b: &Point3<f64>) -> f64 {
     (a.cast::<f64>() - b).norm() / b.coords.norm()
 }
+
+pub mod monte_carlo;
