@@ -386,7 +386,11 @@ fn finite3(p: &Point3<f64>) -> bool {
 }
 
 proptest! {
-    #![proptest_config(ProptestConfig { failure_persistence: None, ..ProptestConfig::default() })]
+    #![proptest_config(ProptestConfig {
+        failure_persistence: None,
+        max_local_rejects: 1 << 24,
+        ..ProptestConfig::default()
+    })]
 
     #[test]
     fn camera_never_nan(cam in camera(), p in p3(), px in p2()) {

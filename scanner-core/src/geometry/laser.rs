@@ -6,7 +6,7 @@
 //! - [`paper`]: fit `MN` and `QR`, intersect each with `L_c` (`S`, `T`), move both lines through
 //!   the midpoint of `S` and `T`, and take the plane of the two corrected lines.
 //! - [`least_squares`]: a plane over all board-stripe points, seeded by a small deterministic
-//!   RANSAC and refined by iterated least squares with 3σ trimming, so glints and object pixels
+//!   MSAC and refined by iterated least squares with 3σ trimming, so glints and object pixels
 //!   mistaken for board pixels are rejected rather than averaged in.
 //!
 //! Both report a [`LaserQuality`] (residuals in mm, and `|S − T|` for the paper's construction)
@@ -31,7 +31,8 @@ pub struct LaserFitConfig<T> {
     pub min_view_sin: T,
     /// Outlier threshold floor (mm): points closer to the plane are never rejected.
     pub inlier_tol: T,
-    /// Outlier threshold of the RANSAC seed relative to the points' distance from the camera.
+    /// Outlier threshold of the seed relative to the points' distance from the camera (the
+    /// refinement then adapts it to the residuals).
     pub inlier_tol_rel: T,
     /// Residuals beyond this many RMS (and beyond `inlier_tol`) are outliers.
     pub outlier_sigmas: T,
@@ -44,8 +45,8 @@ impl<T: Real> Default for LaserFitConfig<T> {
         Self {
             min_points_per_side: 5,
             min_view_sin: T::lit(0.05),
-            inlier_tol: T::lit(0.25),
-            inlier_tol_rel: T::lit(0.002),
+            inlier_tol: T::lit(0.1),
+            inlier_tol_rel: T::lit(0.0005),
             outlier_sigmas: T::lit(3.0),
             max_rounds: 10,
         }
@@ -166,11 +167,14 @@ pub fn paper<T: Real>(
     })
 }
 
-/// Candidate planes the RANSAC seed tries.
-const SEED_HYPOTHESES: u32 = 24;
+/// Candidate planes the seed tries.
+const SEED_HYPOTHESES: u32 = 64;
 
-/// A small deterministic RANSAC: planes through one left point and two right points or the
-/// reverse, chosen by a fixed pseudo-random sequence; returns the one with the most inliers.
+/// A small deterministic MSAC seed: planes through one point of one side and two of the other,
+/// chosen by a fixed pseudo-random sequence, scored by the sum of squared residuals truncated at
+/// the seed tolerance (lower is better). Truncated squares rather than inlier counts: when the
+/// object's pixels outnumber the board's, a wrong plane can gather more points within a loose
+/// tolerance, but not closer ones.
 fn seed<T: Real>(
     left: &[Point3<T>],
     right: &[Point3<T>],
@@ -184,7 +188,7 @@ fn seed<T: Real>(
         state ^= state << 5;
         state as usize % n
     };
-    let mut best: Option<(Plane<T>, T, usize)> = None;
+    let mut best: Option<(Plane<T>, T, T)> = None;
     for h in 0..SEED_HYPOTHESES {
         let (one, two) = if h % 2 == 0 {
             (left, right)
@@ -201,13 +205,14 @@ fn seed<T: Real>(
         let tol = cfg
             .inlier_tol
             .max(cfg.inlier_tol_rel * centroid.coords.norm());
-        let count = left
-            .iter()
-            .chain(right)
-            .filter(|p| plane.signed_distance(p).abs() <= tol)
-            .count();
-        if best.as_ref().is_none_or(|b| count > b.2) {
-            best = Some((plane, tol, count));
+        let tol2 = tol * tol;
+        let mut score = T::zero();
+        for p in left.iter().chain(right) {
+            let r = plane.signed_distance(p);
+            score += (r * r).min(tol2) / tol2;
+        }
+        if best.as_ref().is_none_or(|b| score < b.2) {
+            best = Some((plane, tol, score));
         }
     }
     best.map(|(p, tol, _)| (p, tol))
