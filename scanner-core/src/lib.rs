@@ -34,6 +34,7 @@ pub mod camera;
 mod error;
 pub mod geometry;
 mod real;
+pub mod stripe;
 
 pub use camera::{Camera, Distortion};
 pub use error::GeomError;

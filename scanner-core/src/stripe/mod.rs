@@ -1,0 +1,691 @@
+//! Laser stripe extraction: for every image column (stripe roughly horizontal) or row (stripe
+//! roughly vertical) the subpixel centre of the stripe, its peak, its width and a status that says
+//! why a line has no valid centre (paper sections 3B, 3C and 4).
+//!
+//! # How a frame is read
+//! 1. **One pass in memory order.** In column mode each row is turned into a row of `u16` signal
+//!    values ([`signal`]) and the 3×1 mask sums of the last three rows update per-column state:
+//!    the strongest peak and the strongest peak at least `separation` lines away from it (a
+//!    competing reflection or glint). The update is branch-free over contiguous arrays, so it
+//!    vectorises. Row mode reads each row once, contiguously.
+//! 2. **Threshold.** Automatic, no user setting: DIM from a robust noise estimate (median absolute
+//!    deviation of the signed change) over every 8th row; LIM from the histogram of the laser-off
+//!    reference (or of the frame) against the histogram of the lines' peaks (section 4).
+//! 3. **Per line**, a window of `2 × half_window + 1` samples around the peak is read again (a
+//!    few cache lines) and judged: no stripe, competing peaks, saturated plateau, too wide, too
+//!    narrow — or a centre from the chosen [`Estimator`].
+//!
+//! All state lives in an [`Extractor`] the caller owns, sized by the const generic `W` (largest
+//! number of lines and largest profile length); a call allocates nothing.
+
+mod estimate;
+mod frame;
+mod signal;
+
+pub use estimate::{Estimator, Shape, Window};
+pub use frame::{Frame, FrameError, PixelFormat};
+pub use signal::Method;
+
+use core::fmt;
+
+/// Largest `half_window` an extractor accepts.
+pub const MAX_HALF_WINDOW: usize = 48;
+const MAX_WINDOW: usize = 2 * MAX_HALF_WINDOW + 1;
+/// The automatic thresholds sample every this many rows.
+pub const SAMPLE_STEP: usize = 8;
+
+/// Which way the stripe runs, and so which lines are scanned.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Axis {
+    /// One result per image column: the stripe is roughly horizontal; centres are rows.
+    Columns,
+    /// One result per image row: the stripe is roughly vertical; centres are columns.
+    Rows,
+}
+
+/// A rectangle of the frame, pixels.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Roi {
+    /// Left column.
+    pub x: usize,
+    /// Top row.
+    pub y: usize,
+    /// Width.
+    pub width: usize,
+    /// Height.
+    pub height: usize,
+}
+
+/// Settings of the extraction. The threshold is not among them: it is automatic.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct StripeConfig {
+    /// Lines to scan.
+    pub axis: Axis,
+    /// Region of interest; `None` for the whole frame.
+    pub roi: Option<Roi>,
+    /// Light-intensity or difference-image method.
+    pub method: Method,
+    /// Subpixel estimator.
+    pub estimator: Estimator,
+    /// Largest accepted full width at half maximum, pixels.
+    pub max_width: f32,
+    /// Smallest accepted full width at half maximum, pixels.
+    pub min_width: f32,
+    /// Longest accepted run of clipped (255) pixels at the peak.
+    pub max_plateau: usize,
+    /// A second peak at least `separation` pixels away and stronger than this fraction of the
+    /// first makes the line ambiguous.
+    pub ambiguity: f32,
+    /// Smallest distance between two peaks that count as different, pixels.
+    pub separation: u16,
+    /// Half size of the window read around each peak, pixels (≤ [`MAX_HALF_WINDOW`]).
+    pub half_window: usize,
+}
+
+impl StripeConfig {
+    /// Defaults for a method and axis: whole frame, Gaussian estimator, widths 1–14 px, plateaus
+    /// up to 6 px, ambiguity 0.5, separation 10 px, window ±16 px.
+    pub const fn new(method: Method, axis: Axis) -> Self {
+        Self {
+            axis,
+            roi: None,
+            method,
+            estimator: Estimator::Gaussian,
+            max_width: 14.0,
+            min_width: 1.0,
+            max_plateau: 6,
+            ambiguity: 0.5,
+            separation: 10,
+            half_window: 16,
+        }
+    }
+}
+
+/// Why a line has no valid centre, or that it has one.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum Status {
+    /// A valid centre.
+    Valid,
+    /// Nothing above the threshold.
+    NoStripe,
+    /// A second, separate peak nearly as strong (reflection, glint, second laser).
+    Ambiguous,
+    /// A clipped plateau wider than allowed (glint or specular highlight).
+    Saturated,
+    /// Wider than allowed.
+    TooWide,
+    /// Narrower than allowed (a hot pixel, not a stripe).
+    TooNarrow,
+    /// The profile passed every check but the estimator found no centre in it.
+    BadProfile,
+}
+
+impl Status {
+    /// Every status, in a fixed order (for tables and counters).
+    pub const ALL: [Status; 7] = [
+        Status::Valid,
+        Status::NoStripe,
+        Status::Ambiguous,
+        Status::Saturated,
+        Status::TooWide,
+        Status::TooNarrow,
+        Status::BadProfile,
+    ];
+}
+
+impl fmt::Display for Status {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(match self {
+            Self::Valid => "valid",
+            Self::NoStripe => "no stripe",
+            Self::Ambiguous => "competing peaks",
+            Self::Saturated => "saturated plateau",
+            Self::TooWide => "too wide",
+            Self::TooNarrow => "too narrow",
+            Self::BadProfile => "no fit",
+        })
+    }
+}
+
+/// The stripe in one line.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct StripePoint {
+    /// Subpixel centre along the line in image coordinates (a row in column mode, a column in row
+    /// mode); 0 unless `status` is [`Status::Valid`].
+    pub centre: f32,
+    /// Largest signal sample near the peak.
+    pub peak: u16,
+    /// Full width at half maximum, pixels.
+    pub width: f32,
+    /// Valid, or why not.
+    pub status: Status,
+}
+
+impl StripePoint {
+    const NONE: Self = Self {
+        centre: 0.0,
+        peak: 0,
+        width: 0.0,
+        status: Status::NoStripe,
+    };
+}
+
+/// What [`Extractor::extract`] found.
+#[derive(Debug, Clone, Copy)]
+pub struct Extraction<'a> {
+    /// One point per line of the region of interest.
+    pub points: &'a [StripePoint],
+    /// Image coordinate of the first line (column in column mode, row in row mode).
+    pub first_line: usize,
+    /// The automatic threshold, in signal units.
+    pub threshold: u16,
+}
+
+impl Extraction<'_> {
+    /// `(line, point)` for the valid lines, with `line` in image coordinates.
+    pub fn valid(&self) -> impl Iterator<Item = (usize, &StripePoint)> + '_ {
+        self.points
+            .iter()
+            .enumerate()
+            .filter(|(_, p)| p.status == Status::Valid)
+            .map(|(i, p)| (self.first_line + i, p))
+    }
+}
+
+/// Why an extraction could not run.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[non_exhaustive]
+pub enum StripeError {
+    /// The frame, reference or region of interest is unusable.
+    Frame(FrameError),
+    /// The difference-image method needs a reference frame.
+    NoReference,
+    /// A setting is out of range (the text names it).
+    BadConfig(&'static str),
+}
+
+impl From<FrameError> for StripeError {
+    fn from(e: FrameError) -> Self {
+        Self::Frame(e)
+    }
+}
+
+impl fmt::Display for StripeError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Self::Frame(e) => e.fmt(f),
+            Self::NoReference => f.write_str("the difference-image method needs a reference frame"),
+            Self::BadConfig(what) => write!(f, "bad stripe setting: {what}"),
+        }
+    }
+}
+
+impl core::error::Error for StripeError {}
+
+/// Fixed-memory state of the extraction for at most `W` lines of at most `W` samples.
+///
+/// About `W × 28` bytes: own it once (a `static`, a `Box`, or the device's frame loop) and reuse
+/// it for every frame.
+pub struct Extractor<const W: usize> {
+    rows: [[u16; W]; 3],
+    best: [u16; W],
+    best_at: [u16; W],
+    second: [u16; W],
+    second_at: [u16; W],
+    out: [StripePoint; W],
+}
+
+impl<const W: usize> Default for Extractor<W> {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+/// Per-line peak tracking over a stream of 3×1 sums: updates the strongest peak and the strongest
+/// one at least `sep` lines away from it. Branch-free on purpose: it is the inner loop.
+#[inline(always)]
+fn track(
+    t: u16,
+    at: u16,
+    sep: u16,
+    best: &mut u16,
+    best_at: &mut u16,
+    second: &mut u16,
+    second_at: &mut u16,
+) {
+    let far_b = at.wrapping_sub(*best_at) > sep;
+    let far_s = at.wrapping_sub(*second_at) > sep;
+    let gt = t > *best;
+    let cand_b = if far_b { *best } else { 0 };
+    let cand_s = if far_s { *second } else { 0 };
+    let (demote, demote_at) = if cand_b >= cand_s {
+        (cand_b, *best_at)
+    } else {
+        (cand_s, *second_at)
+    };
+    let rival = far_b & (t > *second);
+    let new_second = if gt {
+        demote
+    } else if rival {
+        t
+    } else {
+        *second
+    };
+    let new_second_at = if gt {
+        demote_at
+    } else if rival {
+        at
+    } else {
+        *second_at
+    };
+    *second = new_second;
+    *second_at = new_second_at;
+    *best_at = if gt { at } else { *best_at };
+    *best = if gt { t } else { *best };
+}
+
+impl<const W: usize> Extractor<W> {
+    /// A fresh extractor.
+    pub const fn new() -> Self {
+        Self {
+            rows: [[0; W]; 3],
+            best: [0; W],
+            best_at: [0; W],
+            second: [0; W],
+            second_at: [0; W],
+            out: [StripePoint::NONE; W],
+        }
+    }
+
+    /// Extracts the stripe of `frame`. `reference` is the laser-off frame: required for
+    /// [`Method::Dim`], used for the threshold of [`Method::Lim`] when given.
+    ///
+    /// # Errors
+    /// [`StripeError`] for a reference of another shape, a missing reference, a region of
+    /// interest outside the frame, more lines than `W`, or a setting out of range.
+    pub fn extract(
+        &mut self,
+        frame: &Frame<'_>,
+        reference: Option<&Frame<'_>>,
+        cfg: &StripeConfig,
+    ) -> Result<Extraction<'_>, StripeError> {
+        if let Some(r) = reference
+            && !frame.same_shape(r)
+        {
+            return Err(FrameError::ReferenceMismatch.into());
+        }
+        if cfg.method == Method::Dim && reference.is_none() {
+            return Err(StripeError::NoReference);
+        }
+        if cfg.half_window == 0 || cfg.half_window > MAX_HALF_WINDOW {
+            return Err(StripeError::BadConfig("half_window must be 1..=48"));
+        }
+        if !(cfg.min_width >= 0.0 && cfg.max_width >= cfg.min_width) {
+            return Err(StripeError::BadConfig("need 0 ≤ min_width ≤ max_width"));
+        }
+        if !(cfg.ambiguity > 0.0) {
+            return Err(StripeError::BadConfig("ambiguity must be positive"));
+        }
+        let roi = cfg.roi.unwrap_or(Roi {
+            x: 0,
+            y: 0,
+            width: frame.width(),
+            height: frame.height(),
+        });
+        let inside = roi.width > 0
+            && roi.height > 0
+            && roi
+                .x
+                .checked_add(roi.width)
+                .is_some_and(|e| e <= frame.width())
+            && roi
+                .y
+                .checked_add(roi.height)
+                .is_some_and(|e| e <= frame.height());
+        if !inside {
+            return Err(FrameError::BadRoi.into());
+        }
+        let (lines, length) = match cfg.axis {
+            Axis::Columns => (roi.width, roi.height),
+            Axis::Rows => (roi.height, roi.width),
+        };
+        for n in [lines, length, roi.width] {
+            if n > W || n > usize::from(u16::MAX) {
+                return Err(FrameError::TooLarge {
+                    asked: n,
+                    capacity: W.min(usize::from(u16::MAX)),
+                }
+                .into());
+            }
+        }
+        let reference_or_frame = reference.unwrap_or(frame);
+        let io = Io {
+            frame,
+            reference: reference_or_frame,
+            method: cfg.method,
+            axis: cfg.axis,
+            roi,
+        };
+        match cfg.axis {
+            Axis::Columns => self.track_columns(&io, cfg.separation),
+            Axis::Rows => self.track_rows(&io, cfg.separation),
+        }
+        let threshold = match cfg.method {
+            Method::Dim => dim_threshold(&io),
+            Method::Lim => lim_threshold(&io, &self.best[..lines]),
+        };
+        for line in 0..lines {
+            self.out[line] = self.judge(&io, cfg, line, length, threshold);
+        }
+        Ok(Extraction {
+            points: &self.out[..lines],
+            first_line: match cfg.axis {
+                Axis::Columns => roi.x,
+                Axis::Rows => roi.y,
+            },
+            threshold,
+        })
+    }
+
+    fn reset(&mut self, lines: usize) {
+        self.best[..lines].fill(0);
+        self.best_at[..lines].fill(0);
+        self.second[..lines].fill(0);
+        self.second_at[..lines].fill(0);
+    }
+
+    /// Column mode: rows in memory order, per-column state.
+    fn track_columns(&mut self, io: &Io<'_, '_>, sep: u16) {
+        let Roi {
+            x,
+            y,
+            width,
+            height,
+        } = io.roi;
+        self.reset(width);
+        for r in 0..height {
+            let (a, rest) = self.rows.split_at_mut(1);
+            let (b, c) = rest.split_at_mut(1);
+            // rotate: the newest row goes into slot r % 3
+            let slots: [&mut [u16; W]; 3] = [&mut a[0], &mut b[0], &mut c[0]];
+            let [s0, s1, s2] = slots;
+            let (newest, older, oldest) = match r % 3 {
+                0 => (s0, s2, s1),
+                1 => (s1, s0, s2),
+                _ => (s2, s1, s0),
+            };
+            signal::row(
+                io.frame.format(),
+                io.method,
+                io.frame.row(y + r),
+                io.reference.row(y + r),
+                x,
+                &mut newest[..width],
+            );
+            if r < 2 {
+                continue;
+            }
+            let at = (r - 1) as u16;
+            let state = self.best[..width]
+                .iter_mut()
+                .zip(&mut self.best_at[..width])
+                .zip(&mut self.second[..width])
+                .zip(&mut self.second_at[..width]);
+            let sums = newest[..width]
+                .iter()
+                .zip(&older[..width])
+                .zip(&oldest[..width]);
+            for ((((b, ba), s), sa), ((&p, &q), &o)) in state.zip(sums) {
+                track(p + q + o, at, sep, b, ba, s, sa);
+            }
+        }
+    }
+
+    /// Row mode: each row is one line, read contiguously.
+    fn track_rows(&mut self, io: &Io<'_, '_>, sep: u16) {
+        let Roi {
+            x,
+            y,
+            width,
+            height,
+        } = io.roi;
+        self.reset(height);
+        for r in 0..height {
+            let buf = &mut self.rows[0][..width];
+            signal::row(
+                io.frame.format(),
+                io.method,
+                io.frame.row(y + r),
+                io.reference.row(y + r),
+                x,
+                buf,
+            );
+            let (mut b, mut ba, mut s, mut sa) = (0, 0, 0, 0);
+            for (i, w) in buf.windows(3).enumerate() {
+                track(
+                    w[0] + w[1] + w[2],
+                    (i + 1) as u16,
+                    sep,
+                    &mut b,
+                    &mut ba,
+                    &mut s,
+                    &mut sa,
+                );
+            }
+            self.best[r] = b;
+            self.best_at[r] = ba;
+            self.second[r] = s;
+            self.second_at[r] = sa;
+        }
+    }
+
+    /// Reads the window around the peak of `line` and decides its status and centre.
+    fn judge(
+        &self,
+        io: &Io<'_, '_>,
+        cfg: &StripeConfig,
+        line: usize,
+        length: usize,
+        threshold: u16,
+    ) -> StripePoint {
+        let mut point = StripePoint::NONE;
+        if self.best[line] == 0 {
+            return point;
+        }
+        let rough = usize::from(self.best_at[line]);
+        let start = rough.saturating_sub(cfg.half_window);
+        let end = (rough + cfg.half_window + 1).min(length);
+        let n = end - start;
+        let mut sig = [0u16; MAX_WINDOW];
+        let mut clipped = [false; MAX_WINDOW];
+        for (k, i) in (start..end).enumerate() {
+            (sig[k], clipped[k]) = io.sample(line, i, 0);
+        }
+        let window = Window {
+            signal: &sig[..n],
+            clipped: &clipped[..n],
+            rough: rough - start,
+        };
+        let shape = window.shape();
+        point.peak = sig[shape.peak_index];
+        point.width = shape.fwhm;
+        let t3 = 3 * u32::from(threshold);
+        let strong_second = u32::from(self.second[line]) > t3
+            && f32::from(self.second[line]) > cfg.ambiguity * f32::from(self.best[line]);
+        point.status = if point.peak < threshold {
+            Status::NoStripe
+        } else if strong_second {
+            Status::Ambiguous
+        } else if shape.clipped_run > cfg.max_plateau {
+            Status::Saturated
+        } else if shape.fwhm > cfg.max_width {
+            Status::TooWide
+        } else if shape.fwhm < cfg.min_width {
+            Status::TooNarrow
+        } else {
+            Status::Valid
+        };
+        if point.status != Status::Valid {
+            return point;
+        }
+        let mut sobel = [0i32; MAX_WINDOW];
+        if cfg.estimator == Estimator::Paper {
+            io.sobel(line, start, end, &mut sobel[..n]);
+        }
+        match window.centre(&shape, cfg.estimator, &sobel[..n]) {
+            Some(c) if c.is_finite() => {
+                let origin = match cfg.axis {
+                    Axis::Columns => io.roi.y,
+                    Axis::Rows => io.roi.x,
+                };
+                point.centre = (origin + start) as f32 + c;
+            }
+            _ => point.status = Status::BadProfile,
+        }
+        point
+    }
+}
+
+/// The frame, the reference (the frame itself for LIM without one), method and region.
+struct Io<'f, 'd> {
+    frame: &'f Frame<'d>,
+    reference: &'f Frame<'d>,
+    method: Method,
+    axis: Axis,
+    roi: Roi,
+}
+
+impl Io<'_, '_> {
+    /// Signal and clipping of sample `i` of `line`, with `line` shifted by `dl` lines (clamped to
+    /// the region).
+    fn sample(&self, line: usize, i: usize, dl: isize) -> (u16, bool) {
+        let (x, y) = self.sample_xy(line, i, dl);
+        signal::pixel(
+            self.frame.format(),
+            self.method,
+            self.frame.row(y),
+            self.reference.row(y),
+            x,
+        )
+    }
+
+    fn sample_xy(&self, line: usize, i: usize, dl: isize) -> (usize, usize) {
+        let clamp = |v: isize, n: usize| v.clamp(0, n as isize - 1) as usize;
+        match self.axis {
+            Axis::Columns => (
+                self.roi.x + clamp(line as isize + dl, self.roi.width),
+                self.roi.y + i,
+            ),
+            Axis::Rows => (
+                self.roi.x + i,
+                self.roi.y + clamp(line as isize + dl, self.roi.height),
+            ),
+        }
+    }
+
+    /// Sobel response along the line (derivative along the line, smoothed [1 2 1] across lines)
+    /// for samples `start..end`.
+    fn sobel(&self, line: usize, start: usize, end: usize, out: &mut [i32]) {
+        let len = match self.axis {
+            Axis::Columns => self.roi.height,
+            Axis::Rows => self.roi.width,
+        };
+        for (k, i) in (start..end).enumerate() {
+            if i == 0 || i + 1 >= len {
+                out[k] = 0;
+                continue;
+            }
+            let mut g = 0i32;
+            for (dl, w) in [(-1isize, 1i32), (0, 2), (1, 1)] {
+                g += w
+                    * (i32::from(self.sample(line, i + 1, dl).0)
+                        - i32::from(self.sample(line, i - 1, dl).0));
+            }
+            out[k] = g;
+        }
+    }
+}
+
+/// DIM threshold: six robust standard deviations of the signed change above its median, from
+/// every [`SAMPLE_STEP`]-th row of the region (stripe pixels are too few to move a median).
+fn dim_threshold(io: &Io<'_, '_>) -> u16 {
+    let mut hist = [0u32; 511];
+    let mut n = 0u32;
+    let Roi {
+        x,
+        y,
+        width,
+        height,
+    } = io.roi;
+    for r in (y..y + height).step_by(SAMPLE_STEP) {
+        let (row, reference) = (io.frame.row(r), io.reference.row(r));
+        for c in x..x + width {
+            let d = signal::signed_change(io.frame.format(), row, reference, c);
+            hist[(d + 255) as usize] += 1;
+            n += 1;
+        }
+    }
+    let median = quantile(&hist, n, 0.5) as i32 - 255;
+    let mut dev = [0u32; 511];
+    for (i, &h) in hist.iter().enumerate() {
+        dev[(i as i32 - 255 - median).unsigned_abs() as usize] += h;
+    }
+    let mad = quantile(&dev, n, 0.5) as f32;
+    // quantised noise can have MAD 0: floor at half a level
+    let sigma = (1.4826 * mad).max(0.5);
+    let level = match io.frame.format() {
+        PixelFormat::Gray8 | PixelFormat::Yuyv => median.max(0) as f32 + 6.0 * sigma,
+        // eq. 11 sums three squared changes and the signal is that sum / 9
+        PixelFormat::Rgb24 => 3.0 * (5.0 * sigma) * (5.0 * sigma) / 9.0,
+    };
+    libm::ceilf(level).clamp(3.0, 60_000.0) as u16
+}
+
+/// LIM threshold (paper section 4): halfway between the bright tail of the background (99.9th
+/// percentile of the reference's luma, or the frame's, over every [`SAMPLE_STEP`]-th row) and the
+/// median peak of the lines that rise above that tail.
+fn lim_threshold(io: &Io<'_, '_>, best: &[u16]) -> u16 {
+    let mut hist = [0u32; 256];
+    let mut n = 0u32;
+    let Roi {
+        x,
+        y,
+        width,
+        height,
+    } = io.roi;
+    for r in (y..y + height).step_by(SAMPLE_STEP) {
+        let row = io.reference.row(r);
+        for c in x..x + width {
+            hist[usize::from(signal::luma_of(io.frame.format(), row, c))] += 1;
+            n += 1;
+        }
+    }
+    let tail = quantile(&hist, n, 0.999) as u16;
+    let mut peaks = [0u32; 256];
+    let mut m = 0u32;
+    for &b in best {
+        let p = b / 3; // mean of the three samples under the 3×1 mask
+        if p > tail {
+            peaks[usize::from(p.min(255))] += 1;
+            m += 1;
+        }
+    }
+    if m == 0 {
+        return tail.saturating_add(1);
+    }
+    let median_peak = quantile(&peaks, m, 0.5) as u16;
+    tail + (median_peak - tail).div_ceil(2)
+}
+
+/// The smallest bin index whose cumulative count reaches `q` of `n`.
+fn quantile(hist: &[u32], n: u32, q: f32) -> usize {
+    let target = libm::ceilf(q * n as f32).max(1.0) as u64;
+    let mut acc = 0u64;
+    for (i, &h) in hist.iter().enumerate() {
+        acc += u64::from(h);
+        if acc >= target {
+            return i;
+        }
+    }
+    hist.len() - 1
+}
