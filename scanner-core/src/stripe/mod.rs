@@ -8,9 +8,10 @@
 //!    the strongest peak and the strongest peak at least `separation` lines away from it (a
 //!    competing reflection or glint). The update is branch-free over contiguous arrays, so it
 //!    vectorises. Row mode reads each row once, contiguously.
-//! 2. **Threshold.** Automatic, no user setting: DIM from a robust noise estimate (median absolute
-//!    deviation of the signed change) over every 8th row; LIM from the histogram of the laser-off
-//!    reference (or of the frame) against the histogram of the lines' peaks (section 4).
+//! 2. **Threshold.** Automatic, no user setting: DIM from a robust noise estimate of the signed
+//!    change over every 8th row (its mode, and its spread below the mode); LIM from the histogram
+//!    of the laser-off reference (or of the frame) against the histogram of the lines' peaks
+//!    (section 4).
 //! 3. **Per line**, a window of `2 × half_window + 1` samples around the peak is read again (a
 //!    few cache lines) and judged: no stripe, competing peaks, saturated plateau, too wide, too
 //!    narrow — or a centre from the chosen [`Estimator`].
@@ -83,8 +84,10 @@ pub struct StripeConfig {
 }
 
 impl StripeConfig {
-    /// Defaults for a method and axis: whole frame, Gaussian estimator, widths 1–14 px, plateaus
-    /// up to 6 px, ambiguity 0.5, separation 10 px, window ±16 px.
+    /// Defaults for a method and axis: whole frame, Gaussian estimator, widths 1.5–14 px (narrower is
+    /// undersampled: no subpixel centre in it), plateaus
+    /// up to 12 px, ambiguity 0.5, separation 10 px, window ±24 px (the background at
+    /// the window's ends must be off the widest accepted stripe: 3σ for 14 px FWHM).
     pub const fn new(method: Method, axis: Axis) -> Self {
         Self {
             axis,
@@ -92,11 +95,11 @@ impl StripeConfig {
             method,
             estimator: Estimator::Gaussian,
             max_width: 14.0,
-            min_width: 1.0,
-            max_plateau: 6,
+            min_width: 1.5,
+            max_plateau: 12,
             ambiguity: 0.5,
             separation: 10,
-            half_window: 16,
+            half_window: 24,
         }
     }
 }
@@ -255,7 +258,9 @@ fn track(
 ) {
     let far_b = at.wrapping_sub(*best_at) > sep;
     let far_s = at.wrapping_sub(*second_at) > sep;
-    let gt = t > *best;
+    // Ties move the peak forward: on a clipped plateau it then ends at the plateau's far end and
+    // the plateau's own shoulders stay within `sep` instead of looking like a rival.
+    let gt = t >= *best;
     let cand_b = if far_b { *best } else { 0 };
     let cand_s = if far_s { *second } else { 0 };
     let (demote, demote_at) = if cand_b >= cand_s {
@@ -606,11 +611,12 @@ impl Io<'_, '_> {
     }
 }
 
-/// DIM threshold: six robust standard deviations of the signed change above its median, from
-/// every [`SAMPLE_STEP`]-th row of the region (stripe pixels are too few to move a median).
+/// DIM threshold: the background change sits at the mode of the signed change over every
+/// [`SAMPLE_STEP`]-th row; its noise is measured on the side below the mode only (laser light only
+/// adds, so that side is stripe-free however much of the frame the stripe covers); the threshold
+/// is six of those standard deviations above the mode.
 fn dim_threshold(io: &Io<'_, '_>) -> u16 {
     let mut hist = [0u32; 511];
-    let mut n = 0u32;
     let Roi {
         x,
         y,
@@ -622,19 +628,20 @@ fn dim_threshold(io: &Io<'_, '_>) -> u16 {
         for c in x..x + width {
             let d = signal::signed_change(io.frame.format(), row, reference, c);
             hist[(d + 255) as usize] += 1;
-            n += 1;
         }
     }
-    let median = quantile(&hist, n, 0.5) as i32 - 255;
-    let mut dev = [0u32; 511];
-    for (i, &h) in hist.iter().enumerate() {
-        dev[(i as i32 - 255 - median).unsigned_abs() as usize] += h;
+    let mode = (0..hist.len()).fold(0, |m, i| if hist[i] > hist[m] { i } else { m });
+    // half-normal below the mode: its median is 0.6745 σ; the mode bin is split evenly
+    let mut below = [0u32; 511];
+    for (i, &h) in hist[..mode].iter().enumerate() {
+        below[mode - i] += 2 * h;
     }
-    let mad = quantile(&dev, n, 0.5) as f32;
-    // quantised noise can have MAD 0: floor at half a level
-    let sigma = (1.4826 * mad).max(0.5);
+    below[0] = hist[mode];
+    let n: u32 = below.iter().sum();
+    let sigma = (1.4826 * quantile(&below, n, 0.5) as f32).max(0.5);
+    let centre = (mode as i32 - 255).max(0) as f32;
     let level = match io.frame.format() {
-        PixelFormat::Gray8 | PixelFormat::Yuyv => median.max(0) as f32 + 6.0 * sigma,
+        PixelFormat::Gray8 | PixelFormat::Yuyv => centre + 6.0 * sigma,
         // eq. 11 sums three squared changes and the signal is that sum / 9
         PixelFormat::Rgb24 => 3.0 * (5.0 * sigma) * (5.0 * sigma) / 9.0,
     };

@@ -1,0 +1,418 @@
+//! Stripe extraction: accuracy bounds on the synthetic bench, every rejection reason, every pixel
+//! format, row mode, stride and region of interest, hostile frames, and the row-major kernel
+//! against a column-by-column reference.
+
+mod support;
+
+use proptest::prelude::*;
+use scanner_core::stripe::{
+    Axis, Estimator, Extractor, Frame, FrameError, Method, PixelFormat, Roi, Status, StripeConfig,
+    StripeError,
+};
+use support::stripes::{HEIGHT, WIDTH, bench, mean, percentile, synthetic};
+
+type Ex = Extractor<256>;
+
+fn extractor() -> Box<Ex> {
+    Box::new(Ex::new())
+}
+
+fn gray(data: &[u8]) -> Frame<'_> {
+    Frame::packed(data, WIDTH, HEIGHT, PixelFormat::Gray8).unwrap()
+}
+
+#[test]
+fn accuracy_bounds_of_the_best_estimator() {
+    for method in [Method::Dim, Method::Lim] {
+        let e = bench(Estimator::Gaussian, method, 2.0, 2);
+        let high: Vec<f64> = e.high.iter().chain(&e.clipped).copied().collect();
+        let (m, p95) = (mean(&high), percentile(&high, 0.95));
+        let valid = e.valid_high as f64 / e.judged_high as f64;
+        println!(
+            "{method:?} Gaussian: mean {m:.4} px, p95 {p95:.4} px, valid {:.1} %",
+            100.0 * valid
+        );
+        assert!(m <= 0.05 && p95 <= 0.15, "{method:?}: mean {m}, p95 {p95}");
+        assert!(
+            valid >= 0.99,
+            "{method:?}: only {valid} of the ≥ 60 DN columns valid"
+        );
+        // the paper's estimator is measured beside it, and is worse
+        let paper = bench(Estimator::Paper, method, 2.0, 1);
+        let ph: Vec<f64> = paper.high.iter().chain(&paper.clipped).copied().collect();
+        assert!(mean(&ph) > m, "paper {} vs gaussian {m}", mean(&ph));
+    }
+}
+
+#[test]
+fn identical_frames_have_no_stripe() {
+    let s = synthetic(2.0, 0.0, 2.0, 3);
+    let mut ex = extractor();
+    let f = gray(&s.reference);
+    let res = ex
+        .extract(&f, Some(&f), &StripeConfig::new(Method::Dim, Axis::Columns))
+        .unwrap();
+    assert!(res.points.iter().all(|p| p.status == Status::NoStripe));
+}
+
+/// A frame built from a function of (x, y) → value, with a flat reference at 20 DN.
+fn build(f: impl Fn(usize, usize) -> f64) -> (Vec<u8>, Vec<u8>) {
+    let mut frame = vec![0u8; WIDTH * HEIGHT];
+    for y in 0..HEIGHT {
+        for x in 0..WIDTH {
+            frame[y * WIDTH + x] = (20.0 + f(x, y)).round().clamp(0.0, 255.0) as u8;
+        }
+    }
+    (frame, vec![20u8; WIDTH * HEIGHT])
+}
+
+fn gauss(y: usize, c: f64, s: f64) -> f64 {
+    let u = y as f64 - c;
+    (-u * u / (2.0 * s * s)).exp()
+}
+
+fn statuses(frame: &[u8], reference: &[u8]) -> Vec<Status> {
+    let mut ex = extractor();
+    let res = ex
+        .extract(
+            &gray(frame),
+            Some(&gray(reference)),
+            &StripeConfig::new(Method::Dim, Axis::Columns),
+        )
+        .unwrap();
+    res.points.iter().map(|p| p.status).collect()
+}
+
+#[test]
+fn every_rejection_reason() {
+    // two stripes 24 rows apart, the second at 80 %: competing peaks
+    let (f, r) = build(|_, y| 150.0 * gauss(y, 20.0, 2.0) + 120.0 * gauss(y, 44.0, 2.0));
+    assert!(statuses(&f, &r).iter().all(|&s| s == Status::Ambiguous));
+    // a weak second stripe (30 %) is not a rival
+    let (f, r) = build(|_, y| 150.0 * gauss(y, 20.0, 2.0) + 45.0 * gauss(y, 44.0, 2.0));
+    assert!(statuses(&f, &r).iter().all(|&s| s == Status::Valid));
+    // a glint: a clipped plateau 20 rows wide
+    let (f, r) = build(|_, y| if (22..42).contains(&y) { 400.0 } else { 0.0 });
+    assert!(statuses(&f, &r).iter().all(|&s| s == Status::Saturated));
+    // a wide, unclipped blur: σ 8 px (FWHM 19 px)
+    let (f, r) = build(|_, y| 150.0 * gauss(y, 32.0, 8.0));
+    assert!(statuses(&f, &r).iter().all(|&s| s == Status::TooWide));
+    // a single bright row (a line of hot pixels): too narrow
+    let (f, r) = build(|_, y| if y == 30 { 150.0 } else { 0.0 });
+    assert!(statuses(&f, &r).iter().all(|&s| s == Status::TooNarrow));
+}
+
+#[test]
+fn formats_agree() {
+    let s = synthetic(2.0, 150.0, 2.0, 11);
+    let mut ex = extractor();
+    let cfg = StripeConfig::new(Method::Dim, Axis::Columns);
+    let base: Vec<f32> = ex
+        .extract(&gray(&s.frame), Some(&gray(&s.reference)), &cfg)
+        .unwrap()
+        .points
+        .iter()
+        .map(|p| p.centre)
+        .collect();
+    // YUYV: Y in the even bytes, chroma anything
+    let yuyv = |g: &[u8]| -> Vec<u8> {
+        g.iter()
+            .enumerate()
+            .flat_map(|(i, &v)| [v, (i * 37 % 251) as u8])
+            .collect()
+    };
+    let (fy, ry) = (yuyv(&s.frame), yuyv(&s.reference));
+    let f = Frame::packed(&fy, WIDTH, HEIGHT, PixelFormat::Yuyv).unwrap();
+    let r = Frame::packed(&ry, WIDTH, HEIGHT, PixelFormat::Yuyv).unwrap();
+    let got: Vec<f32> = ex
+        .extract(&f, Some(&r), &cfg)
+        .unwrap()
+        .points
+        .iter()
+        .map(|p| p.centre)
+        .collect();
+    assert_eq!(got, base, "YUYV reads the same luma");
+    // RGB: a red laser on gray ambient; eq. 11 (squared change) keeps the centre
+    let rgb = |g: &[u8], laser: bool| -> Vec<u8> {
+        g.iter()
+            .zip(&s.reference)
+            .flat_map(|(&v, &a)| if laser { [v, a, a] } else { [a, a, a] })
+            .collect()
+    };
+    let (fr, rr) = (rgb(&s.frame, true), rgb(&s.reference, false));
+    let f = Frame::packed(&fr, WIDTH, HEIGHT, PixelFormat::Rgb24).unwrap();
+    let r = Frame::packed(&rr, WIDTH, HEIGHT, PixelFormat::Rgb24).unwrap();
+    let res = ex.extract(&f, Some(&r), &cfg).unwrap();
+    let errs: Vec<f64> = res
+        .points
+        .iter()
+        .zip(&s.truth)
+        .filter(|(p, _)| p.status == Status::Valid)
+        .map(|(p, t)| (f64::from(p.centre) - t).abs())
+        .collect();
+    assert!(
+        errs.len() >= WIDTH * 99 / 100 && mean(&errs) < 0.05,
+        "RGB: {} valid, mean {}",
+        errs.len(),
+        mean(&errs)
+    );
+    // RGB LIM converts to luma and still finds it
+    let res = ex
+        .extract(&f, Some(&r), &StripeConfig::new(Method::Lim, Axis::Columns))
+        .unwrap();
+    assert!(res.valid().count() >= WIDTH * 9 / 10);
+}
+
+#[test]
+fn rows_mode_is_the_transpose() {
+    let s = synthetic(1.5, 120.0, 2.0, 21);
+    let t = |g: &[u8]| -> Vec<u8> {
+        (0..WIDTH)
+            .flat_map(|x| (0..HEIGHT).map(move |y| g[y * WIDTH + x]))
+            .collect()
+    };
+    let (ft, rt) = (t(&s.frame), t(&s.reference));
+    let mut ex = extractor();
+    let cols: Vec<_> = ex
+        .extract(
+            &gray(&s.frame),
+            Some(&gray(&s.reference)),
+            &StripeConfig::new(Method::Dim, Axis::Columns),
+        )
+        .unwrap()
+        .points
+        .to_vec();
+    let f = Frame::packed(&ft, HEIGHT, WIDTH, PixelFormat::Gray8).unwrap();
+    let r = Frame::packed(&rt, HEIGHT, WIDTH, PixelFormat::Gray8).unwrap();
+    let rows = ex
+        .extract(&f, Some(&r), &StripeConfig::new(Method::Dim, Axis::Rows))
+        .unwrap();
+    assert_eq!(rows.points.len(), WIDTH);
+    for (a, b) in cols.iter().zip(rows.points) {
+        assert_eq!(a.status, b.status);
+        assert!(
+            (a.centre - b.centre).abs() < 1e-4,
+            "{} vs {}",
+            a.centre,
+            b.centre
+        );
+    }
+}
+
+#[test]
+fn stride_and_roi() {
+    let s = synthetic(2.0, 150.0, 2.0, 31);
+    let stride = WIDTH + 13;
+    let pad = |g: &[u8]| -> Vec<u8> {
+        g.chunks(WIDTH)
+            .flat_map(|row| row.iter().copied().chain([255u8; 13]))
+            .collect()
+    };
+    let (fp, rp) = (pad(&s.frame), pad(&s.reference));
+    let f = Frame::new(&fp, WIDTH, HEIGHT, stride, PixelFormat::Gray8).unwrap();
+    let r = Frame::new(&rp, WIDTH, HEIGHT, stride, PixelFormat::Gray8).unwrap();
+    let mut ex = extractor();
+    let cfg = StripeConfig::new(Method::Dim, Axis::Columns);
+    let base: Vec<_> = ex
+        .extract(&gray(&s.frame), Some(&gray(&s.reference)), &cfg)
+        .unwrap()
+        .points
+        .to_vec();
+    let padded = ex.extract(&f, Some(&r), &cfg).unwrap();
+    assert_eq!(padded.points, &base[..], "padding bytes are never read");
+    // a region of interest: columns 50..150, rows 10..60
+    let roi = Roi {
+        x: 50,
+        y: 10,
+        width: 100,
+        height: 50,
+    };
+    let res = ex
+        .extract(
+            &f,
+            Some(&r),
+            &StripeConfig {
+                roi: Some(roi),
+                ..cfg
+            },
+        )
+        .unwrap();
+    assert_eq!((res.first_line, res.points.len()), (50, 100));
+    for (i, p) in res.points.iter().enumerate() {
+        assert_eq!(p.status, Status::Valid);
+        assert!((f64::from(p.centre) - s.truth[50 + i]).abs() < 0.3);
+    }
+}
+
+#[test]
+fn bad_input_is_named() {
+    let buf = [0u8; 100];
+    assert_eq!(
+        Frame::packed(&buf, 0, 10, PixelFormat::Gray8).unwrap_err(),
+        FrameError::Empty
+    );
+    assert_eq!(
+        Frame::packed(&buf, 11, 10, PixelFormat::Gray8).unwrap_err(),
+        FrameError::BufferTooShort {
+            len: 100,
+            needed: 110
+        }
+    );
+    assert_eq!(
+        Frame::new(&buf, 10, 5, 9, PixelFormat::Gray8).unwrap_err(),
+        FrameError::StrideTooShort {
+            stride: 9,
+            needed: 10
+        }
+    );
+    assert_eq!(
+        Frame::packed(&buf, 5, 2, PixelFormat::Yuyv).unwrap_err(),
+        FrameError::OddYuyvWidth
+    );
+    let f = Frame::packed(&buf, 10, 10, PixelFormat::Gray8).unwrap();
+    let g = Frame::packed(&buf, 5, 20, PixelFormat::Gray8).unwrap();
+    let mut ex = extractor();
+    let dim = StripeConfig::new(Method::Dim, Axis::Columns);
+    assert_eq!(
+        ex.extract(&f, None, &dim).unwrap_err(),
+        StripeError::NoReference
+    );
+    assert_eq!(
+        ex.extract(&f, Some(&g), &dim).unwrap_err(),
+        StripeError::Frame(FrameError::ReferenceMismatch)
+    );
+    let roi = Roi {
+        x: 5,
+        y: 0,
+        width: 6,
+        height: 10,
+    };
+    assert_eq!(
+        ex.extract(
+            &f,
+            Some(&f),
+            &StripeConfig {
+                roi: Some(roi),
+                ..dim
+            }
+        )
+        .unwrap_err(),
+        StripeError::Frame(FrameError::BadRoi)
+    );
+    let big = vec![0u8; 300 * 2];
+    let wide = Frame::packed(&big, 300, 2, PixelFormat::Gray8).unwrap();
+    assert_eq!(
+        ex.extract(&wide, Some(&wide), &dim).unwrap_err(),
+        StripeError::Frame(FrameError::TooLarge {
+            asked: 300,
+            capacity: 256
+        })
+    );
+    assert!(matches!(
+        ex.extract(
+            &f,
+            Some(&f),
+            &StripeConfig {
+                half_window: 0,
+                ..dim
+            }
+        ),
+        Err(StripeError::BadConfig(_))
+    ));
+    for e in [
+        StripeError::NoReference,
+        StripeError::BadConfig("x"),
+        StripeError::Frame(FrameError::BadRoi),
+    ] {
+        assert!(!e.to_string().is_empty());
+    }
+}
+
+/// Column-by-column reference of the rough stage: the same peak rule written as plain loops.
+fn reference_rough(
+    sig: &dyn Fn(usize, usize) -> u16,
+    w: usize,
+    h: usize,
+    sep: u16,
+) -> Vec<(u16, u16, u16)> {
+    (0..w)
+        .map(|x| {
+            let (mut b, mut ba, mut s, mut sa) = (0u16, 0u16, 0u16, 0u16);
+            for y in 1..h.saturating_sub(1) {
+                let t = sig(x, y - 1) + sig(x, y) + sig(x, y + 1);
+                let at = y as u16;
+                let far = |a: u16, b: u16| a.wrapping_sub(b) > sep;
+                if t >= b {
+                    let cb = if far(at, ba) { b } else { 0 };
+                    let cs = if far(at, sa) { s } else { 0 };
+                    (s, sa) = if cb >= cs { (cb, ba) } else { (cs, sa) };
+                    (b, ba) = (t, at);
+                } else if far(at, ba) && t > s {
+                    (s, sa) = (t, at);
+                }
+            }
+            (b, ba, s)
+        })
+        .collect()
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { failure_persistence: None, cases: 64, ..ProptestConfig::default() })]
+
+    /// Arbitrary bytes, sizes, strides and formats: never a panic, and every valid centre lies
+    /// inside the frame with a finite width.
+    #[test]
+    fn hostile_frames(w in 1usize..40, h in 1usize..40, extra in 0usize..7, fmt in 0usize..3,
+                      bytes in prop::collection::vec(any::<u8>(), 0..8000), cols in any::<bool>(), lim in any::<bool>(),
+                      est in 0usize..3) {
+        let format = [PixelFormat::Gray8, PixelFormat::Yuyv, PixelFormat::Rgb24][fmt];
+        let w = if format == PixelFormat::Yuyv { w * 2 } else { w };
+        let stride = w * format.bytes_per_pixel() + extra;
+        let (half, rest) = bytes.split_at(bytes.len() / 2);
+        let (Ok(f), Ok(r)) = (Frame::new(half, w, h, stride, format), Frame::new(rest, w, h, stride, format)) else {
+            return Ok(());
+        };
+        let mut ex = Box::new(Extractor::<128>::new());
+        let mut cfg = StripeConfig::new(if lim { Method::Lim } else { Method::Dim }, if cols { Axis::Columns } else { Axis::Rows });
+        cfg.estimator = [Estimator::Paper, Estimator::Centroid, Estimator::Gaussian][est];
+        let res = ex.extract(&f, Some(&r), &cfg).unwrap();
+        let len = if cols { h } else { w } as f32;
+        for p in res.points.iter().filter(|p| p.status == Status::Valid) {
+            prop_assert!(p.centre >= -0.5 && p.centre <= len - 0.5, "centre {} outside 0..{len}", p.centre);
+            prop_assert!(p.width.is_finite());
+        }
+    }
+
+    /// The row-major kernel finds the same rough peaks as a column-by-column loop.
+    #[test]
+    fn kernel_matches_column_reference(w in 3usize..60, h in 3usize..60, seed in any::<u64>(), stripes in 0usize..4) {
+        let mut frame = vec![0u8; w * h];
+        let mut x = seed | 1;
+        for (i, v) in frame.iter_mut().enumerate() {
+            x ^= x << 13; x ^= x >> 7; x ^= x << 17;
+            let row = i / w;
+            let stripe = (0..stripes).any(|k| row == (k * 13 + (x as usize % 3)) % h);
+            *v = if stripe { 120 + (x % 120) as u8 } else { (x % 40) as u8 };
+        }
+        let reference = vec![10u8; w * h];
+        let f = Frame::packed(&frame, w, h, PixelFormat::Gray8).unwrap();
+        let r = Frame::packed(&reference, w, h, PixelFormat::Gray8).unwrap();
+        let mut ex = Box::new(Extractor::<64>::new());
+        let cfg = StripeConfig::new(Method::Dim, Axis::Columns);
+        let res = ex.extract(&f, Some(&r), &cfg).unwrap();
+        let sig = |x: usize, y: usize| u16::from(frame[y * w + x].saturating_sub(10));
+        let rough = reference_rough(&sig, w, h, cfg.separation);
+        for (x, (p, &(best, at, second))) in res.points.iter().zip(&rough).enumerate() {
+            // the reported peak is the largest sample within ±2 of the rough centre
+            if best == 0 { prop_assert_eq!(p.status, Status::NoStripe); continue; }
+            let lo = usize::from(at).saturating_sub(2);
+            let hi = (usize::from(at) + 3).min(h);
+            let peak = (lo..hi).map(|y| sig(x, y)).max().unwrap();
+            prop_assert_eq!(p.peak, peak, "column {}", x);
+            let rival = u32::from(second) > 3 * u32::from(res.threshold) && f32::from(second) > cfg.ambiguity * f32::from(best);
+            if peak >= res.threshold {
+                prop_assert_eq!(p.status == Status::Ambiguous, rival, "column {}", x);
+            }
+        }
+    }
+}
