@@ -34,19 +34,75 @@ pub struct Window<'a> {
     pub rough: usize,
 }
 
+/// Largest window an estimator handles.
+pub const MAX_WINDOW: usize = 2 * super::MAX_HALF_WINDOW + 1;
+
 /// Peak, background and extent of the stripe in a window.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Shape {
-    /// Index of the largest sample.
+    /// Index of the largest sample near the rough centre.
     pub peak_index: usize,
-    /// Largest sample.
+    /// Largest sample near the rough centre.
     pub peak: f32,
+    /// Height of the peak above the background.
+    pub height: f32,
     /// Background at the window's first sample and its slope per sample.
     pub background: (f32, f32),
-    /// Full width at half maximum above the background, samples.
+    /// Half-maximum crossings, samples.
+    pub half_max: (f32, f32),
+    /// Full width at half maximum (`half_max.1 − half_max.0`), samples. Where the raw profile is
+    /// a single hot or clipped pixel on top of a wider stripe (seen on real webcam frames), the
+    /// width of the 3-sample median of the profile instead, which is the stripe's.
     pub fwhm: f32,
     /// Longest run of clipped samples touching the peak's run.
     pub clipped_run: usize,
+    /// `2.3548 ×` the standard deviation of the light above 15 % of the height over the whole
+    /// window, samples: equal to the FWHM for a Gaussian, a little below it for a flat top, and
+    /// far above it when the stripe sits on a halo of scattered light (a glint nearby).
+    pub spread: f32,
+}
+
+/// Linear background through the means of the two samples at each end: `(b0, slope)`.
+fn linear_background(v: &[f32]) -> (f32, f32) {
+    let n = v.len();
+    let k = n.min(2);
+    let head = v[..k].iter().sum::<f32>() / k as f32;
+    let tail = v[n - k..].iter().sum::<f32>() / k as f32;
+    let slope = if n > k {
+        (tail - head) / (n - k) as f32
+    } else {
+        0.0
+    };
+    (head - slope * (k as f32 - 1.0) / 2.0, slope)
+}
+
+/// Half-maximum crossings of `v` around `top` above the background `bg`.
+fn crossings(v: &[f32], bg: (f32, f32), top: usize) -> (f32, f32) {
+    let n = v.len();
+    let b = |i: usize| bg.0 + bg.1 * i as f32;
+    let height = v[top] - b(top);
+    let half = |i: usize| v[i] - b(i) - height / 2.0;
+    let mut i = top;
+    while i > 0 && half(i - 1) > 0.0 {
+        i -= 1;
+    }
+    let left = if i > 0 {
+        let (a, c) = (half(i - 1), half(i));
+        (i - 1) as f32 + a / (a - c)
+    } else {
+        0.0
+    };
+    let mut j = top;
+    while j + 1 < n && half(j + 1) > 0.0 {
+        j += 1;
+    }
+    let right = if j + 1 < n {
+        let (a, c) = (half(j), half(j + 1));
+        j as f32 + a / (a - c)
+    } else {
+        (n - 1) as f32
+    };
+    (left, right)
 }
 
 impl Window<'_> {
@@ -54,75 +110,83 @@ impl Window<'_> {
         shape.background.0 + shape.background.1 * i as f32
     }
 
-    /// Linear background through the means of the two samples at each end; the peak; the FWHM.
+    /// Background, peak, height and FWHM of the window (see [`Shape`]).
     pub fn shape(&self) -> Shape {
-        let s = self.signal;
-        let n = s.len();
-        let k = n.min(2);
-        let head = s[..k].iter().map(|&v| f32::from(v)).sum::<f32>() / k as f32;
-        let tail = s[n - k..].iter().map(|&v| f32::from(v)).sum::<f32>() / k as f32;
-        let slope = if n > k {
-            (tail - head) / (n - k) as f32
-        } else {
-            0.0
-        };
-        let b0 = head - slope * (k as f32 - 1.0) / 2.0;
+        let n = self.signal.len().min(MAX_WINDOW);
+        let mut raw = [0f32; MAX_WINDOW];
+        for (r, &v) in raw.iter_mut().zip(&self.signal[..n]) {
+            *r = f32::from(v);
+        }
+        let raw = &raw[..n];
+        let background = linear_background(raw);
+        let bg = |i: usize| background.0 + background.1 * i as f32;
         // the peak nearest the rough centre: the largest sample within ±2 of it
-        let lo = self.rough.saturating_sub(2);
+        let lo = self.rough.min(n - 1).saturating_sub(2);
         let hi = (self.rough + 3).min(n);
-        let mut peak_index = lo;
-        for i in lo..hi {
-            if s[i] > s[peak_index] {
-                peak_index = i;
+        let peak_index = (lo..hi).fold(lo, |p, i| if raw[i] > raw[p] { i } else { p });
+        let mut half_max = crossings(raw, background, peak_index);
+        if half_max.1 - half_max.0 < 1.5 {
+            // a one-pixel spike? measure the stripe under it on the 3-sample median
+            let mut med = [0f32; MAX_WINDOW];
+            for i in 0..n {
+                let (a, b, c) = (raw[i.saturating_sub(1)], raw[i], raw[(i + 1).min(n - 1)]);
+                med[i] = a.max(b).min(a.min(b).max(c));
+            }
+            let med = &med[..n];
+            let mbg = linear_background(med);
+            let top = (lo..hi).fold(lo, |p, i| if med[i] > med[p] { i } else { p });
+            if med[top] - (mbg.0 + mbg.1 * top as f32) > 0.0 {
+                let m = crossings(med, mbg, top);
+                if m.1 - m.0 > half_max.1 - half_max.0 {
+                    half_max = m;
+                }
             }
         }
-        let mut shape = Shape {
-            peak_index,
-            peak: f32::from(s[peak_index]),
-            background: (b0, slope),
-            fwhm: 0.0,
-            clipped_run: 0,
-        };
-        let height = shape.peak - self.bg(&shape, peak_index);
-        let half = |i: usize| f32::from(s[i]) - self.bg(&shape, i) - height / 2.0;
-        // walk out from the peak to the half-height crossings, interpolating linearly
-        let mut left = 0.0;
-        let mut i = peak_index;
-        while i > 0 && half(i - 1) > 0.0 {
-            i -= 1;
-        }
-        if i > 0 {
-            let (a, b) = (half(i - 1), half(i));
-            left = (i - 1) as f32 + a / (a - b);
-        }
-        let mut right = (n - 1) as f32;
-        let mut j = peak_index;
-        while j + 1 < n && half(j + 1) > 0.0 {
-            j += 1;
-        }
-        if j + 1 < n {
-            let (a, b) = (half(j), half(j + 1));
-            right = j as f32 + a / (a - b);
-        }
-        shape.fwhm = right - left;
         // clipped run through the peak region
-        let (mut a, mut b) = (peak_index, peak_index);
+        let mut clipped_run = 0;
         if self.clipped[peak_index] {
+            let (mut a, mut b) = (peak_index, peak_index);
             while a > 0 && self.clipped[a - 1] {
                 a -= 1;
             }
             while b + 1 < n && self.clipped[b + 1] {
                 b += 1;
             }
-            shape.clipped_run = b - a + 1;
+            clipped_run = b - a + 1;
         }
-        shape
+        let height = raw[peak_index] - bg(peak_index);
+        let (mut m0, mut m1, mut m2) = (0f32, 0f32, 0f32);
+        for (i, &v) in raw.iter().enumerate() {
+            let w = v - bg(i) - 0.15 * height;
+            if w > 0.0 {
+                let u = i as f32 - peak_index as f32;
+                m0 += w;
+                m1 += w * u;
+                m2 += w * u * u;
+            }
+        }
+        let spread = if m0 > 0.0 {
+            let mean = m1 / m0;
+            2.3548 * libm::sqrtf((m2 / m0 - mean * mean).max(0.0))
+        } else {
+            0.0
+        };
+        Shape {
+            peak_index,
+            peak: raw[peak_index],
+            height,
+            background,
+            half_max,
+            fwhm: half_max.1 - half_max.0,
+            clipped_run,
+            spread,
+        }
     }
 
     /// The contiguous run around the peak where the background-subtracted signal exceeds
     /// `fraction` of the peak height, as `(first, last)` inclusive.
     fn run(&self, shape: &Shape, fraction: f32) -> (usize, usize) {
-        let height = shape.peak - self.bg(shape, shape.peak_index);
+        let height = shape.height;
         let level = |i: usize| f32::from(self.signal[i]) - self.bg(shape, i) > fraction * height;
         let (mut a, mut b) = (shape.peak_index, shape.peak_index);
         while a > 0 && level(a - 1) {
@@ -174,7 +238,7 @@ impl Window<'_> {
     }
 
     fn centroid(&self, shape: &Shape) -> Option<f32> {
-        let height = shape.peak - self.bg(shape, shape.peak_index);
+        let height = shape.height;
         if !(height > 0.0) {
             return None;
         }
@@ -191,7 +255,7 @@ impl Window<'_> {
     }
 
     fn gaussian(&self, shape: &Shape) -> Option<f32> {
-        let height = shape.peak - self.bg(shape, shape.peak_index);
+        let height = shape.height;
         if !(height > 0.0) {
             return None;
         }
@@ -221,8 +285,16 @@ impl Window<'_> {
             return None;
         }
         let offset = -p.y / (2.0 * p.z);
-        // the vertex must lie within the samples used, else the fit is meaningless
-        if !(offset.abs() <= (b - a) as f32 / 2.0 + 1.0) {
+        // A Gaussian fit is trusted only where the profile looks Gaussian: the vertex between the
+        // half-maximum crossings and the fitted width within 2× of the measured one. Flat-topped
+        // or spiky real profiles fail this and fall back to the centroid.
+        let vertex = c + offset;
+        let fitted_fwhm = 2.3548 * libm::sqrtf(-1.0 / (2.0 * p.z));
+        let consistent = vertex >= shape.half_max.0
+            && vertex <= shape.half_max.1
+            && fitted_fwhm <= 2.0 * shape.fwhm
+            && 2.0 * fitted_fwhm >= shape.fwhm;
+        if !consistent {
             return None;
         }
         Some(c + offset)

@@ -23,7 +23,7 @@ mod estimate;
 mod frame;
 mod signal;
 
-pub use estimate::{Estimator, Shape, Window};
+pub use estimate::{Estimator, MAX_WINDOW, Shape, Window};
 pub use frame::{Frame, FrameError, PixelFormat};
 pub use signal::Method;
 
@@ -31,7 +31,6 @@ use core::fmt;
 
 /// Largest `half_window` an extractor accepts.
 pub const MAX_HALF_WINDOW: usize = 48;
-const MAX_WINDOW: usize = 2 * MAX_HALF_WINDOW + 1;
 /// The automatic thresholds sample every this many rows.
 pub const SAMPLE_STEP: usize = 8;
 
@@ -84,7 +83,8 @@ pub struct StripeConfig {
 }
 
 impl StripeConfig {
-    /// Defaults for a method and axis: whole frame, Gaussian estimator, widths 1.5–14 px (narrower is
+    /// Defaults for a method and axis: whole frame, centroid estimator (the most robust on real
+    /// webcam profiles, see the README), widths 1.5–14 px (narrower is
     /// undersampled: no subpixel centre in it), plateaus
     /// up to 12 px, ambiguity 0.5, separation 10 px, window ±24 px (the background at
     /// the window's ends must be off the widest accepted stripe: 3σ for 14 px FWHM).
@@ -93,7 +93,7 @@ impl StripeConfig {
             axis,
             roi: None,
             method,
-            estimator: Estimator::Gaussian,
+            estimator: Estimator::Centroid,
             max_width: 14.0,
             min_width: 1.5,
             max_plateau: 12,
@@ -115,7 +115,8 @@ pub enum Status {
     Ambiguous,
     /// A clipped plateau wider than allowed (glint or specular highlight).
     Saturated,
-    /// Wider than allowed.
+    /// Wider than allowed, or sitting on a halo of scattered light much wider than the stripe
+    /// (a glint or reflection next to it) that would pull its centre.
     TooWide,
     /// Narrower than allowed (a hot pixel, not a stripe).
     TooNarrow,
@@ -523,7 +524,7 @@ impl<const W: usize> Extractor<W> {
             Status::Ambiguous
         } else if shape.clipped_run > cfg.max_plateau {
             Status::Saturated
-        } else if shape.fwhm > cfg.max_width {
+        } else if shape.fwhm > cfg.max_width || shape.spread > 2.0 * shape.fwhm + 1.0 {
             Status::TooWide
         } else if shape.fwhm < cfg.min_width {
             Status::TooNarrow

@@ -268,4 +268,5 @@ pub fn rel32(a: &Point3<f32>, b: &Point3<f64>) -> f64 {
 }
 
 pub mod monte_carlo;
+pub mod real;
 pub mod stripes;

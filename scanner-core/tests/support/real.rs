@@ -1,0 +1,168 @@
+//! The real photographs in `tests/data/real-stripes/`: two vertical stripes per image, extracted
+//! in row mode with the difference-image method inside a band around each stripe, over the rows
+//! where the stripe lies on the flat chessboard. Each stripe's centres are then fitted with a
+//! quadratic x(y) (a straight line up to lens distortion).
+
+use scanner_core::stripe::{
+    Axis, Estimator, Extractor, Frame, Method, PixelFormat, Roi, Status, StripeConfig,
+};
+
+/// One stripe of one photograph.
+pub struct Case {
+    pub image: &'static str,
+    pub stripe: &'static str,
+    /// Band around the stripe (columns) × the rows where it lies on the board.
+    pub roi: Roi,
+    /// Rows where the stripe crosses a glint, if any.
+    pub glint: Option<(usize, usize)>,
+}
+
+/// Bands and board rows read off the photographs (README of the data).
+pub const CASES: [Case; 4] = [
+    Case {
+        image: "board-two-lasers",
+        stripe: "left",
+        roi: Roi {
+            x: 240,
+            y: 470,
+            width: 70,
+            height: 550,
+        },
+        glint: None,
+    },
+    Case {
+        image: "board-two-lasers",
+        stripe: "right",
+        roi: Roi {
+            x: 555,
+            y: 470,
+            width: 70,
+            height: 550,
+        },
+        glint: None,
+    },
+    Case {
+        image: "board-two-lasers-b",
+        stripe: "left",
+        roi: Roi {
+            x: 280,
+            y: 465,
+            width: 70,
+            height: 535,
+        },
+        glint: Some((565, 636)),
+    },
+    Case {
+        image: "board-two-lasers-b",
+        stripe: "right",
+        roi: Roi {
+            x: 605,
+            y: 465,
+            width: 70,
+            height: 535,
+        },
+        glint: None,
+    },
+];
+
+pub fn load(name: &str) -> (Vec<u8>, usize, usize) {
+    let path = format!(
+        "{}/tests/data/real-stripes/{name}.png",
+        env!("CARGO_MANIFEST_DIR")
+    );
+    let img = image::open(&path)
+        .unwrap_or_else(|e| panic!("{path}: {e}"))
+        .to_rgb8();
+    let (w, h) = (img.width() as usize, img.height() as usize);
+    (img.into_raw(), w, h)
+}
+
+/// What one stripe gave.
+#[derive(Debug, Clone)]
+pub struct Outcome {
+    /// Board rows judged (outside the glint).
+    pub rows: usize,
+    /// Of those, rows with a valid centre.
+    pub valid: usize,
+    /// RMS and largest residual of the valid centres from the fitted quadratic, px.
+    pub rms: f64,
+    pub max: f64,
+    /// Glint rows, how many of them were rejected, and the largest distance of a valid centre
+    /// there from the curve fitted outside the glint.
+    pub glint_rows: usize,
+    pub glint_rejected: usize,
+    pub glint_max_off: f64,
+    /// Status counts over all rows of the band.
+    pub statuses: Vec<(Status, usize)>,
+}
+
+fn fit_quadratic(pts: &[(f64, f64)]) -> impl Fn(f64) -> f64 + use<> {
+    use scanner_core::nalgebra::{Matrix3, Vector3};
+    let y0 = pts.iter().map(|p| p.0).sum::<f64>() / pts.len() as f64;
+    let (mut a, mut b) = (Matrix3::zeros(), Vector3::zeros());
+    for &(y, x) in pts {
+        let u = (y - y0) / 100.0;
+        let row = Vector3::new(1.0, u, u * u);
+        a += row * row.transpose();
+        b += row * x;
+    }
+    let c = a.cholesky().expect("enough points").solve(&b);
+    move |y: f64| {
+        let u = (y - y0) / 100.0;
+        c[0] + c[1] * u + c[2] * u * u
+    }
+}
+
+pub fn analyse(case: &Case, estimator: Estimator) -> Outcome {
+    let (frame, w, h) = load(case.image);
+    let (reference, _, _) = load(&format!("{}-background", case.image));
+    let f = Frame::packed(&frame, w, h, PixelFormat::Rgb24).unwrap();
+    let r = Frame::packed(&reference, w, h, PixelFormat::Rgb24).unwrap();
+    let mut ex = Box::new(Extractor::<2048>::new());
+    let cfg = StripeConfig {
+        roi: Some(case.roi),
+        estimator,
+        ..StripeConfig::new(Method::Dim, Axis::Rows)
+    };
+    let res = ex.extract(&f, Some(&r), &cfg).unwrap();
+    let in_glint = |y: usize| case.glint.is_some_and(|(a, b)| (a..b).contains(&y));
+    let pts: Vec<(f64, f64)> = res
+        .valid()
+        .filter(|(y, _)| !in_glint(*y))
+        .map(|(y, p)| (y as f64, f64::from(p.centre)))
+        .collect();
+    let curve = fit_quadratic(&pts);
+    let res_px: Vec<f64> = pts.iter().map(|&(y, x)| (x - curve(y)).abs()).collect();
+    let rows = (0..res.points.len())
+        .filter(|i| !in_glint(res.first_line + i))
+        .count();
+    let mut glint_rows = 0;
+    let mut glint_rejected = 0;
+    let mut glint_max_off = 0.0f64;
+    for (i, p) in res.points.iter().enumerate() {
+        let y = res.first_line + i;
+        if in_glint(y) {
+            glint_rows += 1;
+            if p.status == Status::Valid {
+                glint_max_off = glint_max_off.max((f64::from(p.centre) - curve(y as f64)).abs());
+            } else {
+                glint_rejected += 1;
+            }
+        }
+    }
+    let statuses = Status::ALL
+        .iter()
+        .map(|&s| (s, res.points.iter().filter(|p| p.status == s).count()))
+        .filter(|(_, n)| *n > 0)
+        .collect();
+    Outcome {
+        rows,
+        valid: pts.len(),
+        rms: (res_px.iter().map(|r| r * r).sum::<f64>() / res_px.len() as f64).sqrt(),
+        max: res_px.iter().copied().fold(0.0, f64::max),
+        glint_rows,
+        glint_rejected,
+        glint_max_off,
+        statuses,
+    }
+}
