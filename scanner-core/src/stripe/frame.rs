@@ -190,6 +190,11 @@ impl<'a> Frame<'a> {
         &self.data[y * self.stride..][..self.width * self.format.bytes_per_pixel()]
     }
 
+    /// The whole buffer.
+    pub(crate) fn data(&self) -> &'a [u8] {
+        self.data
+    }
+
     /// `true` if `other` has the same size and format.
     pub fn same_shape(&self, other: &Frame<'_>) -> bool {
         self.width == other.width && self.height == other.height && self.format == other.format

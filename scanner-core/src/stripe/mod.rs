@@ -9,7 +9,7 @@
 //!    competing reflection or glint). The update is branch-free over contiguous arrays, so it
 //!    vectorises. Row mode reads each row once, contiguously.
 //! 2. **Threshold.** Automatic, no user setting: DIM from a robust noise estimate of the signed
-//!    change over every 8th row (its mode, and its spread below the mode); LIM from the histogram
+//!    change over every 32nd row (its mode, and its spread below the mode); LIM from the histogram
 //!    of the laser-off reference (or of the frame) against the histogram of the lines' peaks
 //!    (section 4).
 //! 3. **Per line**, a window of `2 × half_window + 1` samples around the peak is read again (a
@@ -31,8 +31,26 @@ use core::fmt;
 
 /// Largest `half_window` an extractor accepts.
 pub const MAX_HALF_WINDOW: usize = 48;
+/// Half size of the first, narrow window read around a peak.
+const NARROW_HALF_WINDOW: usize = 8;
+
+/// `true` if both ends of a window (two samples each) are within 5 % of the window's range of its
+/// minimum: the stripe has come down to the background inside it.
+fn settled(sig: &[u16]) -> bool {
+    let (mut lo, mut hi) = (u16::MAX, 0u16);
+    for &v in sig {
+        lo = lo.min(v);
+        hi = hi.max(v);
+    }
+    let limit = u32::from(lo) + (u32::from(hi - lo) / 20);
+    let k = sig.len().min(2);
+    sig[..k]
+        .iter()
+        .chain(&sig[sig.len() - k..])
+        .all(|&v| u32::from(v) <= limit)
+}
 /// The automatic thresholds sample every this many rows.
-pub const SAMPLE_STEP: usize = 8;
+pub const SAMPLE_STEP: usize = 32;
 
 /// Which way the stripe runs, and so which lines are scanned.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -228,10 +246,11 @@ impl core::error::Error for StripeError {}
 
 /// Fixed-memory state of the extraction for at most `W` lines of at most `W` samples.
 ///
-/// About `W × 28` bytes: own it once (a `static`, a `Box`, or the device's frame loop) and reuse
+/// About `W × 31` bytes: own it once (a `static`, a `Box`, or the device's frame loop) and reuse
 /// it for every frame.
 pub struct Extractor<const W: usize> {
     rows: [[u16; W]; 3],
+    bytes: [[u8; W]; 3],
     best: [u16; W],
     best_at: [u16; W],
     second: [u16; W],
@@ -290,11 +309,34 @@ fn track(
     *best = if gt { t } else { *best };
 }
 
+/// Per-line state from some line on: best, its position, second, its position.
+type Span<'a> = (&'a mut [u16], &'a mut [u16], &'a mut [u16], &'a mut [u16]);
+
+/// [`track`] for the lines of `state` whose sums `t` reach `floor`.
+#[inline(never)]
+fn track_span(state: Span<'_>, t: &[u16], at: u16, sep: u16, floor: u16) {
+    let (best, best_at, second, second_at) = state;
+    for (i, &v) in t.iter().enumerate() {
+        if v >= floor {
+            track(
+                v,
+                at,
+                sep,
+                &mut best[i],
+                &mut best_at[i],
+                &mut second[i],
+                &mut second_at[i],
+            );
+        }
+    }
+}
+
 impl<const W: usize> Extractor<W> {
     /// A fresh extractor.
     pub const fn new() -> Self {
         Self {
             rows: [[0; W]; 3],
+            bytes: [[0; W]; 3],
             best: [0; W],
             best_at: [0; W],
             second: [0; W],
@@ -372,13 +414,29 @@ impl<const W: usize> Extractor<W> {
             axis: cfg.axis,
             roi,
         };
+        // Thresholds come from sampled rows before the pass, so that the pass can ignore the
+        // background: 3×1 sums below `floor` cannot make a stripe or a rival (see `track`).
+        let (threshold, floor) = match cfg.method {
+            Method::Dim => {
+                let t = dim_threshold(&io);
+                (t, t.saturating_mul(2))
+            }
+            Method::Lim => {
+                // a line counts as lit when the mean of its 3×1 mask exceeds the tail
+                let tail = u16::from(lim_background(&io));
+                (tail, 3 * (tail + 1))
+            }
+        };
         match cfg.axis {
-            Axis::Columns => self.track_columns(&io, cfg.separation),
-            Axis::Rows => self.track_rows(&io, cfg.separation),
+            Axis::Columns if io.frame.format() != PixelFormat::Rgb24 && floor <= 255 => {
+                self.track_columns_u8(&io, cfg.separation, floor as u8)
+            }
+            Axis::Columns => self.track_columns(&io, cfg.separation, floor),
+            Axis::Rows => self.track_rows(&io, cfg.separation, floor),
         }
         let threshold = match cfg.method {
-            Method::Dim => dim_threshold(&io),
-            Method::Lim => lim_threshold(&io, &self.best[..lines]),
+            Method::Dim => threshold,
+            Method::Lim => lim_threshold(threshold, &self.best[..lines]),
         };
         for line in 0..lines {
             self.out[line] = self.judge(&io, cfg, line, length, threshold);
@@ -401,7 +459,13 @@ impl<const W: usize> Extractor<W> {
     }
 
     /// Column mode: rows in memory order, per-column state.
-    fn track_columns(&mut self, io: &Io<'_, '_>, sep: u16) {
+    ///
+    /// The 3×1 sums of each row are formed 64 columns at a time and the block is skipped unless
+    /// one of them reaches `floor`: on a frame the stripe covers a few rows of each column, so the
+    /// bookkeeping of [`track`] runs for a few per cent of the chunks and the pass runs at about
+    /// the speed of reading the frame.
+    fn track_columns(&mut self, io: &Io<'_, '_>, sep: u16, floor: u16) {
+        const BLOCK: usize = 64;
         let Roi {
             x,
             y,
@@ -410,15 +474,11 @@ impl<const W: usize> Extractor<W> {
         } = io.roi;
         self.reset(width);
         for r in 0..height {
-            let (a, rest) = self.rows.split_at_mut(1);
-            let (b, c) = rest.split_at_mut(1);
-            // rotate: the newest row goes into slot r % 3
-            let slots: [&mut [u16; W]; 3] = [&mut a[0], &mut b[0], &mut c[0]];
-            let [s0, s1, s2] = slots;
+            let [s0, s1, s2] = &mut self.rows;
             let (newest, older, oldest) = match r % 3 {
-                0 => (s0, s2, s1),
-                1 => (s1, s0, s2),
-                _ => (s2, s1, s0),
+                0 => (s0, &*s2, &*s1),
+                1 => (s1, &*s0, &*s2),
+                _ => (s2, &*s1, &*s0),
             };
             signal::row(
                 io.frame.format(),
@@ -432,23 +492,104 @@ impl<const W: usize> Extractor<W> {
                 continue;
             }
             let at = (r - 1) as u16;
-            let state = self.best[..width]
-                .iter_mut()
-                .zip(&mut self.best_at[..width])
-                .zip(&mut self.second[..width])
-                .zip(&mut self.second_at[..width]);
-            let sums = newest[..width]
-                .iter()
-                .zip(&older[..width])
-                .zip(&oldest[..width]);
-            for ((((b, ba), s), sa), ((&p, &q), &o)) in state.zip(sums) {
-                track(p + q + o, at, sep, b, ba, s, sa);
+            let newest = &*newest;
+            // Blocks of 64 columns: sums, and an OR of `sum − (floor − 1)` (saturating) that is
+            // non-zero iff a sum reaches the floor; one horizontal reduction per block.
+            let below = floor.saturating_sub(1);
+            let mut b = 0;
+            while b < width {
+                let n = (width - b).min(BLOCK);
+                let mut t = [0u16; BLOCK];
+                let mut hit = 0u16;
+                let rows = newest[b..b + n]
+                    .iter()
+                    .zip(&older[b..b + n])
+                    .zip(&oldest[b..b + n]);
+                for (t, ((&p, &q), &o)) in t.iter_mut().zip(rows) {
+                    *t = p + q + o;
+                    hit |= t.saturating_sub(below);
+                }
+                if hit != 0 {
+                    let state = (
+                        &mut self.best[b..],
+                        &mut self.best_at[b..],
+                        &mut self.second[b..],
+                        &mut self.second_at[b..],
+                    );
+                    track_span(state, &t[..n], at, sep, floor);
+                }
+                b += n;
+            }
+        }
+    }
+
+    /// [`Self::track_columns`] for one-byte signals (gray, YUYV) and a floor below 256: the rows
+    /// and the test for a hit stay in bytes (twice the lanes per instruction); a saturating byte
+    /// sum reaches the floor exactly when the true sum does. Exact sums are formed only for the
+    /// blocks that hit.
+    fn track_columns_u8(&mut self, io: &Io<'_, '_>, sep: u16, floor: u8) {
+        const BLOCK: usize = 32;
+        let Roi {
+            x,
+            y,
+            width,
+            height,
+        } = io.roi;
+        self.reset(width);
+        let below = floor.saturating_sub(1);
+        for r in 0..height {
+            let [s0, s1, s2] = &mut self.bytes;
+            let (newest, older, oldest) = match r % 3 {
+                0 => (s0, &*s2, &*s1),
+                1 => (s1, &*s0, &*s2),
+                _ => (s2, &*s1, &*s0),
+            };
+            signal::row_u8(
+                io.frame.format(),
+                io.method,
+                io.frame.row(y + r),
+                io.reference.row(y + r),
+                x,
+                &mut newest[..width],
+            );
+            if r < 2 {
+                continue;
+            }
+            let at = (r - 1) as u16;
+            let newest = &*newest;
+            let mut b = 0;
+            while b < width {
+                let n = (width - b).min(BLOCK);
+                let rows = || {
+                    newest[b..b + n]
+                        .iter()
+                        .zip(&older[b..b + n])
+                        .zip(&oldest[b..b + n])
+                };
+                let mut hit = 0u8;
+                for ((&p, &q), &o) in rows() {
+                    hit |= p.saturating_add(q).saturating_add(o).saturating_sub(below);
+                }
+                if hit != 0 {
+                    let mut t = [0u16; BLOCK];
+                    for (t, ((&p, &q), &o)) in t.iter_mut().zip(rows()) {
+                        *t = u16::from(p) + u16::from(q) + u16::from(o);
+                    }
+                    let state = (
+                        &mut self.best[b..],
+                        &mut self.best_at[b..],
+                        &mut self.second[b..],
+                        &mut self.second_at[b..],
+                    );
+                    track_span(state, &t[..n], at, sep, u16::from(floor));
+                }
+                b += n;
             }
         }
     }
 
     /// Row mode: each row is one line, read contiguously.
-    fn track_rows(&mut self, io: &Io<'_, '_>, sep: u16) {
+    fn track_rows(&mut self, io: &Io<'_, '_>, sep: u16, floor: u16) {
         let Roi {
             x,
             y,
@@ -468,15 +609,10 @@ impl<const W: usize> Extractor<W> {
             );
             let (mut b, mut ba, mut s, mut sa) = (0, 0, 0, 0);
             for (i, w) in buf.windows(3).enumerate() {
-                track(
-                    w[0] + w[1] + w[2],
-                    (i + 1) as u16,
-                    sep,
-                    &mut b,
-                    &mut ba,
-                    &mut s,
-                    &mut sa,
-                );
+                let t = w[0] + w[1] + w[2];
+                if t >= floor {
+                    track(t, (i + 1) as u16, sep, &mut b, &mut ba, &mut s, &mut sa);
+                }
             }
             self.best[r] = b;
             self.best_at[r] = ba;
@@ -499,14 +635,22 @@ impl<const W: usize> Extractor<W> {
             return point;
         }
         let rough = usize::from(self.best_at[line]);
-        let start = rough.saturating_sub(cfg.half_window);
-        let end = (rough + cfg.half_window + 1).min(length);
-        let n = end - start;
         let mut sig = [0u16; MAX_WINDOW];
         let mut clipped = [false; MAX_WINDOW];
-        for (k, i) in (start..end).enumerate() {
-            (sig[k], clipped[k]) = io.sample(line, i, 0);
-        }
+        // A narrow window first; the full one only when the profile has not come down to the
+        // background at its ends (a wide stripe, or a halo around it).
+        let mut half = cfg.half_window.min(NARROW_HALF_WINDOW);
+        let (start, n) = loop {
+            let start = rough.saturating_sub(half);
+            let end = (rough + half + 1).min(length);
+            let n = end - start;
+            io.window(line, start, &mut sig[..n], &mut clipped[..n]);
+            if half >= cfg.half_window || settled(&sig[..n]) {
+                break (start, n);
+            }
+            half = cfg.half_window;
+        };
+        let end = start + n;
         let window = Window {
             signal: &sig[..n],
             clipped: &clipped[..n],
@@ -589,6 +733,32 @@ impl Io<'_, '_> {
         }
     }
 
+    /// Signal and clipping of samples `start .. start + sig.len()` of `line`.
+    fn window(&self, line: usize, start: usize, sig: &mut [u16], clipped: &mut [bool]) {
+        let bpp = self.frame.format().bytes_per_pixel();
+        let stride = self.frame.stride();
+        let (first, step) = match self.axis {
+            Axis::Columns => (
+                (self.roi.y + start) * stride + (self.roi.x + line) * bpp,
+                stride,
+            ),
+            Axis::Rows => (
+                (self.roi.y + line) * stride + (self.roi.x + start) * bpp,
+                bpp,
+            ),
+        };
+        signal::fill(
+            self.frame.format(),
+            self.method,
+            self.frame.data(),
+            self.reference.data(),
+            first,
+            step,
+            sig,
+            clipped,
+        );
+    }
+
     /// Sobel response along the line (derivative along the line, smoothed [1 2 1] across lines)
     /// for samples `start..end`.
     fn sobel(&self, line: usize, start: usize, end: usize, out: &mut [i32]) {
@@ -613,7 +783,7 @@ impl Io<'_, '_> {
 }
 
 /// DIM threshold: the background change sits at the mode of the signed change over every
-/// [`SAMPLE_STEP`]-th row; its noise is measured on the side below the mode only (laser light only
+/// [`SAMPLE_STEP`]-th row and [`SAMPLE_COLUMNS`]-th column; its noise is measured on the side below the mode only (laser light only
 /// adds, so that side is stripe-free however much of the frame the stripe covers); the threshold
 /// is six of those standard deviations above the mode.
 fn dim_threshold(io: &Io<'_, '_>) -> u16 {
@@ -626,7 +796,7 @@ fn dim_threshold(io: &Io<'_, '_>) -> u16 {
     } = io.roi;
     for r in (y..y + height).step_by(SAMPLE_STEP) {
         let (row, reference) = (io.frame.row(r), io.reference.row(r));
-        for c in x..x + width {
+        for c in (x..x + width).step_by(SAMPLE_COLUMNS) {
             let d = signal::signed_change(io.frame.format(), row, reference, c);
             hist[(d + 255) as usize] += 1;
         }
@@ -649,10 +819,13 @@ fn dim_threshold(io: &Io<'_, '_>) -> u16 {
     libm::ceilf(level).clamp(3.0, 60_000.0) as u16
 }
 
-/// LIM threshold (paper section 4): halfway between the bright tail of the background (99.9th
-/// percentile of the reference's luma, or the frame's, over every [`SAMPLE_STEP`]-th row) and the
-/// median peak of the lines that rise above that tail.
-fn lim_threshold(io: &Io<'_, '_>, best: &[u16]) -> u16 {
+/// Columns sampled by the automatic thresholds: every this many.
+const SAMPLE_COLUMNS: usize = 4;
+
+/// The bright tail of the LIM background: the 99.9th percentile of the reference's luma (or the
+/// frame's, without a reference) over every [`SAMPLE_STEP`]-th row and [`SAMPLE_COLUMNS`]-th
+/// column.
+fn lim_background(io: &Io<'_, '_>) -> u8 {
     let mut hist = [0u32; 256];
     let mut n = 0u32;
     let Roi {
@@ -663,23 +836,29 @@ fn lim_threshold(io: &Io<'_, '_>, best: &[u16]) -> u16 {
     } = io.roi;
     for r in (y..y + height).step_by(SAMPLE_STEP) {
         let row = io.reference.row(r);
-        for c in x..x + width {
+        for c in (x..x + width).step_by(SAMPLE_COLUMNS) {
             hist[usize::from(signal::luma_of(io.frame.format(), row, c))] += 1;
             n += 1;
         }
     }
-    let tail = quantile(&hist, n, 0.999) as u16;
+    quantile(&hist, n, 0.999) as u8
+}
+
+/// LIM threshold (paper section 4): halfway between the background's bright `tail` and the
+/// median peak of the lines that rise above it (a line's peak: the mean of the three samples
+/// under the 3×1 mask).
+fn lim_threshold(tail: u16, best: &[u16]) -> u16 {
     let mut peaks = [0u32; 256];
     let mut m = 0u32;
     for &b in best {
-        let p = b / 3; // mean of the three samples under the 3×1 mask
+        let p = b / 3;
         if p > tail {
             peaks[usize::from(p.min(255))] += 1;
             m += 1;
         }
     }
     if m == 0 {
-        return tail.saturating_add(1);
+        return tail + 1;
     }
     let median_peak = quantile(&peaks, m, 0.5) as u16;
     tail + (median_peak - tail).div_ceil(2)

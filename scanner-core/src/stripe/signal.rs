@@ -93,6 +93,69 @@ pub(crate) fn row(
     }
 }
 
+/// [`row`] for gray and YUYV, whose signal fits a byte: the same values as `u8`.
+///
+/// # Panics
+/// Never for RGB24 input, which the caller routes to [`row`]; it writes nothing then.
+#[inline]
+pub(crate) fn row_u8(
+    format: PixelFormat,
+    method: Method,
+    row: &[u8],
+    reference: &[u8],
+    x0: usize,
+    out: &mut [u8],
+) {
+    let n = out.len();
+    match (format, method) {
+        (PixelFormat::Gray8, Method::Lim) => out.copy_from_slice(&row[x0..x0 + n]),
+        (PixelFormat::Gray8, Method::Dim) => {
+            for ((o, &v), &r) in out
+                .iter_mut()
+                .zip(&row[x0..x0 + n])
+                .zip(&reference[x0..x0 + n])
+            {
+                *o = v.saturating_sub(r);
+            }
+        }
+        (PixelFormat::Yuyv, Method::Lim) => {
+            let cur = &row[2 * x0..2 * (x0 + n)];
+            let mut outs = out.chunks_exact_mut(16);
+            for (o, p) in (&mut outs).zip(cur.chunks_exact(32)) {
+                let p: &[u8; 32] = p.try_into().unwrap_or(&[0; 32]);
+                for (i, o) in o.iter_mut().enumerate() {
+                    *o = p[2 * i];
+                }
+            }
+            let done = n - outs.into_remainder().len();
+            for (i, o) in out.iter_mut().enumerate().skip(done) {
+                *o = cur[2 * i];
+            }
+        }
+        (PixelFormat::Yuyv, Method::Dim) => {
+            // 16 pixels (32 bytes) at a time with fixed-size arrays, so that the even-byte
+            // gather becomes a vector mask-and-pack instead of a scalar loop.
+            let (cur, refs) = (&row[2 * x0..2 * (x0 + n)], &reference[2 * x0..2 * (x0 + n)]);
+            let mut outs = out.chunks_exact_mut(16);
+            let mut pairs = cur.chunks_exact(32).zip(refs.chunks_exact(32));
+            for (o, (p, r)) in (&mut outs).zip(&mut pairs) {
+                let (p, r): (&[u8; 32], &[u8; 32]) = (
+                    p.try_into().unwrap_or(&[0; 32]),
+                    r.try_into().unwrap_or(&[0; 32]),
+                );
+                for (i, o) in o.iter_mut().enumerate() {
+                    *o = p[2 * i].saturating_sub(r[2 * i]);
+                }
+            }
+            let done = n - outs.into_remainder().len();
+            for (i, o) in out.iter_mut().enumerate().skip(done) {
+                *o = cur[2 * i].saturating_sub(refs[2 * i]);
+            }
+        }
+        (PixelFormat::Rgb24, _) => {}
+    }
+}
+
 /// Signal of the single pixel `x` of a row, and whether its raw value is clipped (255 in any
 /// channel).
 #[inline]
@@ -139,5 +202,55 @@ pub(crate) fn luma_of(format: PixelFormat, row: &[u8], x: usize) -> u8 {
     match format {
         PixelFormat::Gray8 | PixelFormat::Yuyv => p[0],
         PixelFormat::Rgb24 => luma(p) as u8,
+    }
+}
+
+/// Fills `sig` and `clipped` with the signal of the pixels at byte offsets `first`,
+/// `first + step`, … of `frame` (and `reference`): one line of samples in any direction. The
+/// format and method are matched once, outside the loop.
+pub(crate) fn fill(
+    format: PixelFormat,
+    method: Method,
+    frame: &[u8],
+    reference: &[u8],
+    first: usize,
+    step: usize,
+    sig: &mut [u16],
+    clipped: &mut [bool],
+) {
+    #[inline(always)]
+    fn run(
+        sig: &mut [u16],
+        clipped: &mut [bool],
+        first: usize,
+        step: usize,
+        mut f: impl FnMut(usize) -> (u16, bool),
+    ) {
+        let mut i = first;
+        for (s, c) in sig.iter_mut().zip(clipped.iter_mut()) {
+            (*s, *c) = f(i);
+            i += step;
+        }
+    }
+    match (format, method) {
+        (PixelFormat::Gray8 | PixelFormat::Yuyv, Method::Lim) => {
+            run(sig, clipped, first, step, |i| {
+                (u16::from(frame[i]), frame[i] == 255)
+            });
+        }
+        (PixelFormat::Gray8 | PixelFormat::Yuyv, Method::Dim) => {
+            run(sig, clipped, first, step, |i| {
+                let v = frame[i];
+                (u16::from(v.saturating_sub(reference[i])), v == 255)
+            });
+        }
+        (PixelFormat::Rgb24, Method::Lim) => run(sig, clipped, first, step, |i| {
+            let p = &frame[i..i + 3];
+            (luma(p), p.contains(&255))
+        }),
+        (PixelFormat::Rgb24, Method::Dim) => run(sig, clipped, first, step, |i| {
+            let p = &frame[i..i + 3];
+            (rgb_change(&reference[i..i + 3], p), p.contains(&255))
+        }),
     }
 }

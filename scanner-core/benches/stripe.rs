@@ -1,0 +1,145 @@
+//! Stripe extraction speed against the memory floor, measured in the same run.
+//!
+//! `cargo bench -p scanner-core --bench stripe` (one core; prints a Markdown table).
+//!
+//! For each size, method and format: the median time of a full extraction (rough pass +
+//! threshold + subpixel centre of every column, centroid estimator) beside the median time of one
+//! plain pass that sums every byte the extraction must read: the frame, the reference for DIM,
+//! and the reference rows the LIM threshold samples. Frames rotate through a set larger than the
+//! caches so both read from memory.
+
+use std::hint::black_box;
+use std::time::{Duration, Instant};
+
+use scanner_core::stripe::{
+    Axis, Extractor, Frame, Method, PixelFormat, SAMPLE_STEP, StripeConfig,
+};
+
+const SIZES: [(usize, usize); 4] = [(640, 480), (960, 720), (1280, 960), (1600, 1200)];
+/// Frames in rotation: 12 × 3.8 MB (1600×1200 YUYV) ≈ 46 MB per set, frame and reference.
+const ROTATION: usize = 12;
+
+fn frames(w: usize, h: usize, format: PixelFormat, seed: u64) -> (Vec<Vec<u8>>, Vec<Vec<u8>>) {
+    let bpp = format.bytes_per_pixel();
+    let mut x = seed | 1;
+    let mut rnd = move || {
+        x ^= x << 13;
+        x ^= x >> 7;
+        x ^= x << 17;
+        x
+    };
+    let mut fs = Vec::new();
+    let mut rs = Vec::new();
+    for k in 0..ROTATION {
+        let mut f = vec![0u8; w * h * bpp];
+        let mut r = vec![0u8; w * h * bpp];
+        for y in 0..h {
+            for c in 0..w {
+                let ambient = 30 + (rnd() % 5) as u8;
+                let centre = h as f64 * (0.3 + 0.4 * c as f64 / w as f64) + k as f64;
+                let u = y as f64 - centre;
+                let stripe = (160.0 * (-u * u / 4.5).exp()) as u8;
+                let i = (y * w + c) * bpp;
+                f[i] = ambient.saturating_add(stripe);
+                r[i] = 30 + (rnd() % 5) as u8;
+                if bpp == 2 {
+                    f[i + 1] = 128;
+                    r[i + 1] = 128;
+                }
+            }
+        }
+        fs.push(f);
+        rs.push(r);
+    }
+    (fs, rs)
+}
+
+/// One plain pass summing the bytes of `bufs` (the memory floor).
+fn sum_pass(bufs: &[&[u8]]) -> u64 {
+    bufs.iter()
+        .map(|b| {
+            b.chunks(1 << 12)
+                .map(|c| c.iter().map(|&v| u32::from(v)).sum::<u32>() as u64)
+                .sum::<u64>()
+        })
+        .sum()
+}
+
+fn median(mut v: Vec<Duration>) -> Duration {
+    v.sort();
+    v[v.len() / 2]
+}
+
+/// Median times of `a` and `b`, measured alternately (a, b, a, b, …) so that both see the same
+/// state of a shared, noisy machine.
+fn time_pair(
+    iterations: usize,
+    mut a: impl FnMut(usize),
+    mut b: impl FnMut(usize),
+) -> (Duration, Duration) {
+    for i in 0..ROTATION {
+        a(i); // warm-up
+        b(i);
+    }
+    let (mut ta, mut tb) = (Vec::new(), Vec::new());
+    for i in 0..iterations {
+        let t = Instant::now();
+        a(i % ROTATION);
+        ta.push(t.elapsed());
+        let t = Instant::now();
+        b(i % ROTATION);
+        tb.push(t.elapsed());
+    }
+    (median(ta), median(tb))
+}
+
+fn main() {
+    let mut ex = Box::new(Extractor::<4096>::new());
+    println!(
+        "| size | method | format | extraction | floor (sum of the bytes read) | ratio | frames/s |"
+    );
+    println!("|---|---|---|---|---|---|---|");
+    for &(w, h) in &SIZES {
+        let iterations = (2_000_000_000 / (w * h * 40)).clamp(40, 400);
+        for format in [PixelFormat::Gray8, PixelFormat::Yuyv] {
+            let (fs, rs) = frames(w, h, format, 7);
+            let row = w * format.bytes_per_pixel();
+            for method in [Method::Lim, Method::Dim] {
+                let cfg = StripeConfig::new(method, Axis::Columns);
+                let (t_ex, t_floor) = time_pair(
+                    iterations,
+                    |i| {
+                        let f = Frame::packed(&fs[i], w, h, format).unwrap();
+                        let r = Frame::packed(&rs[i], w, h, format).unwrap();
+                        let res = ex.extract(&f, Some(&r), &cfg).unwrap();
+                        black_box(res.points.len());
+                    },
+                    |i| {
+                        let mut bufs: Vec<&[u8]> = vec![&fs[i]];
+                        match method {
+                            Method::Dim => bufs.push(&rs[i]),
+                            Method::Lim => bufs.extend(rs[i].chunks(row).step_by(SAMPLE_STEP)),
+                        }
+                        black_box(sum_pass(&bufs));
+                    },
+                );
+                let valid = {
+                    let f = Frame::packed(&fs[0], w, h, format).unwrap();
+                    let r = Frame::packed(&rs[0], w, h, format).unwrap();
+                    ex.extract(&f, Some(&r), &cfg).unwrap().valid().count()
+                };
+                assert!(
+                    valid * 10 >= w * 9,
+                    "the bench frames must have a stripe in most columns ({valid}/{w})"
+                );
+                println!(
+                    "| {w}×{h} | {method:?} | {format:?} | {:.3} ms | {:.3} ms | {:.2} | {:.0} |",
+                    t_ex.as_secs_f64() * 1e3,
+                    t_floor.as_secs_f64() * 1e3,
+                    t_ex.as_secs_f64() / t_floor.as_secs_f64(),
+                    1.0 / t_ex.as_secs_f64()
+                );
+            }
+        }
+    }
+}
