@@ -62,12 +62,12 @@ pub struct Shape {
     pub spread: f32,
 }
 
-/// Linear background through the means of the two samples at each end: `(b0, slope)`.
-fn linear_background(v: &[f32]) -> (f32, f32) {
-    let n = v.len();
+/// Linear background through the means of the two samples at each end of `v(0..n)`:
+/// `(b0, slope)`.
+fn linear_background(n: usize, v: impl Fn(usize) -> f32) -> (f32, f32) {
     let k = n.min(2);
-    let head = v[..k].iter().sum::<f32>() / k as f32;
-    let tail = v[n - k..].iter().sum::<f32>() / k as f32;
+    let head = (0..k).map(&v).sum::<f32>() / k as f32;
+    let tail = (n - k..n).map(&v).sum::<f32>() / k as f32;
     let slope = if n > k {
         (tail - head) / (n - k) as f32
     } else {
@@ -76,12 +76,11 @@ fn linear_background(v: &[f32]) -> (f32, f32) {
     (head - slope * (k as f32 - 1.0) / 2.0, slope)
 }
 
-/// Half-maximum crossings of `v` around `top` above the background `bg`.
-fn crossings(v: &[f32], bg: (f32, f32), top: usize) -> (f32, f32) {
-    let n = v.len();
+/// Half-maximum crossings of `v(0..n)` around `top` above the background `bg`.
+fn crossings(n: usize, v: impl Fn(usize) -> f32, bg: (f32, f32), top: usize) -> (f32, f32) {
     let b = |i: usize| bg.0 + bg.1 * i as f32;
-    let height = v[top] - b(top);
-    let half = |i: usize| v[i] - b(i) - height / 2.0;
+    let height = v(top) - b(top);
+    let half = |i: usize| v(i) - b(i) - height / 2.0;
     let mut i = top;
     while i > 0 && half(i - 1) > 0.0 {
         i -= 1;
@@ -113,30 +112,25 @@ impl Window<'_> {
     /// Background, peak, height and FWHM of the window (see [`Shape`]).
     pub fn shape(&self) -> Shape {
         let n = self.signal.len().min(MAX_WINDOW);
-        let mut raw = [0f32; MAX_WINDOW];
-        for (r, &v) in raw.iter_mut().zip(&self.signal[..n]) {
-            *r = f32::from(v);
-        }
-        let raw = &raw[..n];
-        let background = linear_background(raw);
+        let s = &self.signal[..n];
+        let raw = |i: usize| f32::from(s[i]);
+        let background = linear_background(n, raw);
         let bg = |i: usize| background.0 + background.1 * i as f32;
         // the peak nearest the rough centre: the largest sample within ±2 of it
         let lo = self.rough.min(n - 1).saturating_sub(2);
         let hi = (self.rough + 3).min(n);
-        let peak_index = (lo..hi).fold(lo, |p, i| if raw[i] > raw[p] { i } else { p });
-        let mut half_max = crossings(raw, background, peak_index);
+        let peak_index = (lo..hi).fold(lo, |p, i| if s[i] > s[p] { i } else { p });
+        let mut half_max = crossings(n, raw, background, peak_index);
         if half_max.1 - half_max.0 < 1.5 {
             // a one-pixel spike? measure the stripe under it on the 3-sample median
-            let mut med = [0f32; MAX_WINDOW];
-            for i in 0..n {
-                let (a, b, c) = (raw[i.saturating_sub(1)], raw[i], raw[(i + 1).min(n - 1)]);
-                med[i] = a.max(b).min(a.min(b).max(c));
-            }
-            let med = &med[..n];
-            let mbg = linear_background(med);
-            let top = (lo..hi).fold(lo, |p, i| if med[i] > med[p] { i } else { p });
-            if med[top] - (mbg.0 + mbg.1 * top as f32) > 0.0 {
-                let m = crossings(med, mbg, top);
+            let med = |i: usize| {
+                let (a, b, c) = (s[i.saturating_sub(1)], s[i], s[(i + 1).min(n - 1)]);
+                f32::from(a.max(b).min(a.min(b).max(c)))
+            };
+            let mbg = linear_background(n, med);
+            let top = (lo..hi).fold(lo, |p, i| if med(i) > med(p) { i } else { p });
+            if med(top) - (mbg.0 + mbg.1 * top as f32) > 0.0 {
+                let m = crossings(n, med, mbg, top);
                 if m.1 - m.0 > half_max.1 - half_max.0 {
                     half_max = m;
                 }
@@ -154,10 +148,10 @@ impl Window<'_> {
             }
             clipped_run = b - a + 1;
         }
-        let height = raw[peak_index] - bg(peak_index);
+        let height = raw(peak_index) - bg(peak_index);
         let (mut m0, mut m1, mut m2) = (0f32, 0f32, 0f32);
-        for (i, &v) in raw.iter().enumerate() {
-            let w = v - bg(i) - 0.15 * height;
+        for i in 0..n {
+            let w = raw(i) - bg(i) - 0.15 * height;
             if w > 0.0 {
                 let u = i as f32 - peak_index as f32;
                 m0 += w;
@@ -173,7 +167,7 @@ impl Window<'_> {
         };
         Shape {
             peak_index,
-            peak: raw[peak_index],
+            peak: raw(peak_index),
             height,
             background,
             half_max,

@@ -528,7 +528,7 @@ impl<const W: usize> Extractor<W> {
     /// sum reaches the floor exactly when the true sum does. Exact sums are formed only for the
     /// blocks that hit.
     fn track_columns_u8(&mut self, io: &Io<'_, '_>, sep: u16, floor: u8) {
-        const BLOCK: usize = 32;
+        const BLOCK: usize = 64;
         let Roi {
             x,
             y,
@@ -571,17 +571,27 @@ impl<const W: usize> Extractor<W> {
                     hit |= p.saturating_add(q).saturating_add(o).saturating_sub(below);
                 }
                 if hit != 0 {
-                    let mut t = [0u16; BLOCK];
-                    for (t, ((&p, &q), &o)) in t.iter_mut().zip(rows()) {
-                        *t = u16::from(p) + u16::from(q) + u16::from(o);
+                    // which columns hit: a bit each, then only those are tracked
+                    let mut mask = 0u64;
+                    for (l, ((&p, &q), &o)) in rows().enumerate() {
+                        let sum = u16::from(p) + u16::from(q) + u16::from(o);
+                        mask |= u64::from(sum >= u16::from(floor)) << l;
                     }
-                    let state = (
-                        &mut self.best[b..],
-                        &mut self.best_at[b..],
-                        &mut self.second[b..],
-                        &mut self.second_at[b..],
-                    );
-                    track_span(state, &t[..n], at, sep, u16::from(floor));
+                    while mask != 0 {
+                        let l = mask.trailing_zeros() as usize;
+                        mask &= mask - 1;
+                        let c = b + l;
+                        let sum = u16::from(newest[c]) + u16::from(older[c]) + u16::from(oldest[c]);
+                        track(
+                            sum,
+                            at,
+                            sep,
+                            &mut self.best[c],
+                            &mut self.best_at[c],
+                            &mut self.second[c],
+                            &mut self.second_at[c],
+                        );
+                    }
                 }
                 b += n;
             }
@@ -678,11 +688,14 @@ impl<const W: usize> Extractor<W> {
         if point.status != Status::Valid {
             return point;
         }
-        let mut sobel = [0i32; MAX_WINDOW];
-        if cfg.estimator == Estimator::Paper {
+        let centre = if cfg.estimator == Estimator::Paper {
+            let mut sobel = [0i32; MAX_WINDOW];
             io.sobel(line, start, end, &mut sobel[..n]);
-        }
-        match window.centre(&shape, cfg.estimator, &sobel[..n]) {
+            window.centre(&shape, cfg.estimator, &sobel[..n])
+        } else {
+            window.centre(&shape, cfg.estimator, &[])
+        };
+        match centre {
             Some(c) if c.is_finite() => {
                 let origin = match cfg.axis {
                     Axis::Columns => io.roi.y,
