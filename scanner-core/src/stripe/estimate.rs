@@ -80,14 +80,22 @@ fn linear_background(n: usize, v: impl Fn(usize) -> f32) -> (f32, f32) {
 fn crossings(n: usize, v: impl Fn(usize) -> f32, bg: (f32, f32), top: usize) -> (f32, f32) {
     let b = |i: usize| bg.0 + bg.1 * i as f32;
     let height = v(top) - b(top);
+    if !(height > 0.0) {
+        // no peak above the background: no width
+        return (top as f32, top as f32);
+    }
     let half = |i: usize| v(i) - b(i) - height / 2.0;
+    // a crossing between samples i and i + 1, where `a` and `c` have opposite signs
+    let cross = |i: usize, a: f32, c: f32| {
+        let t = a / (a - c);
+        i as f32 + if t.is_finite() { t } else { 0.5 }
+    };
     let mut i = top;
     while i > 0 && half(i - 1) > 0.0 {
         i -= 1;
     }
     let left = if i > 0 {
-        let (a, c) = (half(i - 1), half(i));
-        (i - 1) as f32 + a / (a - c)
+        cross(i - 1, half(i - 1), half(i))
     } else {
         0.0
     };
@@ -96,8 +104,7 @@ fn crossings(n: usize, v: impl Fn(usize) -> f32, bg: (f32, f32), top: usize) -> 
         j += 1;
     }
     let right = if j + 1 < n {
-        let (a, c) = (half(j), half(j + 1));
-        j as f32 + a / (a - c)
+        cross(j, half(j), half(j + 1))
     } else {
         (n - 1) as f32
     };
