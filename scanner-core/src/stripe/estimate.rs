@@ -157,14 +157,14 @@ impl Window<'_> {
         }
         let height = raw(peak_index) - bg(peak_index);
         let (mut m0, mut m1, mut m2) = (0f32, 0f32, 0f32);
-        for i in 0..n {
-            let w = raw(i) - bg(i) - 0.15 * height;
-            if w > 0.0 {
-                let u = i as f32 - peak_index as f32;
-                m0 += w;
-                m1 += w * u;
-                m2 += w * u * u;
-            }
+        let level = 0.15 * height;
+        for (i, &v) in s.iter().enumerate() {
+            // branch-free: samples below the level weigh nothing
+            let w = (f32::from(v) - bg(i) - level).max(0.0);
+            let u = i as f32 - peak_index as f32;
+            m0 += w;
+            m1 += w * u;
+            m2 += w * u * u;
         }
         let spread = if m0 > 0.0 {
             let mean = m1 / m0;

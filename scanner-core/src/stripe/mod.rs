@@ -31,23 +31,24 @@ use core::fmt;
 
 /// Largest `half_window` an extractor accepts.
 pub const MAX_HALF_WINDOW: usize = 48;
+/// Widest region the byte-wide column pass takes (64 blocks of 64 columns, one bit each).
+pub const BYTE_PASS_WIDTH: usize = 64 * 64;
 /// Half size of the first, narrow window read around a peak.
 const NARROW_HALF_WINDOW: usize = 8;
 
-/// `true` if both ends of a window (two samples each) are within 5 % of the window's range of its
-/// minimum: the stripe has come down to the background inside it.
-fn settled(sig: &[u16]) -> bool {
-    let (mut lo, mut hi) = (u16::MAX, 0u16);
-    for &v in sig {
-        lo = lo.min(v);
-        hi = hi.max(v);
+/// `true` if both ends of a window (two samples each) are within 5 % of the height of the
+/// sample at `rough` above the lowest end sample: the stripe has come down to the background
+/// inside the window. Five samples, whatever the window's length.
+fn settled(sig: &[u16], rough: usize) -> bool {
+    let n = sig.len();
+    if n < 4 {
+        return false;
     }
-    let limit = u32::from(lo) + (u32::from(hi - lo) / 20);
-    let k = sig.len().min(2);
-    sig[..k]
-        .iter()
-        .chain(&sig[sig.len() - k..])
-        .all(|&v| u32::from(v) <= limit)
+    let ends = [sig[0], sig[1], sig[n - 2], sig[n - 1]];
+    let lo = ends.iter().copied().min().unwrap_or(0);
+    let hi = ends.iter().copied().max().unwrap_or(0);
+    let peak = sig[rough.min(n - 1)].max(lo);
+    u32::from(hi) <= u32::from(lo) + u32::from(peak - lo) / 20
 }
 /// The automatic thresholds sample every this many rows.
 pub const SAMPLE_STEP: usize = 32;
@@ -428,7 +429,11 @@ impl<const W: usize> Extractor<W> {
             }
         };
         match cfg.axis {
-            Axis::Columns if io.frame.format() != PixelFormat::Rgb24 && floor <= 255 => {
+            Axis::Columns
+                if io.frame.format() != PixelFormat::Rgb24
+                    && floor <= 255
+                    && roi.width <= BYTE_PASS_WIDTH =>
+            {
                 self.track_columns_u8(&io, cfg.separation, floor as u8)
             }
             Axis::Columns => self.track_columns(&io, cfg.separation, floor),
@@ -523,10 +528,13 @@ impl<const W: usize> Extractor<W> {
         }
     }
 
-    /// [`Self::track_columns`] for one-byte signals (gray, YUYV) and a floor below 256: the rows
-    /// and the test for a hit stay in bytes (twice the lanes per instruction); a saturating byte
-    /// sum reaches the floor exactly when the true sum does. Exact sums are formed only for the
-    /// blocks that hit.
+    /// [`Self::track_columns`] for one-byte signals (gray, YUYV), a floor below 256 and at most
+    /// [`BYTE_PASS_WIDTH`] columns.
+    ///
+    /// A 3×1 sum reaches `floor` only if one of its three samples reaches `⌈floor / 3⌉`, so each
+    /// row, as it is made, marks in a 64-bit mask the blocks of 64 columns holding such a sample
+    /// (one compare per pixel, in bytes). A centre row then forms exact sums only in the blocks
+    /// its three rows mark; on a frame that is nearly all background that is a few blocks per row.
     fn track_columns_u8(&mut self, io: &Io<'_, '_>, sep: u16, floor: u8) {
         const BLOCK: usize = 64;
         let Roi {
@@ -536,10 +544,12 @@ impl<const W: usize> Extractor<W> {
             height,
         } = io.roi;
         self.reset(width);
-        let below = floor.saturating_sub(1);
+        let below = floor.div_ceil(3).saturating_sub(1);
+        let mut lit = [0u64; 3];
         for r in 0..height {
+            let slot = r % 3;
             let [s0, s1, s2] = &mut self.bytes;
-            let (newest, older, oldest) = match r % 3 {
+            let (newest, older, oldest) = match slot {
                 0 => (s0, &*s2, &*s1),
                 1 => (s1, &*s0, &*s2),
                 _ => (s2, &*s1, &*s0),
@@ -552,36 +562,27 @@ impl<const W: usize> Extractor<W> {
                 x,
                 &mut newest[..width],
             );
+            let mut marks = 0u64;
+            for (b, chunk) in newest[..width].chunks(BLOCK).enumerate() {
+                let mut hit = 0u8;
+                for &v in chunk {
+                    hit |= v.saturating_sub(below);
+                }
+                marks |= u64::from(hit != 0) << b;
+            }
+            lit[slot] = marks;
             if r < 2 {
                 continue;
             }
             let at = (r - 1) as u16;
             let newest = &*newest;
-            let mut b = 0;
-            while b < width {
-                let n = (width - b).min(BLOCK);
-                let rows = || {
-                    newest[b..b + n]
-                        .iter()
-                        .zip(&older[b..b + n])
-                        .zip(&oldest[b..b + n])
-                };
-                let mut hit = 0u8;
-                for ((&p, &q), &o) in rows() {
-                    hit |= p.saturating_add(q).saturating_add(o).saturating_sub(below);
-                }
-                if hit != 0 {
-                    // which columns hit: a bit each, then only those are tracked
-                    let mut mask = 0u64;
-                    for (l, ((&p, &q), &o)) in rows().enumerate() {
-                        let sum = u16::from(p) + u16::from(q) + u16::from(o);
-                        mask |= u64::from(sum >= u16::from(floor)) << l;
-                    }
-                    while mask != 0 {
-                        let l = mask.trailing_zeros() as usize;
-                        mask &= mask - 1;
-                        let c = b + l;
-                        let sum = u16::from(newest[c]) + u16::from(older[c]) + u16::from(oldest[c]);
+            let mut blocks = lit[0] | lit[1] | lit[2];
+            while blocks != 0 {
+                let b = blocks.trailing_zeros() as usize * BLOCK;
+                blocks &= blocks - 1;
+                for c in b..(b + BLOCK).min(width) {
+                    let sum = u16::from(newest[c]) + u16::from(older[c]) + u16::from(oldest[c]);
+                    if sum >= u16::from(floor) {
                         track(
                             sum,
                             at,
@@ -593,7 +594,6 @@ impl<const W: usize> Extractor<W> {
                         );
                     }
                 }
-                b += n;
             }
         }
     }
@@ -655,7 +655,7 @@ impl<const W: usize> Extractor<W> {
             let end = (rough + half + 1).min(length);
             let n = end - start;
             io.window(line, start, &mut sig[..n], &mut clipped[..n]);
-            if half >= cfg.half_window || settled(&sig[..n]) {
+            if half >= cfg.half_window || settled(&sig[..n], rough - start) {
                 break (start, n);
             }
             half = cfg.half_window;
