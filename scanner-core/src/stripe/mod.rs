@@ -3,18 +3,21 @@
 //! why a line has no valid centre (paper sections 3B, 3C and 4).
 //!
 //! # How a frame is read
-//! 1. **One pass in memory order.** In column mode each row is turned into a row of `u16` signal
-//!    values ([`signal`]) and the 3×1 mask sums of the last three rows update per-column state:
-//!    the strongest peak and the strongest peak at least `separation` lines away from it (a
-//!    competing reflection or glint). The update is branch-free over contiguous arrays, so it
-//!    vectorises. Row mode reads each row once, contiguously.
-//! 2. **Threshold.** Automatic, no user setting: DIM from a robust noise estimate of the signed
-//!    change over every 32nd row (its mode, and its spread below the mode); LIM from the histogram
-//!    of the laser-off reference (or of the frame) against the histogram of the lines' peaks
-//!    (section 4).
-//! 3. **Per line**, a window of `2 × half_window + 1` samples around the peak is read again (a
-//!    few cache lines) and judged: no stripe, competing peaks, saturated plateau, too wide, too
-//!    narrow — or a centre from the chosen [`Estimator`].
+//! 1. **Threshold**, automatic, from sampled rows before the pass: DIM from a robust noise
+//!    estimate of the signed change over every 32nd row (its mode, and its spread below the
+//!    mode); LIM from the bright tail of the laser-off reference (or the frame), then, after the
+//!    pass, halfway to the median peak of the lit lines (section 4).
+//! 2. **One pass in memory order.** Each row becomes a row of signal values (LIM intensity, or
+//!    DIM change, eq. 11) and the 3×1 mask sums of the last three rows update per-line state: the
+//!    strongest peak and the strongest peak at least `separation` lines away from it (a
+//!    competing reflection or glint). Sums below a floor derived from the threshold cannot make a
+//!    stripe, so for gray and YUYV each row marks, in bytes, the 64-column blocks that hold a
+//!    sample able to reach it, and only those blocks are summed and tracked. Row mode reads each
+//!    row once, contiguously.
+//! 3. **Per line**, a window around the peak is read again (±8 samples, widened to
+//!    `half_window` when the profile has not come down to the background) and judged: no stripe,
+//!    competing peaks, saturated plateau, too wide (or on a halo), too narrow — or a centre from
+//!    the chosen [`Estimator`].
 //!
 //! All state lives in an [`Extractor`] the caller owns, sized by the const generic `W` (largest
 //! number of lines and largest profile length); a call allocates nothing.
