@@ -64,6 +64,7 @@ pub struct Shape {
 
 /// Linear background through the means of the two samples at each end of `v(0..n)`:
 /// `(b0, slope)`.
+#[inline]
 fn linear_background(n: usize, v: impl Fn(usize) -> f32) -> (f32, f32) {
     let k = n.min(2);
     let head = (0..k).map(&v).sum::<f32>() / k as f32;
@@ -77,6 +78,7 @@ fn linear_background(n: usize, v: impl Fn(usize) -> f32) -> (f32, f32) {
 }
 
 /// Half-maximum crossings of `v(0..n)` around `top` above the background `bg`.
+#[inline]
 fn crossings(n: usize, v: impl Fn(usize) -> f32, bg: (f32, f32), top: usize) -> (f32, f32) {
     let b = |i: usize| bg.0 + bg.1 * i as f32;
     let height = v(top) - b(top);
@@ -117,6 +119,7 @@ impl Window<'_> {
     }
 
     /// Background, peak, height and FWHM of the window (see [`Shape`]).
+    #[inline]
     pub fn shape(&self) -> Shape {
         let n = self.signal.len().min(MAX_WINDOW);
         let s = &self.signal[..n];
@@ -186,6 +189,7 @@ impl Window<'_> {
 
     /// The contiguous run around the peak where the background-subtracted signal exceeds
     /// `fraction` of the peak height, as `(first, last)` inclusive.
+    #[inline]
     fn run(&self, shape: &Shape, fraction: f32) -> (usize, usize) {
         let height = shape.height;
         let level = |i: usize| f32::from(self.signal[i]) - self.bg(shape, i) > fraction * height;
@@ -201,6 +205,7 @@ impl Window<'_> {
 
     /// The centre by `estimator`; `sobel` holds the Sobel response along the line for
     /// [`Estimator::Paper`] (ignored by the others). `None` when the profile has no usable shape.
+    #[inline]
     pub fn centre(&self, shape: &Shape, estimator: Estimator, sobel: &[i32]) -> Option<f32> {
         match estimator {
             Estimator::Paper => self.paper(sobel),
@@ -238,6 +243,7 @@ impl Window<'_> {
         (den > 0.0).then(|| num / den)
     }
 
+    #[inline]
     fn centroid(&self, shape: &Shape) -> Option<f32> {
         let height = shape.height;
         if !(height > 0.0) {

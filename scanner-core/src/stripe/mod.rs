@@ -798,8 +798,8 @@ impl Io<'_, '_> {
     }
 }
 
-/// DIM threshold: the background change sits at the mode of the signed change over every
-/// [`SAMPLE_STEP`]-th row and [`SAMPLE_COLUMNS`]-th column; its noise is measured on the side below the mode only (laser light only
+/// DIM threshold: the background change sits at the mode of the signed change over about
+/// [`NOISE_SAMPLES`] pixels of every [`SAMPLE_STEP`]-th row; its noise is measured on the side below the mode only (laser light only
 /// adds, so that side is stripe-free however much of the frame the stripe covers); the threshold
 /// is six of those standard deviations above the mode.
 fn dim_threshold(io: &Io<'_, '_>) -> u16 {
@@ -810,9 +810,12 @@ fn dim_threshold(io: &Io<'_, '_>) -> u16 {
         width,
         height,
     } = io.roi;
+    // about NOISE_SAMPLES pixels: every SAMPLE_STEP-th row, columns spaced to fit
+    let rows = height.div_ceil(SAMPLE_STEP);
+    let step = (rows * width / NOISE_SAMPLES).clamp(1, 16);
     for r in (y..y + height).step_by(SAMPLE_STEP) {
         let (row, reference) = (io.frame.row(r), io.reference.row(r));
-        for c in (x..x + width).step_by(SAMPLE_COLUMNS) {
+        for c in (x..x + width).step_by(step) {
             let d = signal::signed_change(io.frame.format(), row, reference, c);
             hist[(d + 255) as usize] += 1;
         }
@@ -835,8 +838,10 @@ fn dim_threshold(io: &Io<'_, '_>) -> u16 {
     libm::ceilf(level).clamp(3.0, 60_000.0) as u16
 }
 
-/// Columns sampled by the automatic thresholds: every this many.
+/// Columns sampled by the LIM threshold: every this many.
 const SAMPLE_COLUMNS: usize = 4;
+/// Pixels the DIM noise estimate aims to sample.
+const NOISE_SAMPLES: usize = 8192;
 
 /// The bright tail of the LIM background: the 99.9th percentile of the reference's luma (or the
 /// frame's, without a reference) over every [`SAMPLE_STEP`]-th row and [`SAMPLE_COLUMNS`]-th
