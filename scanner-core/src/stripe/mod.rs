@@ -313,6 +313,17 @@ fn track(
     *best = if gt { t } else { *best };
 }
 
+/// The three rows of a rolling buffer for row `r`: the one to write (slot `r % 3`) and the two
+/// before it, newest first.
+fn ring<T, const W: usize>(rows: &mut [[T; W]; 3], r: usize) -> (&mut [T; W], &[T; W], &[T; W]) {
+    let [s0, s1, s2] = rows;
+    match r % 3 {
+        0 => (s0, &*s2, &*s1),
+        1 => (s1, &*s0, &*s2),
+        _ => (s2, &*s1, &*s0),
+    }
+}
+
 /// Per-line state from some line on: best, its position, second, its position.
 type Span<'a> = (&'a mut [u16], &'a mut [u16], &'a mut [u16], &'a mut [u16]);
 
@@ -482,12 +493,7 @@ impl<const W: usize> Extractor<W> {
         } = io.roi;
         self.reset(width);
         for r in 0..height {
-            let [s0, s1, s2] = &mut self.rows;
-            let (newest, older, oldest) = match r % 3 {
-                0 => (s0, &*s2, &*s1),
-                1 => (s1, &*s0, &*s2),
-                _ => (s2, &*s1, &*s0),
-            };
+            let (newest, older, oldest) = ring(&mut self.rows, r);
             signal::row(
                 io.frame.format(),
                 io.method,
@@ -550,13 +556,7 @@ impl<const W: usize> Extractor<W> {
         let below = floor.div_ceil(3).saturating_sub(1);
         let mut lit = [0u64; 3];
         for r in 0..height {
-            let slot = r % 3;
-            let [s0, s1, s2] = &mut self.bytes;
-            let (newest, older, oldest) = match slot {
-                0 => (s0, &*s2, &*s1),
-                1 => (s1, &*s0, &*s2),
-                _ => (s2, &*s1, &*s0),
-            };
+            let (newest, older, oldest) = ring(&mut self.bytes, r);
             signal::row_u8(
                 io.frame.format(),
                 io.method,
@@ -573,7 +573,7 @@ impl<const W: usize> Extractor<W> {
                 }
                 marks |= u64::from(hit != 0) << b;
             }
-            lit[slot] = marks;
+            lit[r % 3] = marks;
             if r < 2 {
                 continue;
             }

@@ -93,7 +93,9 @@ pub(crate) fn row(
     }
 }
 
-/// [`row`] for gray and YUYV, whose signal fits a byte: the same values as `u8`.
+/// [`row`] for gray and YUYV, whose signal fits a byte: the same values as `u8`. Kept parallel
+/// to [`row`] rather than generic over the output type on purpose: the merged version compiled
+/// to a YUYV loop 15 % slower in the bench.
 ///
 /// # Panics
 /// Never for RGB24 input, which the caller routes to [`row`]; it writes nothing then.
