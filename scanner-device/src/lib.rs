@@ -6,6 +6,8 @@
 //! load; capture, the per-frame pipeline and the link come with their issues.
 #![deny(missing_docs)]
 
+pub mod rig;
+
 use clap::Parser;
 
 /// Command line of the scanner head.

@@ -1,0 +1,839 @@
+//! The virtual rig: what the scanner head's camera would see, with ground truth.
+//!
+//! A [`Scene`] describes the camera, the two-plane board, objects in front of it, the hand-held
+//! laser's sweep, ambient light and the sensor. A [`Rig`] built from it casts one ray per pixel
+//! once (camera, board and objects do not move; only the laser does) into a geometry buffer, and
+//! then renders each frame from it:
+//! - ambient light on the surface albedo;
+//! - the laser: a light plane from a source that sweeps like a hand (deterministic wobble and
+//!   jitter per frame), Gaussian across its thickness, falling off with the square of the
+//!   distance and with the cosine of incidence, dark where an object hides the surface from the
+//!   source; pixels near the stripe are supersampled 4×4 with exact rays so that the stripe's
+//!   image is right to a small fraction of a pixel;
+//! - the lens: a Gaussian point-spread function (the ambient image is blurred once, the laser
+//!   light splatted through the same kernel per frame);
+//! - the sensor: gain, shot and read noise, rounding and clipping to 8 bits; out as RGB, gray or
+//!   YUYV like a webcam.
+//!
+//! [`Rig::truth`] gives, for every column, the exact row where the laser plane meets the visible
+//! lit surface, the 3-D point there and the surface it lies on, found by bisection on exact rays.
+//!
+//! Not yet here (issue 4 continues): printed markers from the board file, triangle meshes,
+//! speckle, flicker, motion blur, calibration shots, the scene file and render command.
+
+pub mod surface;
+
+use rand::rngs::SmallRng;
+use rand::{Rng, SeedableRng};
+use scanner_core::geometry::Plane;
+use scanner_core::nalgebra::{Point2, Point3, Rotation3, Vector3};
+use scanner_core::stripe::PixelFormat;
+use scanner_core::{Camera, GeomError};
+
+pub use surface::{Hit, Shape, SurfaceId};
+
+/// The two-plane board. Lengths in mm, angles in degrees.
+#[derive(Debug, Clone, PartialEq)]
+pub struct BoardSpec {
+    /// Distance of the crease from the camera along the optical axis.
+    pub distance: f64,
+    /// Opening angle between the two planes (90 for a right angle).
+    pub angle_deg: f64,
+    /// Turn of the board about its crease (about the camera's y axis).
+    pub yaw_deg: f64,
+    /// Tilt of the crease towards the camera (about the camera's x axis).
+    pub pitch_deg: f64,
+    /// RGB albedo of the board's surface.
+    pub albedo: [f64; 3],
+}
+
+/// An object in front of the board.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Object {
+    /// Its shape.
+    pub shape: Shape,
+    /// RGB albedo.
+    pub albedo: [f64; 3],
+}
+
+/// The hand-held laser and its sweep. Lengths in mm.
+#[derive(Debug, Clone, PartialEq)]
+pub struct LaserSpec {
+    /// Where the laser is held, camera coordinates.
+    pub source: Point3<f64>,
+    /// Height (y) at the crease where the stripe's plane crosses the board's centre line, at the
+    /// first and the last frame.
+    pub sweep: (f64, f64),
+    /// Frames in the sweep.
+    pub frames: usize,
+    /// Largest roll of the light plane about its direction of travel, degrees (hand wobble).
+    pub wobble_deg: f64,
+    /// Largest jitter of the source position, mm.
+    pub jitter_mm: f64,
+    /// Standard deviation of the light plane's thickness, mm.
+    pub sigma_mm: f64,
+    /// Irradiance at the plane's centre 1 m from the source, in units of the ambient light.
+    pub power: f64,
+    /// RGB colour of the laser light (red: `[1, 0.05, 0.02]`).
+    pub colour: [f64; 3],
+    /// Seed of the wobble.
+    pub seed: u64,
+}
+
+/// The sensor: radiance to 8-bit numbers.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SensorSpec {
+    /// Digital numbers per unit of radiance (exposure × gain).
+    pub gain: f64,
+    /// Read noise, DN (standard deviation).
+    pub read_noise: f64,
+    /// Shot noise: variance in DN² per DN of signal.
+    pub shot_noise: f64,
+    /// Seed of the noise.
+    pub seed: u64,
+}
+
+/// Everything the rig renders.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Scene {
+    /// Image width, pixels.
+    pub width: u32,
+    /// Image height, pixels.
+    pub height: u32,
+    /// The camera, with distortion.
+    pub camera: Camera<f64>,
+    /// The board.
+    pub board: BoardSpec,
+    /// Objects in front of the board.
+    pub objects: Vec<Object>,
+    /// The laser.
+    pub laser: LaserSpec,
+    /// Ambient radiance on a white surface.
+    pub ambient: f64,
+    /// Lens blur: standard deviation of the Gaussian point-spread function, pixels (0: none).
+    pub blur_px: f64,
+    /// The sensor.
+    pub sensor: SensorSpec,
+}
+
+impl Scene {
+    /// The demo scene: a right-angled board 800 mm away, a sphere, a cylinder and a box in front
+    /// of it, a red laser held above the camera sweeping down over them; f = 0.875 × width px
+    /// (1400 px at 1600 wide) with mild barrel distortion; sensor noise of a webcam.
+    pub fn demo(width: u32, height: u32) -> Scene {
+        let f = 0.875 * f64::from(width);
+        let camera = Camera::new(
+            f,
+            f,
+            (f64::from(width) - 1.0) / 2.0,
+            (f64::from(height) - 1.0) / 2.0,
+            scanner_core::Distortion {
+                k1: -0.06,
+                k2: 0.02,
+                ..scanner_core::Distortion::none()
+            },
+        )
+        .expect("valid demo camera");
+        let d = 800.0;
+        Scene {
+            width,
+            height,
+            camera,
+            board: BoardSpec {
+                distance: d,
+                angle_deg: 90.0,
+                yaw_deg: 0.0,
+                pitch_deg: 0.0,
+                albedo: [0.8, 0.8, 0.78],
+            },
+            objects: vec![
+                Object {
+                    shape: Shape::Sphere {
+                        centre: Point3::new(-40.0, 10.0, d - 300.0),
+                        radius: 70.0,
+                    },
+                    albedo: [0.7, 0.6, 0.5],
+                },
+                Object {
+                    shape: Shape::Cylinder {
+                        base: Point3::new(110.0, 90.0, d - 330.0),
+                        axis: scanner_core::nalgebra::Unit::new_normalize(Vector3::new(
+                            0.0, -1.0, 0.0,
+                        )),
+                        radius: 35.0,
+                        height: 150.0,
+                    },
+                    albedo: [0.5, 0.6, 0.7],
+                },
+            ],
+            laser: LaserSpec {
+                source: Point3::new(20.0, -250.0, 30.0),
+                sweep: (-180.0, 200.0),
+                frames: 60,
+                wobble_deg: 1.5,
+                jitter_mm: 2.0,
+                sigma_mm: 0.6,
+                power: 3.0,
+                colour: [1.0, 0.05, 0.02],
+                seed: 2012,
+            },
+            ambient: 0.25,
+            blur_px: 1.0,
+            sensor: SensorSpec {
+                gain: 200.0,
+                read_noise: 1.5,
+                shot_noise: 0.05,
+                seed: 7,
+            },
+        }
+    }
+}
+
+/// Why a rig could not be built or a frame rendered.
+#[derive(Debug, Clone, PartialEq)]
+#[non_exhaustive]
+pub enum RigError {
+    /// A scene value is out of range; the text names it.
+    Scene(String),
+    /// Geometry failed (degenerate board).
+    Geometry(GeomError),
+    /// Frame index past the sweep.
+    NoSuchFrame {
+        /// Asked for.
+        index: usize,
+        /// Frames in the sweep.
+        frames: usize,
+    },
+}
+
+impl std::fmt::Display for RigError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Self::Scene(what) => write!(f, "bad scene: {what}"),
+            Self::Geometry(e) => write!(f, "scene geometry: {e}"),
+            Self::NoSuchFrame { index, frames } => {
+                write!(f, "frame {index} asked for, the sweep has {frames}")
+            }
+        }
+    }
+}
+
+impl std::error::Error for RigError {}
+
+/// The board as the rig needs it: planes and half directions.
+#[derive(Debug, Clone)]
+struct BoardGeometry {
+    crease: Point3<f64>,
+    halves: [(Plane<f64>, Vector3<f64>); 2],
+}
+
+impl BoardGeometry {
+    fn new(b: &BoardSpec) -> Result<Self, RigError> {
+        if !(b.distance > 0.0) || !(10.0..=175.0).contains(&b.angle_deg) {
+            return Err(RigError::Scene(format!(
+                "board distance {} mm and angle {}° (need > 0 and 10–175°)",
+                b.distance, b.angle_deg
+            )));
+        }
+        let half = b.angle_deg.to_radians() / 2.0;
+        let g = Rotation3::from_euler_angles(b.pitch_deg.to_radians(), b.yaw_deg.to_radians(), 0.0);
+        let c = g * Vector3::y();
+        let crease = Point3::new(0.0, 0.0, b.distance);
+        let mut halves = Vec::new();
+        for sign in [-1.0, 1.0] {
+            let h = g * Vector3::new(sign * half.sin(), 0.0, -half.cos());
+            let plane = Plane::from_point_normal(&crease, &h.cross(&c))
+                .map_err(RigError::Geometry)?
+                .facing_camera();
+            halves.push((plane, h));
+        }
+        Ok(Self {
+            crease,
+            halves: [halves[0], halves[1]],
+        })
+    }
+
+    /// The left and right planes (normals towards the camera).
+    fn planes(&self) -> [Plane<f64>; 2] {
+        [self.halves[0].0, self.halves[1].0]
+    }
+
+    fn hit(&self, dir: &Vector3<f64>) -> Option<Hit> {
+        let mut best: Option<Hit> = None;
+        for (k, (plane, h)) in self.halves.iter().enumerate() {
+            let Ok(p) = plane.intersect_ray(dir, 1e-9) else {
+                continue;
+            };
+            if (p - self.crease).dot(h) < 0.0 {
+                continue;
+            }
+            let t = p.coords.norm();
+            if best.is_none_or(|b| t < b.t) {
+                best = Some(Hit {
+                    t,
+                    point: p,
+                    normal: *plane.normal(),
+                    surface: if k == 0 {
+                        SurfaceId::Left
+                    } else {
+                        SurfaceId::Right
+                    },
+                });
+            }
+        }
+        best
+    }
+}
+
+/// One pixel of the geometry buffer: the surface point its centre sees.
+#[derive(Debug, Clone, Copy)]
+struct Texel {
+    point: [f32; 3],
+    /// Index into the albedo table: 0, 1 board halves, 2 + n object n; `u16::MAX` nothing.
+    surface: u16,
+}
+
+/// Ground truth of one column of one laser frame.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ColumnTruth {
+    /// Row (subpixel, pixel centres at integers) where the laser plane meets the visible surface.
+    pub row: f64,
+    /// The 3-D point there, camera coordinates, mm.
+    pub point: Point3<f64>,
+    /// The surface it lies on.
+    pub surface: SurfaceId,
+    /// Cosine of the laser's angle of incidence there (1 head-on, near 0 at the terminator,
+    /// where part of the stripe falls in the surface's own shadow).
+    pub incidence: f64,
+}
+
+/// A rendered frame in RGB, 8 bits per channel, rows packed.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Rgb8 {
+    /// Width, pixels.
+    pub width: usize,
+    /// Height, pixels.
+    pub height: usize,
+    /// `width × height × 3` bytes.
+    pub data: Vec<u8>,
+}
+
+impl Rgb8 {
+    /// The frame in another pixel format, rows packed: gray is the luma, YUYV carries the luma
+    /// of each pixel and the chroma of each pair.
+    pub fn to_format(&self, format: PixelFormat) -> Vec<u8> {
+        let luma = |p: &[u8]| -> f64 {
+            0.299 * f64::from(p[0]) + 0.587 * f64::from(p[1]) + 0.114 * f64::from(p[2])
+        };
+        match format {
+            PixelFormat::Rgb24 => self.data.clone(),
+            PixelFormat::Gray8 => self
+                .data
+                .chunks_exact(3)
+                .map(|p| luma(p).round() as u8)
+                .collect(),
+            PixelFormat::Yuyv => {
+                let mut out = Vec::with_capacity(self.width * self.height * 2);
+                for pair in self.data.chunks_exact(6) {
+                    let (a, b) = (&pair[..3], &pair[3..]);
+                    let (ya, yb) = (luma(a), luma(b));
+                    let avg = |i: usize| (f64::from(a[i]) + f64::from(b[i])) / 2.0;
+                    let y = (ya + yb) / 2.0;
+                    let u = (128.0 + 0.564 * (avg(2) - y)).round().clamp(0.0, 255.0) as u8;
+                    let v = (128.0 + 0.713 * (avg(0) - y)).round().clamp(0.0, 255.0) as u8;
+                    out.extend_from_slice(&[ya.round() as u8, u, yb.round() as u8, v]);
+                }
+                out
+            }
+        }
+    }
+}
+
+/// The rig: a scene with its geometry buffer.
+#[derive(Debug)]
+pub struct Rig {
+    scene: Scene,
+    board: BoardGeometry,
+    /// Undistorted normalised coordinates of each pixel centre (NaN where undefined), for
+    /// interpolating sub-pixel rays.
+    normalised: Vec<[f32; 2]>,
+    texels: Vec<Texel>,
+    albedo: Vec<[f64; 3]>,
+    /// The ambient image, blurred once.
+    ambient: Vec<[f32; 3]>,
+    /// Normalised 1-D lens-blur kernel (odd length; `[1]` without blur).
+    kernel: Vec<f64>,
+}
+
+/// A normalised Gaussian kernel of standard deviation `sigma` (pixels), radius ⌈3σ⌉.
+fn gaussian_kernel(sigma: f64) -> Vec<f64> {
+    if !(sigma > 0.0) {
+        return vec![1.0];
+    }
+    let r = (3.0 * sigma).ceil() as i64;
+    let k: Vec<f64> = (-r..=r)
+        .map(|i| (-(i * i) as f64 / (2.0 * sigma * sigma)).exp())
+        .collect();
+    let sum: f64 = k.iter().sum();
+    k.into_iter().map(|v| v / sum).collect()
+}
+
+/// Separable blur of an RGB image with a normalised kernel, clamping at the borders.
+fn blur(img: &[[f64; 3]], w: usize, h: usize, kernel: &[f64]) -> Vec<[f64; 3]> {
+    let r = kernel.len() / 2;
+    let mut tmp = vec![[0.0; 3]; w * h];
+    for v in 0..h {
+        for u in 0..w {
+            let mut acc = [0.0; 3];
+            for (j, k) in kernel.iter().enumerate() {
+                let uu = (u + j).saturating_sub(r).min(w - 1);
+                for c in 0..3 {
+                    acc[c] += k * img[v * w + uu][c];
+                }
+            }
+            tmp[v * w + u] = acc;
+        }
+    }
+    let mut out = vec![[0.0; 3]; w * h];
+    for v in 0..h {
+        for u in 0..w {
+            let mut acc = [0.0; 3];
+            for (j, k) in kernel.iter().enumerate() {
+                let vv = (v + j).saturating_sub(r).min(h - 1);
+                for c in 0..3 {
+                    acc[c] += k * tmp[vv * w + u][c];
+                }
+            }
+            out[v * w + u] = acc;
+        }
+    }
+    out
+}
+
+/// Largest footprint of a pixel across the light plane the renderer expects, mm: beyond
+/// `5σ +` this from the plane a pixel is not examined further.
+const FOOTPRINT_BOUND_MM: f64 = 40.0;
+
+/// Sub-samples per pixel side near the stripe.
+const SUPERSAMPLE: usize = 4;
+
+impl Rig {
+    /// Builds the rig: one ray per pixel, cast once.
+    ///
+    /// # Errors
+    /// [`RigError::Scene`] for out-of-range values, [`RigError::Geometry`] for a degenerate board.
+    pub fn new(scene: Scene) -> Result<Rig, RigError> {
+        if scene.width < 2 || scene.height < 2 || scene.width > 8192 || scene.height > 8192 {
+            return Err(RigError::Scene(format!(
+                "image size {}×{} (need 2–8192)",
+                scene.width, scene.height
+            )));
+        }
+        if scene.laser.frames == 0 {
+            return Err(RigError::Scene(
+                "the laser sweep needs at least one frame".into(),
+            ));
+        }
+        if !(scene.laser.sigma_mm > 0.0) {
+            return Err(RigError::Scene(
+                "laser thickness sigma_mm must be positive".into(),
+            ));
+        }
+        if !(0.0..=10.0).contains(&scene.blur_px) {
+            return Err(RigError::Scene(format!(
+                "lens blur {} px (need 0–10)",
+                scene.blur_px
+            )));
+        }
+        let board = BoardGeometry::new(&scene.board)?;
+        let (w, h) = (scene.width as usize, scene.height as usize);
+        let scene_blur = scene.blur_px;
+        let mut albedo = vec![scene.board.albedo, scene.board.albedo];
+        albedo.extend(scene.objects.iter().map(|o| o.albedo));
+        let mut rig = Rig {
+            scene,
+            board,
+            texels: vec![
+                Texel {
+                    point: [0.0; 3],
+                    surface: u16::MAX
+                };
+                w * h
+            ],
+            albedo,
+            normalised: vec![[f32::NAN; 2]; w * h],
+            ambient: Vec::new(),
+            kernel: gaussian_kernel(scene_blur),
+        };
+        for v in 0..h {
+            for u in 0..w {
+                let i = v * w + u;
+                if let Ok(n) = rig.scene.camera.undistort(&Point2::new(u as f64, v as f64)) {
+                    rig.normalised[i] = [n.x as f32, n.y as f32];
+                }
+                if let Some(hit) = rig.ray(u as f64, v as f64).and_then(|dir| rig.cast(&dir)) {
+                    rig.texels[i] = Texel {
+                        point: [hit.point.x as f32, hit.point.y as f32, hit.point.z as f32],
+                        surface: surface_index(hit.surface),
+                    };
+                }
+            }
+        }
+        let amb = rig.scene.ambient;
+        let flat: Vec<[f64; 3]> = rig
+            .texels
+            .iter()
+            .map(|t| {
+                if t.surface == u16::MAX {
+                    [0.0; 3]
+                } else {
+                    rig.albedo[usize::from(t.surface)].map(|a| amb * a)
+                }
+            })
+            .collect();
+        rig.ambient = blur(&flat, w, h, &rig.kernel)
+            .into_iter()
+            .map(|p| p.map(|v| v as f32))
+            .collect();
+        Ok(rig)
+    }
+
+    /// The scene.
+    pub fn scene(&self) -> &Scene {
+        &self.scene
+    }
+
+    /// The true board planes, left and right, normals towards the camera.
+    pub fn board_planes(&self) -> [Plane<f64>; 2] {
+        self.board.planes()
+    }
+
+    /// Unit ray through the (subpixel) image point `(u, v)`.
+    fn ray(&self, u: f64, v: f64) -> Option<Vector3<f64>> {
+        let r = self.scene.camera.pixel_to_ray(&Point2::new(u, v)).ok()?;
+        Some(r.normalize())
+    }
+
+    /// Unit ray through `(u, v)` interpolated bilinearly between the stored pixel centres
+    /// (distortion is smooth: the error is far below a thousandth of a pixel); for rendering.
+    fn ray_fast(&self, u: f64, v: f64) -> Option<Vector3<f64>> {
+        let (w, h) = (self.scene.width as usize, self.scene.height as usize);
+        let u = u.clamp(0.0, (w - 1) as f64);
+        let v = v.clamp(0.0, (h - 1) as f64);
+        let (u0, v0) = (
+            (u.floor() as usize).min(w - 2),
+            (v.floor() as usize).min(h - 2),
+        );
+        let (fu, fv) = (u - u0 as f64, v - v0 as f64);
+        let at = |uu: usize, vv: usize| self.normalised[vv * w + uu];
+        let (a, b, c, d) = (
+            at(u0, v0),
+            at(u0 + 1, v0),
+            at(u0, v0 + 1),
+            at(u0 + 1, v0 + 1),
+        );
+        let lerp = |k: usize| {
+            let top = f64::from(a[k]) * (1.0 - fu) + f64::from(b[k]) * fu;
+            let bottom = f64::from(c[k]) * (1.0 - fu) + f64::from(d[k]) * fu;
+            top * (1.0 - fv) + bottom * fv
+        };
+        let r = Vector3::new(lerp(0), lerp(1), 1.0);
+        r.iter().all(|x| x.is_finite()).then(|| r.normalize())
+    }
+
+    /// The nearest surface along a unit ray from the camera centre.
+    pub fn cast(&self, dir: &Vector3<f64>) -> Option<Hit> {
+        let mut best = self.board.hit(dir);
+        for (k, o) in self.scene.objects.iter().enumerate() {
+            if let Some(h) = o.shape.hit(&Point3::origin(), dir, 1e-9, k as u16)
+                && best.is_none_or(|b| h.t < b.t)
+            {
+                best = Some(h);
+            }
+        }
+        best
+    }
+
+    /// `true` if an object lies between `p` and the laser source `s`.
+    fn shadowed(&self, p: &Point3<f64>, s: &Point3<f64>) -> bool {
+        let to = s - p;
+        let dist = to.norm();
+        let dir = to / dist;
+        self.scene.objects.iter().enumerate().any(|(k, o)| {
+            o.shape
+                .hit(p, &dir, 1e-6, k as u16)
+                .is_some_and(|h| h.t < dist - 1e-6)
+        })
+    }
+
+    /// The laser's source and light plane in frame `index` of the sweep.
+    ///
+    /// # Errors
+    /// [`RigError::NoSuchFrame`] past the sweep.
+    pub fn laser(&self, index: usize) -> Result<(Point3<f64>, Plane<f64>), RigError> {
+        let l = &self.scene.laser;
+        if index >= l.frames {
+            return Err(RigError::NoSuchFrame {
+                index,
+                frames: l.frames,
+            });
+        }
+        let mut rng =
+            SmallRng::seed_from_u64(l.seed ^ (index as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15));
+        let frac = if l.frames > 1 {
+            index as f64 / (l.frames - 1) as f64
+        } else {
+            0.5
+        };
+        let height = l.sweep.0 + (l.sweep.1 - l.sweep.0) * frac;
+        let mut jitter = || rng.random_range(-1.0..=1.0);
+        let source = l.source + Vector3::new(jitter(), jitter(), jitter()) * l.jitter_mm;
+        let roll = (jitter() * l.wobble_deg).to_radians();
+        // the plane holds the (rolled) horizontal direction and the aim point on the crease line
+        let along = Rotation3::from_axis_angle(&Vector3::z_axis(), roll) * Vector3::x();
+        let aim = Point3::new(0.0, height, self.scene.board.distance);
+        let plane = Plane::from_point_normal(&source, &along.cross(&(aim - source)))
+            .map_err(RigError::Geometry)?
+            .facing_camera();
+        Ok((source, plane))
+    }
+
+    /// Laser irradiance (per unit albedo and colour) at a surface point.
+    fn laser_light(
+        &self,
+        p: &Point3<f64>,
+        n: &Vector3<f64>,
+        source: &Point3<f64>,
+        plane: &Plane<f64>,
+    ) -> f64 {
+        let l = &self.scene.laser;
+        let d = plane.signed_distance(p);
+        let across = (-(d * d) / (2.0 * l.sigma_mm * l.sigma_mm)).exp();
+        if across < 1e-7 {
+            return 0.0;
+        }
+        let to = source - p;
+        let dist2 = to.norm_squared();
+        let cos = n.dot(&to) / dist2.sqrt();
+        if cos <= 0.0 || self.shadowed(p, source) {
+            return 0.0;
+        }
+        l.power * across * cos * 1e6 / dist2
+    }
+
+    /// The radiance image (RGB, row-major) of the scene lit by ambient light and, if given, by the
+    /// laser of frame `laser`.
+    fn radiance(&self, laser: Option<(Point3<f64>, Plane<f64>)>) -> Vec<[f32; 3]> {
+        let (w, h) = (self.scene.width as usize, self.scene.height as usize);
+        let mut out = self.ambient.clone();
+        let Some((source, plane)) = laser else {
+            return out;
+        };
+        let colour = self.scene.laser.colour;
+        let sigma = self.scene.laser.sigma_mm;
+        // distance of each pixel's surface point from the light plane, and its change to the
+        // neighbours (the pixel's footprint across the plane)
+        let dist: Vec<f64> = self
+            .texels
+            .iter()
+            .map(|t| {
+                if t.surface == u16::MAX {
+                    f64::INFINITY
+                } else {
+                    plane.signed_distance(&Point3::new(
+                        f64::from(t.point[0]),
+                        f64::from(t.point[1]),
+                        f64::from(t.point[2]),
+                    ))
+                }
+            })
+            .collect();
+        for v in 0..h {
+            for u in 0..w {
+                let i = v * w + u;
+                let d = dist[i];
+                // far from the plane (or no surface): no laser light, without looking further
+                if !(d.abs() <= 5.0 * sigma + FOOTPRINT_BOUND_MM) {
+                    continue;
+                }
+                let mut foot = 0.0f64;
+                for (du, dv) in [(-1i64, 0i64), (1, 0), (0, -1), (0, 1)] {
+                    let (uu, vv) = (u as i64 + du, v as i64 + dv);
+                    if uu >= 0 && vv >= 0 && (uu as usize) < w && (vv as usize) < h {
+                        let e = dist[vv as usize * w + uu as usize];
+                        if e.is_finite() {
+                            foot = foot.max((e - d).abs());
+                        }
+                    }
+                }
+                if d.abs() > 5.0 * sigma + foot {
+                    continue;
+                }
+                // supersample the pixel with exact rays
+                let mut sum = [0.0; 3];
+                let n = SUPERSAMPLE * SUPERSAMPLE;
+                for sy in 0..SUPERSAMPLE {
+                    for sx in 0..SUPERSAMPLE {
+                        let su = u as f64 + (sx as f64 + 0.5) / SUPERSAMPLE as f64 - 0.5;
+                        let sv = v as f64 + (sy as f64 + 0.5) / SUPERSAMPLE as f64 - 0.5;
+                        let Some(dir) = self.ray_fast(su, sv) else {
+                            continue;
+                        };
+                        let Some(hit) = self.cast(&dir) else { continue };
+                        let e = self.laser_light(&hit.point, &hit.normal, &source, &plane);
+                        let a = self.albedo[usize::from(surface_index(hit.surface))];
+                        for c in 0..3 {
+                            sum[c] += e * a[c] * colour[c];
+                        }
+                    }
+                }
+                // through the lens: splat the pixel's laser light with the blur kernel
+                let r = self.kernel.len() / 2;
+                for (jv, kv) in self.kernel.iter().enumerate() {
+                    let Some(vv) = (v + jv).checked_sub(r).filter(|&vv| vv < h) else {
+                        continue;
+                    };
+                    for (ju, ku) in self.kernel.iter().enumerate() {
+                        let Some(uu) = (u + ju).checked_sub(r).filter(|&uu| uu < w) else {
+                            continue;
+                        };
+                        let k = kv * ku / n as f64;
+                        for c in 0..3 {
+                            out[vv * w + uu][c] += (k * sum[c]) as f32;
+                        }
+                    }
+                }
+            }
+        }
+        out
+    }
+
+    /// Radiance → 8-bit RGB through the sensor; `noise_seed` picks the noise realisation.
+    fn expose(&self, radiance: &[[f32; 3]], noise_seed: u64) -> Rgb8 {
+        let s = &self.scene.sensor;
+        let mut rng = SmallRng::seed_from_u64(s.seed ^ noise_seed);
+        let noisy = s.read_noise > 0.0 || s.shot_noise > 0.0;
+        let mut data = Vec::with_capacity(radiance.len() * 3);
+        for px in radiance {
+            for &r in px {
+                let mut v = s.gain * f64::from(r);
+                if noisy {
+                    let sd = (s.read_noise * s.read_noise + s.shot_noise * v.max(0.0)).sqrt();
+                    v += sd * unit_normal(rng.random::<u64>());
+                }
+                data.push(v.round().clamp(0.0, 255.0) as u8);
+            }
+        }
+        Rgb8 {
+            width: self.scene.width as usize,
+            height: self.scene.height as usize,
+            data,
+        }
+    }
+
+    /// The reference frame: ambient light only, laser off.
+    pub fn reference(&self) -> Rgb8 {
+        self.expose(&self.radiance(None), u64::MAX)
+    }
+
+    /// Laser frame `index` of the sweep.
+    ///
+    /// # Errors
+    /// [`RigError::NoSuchFrame`] past the sweep.
+    pub fn frame(&self, index: usize) -> Result<Rgb8, RigError> {
+        let laser = self.laser(index)?;
+        Ok(self.expose(&self.radiance(Some(laser)), index as u64))
+    }
+
+    /// The ground truth of laser frame `index`: per column, where the light plane meets the
+    /// visible, lit surface — `None` where it does not, or where it does at more than one place
+    /// (the stripe broken by an occluding edge).
+    ///
+    /// # Errors
+    /// [`RigError::NoSuchFrame`] past the sweep.
+    pub fn truth(&self, index: usize) -> Result<Vec<Option<ColumnTruth>>, RigError> {
+        let (source, plane) = self.laser(index)?;
+        let (w, h) = (self.scene.width as usize, self.scene.height as usize);
+        let signed = |u: f64, v: f64| -> Option<(f64, Hit)> {
+            let hit = self.cast(&self.ray(u, v)?)?;
+            Some((plane.signed_distance(&hit.point), hit))
+        };
+        let mut out = vec![None; w];
+        for (u, slot) in out.iter_mut().enumerate() {
+            let mut found = Vec::new();
+            for v in 0..h - 1 {
+                let (a, b) = (&self.texels[v * w + u], &self.texels[(v + 1) * w + u]);
+                if a.surface == u16::MAX || a.surface != b.surface {
+                    continue;
+                }
+                let da = plane.signed_distance(&texel_point(a));
+                let db = plane.signed_distance(&texel_point(b));
+                if da == 0.0 || da.signum() != db.signum() {
+                    found.push(v);
+                }
+            }
+            // refine each crossing by bisection on exact rays; keep the lit ones
+            let mut lit = Vec::new();
+            for &v0 in &found {
+                let (mut lo, mut hi) = (v0 as f64, v0 as f64 + 1.0);
+                let Some((dlo, _)) = signed(u as f64, lo) else {
+                    continue;
+                };
+                for _ in 0..50 {
+                    let mid = (lo + hi) / 2.0;
+                    let Some((dm, _)) = signed(u as f64, mid) else {
+                        break;
+                    };
+                    if dm.signum() == dlo.signum() {
+                        lo = mid;
+                    } else {
+                        hi = mid;
+                    }
+                }
+                let row = (lo + hi) / 2.0;
+                let Some((_, hit)) = signed(u as f64, row) else {
+                    continue;
+                };
+                // on the plane (d ≈ 0): lit unless shadowed or facing away from the source
+                if self.laser_light(&hit.point, &hit.normal, &source, &plane) > 0.0 {
+                    lit.push(ColumnTruth {
+                        row,
+                        point: hit.point,
+                        surface: hit.surface,
+                        incidence: hit.normal.dot(&(source - hit.point).normalize()),
+                    });
+                }
+            }
+            if let [only] = lit[..] {
+                *slot = Some(only);
+            }
+        }
+        Ok(out)
+    }
+}
+
+/// An approximately standard-normal number from 64 random bits: the sum of four 16-bit
+/// uniforms, centred and scaled to unit variance (Irwin–Hall; tails end at ±3.46σ, which is
+/// immaterial for sensor noise and four times cheaper than an exact sampler).
+#[inline]
+fn unit_normal(bits: u64) -> f64 {
+    let sum = (bits & 0xFFFF) + ((bits >> 16) & 0xFFFF) + ((bits >> 32) & 0xFFFF) + (bits >> 48);
+    // four uniforms on [0, 1): mean 2, variance 4/12
+    (sum as f64 / 65536.0 - 2.0) * 3f64.sqrt()
+}
+
+fn texel_point(t: &Texel) -> Point3<f64> {
+    Point3::new(
+        f64::from(t.point[0]),
+        f64::from(t.point[1]),
+        f64::from(t.point[2]),
+    )
+}
+
+fn surface_index(s: SurfaceId) -> u16 {
+    match s {
+        SurfaceId::Left => 0,
+        SurfaceId::Right => 1,
+        SurfaceId::Object(n) => 2 + n,
+    }
+}

@@ -1,0 +1,208 @@
+//! What the rig's rays can hit: the two board planes (as half-planes meeting at the crease) and
+//! analytic objects with exact ground truth.
+
+use scanner_core::nalgebra::{Point3, Unit, Vector3};
+
+/// Which surface a point lies on, as the ground truth reports it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum SurfaceId {
+    /// The left board plane.
+    Left,
+    /// The right board plane.
+    Right,
+    /// Object number `n` of the scene.
+    Object(u16),
+}
+
+/// A ray hit: distance along the unit ray, point, unit normal facing the ray, surface.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Hit {
+    /// Distance from the ray origin, mm.
+    pub t: f64,
+    /// The point hit.
+    pub point: Point3<f64>,
+    /// Unit normal, facing back along the ray.
+    pub normal: Vector3<f64>,
+    /// What was hit.
+    pub surface: SurfaceId,
+}
+
+/// An analytic object.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Shape {
+    /// A sphere.
+    Sphere {
+        /// Centre, mm.
+        centre: Point3<f64>,
+        /// Radius, mm.
+        radius: f64,
+    },
+    /// A finite cylinder with caps.
+    Cylinder {
+        /// Centre of its base, mm.
+        base: Point3<f64>,
+        /// Unit axis.
+        axis: Unit<Vector3<f64>>,
+        /// Radius, mm.
+        radius: f64,
+        /// Height along the axis, mm.
+        height: f64,
+    },
+    /// A box, axis-aligned in its own frame: centre, half sizes, and the frame's rotation.
+    Cuboid {
+        /// Centre, mm.
+        centre: Point3<f64>,
+        /// Half sizes along the box's own axes, mm.
+        half: Vector3<f64>,
+        /// The box's axes in camera coordinates (columns).
+        axes: [Vector3<f64>; 3],
+    },
+    /// A rectangle: centre, two unit in-plane axes, half sizes along them.
+    Rectangle {
+        /// Centre, mm.
+        centre: Point3<f64>,
+        /// In-plane unit axes.
+        axes: [Vector3<f64>; 2],
+        /// Half sizes along the axes, mm.
+        half: [f64; 2],
+    },
+}
+
+fn facing(n: Vector3<f64>, dir: &Vector3<f64>) -> Vector3<f64> {
+    if n.dot(dir) > 0.0 { -n } else { n }
+}
+
+impl Shape {
+    /// The nearest hit of the ray `origin + t·dir` (unit `dir`) with `t > t_min`.
+    pub fn hit(
+        &self,
+        origin: &Point3<f64>,
+        dir: &Vector3<f64>,
+        t_min: f64,
+        id: u16,
+    ) -> Option<Hit> {
+        let surface = SurfaceId::Object(id);
+        let make = |t: f64, n: Vector3<f64>| Hit {
+            t,
+            point: origin + dir * t,
+            normal: facing(n, dir),
+            surface,
+        };
+        match self {
+            Shape::Sphere { centre, radius } => {
+                let oc = origin - centre;
+                let b = oc.dot(dir);
+                let c = oc.norm_squared() - radius * radius;
+                let disc = b * b - c;
+                if disc < 0.0 {
+                    return None;
+                }
+                let s = disc.sqrt();
+                let t = [-b - s, -b + s].into_iter().find(|&t| t > t_min)?;
+                let p = origin + dir * t;
+                Some(make(t, (p - centre) / *radius))
+            }
+            Shape::Cylinder {
+                base,
+                axis,
+                radius,
+                height,
+            } => {
+                let a = axis.into_inner();
+                let mut best: Option<Hit> = None;
+                let mut consider = |t: f64, n: Vector3<f64>| {
+                    if t > t_min && best.is_none_or(|b| t < b.t) {
+                        best = Some(make(t, n));
+                    }
+                };
+                // side: |(p − base) − ((p − base)·a) a| = r
+                let ob = origin - base;
+                let d_perp = dir - a * dir.dot(&a);
+                let o_perp = ob - a * ob.dot(&a);
+                let qa = d_perp.norm_squared();
+                let qb = 2.0 * d_perp.dot(&o_perp);
+                let qc = o_perp.norm_squared() - radius * radius;
+                let disc = qb * qb - 4.0 * qa * qc;
+                if qa > 1e-12 && disc >= 0.0 {
+                    for t in [
+                        (-qb - disc.sqrt()) / (2.0 * qa),
+                        (-qb + disc.sqrt()) / (2.0 * qa),
+                    ] {
+                        let p = origin + dir * t;
+                        let h = (p - base).dot(&a);
+                        if (0.0..=*height).contains(&h) {
+                            let n = (p - base) - a * h;
+                            consider(t, n / *radius);
+                        }
+                    }
+                }
+                // caps
+                let den = dir.dot(&a);
+                if den.abs() > 1e-12 {
+                    for h in [0.0, *height] {
+                        let t = (h - ob.dot(&a)) / den;
+                        let p = origin + dir * t;
+                        let r = (p - base) - a * h;
+                        if r.norm() <= *radius {
+                            consider(t, a);
+                        }
+                    }
+                }
+                best
+            }
+            Shape::Cuboid { centre, half, axes } => {
+                // slab test in the box frame
+                let (mut t0, mut t1) = (f64::NEG_INFINITY, f64::INFINITY);
+                let (mut n0, mut n1) = (Vector3::zeros(), Vector3::zeros());
+                let oc = origin - centre;
+                for k in 0..3 {
+                    let o = oc.dot(&axes[k]);
+                    let d = dir.dot(&axes[k]);
+                    if d.abs() < 1e-12 {
+                        if o.abs() > half[k] {
+                            return None;
+                        }
+                        continue;
+                    }
+                    let (mut a, mut b) = ((-half[k] - o) / d, (half[k] - o) / d);
+                    if a > b {
+                        std::mem::swap(&mut a, &mut b);
+                    }
+                    if a > t0 {
+                        t0 = a;
+                        n0 = axes[k];
+                    }
+                    if b < t1 {
+                        t1 = b;
+                        n1 = axes[k];
+                    }
+                }
+                if t0 > t1 {
+                    return None;
+                }
+                if t0 > t_min {
+                    Some(make(t0, n0))
+                } else if t1 > t_min {
+                    Some(make(t1, n1))
+                } else {
+                    None
+                }
+            }
+            Shape::Rectangle { centre, axes, half } => {
+                let n = axes[0].cross(&axes[1]);
+                let den = dir.dot(&n);
+                if den.abs() < 1e-12 {
+                    return None;
+                }
+                let t = (centre - origin).dot(&n) / den;
+                if t <= t_min {
+                    return None;
+                }
+                let p = origin + dir * t;
+                let r = p - centre;
+                (r.dot(&axes[0]).abs() <= half[0] && r.dot(&axes[1]).abs() <= half[1])
+                    .then(|| make(t, n))
+            }
+        }
+    }
+}
