@@ -77,8 +77,8 @@ fn stripe_centres_match_the_truth_at_zero_noise() {
             let lo = (t.row - 6.0).max(0.0) as usize;
             let hi = ((t.row + 6.0) as usize).min(h - 1);
             let (mut m0, mut m1, mut peak) = (0.0, 0.0, 0.0f64);
-            for v in lo..=hi {
-                let x = s[v].max(0.0);
+            for (v, &x) in s.iter().enumerate().take(hi + 1).skip(lo) {
+                let x = x.max(0.0);
                 m0 += x;
                 m1 += x * v as f64;
                 peak = peak.max(x);
