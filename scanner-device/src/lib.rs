@@ -2,11 +2,13 @@
 //! `scanner-core` pipeline on each and sends compact point packets over a serial link.
 //!
 //! Where it sits: `camera ─► [scanner-device: sources → scanner-core per frame → link] ─► host`.
-//! At this stage it carries the command line and the geometry check of the calibration it will
-//! load; capture, the per-frame pipeline and the link come with their issues.
+//! At this stage it carries the command line, the frame-source interface ([`source`]) and the
+//! virtual rig ([`rig`]); V4L2 capture, the per-frame pipeline and the link come with their
+//! issues.
 #![deny(missing_docs)]
 
 pub mod rig;
+pub mod source;
 
 use clap::Parser;
 

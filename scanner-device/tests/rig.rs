@@ -192,3 +192,38 @@ fn formats_and_errors() {
     bad.board.angle_deg = 180.0;
     assert!(Rig::new(bad).unwrap_err().to_string().contains("angle"));
 }
+
+#[test]
+fn the_rig_is_a_frame_source_by_name() {
+    use scanner_device::source::{SourceError, open};
+    let mut src = open("rig:96x72", PixelFormat::Yuyv).unwrap();
+    assert_eq!(src.size(), (96, 72));
+    assert!(src.describe().contains("virtual rig"));
+    let reference = src.reference().unwrap();
+    assert_eq!(reference.data.len(), 96 * 72 * 2);
+    reference.view().unwrap();
+    let mut n = 0;
+    while let Some(f) = src.next_frame().unwrap() {
+        assert_eq!(f.index, n);
+        assert_ne!(f.data, reference.data);
+        n += 1;
+    }
+    assert_eq!(
+        n,
+        Scene::demo(96, 72).laser.frames as u64,
+        "the stream ends after the sweep"
+    );
+    assert!(src.next_frame().unwrap().is_none());
+    for (name, want) in [
+        ("webcam", "no frame source"),
+        ("rig:12", "WIDTHxHEIGHT"),
+        ("rig:axb", "not a size"),
+        ("rig:95x72", "even width"),
+    ] {
+        let err = open(name, PixelFormat::Yuyv).err().expect(name);
+        assert!(err.to_string().contains(want), "{name}: {err}");
+        if name == "webcam" {
+            assert!(matches!(err, SourceError::Unknown(_)));
+        }
+    }
+}
