@@ -8,8 +8,9 @@
 //! - the laser: a light plane from a source that sweeps like a hand (deterministic wobble and
 //!   jitter per frame), Gaussian across its thickness, falling off with the square of the
 //!   distance and with the cosine of incidence, dark where an object hides the surface from the
-//!   source; pixels near the stripe are supersampled 4×4 with exact rays so that the stripe's
-//!   image is right to a small fraction of a pixel;
+//!   source; pixels near the stripe are supersampled 3×3 (sub-pixel rays interpolated from the
+//!   pixel centres' undistorted coordinates, each cast into the scene) so that the stripe's image
+//!   is right to a small fraction of a pixel;
 //! - the lens: a Gaussian point-spread function (the ambient image is blurred once, the laser
 //!   light splatted through the same kernel per frame);
 //! - the sensor: gain, shot and read noise, rounding and clipping to 8 bits; out as RGB, gray or
@@ -117,8 +118,8 @@ pub struct Scene {
 }
 
 impl Scene {
-    /// The demo scene: a right-angled board 800 mm away, a sphere, a cylinder and a box in front
-    /// of it, a red laser held above the camera sweeping down over them; f = 0.875 × width px
+    /// The demo scene: a right-angled board 800 mm away, a sphere and a cylinder in front of it,
+    /// a red laser held 150 mm above the camera sweeping down over them; f = 0.875 × width px
     /// (1400 px at 1600 wide) with mild barrel distortion; sensor noise of a webcam.
     pub fn demo(width: u32, height: u32) -> Scene {
         let f = 0.875 * f64::from(width);
@@ -167,8 +168,8 @@ impl Scene {
                 },
             ],
             laser: LaserSpec {
-                source: Point3::new(20.0, -250.0, 30.0),
-                sweep: (-180.0, 200.0),
+                source: Point3::new(20.0, -150.0, 30.0),
+                sweep: (-150.0, 230.0),
                 frames: 60,
                 wobble_deg: 1.5,
                 jitter_mm: 2.0,
@@ -177,7 +178,7 @@ impl Scene {
                 colour: [1.0, 0.05, 0.02],
                 seed: 2012,
             },
-            ambient: 0.25,
+            ambient: 0.45,
             blur_px: 1.0,
             sensor: SensorSpec {
                 gain: 200.0,
@@ -415,7 +416,7 @@ fn blur(img: &[[f64; 3]], w: usize, h: usize, kernel: &[f64]) -> Vec<[f64; 3]> {
 const FOOTPRINT_BOUND_MM: f64 = 40.0;
 
 /// Sub-samples per pixel side near the stripe.
-const SUPERSAMPLE: usize = 4;
+const SUPERSAMPLE: usize = 3;
 
 impl Rig {
     /// Builds the rig: one ray per pixel, cast once.
