@@ -10,6 +10,7 @@ fn quiet(mut scene: Scene) -> Scene {
     scene.sensor.read_noise = 0.0;
     scene.sensor.shot_noise = 0.0;
     scene.laser.power = 1.2;
+    scene.laser.speckle = 0.0;
     scene
 }
 
@@ -226,4 +227,66 @@ fn the_rig_is_a_frame_source_by_name() {
             assert!(matches!(err, SourceError::Unknown(_)));
         }
     }
+}
+
+/// Width (px above half its peak) and peak of the red laser light in one column.
+fn stripe_in_column(frame: &[u8], reference: &[u8], w: usize, h: usize, u: usize) -> (usize, f64) {
+    let s = column_signal(frame, reference, w, h, u);
+    let peak = s.iter().copied().fold(0.0, f64::max);
+    (s.iter().filter(|&&x| x > peak / 2.0).count(), peak)
+}
+
+#[test]
+fn motion_blur_flicker_and_speckle_do_what_they_say() {
+    let (w, h) = (160usize, 120usize);
+    let base = quiet(Scene::demo(w as u32, h as u32));
+    let still = Rig::new(base.clone()).unwrap();
+    let moving = Rig::new(Scene {
+        exposure: 1.0,
+        ..base.clone()
+    })
+    .unwrap();
+    let reference = still.reference().data;
+    // motion blur: the stripe is wider on the board (column 20, left half)
+    let k = 20;
+    let (w0, _) = stripe_in_column(&still.frame(k).unwrap().data, &reference, w, h, 20);
+    let (w1, _) = stripe_in_column(&moving.frame(k).unwrap().data, &reference, w, h, 20);
+    assert!(w1 > w0, "motion blur: {w1} px vs {w0} px");
+    // flicker: the ambient level differs from frame to frame
+    let flicker = Rig::new(Scene {
+        flicker: 0.3,
+        ..base.clone()
+    })
+    .unwrap();
+    let mean = |d: &[u8]| d.iter().map(|&v| f64::from(v)).sum::<f64>() / d.len() as f64;
+    let levels: Vec<f64> = (0..4)
+        .map(|k| mean(&flicker.frame(k).unwrap().data))
+        .collect();
+    let spread = levels.iter().copied().fold(f64::MIN, f64::max)
+        - levels.iter().copied().fold(f64::MAX, f64::min);
+    assert!(spread > 3.0, "flicker: frame means {levels:?}");
+    // speckle: the peaks along the stripe vary more
+    let rough = |scene: Scene| -> f64 {
+        let rig = Rig::new(scene).unwrap();
+        let (f, r) = (rig.frame(k).unwrap().data, rig.reference().data);
+        let peaks: Vec<f64> = (5..40)
+            .map(|u| stripe_in_column(&f, &r, w, h, u).1)
+            .collect();
+        let m = peaks.iter().sum::<f64>() / peaks.len() as f64;
+        (peaks.iter().map(|p| (p - m).powi(2)).sum::<f64>() / peaks.len() as f64).sqrt() / m
+    };
+    let (smooth, grainy) = (
+        rough(base.clone()),
+        rough(Scene {
+            laser: scanner_device::rig::LaserSpec {
+                speckle: 1.0,
+                ..base.laser.clone()
+            },
+            ..base
+        }),
+    );
+    assert!(
+        grainy > 2.0 * smooth,
+        "speckle: relative spread of the peaks {grainy} vs {smooth}"
+    );
 }

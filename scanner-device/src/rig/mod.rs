@@ -19,8 +19,11 @@
 //! [`Rig::truth`] gives, for every column, the exact row where the laser plane meets the visible
 //! lit surface, the 3-D point there and the surface it lies on, found by bisection on exact rays.
 //!
+//! Also: laser speckle (a fixed grain on the lit surface), mains flicker of the ambient light, and
+//! motion blur (the light plane moves during the exposure).
+//!
 //! Not yet here (issue 4 continues): printed markers from the board file, triangle meshes,
-//! speckle, flicker, motion blur, calibration shots, the scene file and render command.
+//! calibration shots, the scene file and render command.
 
 pub mod surface;
 
@@ -77,6 +80,8 @@ pub struct LaserSpec {
     pub power: f64,
     /// RGB colour of the laser light (red: `[1, 0.05, 0.02]`).
     pub colour: [f64; 3],
+    /// Speckle contrast, 0 (none) to 1 (fully developed): a fixed grain on the lit surface.
+    pub speckle: f64,
     /// Seed of the wobble.
     pub seed: u64,
 }
@@ -113,6 +118,15 @@ pub struct Scene {
     pub ambient: f64,
     /// Lens blur: standard deviation of the Gaussian point-spread function, pixels (0: none).
     pub blur_px: f64,
+    /// Mains flicker of the ambient light: relative amplitude at twice `mains_hz` (0: none).
+    pub flicker: f64,
+    /// Mains frequency, Hz.
+    pub mains_hz: f64,
+    /// Frames per second of the camera (the sweep's time base).
+    pub fps: f64,
+    /// Exposure time as a fraction of the frame period: the laser moves during it (motion blur;
+    /// 0: an instant).
+    pub exposure: f64,
     /// The sensor.
     pub sensor: SensorSpec,
 }
@@ -176,10 +190,15 @@ impl Scene {
                 sigma_mm: 0.6,
                 power: 3.0,
                 colour: [1.0, 0.05, 0.02],
+                speckle: 0.2,
                 seed: 2012,
             },
             ambient: 0.45,
             blur_px: 1.0,
+            flicker: 0.0,
+            mains_hz: 50.0,
+            fps: 30.0,
+            exposure: 0.0,
             sensor: SensorSpec {
                 gain: 200.0,
                 read_noise: 1.5,
@@ -415,6 +434,12 @@ fn blur(img: &[[f64; 3]], w: usize, h: usize, kernel: &[f64]) -> Vec<[f64; 3]> {
 /// `5σ +` this from the plane a pixel is not examined further.
 const FOOTPRINT_BOUND_MM: f64 = 40.0;
 
+/// Largest distance the light plane sweeps over a surface point during one exposure the
+/// renderer expects, mm (beyond it pixels are not examined).
+const MOTION_BOUND_MM: f64 = 40.0;
+/// Light planes averaged over an exposure with motion blur.
+const MOTION_SAMPLES: usize = 5;
+
 /// Sub-samples per pixel side near the stripe.
 const SUPERSAMPLE: usize = 3;
 
@@ -567,7 +592,8 @@ impl Rig {
         })
     }
 
-    /// The laser's source and light plane in frame `index` of the sweep.
+    /// The laser's source and light plane in frame `index` of the sweep (at the middle of its
+    /// exposure).
     ///
     /// # Errors
     /// [`RigError::NoSuchFrame`] past the sweep.
@@ -579,17 +605,30 @@ impl Rig {
                 frames: l.frames,
             });
         }
-        let mut rng =
-            SmallRng::seed_from_u64(l.seed ^ (index as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15));
+        self.laser_at(index as f64)
+    }
+
+    /// The laser at time `t` in frame periods: the aim moves linearly through the sweep, the hand's
+    /// wobble and jitter are random per frame and move linearly between frames.
+    fn laser_at(&self, t: f64) -> Result<(Point3<f64>, Plane<f64>), RigError> {
+        let l = &self.scene.laser;
+        let t = t.clamp(0.0, (l.frames - 1) as f64);
+        let shake = |k: usize| -> [f64; 4] {
+            let mut rng =
+                SmallRng::seed_from_u64(l.seed ^ (k as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15));
+            core::array::from_fn(|_| rng.random_range(-1.0..=1.0))
+        };
+        let (k0, f) = (t.floor() as usize, t - t.floor());
+        let (a, b) = (shake(k0), shake(k0 + 1));
+        let j: [f64; 4] = core::array::from_fn(|i| a[i] * (1.0 - f) + b[i] * f);
         let frac = if l.frames > 1 {
-            index as f64 / (l.frames - 1) as f64
+            t / (l.frames - 1) as f64
         } else {
             0.5
         };
         let height = l.sweep.0 + (l.sweep.1 - l.sweep.0) * frac;
-        let mut jitter = || rng.random_range(-1.0..=1.0);
-        let source = l.source + Vector3::new(jitter(), jitter(), jitter()) * l.jitter_mm;
-        let roll = (jitter() * l.wobble_deg).to_radians();
+        let source = l.source + Vector3::new(j[0], j[1], j[2]) * l.jitter_mm;
+        let roll = (j[3] * l.wobble_deg).to_radians();
         // the plane holds the (rolled) horizontal direction and the aim point on the crease line
         let along = Rotation3::from_axis_angle(&Vector3::z_axis(), roll) * Vector3::x();
         let aim = Point3::new(0.0, height, self.scene.board.distance);
@@ -597,6 +636,21 @@ impl Rig {
             .map_err(RigError::Geometry)?
             .facing_camera();
         Ok((source, plane))
+    }
+
+    /// The light planes the exposure of frame `index` averages (one without motion blur).
+    fn exposure_planes(&self, index: usize) -> Result<Vec<(Point3<f64>, Plane<f64>)>, RigError> {
+        self.laser(index)?;
+        let e = self.scene.exposure;
+        if e == 0.0 {
+            return Ok(vec![self.laser_at(index as f64)?]);
+        }
+        (0..MOTION_SAMPLES)
+            .map(|i| {
+                let s = (i as f64 + 0.5) / MOTION_SAMPLES as f64 - 0.5;
+                self.laser_at(index as f64 + e * s)
+            })
+            .collect()
     }
 
     /// Laser irradiance (per unit albedo and colour) at a surface point.
@@ -619,17 +673,22 @@ impl Rig {
         if cos <= 0.0 || self.shadowed(p, source) {
             return 0.0;
         }
-        l.power * across * cos * 1e6 / dist2
+        l.power * across * cos * 1e6 / dist2 * speckle(p, l.speckle)
     }
 
     /// The radiance image (RGB, row-major) of the scene lit by ambient light and, if given, by the
     /// laser of frame `laser`.
-    fn radiance(&self, laser: Option<(Point3<f64>, Plane<f64>)>) -> Vec<[f32; 3]> {
+    fn radiance(&self, time: f64, lasers: &[(Point3<f64>, Plane<f64>)]) -> Vec<[f32; 3]> {
         let (w, h) = (self.scene.width as usize, self.scene.height as usize);
-        let mut out = self.ambient.clone();
-        let Some((source, plane)) = laser else {
+        // mains flicker: light intensity follows |sin| of the mains, i.e. twice its frequency
+        let phase = 2.0 * std::f64::consts::PI * 2.0 * self.scene.mains_hz * time / self.scene.fps;
+        let level = (1.0 + self.scene.flicker * phase.sin()) as f32;
+        let mut out: Vec<[f32; 3]> = self.ambient.iter().map(|p| p.map(|v| v * level)).collect();
+        let Some(&(_, plane)) = lasers.get(lasers.len() / 2) else {
             return out;
         };
+        // how far the plane moves during the exposure, at each pixel's surface point
+        let (first, last) = (lasers[0].1, lasers[lasers.len() - 1].1);
         let colour = self.scene.laser.colour;
         let sigma = self.scene.laser.sigma_mm;
         // distance of each pixel's surface point from the light plane, and its change to the
@@ -654,7 +713,7 @@ impl Rig {
                 let i = v * w + u;
                 let d = dist[i];
                 // far from the plane (or no surface): no laser light, without looking further
-                if !(d.abs() <= 5.0 * sigma + FOOTPRINT_BOUND_MM) {
+                if !(d.abs() <= 5.0 * sigma + FOOTPRINT_BOUND_MM + MOTION_BOUND_MM) {
                     continue;
                 }
                 let mut foot = 0.0f64;
@@ -667,7 +726,9 @@ impl Rig {
                         }
                     }
                 }
-                if d.abs() > 5.0 * sigma + foot {
+                let p = texel_point(&self.texels[i]);
+                let sweep = (first.signed_distance(&p) - last.signed_distance(&p)).abs();
+                if d.abs() > 5.0 * sigma + foot + sweep {
                     continue;
                 }
                 // supersample the pixel with exact rays
@@ -681,7 +742,11 @@ impl Rig {
                             continue;
                         };
                         let Some(hit) = self.cast(&dir) else { continue };
-                        let e = self.laser_light(&hit.point, &hit.normal, &source, &plane);
+                        let e = lasers
+                            .iter()
+                            .map(|(s, p)| self.laser_light(&hit.point, &hit.normal, s, p))
+                            .sum::<f64>()
+                            / lasers.len() as f64;
                         let a = self.albedo[usize::from(surface_index(hit.surface))];
                         for c in 0..3 {
                             sum[c] += e * a[c] * colour[c];
@@ -734,7 +799,7 @@ impl Rig {
 
     /// The reference frame: ambient light only, laser off.
     pub fn reference(&self) -> Rgb8 {
-        self.expose(&self.radiance(None), u64::MAX)
+        self.expose(&self.radiance(-1.0, &[]), u64::MAX)
     }
 
     /// Laser frame `index` of the sweep.
@@ -742,8 +807,8 @@ impl Rig {
     /// # Errors
     /// [`RigError::NoSuchFrame`] past the sweep.
     pub fn frame(&self, index: usize) -> Result<Rgb8, RigError> {
-        let laser = self.laser(index)?;
-        Ok(self.expose(&self.radiance(Some(laser)), index as u64))
+        let lasers = self.exposure_planes(index)?;
+        Ok(self.expose(&self.radiance(index as f64, &lasers), index as u64))
     }
 
     /// The ground truth of laser frame `index`: per column, where the light plane meets the
@@ -821,6 +886,26 @@ fn unit_normal(bits: u64) -> f64 {
     let sum = (bits & 0xFFFF) + ((bits >> 16) & 0xFFFF) + ((bits >> 32) & 0xFFFF) + (bits >> 48);
     // four uniforms on [0, 1): mean 2, variance 4/12
     (sum as f64 / 65536.0 - 2.0) * 3f64.sqrt()
+}
+
+/// Speckle: a fixed grain of mean 1 on the lit surface, from a hash of the 0.25 mm cell that holds
+/// `p`: `(1 − c) + c · E` with `E` exponential (fully developed speckle) and contrast `c`.
+fn speckle(p: &Point3<f64>, contrast: f64) -> f64 {
+    if contrast == 0.0 {
+        return 1.0;
+    }
+    let cell = |v: f64| (v / 0.25).floor() as i64 as u64;
+    let mut x = cell(p.x).wrapping_mul(0x9E37_79B9_7F4A_7C15)
+        ^ cell(p.y).wrapping_mul(0xC2B2_AE3D_27D4_EB4F)
+        ^ cell(p.z).wrapping_mul(0x1656_67B1_9E37_79F9);
+    // splitmix64 finaliser
+    x ^= x >> 30;
+    x = x.wrapping_mul(0xBF58_476D_1CE4_E5B9);
+    x ^= x >> 27;
+    x = x.wrapping_mul(0x94D0_49BB_1331_11EB);
+    x ^= x >> 31;
+    let u = ((x >> 11) as f64 + 0.5) / (1u64 << 53) as f64;
+    (1.0 - contrast) + contrast * -u.ln()
 }
 
 fn texel_point(t: &Texel) -> Point3<f64> {
