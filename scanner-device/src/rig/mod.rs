@@ -313,6 +313,9 @@ struct Texel {
     surface: u16,
 }
 
+/// A laser source and its light plane.
+pub type Laser = (Point3<f64>, Plane<f64>);
+
 /// Ground truth of one column of one laser frame.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ColumnTruth {
@@ -597,7 +600,7 @@ impl Rig {
     ///
     /// # Errors
     /// [`RigError::NoSuchFrame`] past the sweep.
-    pub fn laser(&self, index: usize) -> Result<(Point3<f64>, Plane<f64>), RigError> {
+    pub fn laser(&self, index: usize) -> Result<Laser, RigError> {
         let l = &self.scene.laser;
         if index >= l.frames {
             return Err(RigError::NoSuchFrame {
@@ -610,7 +613,7 @@ impl Rig {
 
     /// The laser at time `t` in frame periods: the aim moves linearly through the sweep, the hand's
     /// wobble and jitter are random per frame and move linearly between frames.
-    fn laser_at(&self, t: f64) -> Result<(Point3<f64>, Plane<f64>), RigError> {
+    fn laser_at(&self, t: f64) -> Result<Laser, RigError> {
         let l = &self.scene.laser;
         let t = t.clamp(0.0, (l.frames - 1) as f64);
         let shake = |k: usize| -> [f64; 4] {
@@ -639,7 +642,7 @@ impl Rig {
     }
 
     /// The light planes the exposure of frame `index` averages (one without motion blur).
-    fn exposure_planes(&self, index: usize) -> Result<Vec<(Point3<f64>, Plane<f64>)>, RigError> {
+    fn exposure_planes(&self, index: usize) -> Result<Vec<Laser>, RigError> {
         self.laser(index)?;
         let e = self.scene.exposure;
         if e == 0.0 {
@@ -678,7 +681,7 @@ impl Rig {
 
     /// The radiance image (RGB, row-major) of the scene lit by ambient light and, if given, by the
     /// laser of frame `laser`.
-    fn radiance(&self, time: f64, lasers: &[(Point3<f64>, Plane<f64>)]) -> Vec<[f32; 3]> {
+    fn radiance(&self, time: f64, lasers: &[Laser]) -> Vec<[f32; 3]> {
         let (w, h) = (self.scene.width as usize, self.scene.height as usize);
         // mains flicker: light intensity follows |sin| of the mains, i.e. twice its frequency
         let phase = 2.0 * std::f64::consts::PI * 2.0 * self.scene.mains_hz * time / self.scene.fps;
