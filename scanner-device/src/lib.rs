@@ -7,10 +7,13 @@
 //! issues.
 #![deny(missing_docs)]
 
+pub mod render;
 pub mod rig;
 pub mod source;
 
-use clap::Parser;
+use std::path::PathBuf;
+
+use clap::{Parser, Subcommand};
 
 /// Command line of the scanner head.
 #[derive(Debug, Parser)]
@@ -23,6 +26,32 @@ pub struct Args {
     /// Print the fixed capacities and conventions of this build and exit.
     #[arg(long)]
     pub info: bool,
+    /// What to do.
+    #[command(subcommand)]
+    pub command: Option<Command>,
+}
+
+/// The head's commands.
+#[derive(Debug, Subcommand)]
+pub enum Command {
+    /// Render a scene of the virtual rig to PNG files with ground truth (truth.csv, lasers.csv).
+    Render {
+        /// Scene file (TOML); the demo scene at 640×480 without one.
+        #[arg(long)]
+        scene: Option<PathBuf>,
+        /// Output folder.
+        #[arg(long, default_value = "rig-frames")]
+        out: PathBuf,
+        /// Write gray PNGs instead of RGB.
+        #[arg(long)]
+        gray: bool,
+        /// Render at most this many frames of the sweep.
+        #[arg(long)]
+        frames: Option<usize>,
+        /// No progress lines.
+        #[arg(long, short)]
+        quiet: bool,
+    },
 }
 
 /// Runs the scanner head with parsed arguments.
@@ -36,8 +65,33 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
             env!("CARGO_PKG_VERSION"),
             scanner_core::geometry::pose::MAX_MARKERS
         );
-    } else {
-        println!("scanner-device: nothing to do yet (try --help)");
+        return Ok(());
+    }
+    match &args.command {
+        Some(Command::Render {
+            scene,
+            out,
+            gray,
+            frames,
+            quiet,
+        }) => {
+            let job = render::RenderJob {
+                scene: scene.clone(),
+                out: out.clone(),
+                gray: *gray,
+                frames: *frames,
+            };
+            let n = render::render(&job, |done, total| {
+                if !quiet && (done % 10 == 0 || done == total) {
+                    eprintln!("rendered {done}/{total} frames");
+                }
+            })?;
+            println!(
+                "wrote the reference, {n} frames, truth.csv and lasers.csv to {}",
+                out.display()
+            );
+        }
+        None => println!("scanner-device: nothing to do yet (try --help)"),
     }
     Ok(())
 }

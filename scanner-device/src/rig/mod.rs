@@ -23,8 +23,12 @@
 //! motion blur (the light plane moves during the exposure).
 //!
 //! Not yet here (issue 4 continues): printed markers from the board file, triangle meshes,
-//! calibration shots, the scene file and render command.
+//! calibration shots.
+//!
+//! Scenes can be read from TOML ([`Scene::from_toml`]); `scanner-device render` writes a scene's
+//! frames as PNG files with their ground truth.
 
+mod file;
 pub mod surface;
 
 use rand::rngs::SmallRng;
