@@ -52,7 +52,8 @@ pub fn load_scene(path: Option<&Path>) -> Result<Scene> {
         Some(p) => {
             let text = fs::read_to_string(p)
                 .with_context(|| format!("reading scene file {}", p.display()))?;
-            Scene::from_toml(&text).with_context(|| format!("scene file {}", p.display()))
+            let base = p.parent().unwrap_or(Path::new("."));
+            Scene::from_toml_in(&text, base).with_context(|| format!("scene file {}", p.display()))
         }
     }
 }

@@ -21,10 +21,14 @@ fn column_signal(frame: &[u8], reference: &[u8], w: usize, h: usize, u: usize) -
         .collect()
 }
 
-#[test]
-fn stripe_centres_match_the_truth_at_zero_noise() {
-    let (w, h) = (480usize, 360usize);
-    let rig = Rig::new(quiet(Scene::demo(w as u32, h as u32))).unwrap();
+/// Checks the zero-noise stripe centroids of `frames` against the truth; returns the surfaces
+/// checked and the number of columns.
+fn check_centroids(
+    scene: Scene,
+    frames: &[usize],
+) -> (std::collections::HashSet<SurfaceId>, usize) {
+    let (w, h) = (scene.width as usize, scene.height as usize);
+    let rig = Rig::new(quiet(scene)).unwrap();
     let reference = rig.reference().data;
     let mut checked = 0;
     let mut kinked = 0;
@@ -32,7 +36,7 @@ fn stripe_centres_match_the_truth_at_zero_noise() {
     let mut faint = 0;
     let mut worst = 0.0f64;
     let mut surfaces = std::collections::HashSet::new();
-    for k in [5usize, 15, 20, 25, 30, 35, 40, 55] {
+    for &k in frames {
         let frame = rig.frame(k).unwrap().data;
         let truth = rig.truth(k).unwrap();
         for (u, t) in truth.iter().enumerate() {
@@ -104,6 +108,13 @@ fn stripe_centres_match_the_truth_at_zero_noise() {
     println!(
         "{checked} columns, worst {worst:.4} px, {kinked} left out at kinks and edges, {grazing} at grazing incidence, {faint} faint, surfaces {surfaces:?}"
     );
+    (surfaces, checked)
+}
+
+#[test]
+fn stripe_centres_match_the_truth_at_zero_noise() {
+    let (surfaces, checked) =
+        check_centroids(Scene::demo(480, 360), &[5, 15, 20, 25, 30, 35, 40, 55]);
     assert!(checked > 1000, "only {checked} lit columns checked");
     assert!(surfaces.contains(&SurfaceId::Left) && surfaces.contains(&SurfaceId::Right));
     assert!(
@@ -112,6 +123,59 @@ fn stripe_centres_match_the_truth_at_zero_noise() {
     );
 }
 
+#[test]
+fn stripe_centres_on_the_bunny_mesh() {
+    let dir = concat!(env!("CARGO_MANIFEST_DIR"), "/scenes");
+    let text = std::fs::read_to_string(format!("{dir}/bunny.toml")).unwrap();
+    let mut scene = Scene::from_toml_in(&text, std::path::Path::new(dir)).unwrap();
+    scene.width = 480;
+    scene.height = 360;
+    scene.camera = Scene::demo(480, 360).camera;
+    let (surfaces, checked) = check_centroids(scene, &[24, 27, 30, 33, 36]);
+    assert!(
+        surfaces.contains(&SurfaceId::Object(0)),
+        "no bunny column checked ({checked} columns)"
+    );
+}
+
+#[test]
+fn mesh_hierarchy_agrees_with_brute_force() {
+    use scanner_core::nalgebra::{Point3, Vector3};
+    use scanner_device::rig::mesh::Mesh;
+    let path = std::path::Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/bunny.obj"));
+    let mesh = Mesh::load(path, 120.0, 20.0, Point3::new(0.0, 0.0, 500.0)).unwrap();
+    assert_eq!(mesh.len(), 3674);
+    // the same triangles in one leaf-less list: a mesh of each triangle alone
+    let tris = Mesh::triangles_of(path, 120.0, 20.0, Point3::new(0.0, 0.0, 500.0)).unwrap();
+    let mut x = 12345u64;
+    let mut rnd = || {
+        x ^= x << 13;
+        x ^= x >> 7;
+        x ^= x << 17;
+        (x >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+    };
+    let (mut hits, mut n) = (0, 0);
+    while n < 400 {
+        let dir = Vector3::new(rnd() * 0.3, rnd() * 0.3, 1.0).normalize();
+        let fast = mesh.hit(&Point3::origin(), &dir, 1e-9);
+        let slow = tris
+            .iter()
+            .filter_map(|t| Mesh::new(vec![*t]).hit(&Point3::origin(), &dir, 1e-9))
+            .min_by(|a, b| a.0.total_cmp(&b.0));
+        assert_eq!(fast.map(|h| h.0), slow.map(|h| h.0), "ray {dir:?}");
+        hits += usize::from(fast.is_some());
+        n += 1;
+    }
+    assert!(hits > 50, "only {hits} of 400 rays hit the bunny");
+    let err = Mesh::load(
+        std::path::Path::new("/no/such.obj"),
+        1.0,
+        0.0,
+        Point3::origin(),
+    )
+    .unwrap_err();
+    assert!(err.contains("/no/such.obj"), "{err}");
+}
 #[test]
 fn shadows_stay_dark_and_the_reference_has_no_laser() {
     let (w, h) = (320usize, 240usize);

@@ -74,6 +74,16 @@ enum ObjectFile {
         yaw_deg: f64,
         albedo: Option<[f64; 3]>,
     },
+    /// A triangle mesh from an OBJ file (path relative to the scene file), scaled to a height,
+    /// turned upright and about the vertical, centred.
+    Mesh {
+        path: String,
+        centre: [f64; 3],
+        height_mm: f64,
+        #[serde(default)]
+        yaw_deg: f64,
+        albedo: Option<[f64; 3]>,
+    },
     /// A tilted rectangle: centre, size, normal tilt from facing the camera about x and y.
     Plane {
         centre: [f64; 3],
@@ -119,12 +129,21 @@ fn set<T>(slot: &mut T, value: Option<T>) {
 const GREY: [f64; 3] = [0.6, 0.6, 0.6];
 
 impl Scene {
-    /// Reads a scene from TOML text (see the module docs).
+    /// Reads a scene from TOML text (see the module docs); mesh paths are relative to the
+    /// current directory.
     ///
     /// # Errors
     /// [`RigError::Scene`] naming the line and field of a syntax error, an unknown field or a bad
     /// value.
     pub fn from_toml(text: &str) -> Result<Scene, RigError> {
+        Self::from_toml_in(text, std::path::Path::new("."))
+    }
+
+    /// [`Scene::from_toml`] with mesh paths relative to `base` (the scene file's folder).
+    ///
+    /// # Errors
+    /// As [`Scene::from_toml`]; also a mesh file that cannot be loaded.
+    pub fn from_toml_in(text: &str, base: &std::path::Path) -> Result<Scene, RigError> {
         let f: File =
             toml::from_str(text).map_err(|e| RigError::Scene(e.to_string().trim().to_string()))?;
         let mut s = Scene::demo(f.width.unwrap_or(640), f.height.unwrap_or(480));
@@ -164,7 +183,7 @@ impl Scene {
             s.objects = objects
                 .into_iter()
                 .enumerate()
-                .map(|(i, o)| object(i, o))
+                .map(|(i, o)| object(i, o, base))
                 .collect::<Result<_, _>>()?;
         }
         if let Some(l) = f.laser {
@@ -199,8 +218,27 @@ fn positive(i: usize, what: &str, v: f64) -> Result<f64, RigError> {
     }
 }
 
-fn object(i: usize, o: ObjectFile) -> Result<Object, RigError> {
+fn object(i: usize, o: ObjectFile, base: &std::path::Path) -> Result<Object, RigError> {
     Ok(match o {
+        ObjectFile::Mesh {
+            path,
+            centre,
+            height_mm,
+            yaw_deg,
+            albedo,
+        } => {
+            let mesh = super::mesh::Mesh::load(
+                &base.join(&path),
+                height_mm,
+                yaw_deg,
+                Point3::from(centre),
+            )
+            .map_err(|e| RigError::Scene(format!("objects[{i}]: {e}")))?;
+            Object {
+                shape: Shape::Mesh(std::sync::Arc::new(mesh)),
+                albedo: albedo.unwrap_or(GREY),
+            }
+        }
         ObjectFile::Sphere {
             centre,
             radius,

@@ -22,13 +22,15 @@
 //! Also: laser speckle (a fixed grain on the lit surface), mains flicker of the ambient light, and
 //! motion blur (the light plane moves during the exposure).
 //!
-//! Not yet here (issue 4 continues): printed markers from the board file, triangle meshes,
-//! calibration shots.
+//! Objects are analytic shapes or triangle meshes from OBJ files ([`mesh`]).
+//!
+//! Not yet here (issue 4 continues): printed markers from the board file, calibration shots.
 //!
 //! Scenes can be read from TOML ([`Scene::from_toml`]); `scanner-device render` writes a scene's
 //! frames as PNG files with their ground truth.
 
 mod file;
+pub mod mesh;
 pub mod surface;
 
 use rand::rngs::SmallRng;

@@ -1,7 +1,11 @@
 //! What the rig's rays can hit: the two board planes (as half-planes meeting at the crease) and
 //! analytic objects with exact ground truth.
 
+use std::sync::Arc;
+
 use scanner_core::nalgebra::{Point3, Unit, Vector3};
+
+use super::mesh::Mesh;
 
 /// Which surface a point lies on, as the ground truth reports it.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
@@ -57,6 +61,8 @@ pub enum Shape {
         /// The box's axes in camera coordinates (columns).
         axes: [Vector3<f64>; 3],
     },
+    /// A placed triangle mesh.
+    Mesh(Arc<Mesh>),
     /// A rectangle: centre, two unit in-plane axes, half sizes along them.
     Rectangle {
         /// Centre, mm.
@@ -187,6 +193,10 @@ impl Shape {
                 } else {
                     None
                 }
+            }
+            Shape::Mesh(mesh) => {
+                let (t, n) = mesh.hit(origin, dir, t_min)?;
+                Some(make(t, n))
             }
             Shape::Rectangle { centre, axes, half } => {
                 let n = axes[0].cross(&axes[1]);
