@@ -7,7 +7,7 @@ use scanner_core::nalgebra::{Point3, Unit, Vector3};
 use scanner_core::{Camera, Distortion};
 use serde::Deserialize;
 
-use super::{Object, RigError, Scene, Shape};
+use super::{Markers, Object, RigError, Scene, Shape};
 
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -48,6 +48,16 @@ struct BoardFile {
     angle_deg: Option<f64>,
     yaw_deg: Option<f64>,
     pitch_deg: Option<f64>,
+    albedo: Option<[f64; 3]>,
+    markers: Option<MarkersFile>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct MarkersFile {
+    left: Vec<[f64; 2]>,
+    right: Vec<[f64; 2]>,
+    diameter: f64,
     albedo: Option<[f64; 3]>,
 }
 
@@ -178,6 +188,23 @@ impl Scene {
             set(&mut s.board.yaw_deg, b.yaw_deg);
             set(&mut s.board.pitch_deg, b.pitch_deg);
             set(&mut s.board.albedo, b.albedo);
+            // the paper's layout scales with the board unless the file gives one
+            s.board.markers = match b.markers {
+                Some(m) => {
+                    if !(m.diameter > 0.0) {
+                        return Err(RigError::Scene(
+                            "[board.markers]: diameter must be positive".into(),
+                        ));
+                    }
+                    Markers {
+                        left: m.left,
+                        right: m.right,
+                        diameter: m.diameter,
+                        albedo: m.albedo.unwrap_or([0.06; 3]),
+                    }
+                }
+                None => Markers::paper(s.board.distance / 7.0),
+            };
         }
         if let Some(objects) = f.objects {
             s.objects = objects

@@ -55,6 +55,59 @@ pub struct BoardSpec {
     pub pitch_deg: f64,
     /// RGB albedo of the board's surface.
     pub albedo: [f64; 3],
+    /// The printed markers.
+    pub markers: Markers,
+}
+
+/// Printed circular markers on the two board sheets. Sheet coordinates in mm: `u` from the crease
+/// outward along the sheet, `v` along the crease (+y down when the board is upright).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Markers {
+    /// Marker centres on the left sheet.
+    pub left: Vec<[f64; 2]>,
+    /// Marker centres on the right sheet.
+    pub right: Vec<[f64; 2]>,
+    /// Marker diameter, mm.
+    pub diameter: f64,
+    /// RGB albedo of the marker ink.
+    pub albedo: [f64; 3],
+}
+
+impl Markers {
+    /// The paper's layout on each sheet: two lines of three markers along the sheet, `spacing`
+    /// apart, the lines `2 × spacing` apart; diameter a quarter of the spacing.
+    pub fn paper(spacing: f64) -> Markers {
+        let sheet: Vec<[f64; 2]> = [-1.0, 1.0]
+            .iter()
+            .flat_map(|&v| [0.6, 1.6, 2.6].map(|u| [u * spacing, v * spacing]))
+            .collect();
+        Markers {
+            left: sheet.clone(),
+            right: sheet,
+            diameter: 0.25 * spacing,
+            albedo: [0.06, 0.06, 0.06],
+        }
+    }
+}
+
+/// The ground truth of one printed marker.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct MarkerTruth {
+    /// The sheet it is on ([`SurfaceId::Left`] or [`SurfaceId::Right`]).
+    pub surface: SurfaceId,
+    /// Its index in that sheet's list.
+    pub index: usize,
+    /// Its position on the sheet, mm.
+    pub sheet: [f64; 2],
+    /// Its centre in camera coordinates, mm.
+    pub centre: Point3<f64>,
+    /// The projection of its centre, pixels.
+    pub centre_px: Point2<f64>,
+    /// The centroid of its projected disc (an ellipse, distorted), pixels: where an unbiased
+    /// detector finds it.
+    pub disc_px: Point2<f64>,
+    /// `true` if the whole disc is in view and no object hides any of it.
+    pub visible: bool,
 }
 
 /// An object in front of the board.
@@ -166,6 +219,7 @@ impl Scene {
                 yaw_deg: 0.0,
                 pitch_deg: 0.0,
                 albedo: [0.8, 0.8, 0.78],
+                markers: Markers::paper(d / 7.0),
             },
             objects: vec![
                 Object {
@@ -250,6 +304,8 @@ impl std::error::Error for RigError {}
 #[derive(Debug, Clone)]
 struct BoardGeometry {
     crease: Point3<f64>,
+    /// Unit direction of the crease (the sheets' `v`).
+    along: Vector3<f64>,
     halves: [(Plane<f64>, Vector3<f64>); 2],
 }
 
@@ -275,8 +331,20 @@ impl BoardGeometry {
         }
         Ok(Self {
             crease,
+            along: c,
             halves: [halves[0], halves[1]],
         })
+    }
+
+    /// Sheet coordinates `(u, v)` of a point on half `k`.
+    fn sheet(&self, k: usize, p: &Point3<f64>) -> [f64; 2] {
+        let r = p - self.crease;
+        [r.dot(&self.halves[k].1), r.dot(&self.along)]
+    }
+
+    /// The point of half `k` at sheet coordinates `(u, v)`.
+    fn point(&self, k: usize, uv: [f64; 2]) -> Point3<f64> {
+        self.crease + self.halves[k].1 * uv[0] + self.along * uv[1]
     }
 
     /// The left and right planes (normals towards the camera).
@@ -449,6 +517,9 @@ const MOTION_BOUND_MM: f64 = 40.0;
 /// Light planes averaged over an exposure with motion blur.
 const MOTION_SAMPLES: usize = 5;
 
+/// Sub-samples per pixel side near a marker's rim.
+const RIM_SUPERSAMPLE: usize = 6;
+
 /// Sub-samples per pixel side near the stripe.
 const SUPERSAMPLE: usize = 3;
 
@@ -515,17 +586,38 @@ impl Rig {
             }
         }
         let amb = rig.scene.ambient;
-        let flat: Vec<[f64; 3]> = rig
-            .texels
-            .iter()
-            .map(|t| {
-                if t.surface == u16::MAX {
-                    [0.0; 3]
-                } else {
-                    rig.albedo[usize::from(t.surface)].map(|a| amb * a)
+        let fx = rig.scene.camera.fx();
+        let mut flat = vec![[0.0; 3]; w * h];
+        for (i, t) in rig.texels.iter().enumerate() {
+            if t.surface == u16::MAX {
+                continue;
+            }
+            let p = texel_point(t);
+            let surface = surface_id(t.surface);
+            let k = usize::from(t.surface);
+            // near a marker's rim: the pixel's coverage by sub-samples, so that markers are
+            // rendered without aliasing (their centres are ground truth for calibration)
+            let albedo = if k < 2 && rig.to_rim(k, &p) < 6.0 * p.coords.norm() / fx {
+                let (u, v) = ((i % w) as f64, (i / w) as f64);
+                let n = RIM_SUPERSAMPLE * RIM_SUPERSAMPLE;
+                let mut sum = [0.0; 3];
+                for sy in 0..RIM_SUPERSAMPLE {
+                    for sx in 0..RIM_SUPERSAMPLE {
+                        let su = u + (sx as f64 + 0.5) / RIM_SUPERSAMPLE as f64 - 0.5;
+                        let sv = v + (sy as f64 + 0.5) / RIM_SUPERSAMPLE as f64 - 0.5;
+                        let hit = rig.ray_fast(su, sv).and_then(|d| rig.cast(&d));
+                        let a = hit.map_or([0.0; 3], |hit| rig.albedo_of(hit.surface, &hit.point));
+                        for c in 0..3 {
+                            sum[c] += a[c] / n as f64;
+                        }
+                    }
                 }
-            })
-            .collect();
+                sum
+            } else {
+                rig.albedo_of(surface, &p)
+            };
+            flat[i] = albedo.map(|a| amb * a);
+        }
         rig.ambient = blur(&flat, w, h, &rig.kernel)
             .into_iter()
             .map(|p| p.map(|v| v as f32))
@@ -547,6 +639,101 @@ impl Rig {
     fn ray(&self, u: f64, v: f64) -> Option<Vector3<f64>> {
         let r = self.scene.camera.pixel_to_ray(&Point2::new(u, v)).ok()?;
         Some(r.normalize())
+    }
+
+    /// The albedo at a surface point: the marker ink inside a marker of a board sheet.
+    fn albedo_of(&self, surface: SurfaceId, p: &Point3<f64>) -> [f64; 3] {
+        let k = match surface {
+            SurfaceId::Left => 0,
+            SurfaceId::Right => 1,
+            SurfaceId::Object(n) => return self.albedo[2 + usize::from(n)],
+        };
+        let m = &self.scene.board.markers;
+        let uv = self.board.sheet(k, p);
+        let r2 = (m.diameter / 2.0).powi(2);
+        let list = if k == 0 { &m.left } else { &m.right };
+        if list
+            .iter()
+            .any(|c| (uv[0] - c[0]).powi(2) + (uv[1] - c[1]).powi(2) <= r2)
+        {
+            m.albedo
+        } else {
+            self.scene.board.albedo
+        }
+    }
+
+    /// Distance (mm) from `p` on half `k` to the nearest marker's rim.
+    fn to_rim(&self, k: usize, p: &Point3<f64>) -> f64 {
+        let m = &self.scene.board.markers;
+        let uv = self.board.sheet(k, p);
+        let list = if k == 0 { &m.left } else { &m.right };
+        list.iter()
+            .map(|c| {
+                (((uv[0] - c[0]).powi(2) + (uv[1] - c[1]).powi(2)).sqrt() - m.diameter / 2.0).abs()
+            })
+            .fold(f64::INFINITY, f64::min)
+    }
+
+    /// The ground truth of every printed marker.
+    pub fn markers(&self) -> Vec<MarkerTruth> {
+        let m = &self.scene.board.markers;
+        let cam = &self.scene.camera;
+        let (w, h) = (f64::from(self.scene.width), f64::from(self.scene.height));
+        let mut out = Vec::new();
+        for (k, (surface, list)) in [(SurfaceId::Left, &m.left), (SurfaceId::Right, &m.right)]
+            .into_iter()
+            .enumerate()
+        {
+            for (index, &sheet) in list.iter().enumerate() {
+                let centre = self.board.point(k, sheet);
+                let Ok(centre_px) = cam.project(&centre) else {
+                    continue;
+                };
+                // the rim, projected: polygon centroid (Green's theorem) of 720 points
+                let rim: Vec<Option<Point2<f64>>> = (0..720)
+                    .map(|i| {
+                        let a = i as f64 / 720.0 * std::f64::consts::TAU;
+                        let r = m.diameter / 2.0;
+                        let p = self
+                            .board
+                            .point(k, [sheet[0] + r * a.cos(), sheet[1] + r * a.sin()]);
+                        let px = cam.project(&p).ok()?;
+                        // in view, and the board is what the camera sees there
+                        let seen = self.cast(&p.coords.normalize()).is_some_and(|hit| {
+                            hit.surface == surface
+                                && (hit.point - p).norm() < 1e-6 * p.coords.norm() + 1e-9
+                        });
+                        (seen && px.x >= 0.0 && px.y >= 0.0 && px.x <= w - 1.0 && px.y <= h - 1.0)
+                            .then_some(px)
+                    })
+                    .collect();
+                let visible = rim.iter().all(Option::is_some);
+                let pts: Vec<Point2<f64>> = rim.iter().map(|p| p.unwrap_or(centre_px)).collect();
+                let (mut a2, mut cx, mut cy) = (0.0, 0.0, 0.0);
+                for i in 0..pts.len() {
+                    let (p, q) = (pts[i], pts[(i + 1) % pts.len()]);
+                    let cross = p.x * q.y - q.x * p.y;
+                    a2 += cross;
+                    cx += (p.x + q.x) * cross;
+                    cy += (p.y + q.y) * cross;
+                }
+                let disc_px = if a2.abs() > 0.0 {
+                    Point2::new(cx / (3.0 * a2), cy / (3.0 * a2))
+                } else {
+                    centre_px
+                };
+                out.push(MarkerTruth {
+                    surface,
+                    index,
+                    sheet,
+                    centre,
+                    centre_px,
+                    disc_px,
+                    visible,
+                });
+            }
+        }
+        out
     }
 
     /// Unit ray through `(u, v)` interpolated bilinearly between the stored pixel centres
@@ -756,7 +943,7 @@ impl Rig {
                             .map(|(s, p)| self.laser_light(&hit.point, &hit.normal, s, p))
                             .sum::<f64>()
                             / lasers.len() as f64;
-                        let a = self.albedo[usize::from(surface_index(hit.surface))];
+                        let a = self.albedo_of(hit.surface, &hit.point);
                         for c in 0..3 {
                             sum[c] += e * a[c] * colour[c];
                         }
@@ -923,6 +1110,14 @@ fn texel_point(t: &Texel) -> Point3<f64> {
         f64::from(t.point[1]),
         f64::from(t.point[2]),
     )
+}
+
+fn surface_id(index: u16) -> SurfaceId {
+    match index {
+        0 => SurfaceId::Left,
+        1 => SurfaceId::Right,
+        n => SurfaceId::Object(n - 2),
+    }
 }
 
 fn surface_index(s: SurfaceId) -> u16 {
