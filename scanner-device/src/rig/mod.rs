@@ -22,9 +22,10 @@
 //! Also: laser speckle (a fixed grain on the lit surface), mains flicker of the ambient light, and
 //! motion blur (the light plane moves during the exposure).
 //!
-//! Objects are analytic shapes or triangle meshes from OBJ files ([`mesh`]).
+//! Objects are analytic shapes or triangle meshes from OBJ files ([`mesh`]). Calibration shots —
+//! the paper's cross pattern and planar targets at any pose — are in [`target`].
 //!
-//! Not yet here (issue 4 continues): printed markers from the board file, calibration shots.
+//! Not yet here (issue 4 continues): markers read from the board file of issue 5.
 //!
 //! Scenes can be read from TOML ([`Scene::from_toml`]); `scanner-device render` writes a scene's
 //! frames as PNG files with their ground truth.
@@ -32,6 +33,7 @@
 mod file;
 pub mod mesh;
 pub mod surface;
+pub mod target;
 
 use rand::rngs::SmallRng;
 use rand::{Rng, SeedableRng};
@@ -709,19 +711,7 @@ impl Rig {
                     .collect();
                 let visible = rim.iter().all(Option::is_some);
                 let pts: Vec<Point2<f64>> = rim.iter().map(|p| p.unwrap_or(centre_px)).collect();
-                let (mut a2, mut cx, mut cy) = (0.0, 0.0, 0.0);
-                for i in 0..pts.len() {
-                    let (p, q) = (pts[i], pts[(i + 1) % pts.len()]);
-                    let cross = p.x * q.y - q.x * p.y;
-                    a2 += cross;
-                    cx += (p.x + q.x) * cross;
-                    cy += (p.y + q.y) * cross;
-                }
-                let disc_px = if a2.abs() > 0.0 {
-                    Point2::new(cx / (3.0 * a2), cy / (3.0 * a2))
-                } else {
-                    centre_px
-                };
+                let disc_px = polygon_centroid(&pts).unwrap_or(centre_px);
                 out.push(MarkerTruth {
                     surface,
                     index,
@@ -1102,6 +1092,19 @@ fn speckle(p: &Point3<f64>, contrast: f64) -> f64 {
     x ^= x >> 31;
     let u = ((x >> 11) as f64 + 0.5) / (1u64 << 53) as f64;
     (1.0 - contrast) + contrast * -u.ln()
+}
+
+/// Area centroid of a closed polygon (Green's theorem); `None` for a degenerate one.
+fn polygon_centroid(pts: &[Point2<f64>]) -> Option<Point2<f64>> {
+    let (mut a2, mut cx, mut cy) = (0.0, 0.0, 0.0);
+    for i in 0..pts.len() {
+        let (p, q) = (pts[i], pts[(i + 1) % pts.len()]);
+        let cross = p.x * q.y - q.x * p.y;
+        a2 += cross;
+        cx += (p.x + q.x) * cross;
+        cy += (p.y + q.y) * cross;
+    }
+    (a2.abs() > 1e-12).then(|| Point2::new(cx / (3.0 * a2), cy / (3.0 * a2)))
 }
 
 fn texel_point(t: &Texel) -> Point3<f64> {
