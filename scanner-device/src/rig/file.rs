@@ -22,7 +22,7 @@ struct File {
     exposure: Option<f64>,
     camera: Option<CameraFile>,
     board: Option<BoardFile>,
-    objects: Option<Vec<ObjectFile>>,
+    objects: Option<Vec<ObjectEntry>>,
     laser: Option<LaserFile>,
     sensor: Option<SensorFile>,
 }
@@ -61,8 +61,19 @@ struct MarkersFile {
     albedo: Option<[f64; 3]>,
 }
 
+/// An object entry: its shape (tagged by `shape`) and the optional texture keys.
 #[derive(Debug, Deserialize)]
-#[serde(tag = "shape", rename_all = "lowercase", deny_unknown_fields)]
+struct ObjectEntry {
+    #[serde(flatten)]
+    shape: ObjectFile,
+    /// Checker cell size, mm.
+    texture_cell: Option<f64>,
+    /// Albedo of the checker's other cells.
+    texture_albedo: Option<[f64; 3]>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(tag = "shape", rename_all = "lowercase")]
 enum ObjectFile {
     Sphere {
         centre: [f64; 3],
@@ -210,7 +221,21 @@ impl Scene {
             s.objects = objects
                 .into_iter()
                 .enumerate()
-                .map(|(i, o)| object(i, o, base))
+                .map(|(i, o)| {
+                    let mut obj = object(i, o.shape, base)?;
+                    obj.texture = match (o.texture_cell, o.texture_albedo) {
+                        (Some(cell), Some(other)) => {
+                            Some((positive(i, "texture_cell", cell)?, other))
+                        }
+                        (None, None) => None,
+                        _ => {
+                            return Err(RigError::Scene(format!(
+                                "objects[{i}]: texture_cell and texture_albedo go together"
+                            )));
+                        }
+                    };
+                    Ok(obj)
+                })
                 .collect::<Result<_, _>>()?;
         }
         if let Some(l) = f.laser {
@@ -264,6 +289,7 @@ fn object(i: usize, o: ObjectFile, base: &std::path::Path) -> Result<Object, Rig
             Object {
                 shape: Shape::Mesh(std::sync::Arc::new(mesh)),
                 albedo: albedo.unwrap_or(GREY),
+                texture: None,
             }
         }
         ObjectFile::Sphere {
@@ -276,6 +302,7 @@ fn object(i: usize, o: ObjectFile, base: &std::path::Path) -> Result<Object, Rig
                 radius: positive(i, "radius", radius)?,
             },
             albedo: albedo.unwrap_or(GREY),
+            texture: None,
         },
         ObjectFile::Cylinder {
             base,
@@ -298,6 +325,7 @@ fn object(i: usize, o: ObjectFile, base: &std::path::Path) -> Result<Object, Rig
                     height: positive(i, "height", height)?,
                 },
                 albedo: albedo.unwrap_or(GREY),
+                texture: None,
             }
         }
         ObjectFile::Box {
@@ -321,6 +349,7 @@ fn object(i: usize, o: ObjectFile, base: &std::path::Path) -> Result<Object, Rig
                     axes: [r * Vector3::x(), r * Vector3::y(), r * Vector3::z()],
                 },
                 albedo: albedo.unwrap_or(GREY),
+                texture: None,
             }
         }
         ObjectFile::Plane {
@@ -345,6 +374,7 @@ fn object(i: usize, o: ObjectFile, base: &std::path::Path) -> Result<Object, Rig
                     ],
                 },
                 albedo: albedo.unwrap_or(GREY),
+                texture: None,
             }
         }
     })

@@ -119,6 +119,9 @@ pub struct Object {
     pub shape: Shape,
     /// RGB albedo.
     pub albedo: [f64; 3],
+    /// Optional texture: a solid 3-D checker of this cell size (mm) whose cells alternate between
+    /// `albedo` and `texture_albedo`, so that colour varies over the surface.
+    pub texture: Option<(f64, [f64; 3])>,
 }
 
 /// The hand-held laser and its sweep. Lengths in mm.
@@ -230,6 +233,7 @@ impl Scene {
                         radius: 70.0,
                     },
                     albedo: [0.7, 0.6, 0.5],
+                    texture: Some((25.0, [0.35, 0.55, 0.3])),
                 },
                 Object {
                     shape: Shape::Cylinder {
@@ -241,6 +245,7 @@ impl Scene {
                         height: 150.0,
                     },
                     albedo: [0.5, 0.6, 0.7],
+                    texture: None,
                 },
             ],
             laser: LaserSpec {
@@ -457,7 +462,6 @@ pub struct Rig {
     /// interpolating sub-pixel rays.
     normalised: Vec<[f32; 2]>,
     texels: Vec<Texel>,
-    albedo: Vec<[f64; 3]>,
     /// The ambient image, blurred once.
     ambient: Vec<[f32; 3]>,
     /// Normalised 1-D lens-blur kernel (odd length; `[1]` without blur).
@@ -556,8 +560,6 @@ impl Rig {
         let board = BoardGeometry::new(&scene.board)?;
         let (w, h) = (scene.width as usize, scene.height as usize);
         let scene_blur = scene.blur_px;
-        let mut albedo = vec![scene.board.albedo, scene.board.albedo];
-        albedo.extend(scene.objects.iter().map(|o| o.albedo));
         let mut rig = Rig {
             scene,
             board,
@@ -568,7 +570,6 @@ impl Rig {
                 };
                 w * h
             ],
-            albedo,
             normalised: vec![[f32::NAN; 2]; w * h],
             ambient: Vec::new(),
             kernel: gaussian_kernel(scene_blur),
@@ -648,7 +649,22 @@ impl Rig {
         let k = match surface {
             SurfaceId::Left => 0,
             SurfaceId::Right => 1,
-            SurfaceId::Object(n) => return self.albedo[2 + usize::from(n)],
+            SurfaceId::Object(n) => {
+                let o = &self.scene.objects[usize::from(n)];
+                return match o.texture {
+                    Some((cell, other)) if cell > 0.0 => {
+                        let parity = (p.x / cell).floor() as i64
+                            + (p.y / cell).floor() as i64
+                            + (p.z / cell).floor() as i64;
+                        if parity.rem_euclid(2) == 0 {
+                            o.albedo
+                        } else {
+                            other
+                        }
+                    }
+                    _ => o.albedo,
+                };
+            }
         };
         let m = &self.scene.board.markers;
         let uv = self.board.sheet(k, p);
