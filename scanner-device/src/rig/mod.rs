@@ -601,18 +601,13 @@ impl Rig {
             // near a marker's rim: the pixel's coverage by sub-samples, so that markers are
             // rendered without aliasing (their centres are ground truth for calibration)
             let albedo = if k < 2 && rig.to_rim(k, &p) < 6.0 * p.coords.norm() / fx {
-                let (u, v) = ((i % w) as f64, (i / w) as f64);
                 let n = RIM_SUPERSAMPLE * RIM_SUPERSAMPLE;
                 let mut sum = [0.0; 3];
-                for sy in 0..RIM_SUPERSAMPLE {
-                    for sx in 0..RIM_SUPERSAMPLE {
-                        let su = u + (sx as f64 + 0.5) / RIM_SUPERSAMPLE as f64 - 0.5;
-                        let sv = v + (sy as f64 + 0.5) / RIM_SUPERSAMPLE as f64 - 0.5;
-                        let hit = rig.ray_fast(su, sv).and_then(|d| rig.cast(&d));
-                        let a = hit.map_or([0.0; 3], |hit| rig.albedo_of(hit.surface, &hit.point));
-                        for c in 0..3 {
-                            sum[c] += a[c] / n as f64;
-                        }
+                for (su, sv) in subpixels(i % w, i / w, RIM_SUPERSAMPLE) {
+                    let hit = rig.ray_fast(su, sv).and_then(|d| rig.cast(&d));
+                    let a = hit.map_or([0.0; 3], |hit| rig.albedo_of(hit.surface, &hit.point));
+                    for c in 0..3 {
+                        sum[c] += a[c] / n as f64;
                     }
                 }
                 sum
@@ -933,26 +928,22 @@ impl Rig {
                 if d.abs() > 5.0 * sigma + foot + sweep {
                     continue;
                 }
-                // supersample the pixel with exact rays
+                // supersample the pixel (interpolated sub-pixel rays, each cast into the scene)
                 let mut sum = [0.0; 3];
                 let n = SUPERSAMPLE * SUPERSAMPLE;
-                for sy in 0..SUPERSAMPLE {
-                    for sx in 0..SUPERSAMPLE {
-                        let su = u as f64 + (sx as f64 + 0.5) / SUPERSAMPLE as f64 - 0.5;
-                        let sv = v as f64 + (sy as f64 + 0.5) / SUPERSAMPLE as f64 - 0.5;
-                        let Some(dir) = self.ray_fast(su, sv) else {
-                            continue;
-                        };
-                        let Some(hit) = self.cast(&dir) else { continue };
-                        let e = lasers
-                            .iter()
-                            .map(|(s, p)| self.laser_light(&hit.point, &hit.normal, s, p))
-                            .sum::<f64>()
-                            / lasers.len() as f64;
-                        let a = self.albedo_of(hit.surface, &hit.point);
-                        for c in 0..3 {
-                            sum[c] += e * a[c] * colour[c];
-                        }
+                for (su, sv) in subpixels(u, v, SUPERSAMPLE) {
+                    let Some(dir) = self.ray_fast(su, sv) else {
+                        continue;
+                    };
+                    let Some(hit) = self.cast(&dir) else { continue };
+                    let e = lasers
+                        .iter()
+                        .map(|(s, p)| self.laser_light(&hit.point, &hit.normal, s, p))
+                        .sum::<f64>()
+                        / lasers.len() as f64;
+                    let a = self.albedo_of(hit.surface, &hit.point);
+                    for c in 0..3 {
+                        sum[c] += e * a[c] * colour[c];
                     }
                 }
                 // through the lens: splat the pixel's laser light with the blur kernel
@@ -1108,6 +1099,18 @@ fn speckle(p: &Point3<f64>, contrast: f64) -> f64 {
     x ^= x >> 31;
     let u = ((x >> 11) as f64 + 0.5) / (1u64 << 53) as f64;
     (1.0 - contrast) + contrast * -u.ln()
+}
+
+/// The centres of an `n × n` grid of sub-samples of pixel `(u, v)`, pixel centres at integers.
+pub(crate) fn subpixels(u: usize, v: usize, n: usize) -> impl Iterator<Item = (f64, f64)> {
+    let step = 1.0 / n as f64;
+    (0..n * n).map(move |k| {
+        let (sx, sy) = (k % n, k / n);
+        (
+            u as f64 + (sx as f64 + 0.5) * step - 0.5,
+            v as f64 + (sy as f64 + 0.5) * step - 0.5,
+        )
+    })
 }
 
 /// Area centroid of a closed polygon (Green's theorem); `None` for a degenerate one.

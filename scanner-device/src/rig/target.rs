@@ -181,24 +181,20 @@ impl Rig {
         for v in 0..h {
             for u in 0..w {
                 let mut sum = 0.0;
-                for sy in 0..SUB {
-                    for sx in 0..SUB {
-                        let su = u as f64 + (sx as f64 + 0.5) / SUB as f64 - 0.5;
-                        let sv = v as f64 + (sy as f64 + 0.5) / SUB as f64 - 0.5;
-                        let Some(d) = self.ray_fast(su, sv) else {
-                            continue;
-                        };
-                        let den = d.dot(&n);
-                        if den.abs() < 1e-9 {
-                            continue;
-                        }
-                        let t = pose.centre.coords.dot(&n) / den;
-                        if t <= 0.0 {
-                            continue;
-                        }
-                        let (x, y) = sheet(&Point3::from(d * t));
-                        sum += pattern.albedo(x, y);
+                for (su, sv) in super::subpixels(u, v, SUB) {
+                    let Some(d) = self.ray_fast(su, sv) else {
+                        continue;
+                    };
+                    let den = d.dot(&n);
+                    if den.abs() < 1e-9 {
+                        continue;
                     }
+                    let t = pose.centre.coords.dot(&n) / den;
+                    if t <= 0.0 {
+                        continue;
+                    }
+                    let (x, y) = sheet(&Point3::from(d * t));
+                    sum += pattern.albedo(x, y);
                 }
                 flat[v * w + u] = [amb * sum / (SUB * SUB) as f64; 3];
             }
