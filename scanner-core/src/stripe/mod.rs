@@ -14,7 +14,7 @@
 //!    stripe, so for gray and YUYV each row marks, in bytes, the 64-column blocks that hold a
 //!    sample able to reach it, and only those blocks are summed and tracked. Row mode reads each
 //!    row once, contiguously.
-//! 3. **Per line**, a window around the peak is read again (±8 samples, widened to
+//! 3. **Per line**, a window around the peak is read again (±6 samples, widened to
 //!    `half_window` when the profile has not come down to the background) and judged: no stripe,
 //!    competing peaks, saturated plateau, too wide (or on a halo), too narrow — or a centre from
 //!    the chosen [`Estimator`].
@@ -37,7 +37,7 @@ pub const MAX_HALF_WINDOW: usize = 48;
 /// Widest region the byte-wide column pass takes (64 blocks of 64 columns, one bit each).
 pub const BYTE_PASS_WIDTH: usize = 64 * 64;
 /// Half size of the first, narrow window read around a peak.
-const NARROW_HALF_WINDOW: usize = 8;
+const NARROW_HALF_WINDOW: usize = 6;
 
 /// `true` if both ends of a window (two samples each) are within 5 % of the height of the
 /// sample at `rough` above the lowest end sample: the stripe has come down to the background
@@ -457,8 +457,12 @@ impl<const W: usize> Extractor<W> {
             Method::Dim => threshold,
             Method::Lim => lim_threshold(threshold, &self.best[..lines]),
         };
+        // window scratch, reused for every line (overwritten before it is read)
+        let mut sig = [0u16; MAX_WINDOW];
+        let mut clipped = [false; MAX_WINDOW];
         for line in 0..lines {
-            self.out[line] = self.judge(&io, cfg, line, length, threshold);
+            self.out[line] =
+                self.judge(&io, cfg, line, length, threshold, (&mut sig, &mut clipped));
         }
         Ok(Extraction {
             points: &self.out[..lines],
@@ -642,14 +646,14 @@ impl<const W: usize> Extractor<W> {
         line: usize,
         length: usize,
         threshold: u16,
+        scratch: (&mut [u16; MAX_WINDOW], &mut [bool; MAX_WINDOW]),
     ) -> StripePoint {
         let mut point = StripePoint::NONE;
         if self.best[line] == 0 {
             return point;
         }
         let rough = usize::from(self.best_at[line]);
-        let mut sig = [0u16; MAX_WINDOW];
-        let mut clipped = [false; MAX_WINDOW];
+        let (sig, clipped) = scratch;
         // A narrow window first; the full one only when the profile has not come down to the
         // background at its ends (a wide stripe, or a halo around it).
         let mut half = cfg.half_window.min(NARROW_HALF_WINDOW);
