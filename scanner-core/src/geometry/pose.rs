@@ -175,7 +175,7 @@ pub fn homography(
 }
 
 /// Initial pose from a homography to normalised coordinates (`K = I`).
-fn pose_from_homography(h: &Matrix3<f64>) -> Result<Pose, GeomError> {
+pub(crate) fn pose_from_homography(h: &Matrix3<f64>) -> Result<Pose, GeomError> {
     let h1 = h.column(0).into_owned();
     let h2 = h.column(1).into_owned();
     let h3 = h.column(2).into_owned();

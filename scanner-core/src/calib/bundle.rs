@@ -1,0 +1,562 @@
+//! Intrinsics and target poses from views of planar targets (Zhang 2000), refined jointly.
+//!
+//! Each [`View`] is one image of a planar target: marker positions on the sheet (mm) and where a
+//! detector found them (pixels). [`initial_camera`] is Zhang's closed form (zero skew) on the
+//! views' homographies, [`initial_pose`] a view's pose from its homography, and [`refine`] the
+//! Levenberg–Marquardt minimisation of the reprojection error over the free intrinsics
+//! (`fx, fy, cx, cy, k1, k2, p1, p2, k3`) and all poses together. Markers are modelled as printed
+//! discs of a given radius ([`model`](super::model)); radius 0 models corners.
+//!
+//! Memory is fixed: the normal equations have an arrow shape (each pose touches only its own
+//! view), so every view's 6×6 block is folded into a 9×9 reduced system for the intrinsics by the
+//! Schur complement, and the views' pose steps are recovered afterwards by recomputing their
+//! blocks. Nothing is stored per view or per marker beyond the caller's slices.
+
+use nalgebra::{
+    Matrix3, Matrix6, Point2, Rotation3, SMatrix, SVector, SymmetricEigen, Vector2, Vector3,
+    Vector6,
+};
+
+use super::model::disc_centre;
+use crate::geometry::Pose;
+use crate::geometry::pose::{homography, pose_from_homography};
+use crate::{Camera, Distortion, GeomError};
+
+/// Number of intrinsic parameters: `fx, fy, cx, cy, k1, k2, p1, p2, k3`.
+pub const INTRINSICS: usize = 9;
+/// Largest number of Levenberg–Marquardt iterations.
+pub const MAX_ITERATIONS: usize = 200;
+/// Fewest markers per view.
+pub const MIN_MARKERS: usize = 4;
+
+type Mat9 = SMatrix<f64, 9, 9>;
+type Vec9 = SVector<f64, 9>;
+type Mat69 = SMatrix<f64, 6, 9>;
+
+/// Which intrinsics a refinement estimates (the others stay as given), in the order
+/// `fx, fy, cx, cy, k1, k2, p1, p2, k3`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Free(pub [bool; INTRINSICS]);
+
+impl Free {
+    /// Poses only: the camera is fixed.
+    pub const NONE: Free = Free([false; INTRINSICS]);
+    /// Every intrinsic.
+    pub const ALL: Free = Free([true; INTRINSICS]);
+    /// Everything but `k3`, which few or fronto-parallel views do not determine.
+    pub const NO_K3: Free = Free([true, true, true, true, true, true, true, true, false]);
+
+    fn any(&self) -> bool {
+        self.0.iter().any(|&f| f)
+    }
+}
+
+/// One image of a planar target: `layout[i]` (mm on the sheet) was found at `pixels[i]`.
+#[derive(Debug, Clone, Copy)]
+pub struct View<'a> {
+    /// Marker positions on the sheet, mm.
+    pub layout: &'a [Point2<f64>],
+    /// Where they were found, pixels.
+    pub pixels: &'a [Point2<f64>],
+}
+
+impl View<'_> {
+    fn check(&self) -> Result<(), GeomError> {
+        if self.layout.len() != self.pixels.len() {
+            return Err(GeomError::LengthMismatch);
+        }
+        if self.layout.len() < MIN_MARKERS {
+            return Err(GeomError::TooFewPoints {
+                needed: MIN_MARKERS,
+                got: self.layout.len(),
+            });
+        }
+        let finite = |p: &Point2<f64>| p.x.is_finite() && p.y.is_finite();
+        if !self.layout.iter().all(finite) || !self.pixels.iter().all(finite) {
+            return Err(GeomError::NotFinite);
+        }
+        Ok(())
+    }
+}
+
+/// The result of [`refine`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Refinement {
+    /// The refined camera.
+    pub camera: Camera<f64>,
+    /// Root-mean-square reprojection error over all markers, pixels (per marker, both axes).
+    pub rms_px: f64,
+    /// Largest reprojection error, pixels.
+    pub max_px: f64,
+    /// Levenberg–Marquardt iterations used.
+    pub iterations: usize,
+}
+
+fn params(c: &Camera<f64>) -> [f64; INTRINSICS] {
+    let d = c.distortion();
+    let pp = c.principal_point();
+    [c.fx(), c.fy(), pp.x, pp.y, d.k1, d.k2, d.p1, d.p2, d.k3]
+}
+
+fn camera_from(p: &[f64; INTRINSICS]) -> Result<Camera<f64>, GeomError> {
+    Camera::new(
+        p[0],
+        p[1],
+        p[2],
+        p[3],
+        Distortion {
+            k1: p[4],
+            k2: p[5],
+            p1: p[6],
+            p2: p[7],
+            k3: p[8],
+        },
+    )
+}
+
+fn step_pose(pose: &Pose, d: &Vector6<f64>) -> Pose {
+    Pose {
+        rotation: Rotation3::new(Vector3::new(d[0], d[1], d[2])) * pose.rotation,
+        translation: pose.translation + Vector3::new(d[3], d[4], d[5]),
+    }
+}
+
+/// One marker's residual (predicted − observed, pixels) and, if asked, its Jacobians with respect
+/// to the intrinsics and to the pose (rotation vector applied on the left, translation).
+fn observe(
+    cam: &Camera<f64>,
+    pose: &Pose,
+    sheet: &Point2<f64>,
+    radius: f64,
+    pixel: &Point2<f64>,
+    jacobians: bool,
+) -> Result<(Vector2<f64>, SMatrix<f64, 2, 9>, SMatrix<f64, 2, 6>), GeomError> {
+    let n = disc_centre(pose, sheet, radius)?;
+    let (d, jd) = cam.distortion().apply_with_jacobian(n);
+    let (fx, fy) = (cam.fx(), cam.fy());
+    let pp = cam.principal_point();
+    let r = Vector2::new(fx * d.x + pp.x - pixel.x, fy * d.y + pp.y - pixel.y);
+    if !(r.x.is_finite() && r.y.is_finite()) {
+        return Err(GeomError::NotFinite);
+    }
+    let mut jc = SMatrix::<f64, 2, 9>::zeros();
+    let mut jp = SMatrix::<f64, 2, 6>::zeros();
+    if jacobians {
+        let (x, y) = (n.x, n.y);
+        let r2 = x * x + y * y;
+        let col = |a: f64, b: f64| Vector2::new(fx * a, fy * b);
+        let cols = [
+            Vector2::new(d.x, 0.0),
+            Vector2::new(0.0, d.y),
+            Vector2::new(1.0, 0.0),
+            Vector2::new(0.0, 1.0),
+            col(x * r2, y * r2),
+            col(x * r2 * r2, y * r2 * r2),
+            col(2.0 * x * y, r2 + 2.0 * y * y),
+            col(r2 + 2.0 * x * x, 2.0 * x * y),
+            col(x * r2 * r2 * r2, y * r2 * r2 * r2),
+        ];
+        for (k, c) in cols.iter().enumerate() {
+            jc.set_column(k, c);
+        }
+        // d(pixel)/d(n) = diag(fx, fy) · J_distortion; d(n)/d(pose) by central differences.
+        let scale = 1.0 + pose.translation.norm();
+        for k in 0..6 {
+            let h = if k < 3 { 1e-6 } else { 1e-6 * scale };
+            let mut e = Vector6::zeros();
+            e[k] = h;
+            let plus = disc_centre(&step_pose(pose, &e), sheet, radius)?;
+            let minus = disc_centre(&step_pose(pose, &-e), sheet, radius)?;
+            let dn = jd * ((plus - minus) / (2.0 * h));
+            jp.set_column(k, &Vector2::new(fx * dn.x, fy * dn.y));
+        }
+    }
+    Ok((r, jc, jp))
+}
+
+/// A view's blocks of the normal equations.
+struct Blocks {
+    a: Matrix6<f64>,
+    b: Mat69,
+    gp: Vector6<f64>,
+    c: Mat9,
+    gc: Vec9,
+    cost: f64,
+    max: f64,
+}
+
+fn blocks(
+    cam: &Camera<f64>,
+    free: Free,
+    view: &View,
+    pose: &Pose,
+    radius: f64,
+) -> Result<Blocks, GeomError> {
+    let mut bl = Blocks {
+        a: Matrix6::zeros(),
+        b: Mat69::zeros(),
+        gp: Vector6::zeros(),
+        c: Mat9::zeros(),
+        gc: Vec9::zeros(),
+        cost: 0.0,
+        max: 0.0,
+    };
+    for (s, px) in view.layout.iter().zip(view.pixels) {
+        let (r, mut jc, jp) = observe(cam, pose, s, radius, px, true)?;
+        for (k, f) in free.0.iter().enumerate() {
+            if !f {
+                jc.column_mut(k).fill(0.0);
+            }
+        }
+        bl.a += jp.transpose() * jp;
+        bl.b += jp.transpose() * jc;
+        bl.gp += jp.transpose() * r;
+        bl.c += jc.transpose() * jc;
+        bl.gc += jc.transpose() * r;
+        bl.cost += r.norm_squared();
+        bl.max = bl.max.max(r.norm());
+    }
+    Ok(bl)
+}
+
+fn damped6(a: &Matrix6<f64>, mu: f64) -> Result<Matrix6<f64>, GeomError> {
+    let mut m = *a;
+    for i in 0..6 {
+        m[(i, i)] += mu * a[(i, i)].max(1e-9);
+    }
+    m.cholesky()
+        .map(|c| c.inverse())
+        .ok_or(GeomError::IllConditioned)
+}
+
+/// Sum of squared residuals and the largest residual of every view.
+fn total_cost(
+    cam: &Camera<f64>,
+    views: &[View],
+    poses: &[Pose],
+    radius: f64,
+) -> Result<(f64, f64, usize), GeomError> {
+    let (mut cost, mut max, mut n) = (0.0, 0.0f64, 0);
+    for (v, p) in views.iter().zip(poses) {
+        for (s, px) in v.layout.iter().zip(v.pixels) {
+            let (r, _, _) = observe(cam, p, s, radius, px, false)?;
+            cost += r.norm_squared();
+            max = max.max(r.norm());
+            n += 1;
+        }
+    }
+    Ok((cost, max, n))
+}
+
+/// Refines the free intrinsics of `camera` and every view's pose (in place) to minimise the
+/// reprojection error of discs of radius `radius` (mm; 0 for corners).
+///
+/// `poses` start from [`initial_pose`] (or any nearby guess). With [`Free::NONE`] this is a
+/// pose-only refinement for a calibrated camera.
+///
+/// # Errors
+/// [`GeomError::LengthMismatch`] if `poses` and `views` differ in length, view errors
+/// ([`GeomError::TooFewPoints`], [`GeomError::NotFinite`]), [`GeomError::TooFewPoints`] when the
+/// free intrinsics outnumber the equations, [`GeomError::BehindCamera`] for a pose that puts a
+/// marker behind the camera.
+pub fn refine(
+    camera: &Camera<f64>,
+    free: Free,
+    views: &[View],
+    poses: &mut [Pose],
+    radius: f64,
+) -> Result<Refinement, GeomError> {
+    if views.len() != poses.len() {
+        return Err(GeomError::LengthMismatch);
+    }
+    if views.is_empty() {
+        return Err(GeomError::TooFewPoints { needed: 1, got: 0 });
+    }
+    for v in views {
+        v.check()?;
+    }
+    if !(radius >= 0.0 && radius.is_finite()) {
+        return Err(GeomError::BadParameter("marker radius must be ≥ 0"));
+    }
+    let equations: usize = views.iter().map(|v| 2 * v.layout.len()).sum();
+    let unknowns = 6 * views.len() + free.0.iter().filter(|&&f| f).count();
+    if equations < unknowns {
+        return Err(GeomError::TooFewPoints {
+            needed: unknowns.div_ceil(2),
+            got: equations / 2,
+        });
+    }
+    let mut cam = *camera;
+    let (mut cost, _, count) = total_cost(&cam, views, poses, radius)?;
+    let mut mu = 1e-3;
+    let mut iterations = 0;
+    while iterations < MAX_ITERATIONS {
+        iterations += 1;
+        // Pass 1: the reduced system S δc = rhs for the intrinsics.
+        let mut s = Mat9::zeros();
+        let mut rhs = Vec9::zeros();
+        let mut singular = false;
+        for (v, p) in views.iter().zip(poses.iter()) {
+            let bl = blocks(&cam, free, v, p, radius)?;
+            let Ok(ainv) = damped6(&bl.a, mu) else {
+                singular = true;
+                break;
+            };
+            let bt_ainv = bl.b.transpose() * ainv;
+            s += bl.c - bt_ainv * bl.b;
+            rhs += -bl.gc + bt_ainv * bl.gp;
+            // Damping of the intrinsics' diagonal uses the undamped C.
+            for i in 0..INTRINSICS {
+                s[(i, i)] += mu * bl.c[(i, i)];
+            }
+        }
+        if singular {
+            mu *= 10.0;
+            if mu > 1e16 {
+                break;
+            }
+            continue;
+        }
+        for (i, f) in free.0.iter().enumerate() {
+            if !f {
+                s.row_mut(i).fill(0.0);
+                s.column_mut(i).fill(0.0);
+                s[(i, i)] = 1.0;
+                rhs[i] = 0.0;
+            } else if !(s[(i, i)] > 0.0) {
+                s[(i, i)] = 1e-12;
+            }
+        }
+        let dc = if free.any() {
+            match s.cholesky() {
+                Some(ch) => ch.solve(&rhs),
+                None => {
+                    mu *= 10.0;
+                    if mu > 1e16 {
+                        break;
+                    }
+                    continue;
+                }
+            }
+        } else {
+            Vec9::zeros()
+        };
+        let mut cp = params(&cam);
+        for (p, d) in cp.iter_mut().zip(dc.iter()) {
+            *p += d;
+        }
+        let Ok(candidate) = camera_from(&cp) else {
+            mu *= 10.0;
+            continue;
+        };
+        // Pass 2: each view's pose step, and the candidate's cost.
+        let pose_step = |v: &View, p: &Pose| -> Result<Pose, GeomError> {
+            let bl = blocks(&cam, free, v, p, radius)?;
+            let ainv = damped6(&bl.a, mu)?;
+            Ok(step_pose(p, &(ainv * (-bl.gp - bl.b * dc))))
+        };
+        let mut new_cost = 0.0;
+        let mut ok = true;
+        for (v, p) in views.iter().zip(poses.iter()) {
+            let c = pose_step(v, p).and_then(|np| {
+                v.layout.iter().zip(v.pixels).try_fold(0.0, |acc, (s, px)| {
+                    observe(&candidate, &np, s, radius, px, false)
+                        .map(|(r, _, _)| acc + r.norm_squared())
+                })
+            });
+            match c {
+                Ok(c) => new_cost += c,
+                Err(_) => {
+                    ok = false;
+                    break;
+                }
+            }
+        }
+        if ok && new_cost.is_finite() && new_cost <= cost {
+            // Pass 3: take the steps.
+            for (v, p) in views.iter().zip(poses.iter_mut()) {
+                *p = pose_step(v, p)?;
+            }
+            let small_step = dc.norm() <= 1e-12 * (1.0 + cp[0].abs());
+            let converged = cost - new_cost <= 1e-13 * cost.max(1e-300);
+            cam = candidate;
+            cost = new_cost;
+            mu = (mu / 10.0).max(1e-12);
+            if converged && small_step || cost == 0.0 {
+                break;
+            }
+        } else {
+            mu *= 10.0;
+            if mu > 1e16 {
+                break;
+            }
+        }
+    }
+    let (cost, max_px, _) = total_cost(&cam, views, poses, radius)?;
+    Ok(Refinement {
+        camera: cam,
+        rms_px: (cost / count as f64).sqrt(),
+        max_px,
+        iterations,
+    })
+}
+
+/// Reprojection errors (predicted − found, pixels) of one view, written to `out` (at least as
+/// long as the view); returns the root-mean-square error.
+///
+/// # Errors
+/// As [`refine`]; [`GeomError::LengthMismatch`] if `out` is too short.
+pub fn residuals(
+    camera: &Camera<f64>,
+    view: &View,
+    pose: &Pose,
+    radius: f64,
+    out: &mut [Vector2<f64>],
+) -> Result<f64, GeomError> {
+    view.check()?;
+    if out.len() < view.layout.len() {
+        return Err(GeomError::LengthMismatch);
+    }
+    let mut cost = 0.0;
+    for ((s, px), o) in view.layout.iter().zip(view.pixels).zip(out.iter_mut()) {
+        let (r, _, _) = observe(camera, pose, s, radius, px, false)?;
+        *o = r;
+        cost += r.norm_squared();
+    }
+    Ok((cost / view.layout.len() as f64).sqrt())
+}
+
+/// A view's pose for a known camera, from the homography of its undistorted markers (to be
+/// refined by [`refine`]).
+///
+/// # Errors
+/// View errors, [`GeomError::Collinear`] for markers on one line, undistortion errors.
+pub fn initial_pose(camera: &Camera<f64>, view: &View) -> Result<Pose, GeomError> {
+    view.check()?;
+    if view.layout.len() > crate::geometry::pose::MAX_MARKERS {
+        return Err(GeomError::BadParameter(
+            "more markers in one view than MAX_MARKERS",
+        ));
+    }
+    let mut store = [Vector2::zeros(); crate::geometry::pose::MAX_MARKERS];
+    let obs = &mut store[..view.layout.len()];
+    for (o, px) in obs.iter_mut().zip(view.pixels) {
+        *o = camera.undistort(px)?;
+    }
+    let h = homography(view.layout, obs)?;
+    pose_from_homography(&h)
+}
+
+/// Zhang's constraints on `B = K⁻ᵀK⁻¹` from one homography, as rows over
+/// `b = (B11, B12, B22, B13, B23, B33)`.
+fn zhang_rows(h: &Matrix3<f64>) -> [SVector<f64, 6>; 2] {
+    let v = |i: usize, j: usize| {
+        let (hi, hj) = (h.column(i), h.column(j));
+        SVector::<f64, 6>::from_column_slice(&[
+            hi[0] * hj[0],
+            hi[0] * hj[1] + hi[1] * hj[0],
+            hi[1] * hj[1],
+            hi[2] * hj[0] + hi[0] * hj[2],
+            hi[2] * hj[1] + hi[1] * hj[2],
+            hi[2] * hj[2],
+        ])
+    };
+    [v(0, 1), v(0, 0) - v(1, 1)]
+}
+
+/// The smallest eigenvector of a symmetric matrix.
+fn null_vector(m: SMatrix<f64, 6, 6>) -> Result<SVector<f64, 6>, GeomError> {
+    let eig = SymmetricEigen::try_new(m, f64::EPSILON, 300).ok_or(GeomError::NoConvergence)?;
+    let mut best = 0;
+    for i in 1..6 {
+        if eig.eigenvalues[i] < eig.eigenvalues[best] {
+            best = i;
+        }
+    }
+    Ok(eig.eigenvectors.column(best).into_owned())
+}
+
+/// Initial intrinsics from the views' homographies by Zhang's closed form with zero skew (three
+/// or more views in general position), or — with fewer views, or when that fails — the focal
+/// lengths alone with the principal point at the centre of a `width` × `height` image.
+/// Distortion starts at zero.
+///
+/// # Errors
+/// View errors; [`GeomError::IllConditioned`] if no positive focal lengths fit (e.g. every view
+/// fronto-parallel).
+pub fn initial_camera(views: &[View], width: u32, height: u32) -> Result<Camera<f64>, GeomError> {
+    if views.is_empty() {
+        return Err(GeomError::TooFewPoints { needed: 1, got: 0 });
+    }
+    if width == 0 || height == 0 {
+        return Err(GeomError::BadParameter("image size must be positive"));
+    }
+    // Work in pixels scaled to about ±1 around the image centre for conditioning.
+    let (cx0, cy0) = (
+        (f64::from(width) - 1.0) / 2.0,
+        (f64::from(height) - 1.0) / 2.0,
+    );
+    let sc = 2.0 / f64::from(width.max(height));
+    let mut full = SMatrix::<f64, 6, 6>::zeros();
+    let mut store = [Vector2::zeros(); crate::geometry::pose::MAX_MARKERS];
+    for v in views {
+        v.check()?;
+        if v.layout.len() > store.len() {
+            return Err(GeomError::BadParameter(
+                "more markers in one view than MAX_MARKERS",
+            ));
+        }
+        let obs = &mut store[..v.layout.len()];
+        for (o, p) in obs.iter_mut().zip(v.pixels) {
+            *o = Vector2::new((p.x - cx0) * sc, (p.y - cy0) * sc);
+        }
+        let mut h = homography(v.layout, obs)?;
+        h /= h.norm();
+        for row in zhang_rows(&h) {
+            full += row * row.transpose();
+        }
+    }
+    // Zero skew: B12 = 0, weighted like the data.
+    let w = full.trace().max(1e-30);
+    full[(1, 1)] += w;
+    let scaled = |fx: f64, fy: f64, cx: f64, cy: f64| {
+        Camera::new(
+            fx / sc,
+            fy / sc,
+            cx / sc + cx0,
+            cy / sc + cy0,
+            Distortion::none(),
+        )
+    };
+    if views.len() >= 3 {
+        let b = null_vector(full)?;
+        let b = if b[0] < 0.0 { -b } else { b };
+        let (b11, b12, b22, b13, b23, b33) = (b[0], b[1], b[2], b[3], b[4], b[5]);
+        let den = b11 * b22 - b12 * b12;
+        if b11 > 0.0 && den > 0.0 {
+            let v0 = (b12 * b13 - b11 * b23) / den;
+            let lambda = b33 - (b13 * b13 + v0 * (b12 * b13 - b11 * b23)) / b11;
+            let alpha = (lambda / b11).sqrt();
+            let beta = (lambda * b11 / den).sqrt();
+            let u0 = -b13 * alpha * alpha / lambda;
+            if let Ok(c) = scaled(alpha, beta, u0, v0) {
+                // Accept only a principal point inside the image.
+                let pp = c.principal_point();
+                if pp.x > 0.0 && pp.y > 0.0 && pp.x < f64::from(width) && pp.y < f64::from(height) {
+                    return Ok(c);
+                }
+            }
+        }
+    }
+    // Principal point at the centre as well: B13 = B23 = 0.
+    full[(3, 3)] += w;
+    full[(4, 4)] += w;
+    let b = null_vector(full)?;
+    let b = if b[0] < 0.0 { -b } else { b };
+    let (b11, b22, b33) = (b[0], b[2], b[5]);
+    // B = diag(1/fx², 1/fy², 1) up to scale.
+    if !(b11 > 0.0 && b22 > 0.0 && b33 > 0.0) {
+        return Err(GeomError::IllConditioned);
+    }
+    scaled((b33 / b11).sqrt(), (b33 / b22).sqrt(), 0.0, 0.0).map_err(|_| GeomError::IllConditioned)
+}
