@@ -7,6 +7,7 @@
 //! issues.
 #![deny(missing_docs)]
 
+pub mod calib;
 pub mod render;
 pub mod rig;
 pub mod source;

@@ -423,6 +423,16 @@ pub struct Rgb8 {
 }
 
 impl Rgb8 {
+    /// The frame's luma as an `image` gray image (what calibration reads).
+    pub fn to_gray_image(&self) -> image::GrayImage {
+        image::GrayImage::from_raw(
+            self.width as u32,
+            self.height as u32,
+            self.to_format(PixelFormat::Gray8),
+        )
+        .expect("width × height bytes")
+    }
+
     /// The frame in another pixel format, rows packed: gray is the luma, YUYV carries the luma
     /// of each pixel and the chroma of each pair.
     pub fn to_format(&self, format: PixelFormat) -> Vec<u8> {

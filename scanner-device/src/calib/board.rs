@@ -1,0 +1,289 @@
+//! The board file: what is printed on the two sheets of the calibration board.
+//!
+//! TOML, lengths in mm. Sheet coordinates: `u` from the crease outward along the sheet, `v` along
+//! the crease, downward when the board stands upright, `v = 0` at the same height on both sheets
+//! (print both sheets at 100 % and glue each with its crease edge on the fold). Each sheet lists
+//! its markers either one by one or as a grid:
+//!
+//! ```toml
+//! marker_diameter = 27.5          # dark circles
+//! [sheet]                          # paper size, for printing (A3 landscape here)
+//! width = 420.0                    # along u
+//! height = 297.0                   # along v
+//! [left]                           # the paper's layout: two lines of three markers
+//! grid = { cols = 3, rows = 2, u0 = 66.0, v0 = -110.0, du = 110.0, dv = 220.0 }
+//! [right]
+//! markers = [[66.0, -110.0], [176.0, -110.0], [286.0, -110.0],
+//!            [66.0, 110.0], [176.0, 110.0], [286.0, 110.0]]
+//! [cross]                          # the image-distance pattern (paper Fig. 5)
+//! arm = 200.0                      # |AE| = |BD|
+//! dot = 12.0
+//! ```
+//!
+//! [`BoardFile::default`] is the paper's layout above; `scanner-device board` writes it out and
+//! prints its sheets.
+
+use std::path::Path;
+
+use scanner_core::nalgebra::Point2;
+use serde::{Deserialize, Serialize};
+
+/// A grid of markers on a sheet: `cols` along `u` from `u0` in steps of `du`, `rows` along `v`
+/// from `v0` in steps of `dv`.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Grid {
+    /// Markers along `u`.
+    pub cols: usize,
+    /// Lines of markers along `v`.
+    pub rows: usize,
+    /// First marker's `u`, mm.
+    pub u0: f64,
+    /// First line's `v`, mm.
+    pub v0: f64,
+    /// Step along `u`, mm.
+    pub du: f64,
+    /// Step along `v`, mm.
+    pub dv: f64,
+}
+
+/// One sheet's markers: listed, or a grid.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SheetLayout {
+    /// Marker centres `[u, v]`, mm.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub markers: Option<Vec<[f64; 2]>>,
+    /// Or a grid of them.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub grid: Option<Grid>,
+}
+
+/// Paper size of a sheet, mm.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SheetSize {
+    /// Along `u` (from the crease edge).
+    pub width: f64,
+    /// Along `v`.
+    pub height: f64,
+}
+
+/// The image-distance cross (paper Fig. 5): dots A (top), B (left), C (centre), D (right),
+/// E (bottom), `|AE| = |BD| = arm`.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Cross {
+    /// Distance A–E (and B–D), mm.
+    pub arm: f64,
+    /// Dot diameter, mm.
+    pub dot: f64,
+}
+
+/// The board file.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct BoardFile {
+    /// Diameter of the dark circular markers, mm.
+    pub marker_diameter: f64,
+    /// Paper size of each sheet.
+    pub sheet: SheetSize,
+    /// The left sheet (left in the camera's image).
+    pub left: SheetLayout,
+    /// The right sheet.
+    pub right: SheetLayout,
+    /// The image-distance pattern.
+    pub cross: Cross,
+}
+
+/// Why a board file is unusable.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum BoardError {
+    /// Not readable or not TOML of this shape.
+    #[error("board file {path}: {why}")]
+    Read {
+        /// The file.
+        path: String,
+        /// What went wrong.
+        why: String,
+    },
+    /// Readable, but the numbers do not describe a usable board.
+    #[error("board file: {0}")]
+    Invalid(String),
+}
+
+impl Default for BoardFile {
+    /// The paper's layout: on each sheet two lines of three markers, 110 mm apart along the sheet,
+    /// the lines 220 mm apart, 27.5 mm discs, on A3 landscape; a 200 mm cross.
+    fn default() -> Self {
+        let grid = Grid {
+            cols: 3,
+            rows: 2,
+            u0: 66.0,
+            v0: -110.0,
+            du: 110.0,
+            dv: 220.0,
+        };
+        BoardFile {
+            marker_diameter: 27.5,
+            sheet: SheetSize {
+                width: 420.0,
+                height: 297.0,
+            },
+            left: SheetLayout {
+                markers: None,
+                grid: Some(grid),
+            },
+            right: SheetLayout {
+                markers: None,
+                grid: Some(grid),
+            },
+            cross: Cross {
+                arm: 200.0,
+                dot: 12.0,
+            },
+        }
+    }
+}
+
+impl SheetLayout {
+    /// Marker centres in order: listed ones as listed, a grid row by row (along `u` first).
+    pub fn points(&self) -> Vec<Point2<f64>> {
+        if let Some(m) = &self.markers {
+            return m.iter().map(|p| Point2::new(p[0], p[1])).collect();
+        }
+        match self.grid {
+            Some(g) => (0..g.rows)
+                .flat_map(|r| {
+                    (0..g.cols)
+                        .map(move |c| Point2::new(g.u0 + c as f64 * g.du, g.v0 + r as f64 * g.dv))
+                })
+                .collect(),
+            None => Vec::new(),
+        }
+    }
+
+    /// The paper's two lines of three equally spaced markers, if that is this layout:
+    /// `[[a, b, c], [d, e, f]]` as layout indices.
+    pub fn paper_lines(&self) -> Option<[[usize; 3]; 2]> {
+        let p = self.points();
+        if p.len() != 6 {
+            return None;
+        }
+        let line = |i: usize| {
+            let (a, b, c) = (p[i], p[i + 1], p[i + 2]);
+            let mid = (a.coords + c.coords) / 2.0;
+            let len = (c - a).norm();
+            ((b.coords - mid).norm() < 1e-6 * len && len > 0.0).then_some([i, i + 1, i + 2])
+        };
+        Some([line(0)?, line(3)?])
+    }
+}
+
+impl BoardFile {
+    /// Reads and checks a board file.
+    ///
+    /// # Errors
+    /// [`BoardError`] naming the file and what is wrong.
+    pub fn load(path: &Path) -> Result<BoardFile, BoardError> {
+        let text = std::fs::read_to_string(path).map_err(|e| BoardError::Read {
+            path: path.display().to_string(),
+            why: e.to_string(),
+        })?;
+        let b: BoardFile = toml::from_str(&text).map_err(|e| BoardError::Read {
+            path: path.display().to_string(),
+            why: e.to_string(),
+        })?;
+        b.check()?;
+        Ok(b)
+    }
+
+    /// The file's text (TOML).
+    pub fn to_toml(&self) -> String {
+        let body = toml::to_string(self).unwrap_or_default();
+        format!(
+            "# Calibration board for scanner-device (lengths in mm). Sheet coordinates: u from the\n\
+             # crease outward, v along the crease (down), v = 0 at the same height on both sheets.\n\
+             # Each sheet: `markers = [[u, v], ...]` or `grid = {{ cols, rows, u0, v0, du, dv }}`.\n{body}"
+        )
+    }
+
+    /// Checks that the numbers describe a usable board.
+    ///
+    /// # Errors
+    /// [`BoardError::Invalid`] naming the problem.
+    pub fn check(&self) -> Result<(), BoardError> {
+        let bad = |s: String| Err(BoardError::Invalid(s));
+        if !(self.marker_diameter > 0.0 && self.marker_diameter.is_finite()) {
+            return bad(format!(
+                "marker_diameter must be positive, found {}",
+                self.marker_diameter
+            ));
+        }
+        if !(self.sheet.width > 0.0 && self.sheet.height > 0.0) {
+            return bad("sheet width and height must be positive".into());
+        }
+        if !(self.cross.arm > 2.0 * self.cross.dot && self.cross.dot > 0.0) {
+            return bad("cross: arm must exceed twice the dot diameter, both positive".into());
+        }
+        for (name, s) in [("left", &self.left), ("right", &self.right)] {
+            if s.markers.is_some() == s.grid.is_some() {
+                return bad(format!(
+                    "[{name}]: give either `markers` or `grid`, not both or neither"
+                ));
+            }
+            if let Some(g) = s.grid
+                && !(g.cols >= 1 && g.rows >= 1 && g.du > 0.0 && g.dv > 0.0)
+            {
+                return bad(format!("[{name}].grid: counts and steps must be positive"));
+            }
+            let p = s.points();
+            if p.len() < 4 {
+                return bad(format!(
+                    "[{name}]: {} markers; a sheet needs at least 4 (the paper uses 6)",
+                    p.len()
+                ));
+            }
+            if p.len() > scanner_core::geometry::pose::MAX_MARKERS {
+                return bad(format!(
+                    "[{name}]: more than {} markers",
+                    scanner_core::geometry::pose::MAX_MARKERS
+                ));
+            }
+            for (i, a) in p.iter().enumerate() {
+                if !(a.x.is_finite() && a.y.is_finite()) {
+                    return bad(format!("[{name}]: marker {i} is not a number"));
+                }
+                let r = self.marker_diameter / 2.0;
+                if a.x - r < 0.0
+                    || a.x + r > self.sheet.width
+                    || (a.y.abs() + r) > self.sheet.height / 2.0
+                {
+                    return bad(format!(
+                        "[{name}]: marker {i} at ({}, {}) is off the {}×{} mm sheet",
+                        a.x, a.y, self.sheet.width, self.sheet.height
+                    ));
+                }
+                for (j, b) in p.iter().enumerate().skip(i + 1) {
+                    if (a - b).norm() < 1.5 * self.marker_diameter {
+                        return bad(format!(
+                            "[{name}]: markers {i} and {j} are closer than 1.5 diameters"
+                        ));
+                    }
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// The rig's markers for this board (for rendering it).
+    pub fn rig_markers(&self) -> crate::rig::Markers {
+        let pts = |s: &SheetLayout| s.points().iter().map(|p| [p.x, p.y]).collect();
+        crate::rig::Markers {
+            left: pts(&self.left),
+            right: pts(&self.right),
+            diameter: self.marker_diameter,
+            albedo: [0.06, 0.06, 0.06],
+        }
+    }
+}

@@ -1,0 +1,722 @@
+//! Calibration from images: the printable board ([`board`], [`print`]), marker detection
+//! ([`detect`]) and identification ([`identify`]), and the three procedures —
+//! - [`image_distance`]: the paper's two-position procedure on two images of the cross pattern;
+//! - [`intrinsics`]: full intrinsics from several images of a dot grid (Zhang's method, refined);
+//! - [`board_planes`]: both board planes from an image of the board without laser, by the layout
+//!   pose (default) and, where the layout is the paper's, by the paper's three-point lines.
+//!
+//! The results go into one calibration file ([`file`]) with an annotated picture ([`overlay`]).
+
+pub mod board;
+pub mod detect;
+pub mod file;
+pub mod identify;
+pub mod overlay;
+pub mod print;
+
+use image::GrayImage;
+use scanner_core::calib::bundle::{initial_camera, initial_pose, refine, residuals};
+use scanner_core::calib::{CrossShot, Free, ImageDistance, View};
+use scanner_core::geometry::board::plane_from_marker_lines;
+use scanner_core::geometry::{Board, Plane, Pose};
+use scanner_core::nalgebra::{Point2, Vector2};
+use scanner_core::{Camera, GeomError};
+
+use board::BoardFile;
+use detect::{DetectConfig, Detections, find_markers};
+use identify::{Assignment, Orientation, candidates, identify};
+
+/// Why a calibration step failed. Each names what was expected and what was found.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum CalibError {
+    /// No marker-like dark discs at all.
+    #[error("no markers found: {found} dark regions, none a disc of the expected kind ({hint})")]
+    NoMarkers {
+        /// Dark regions seen (rejected as clutter).
+        found: usize,
+        /// What to check.
+        hint: &'static str,
+    },
+    /// A sheet or target did not show enough of its layout.
+    #[error(
+        "{what}: {found} of {expected} markers identified, at least {needed} needed{}",
+        missing_list(missing)
+    )]
+    TooFewMarkers {
+        /// Which sheet or target.
+        what: String,
+        /// Identified.
+        found: usize,
+        /// In the layout.
+        expected: usize,
+        /// Needed.
+        needed: usize,
+        /// Layout indices not found.
+        missing: Vec<usize>,
+    },
+    /// The image is not the size the camera was calibrated for.
+    #[error(
+        "image is {found_w}×{found_h} but the camera was calibrated at {expected_w}×{expected_h}"
+    )]
+    ImageSize {
+        /// Calibrated width.
+        expected_w: u32,
+        /// Calibrated height.
+        expected_h: u32,
+        /// Image width.
+        found_w: u32,
+        /// Image height.
+        found_h: u32,
+    },
+    /// The geometry could not be solved.
+    #[error("{what}: {source}")]
+    Geometry {
+        /// Which step.
+        what: String,
+        /// Why.
+        source: GeomError,
+    },
+    /// The markers fit the layout badly (wrong board file, or a mis-identification).
+    #[error(
+        "{what}: markers fit the layout with {rms_px:.2} px RMS (expected < {limit_px} px): does the board file match the printed board?"
+    )]
+    PoorFit {
+        /// Which sheet or target.
+        what: String,
+        /// RMS reprojection error.
+        rms_px: f64,
+        /// Limit.
+        limit_px: f64,
+    },
+}
+
+fn missing_list(m: &[usize]) -> String {
+    if m.is_empty() {
+        String::new()
+    } else {
+        format!(
+            " (missing: {})",
+            m.iter()
+                .map(|i| i.to_string())
+                .collect::<Vec<_>>()
+                .join(", ")
+        )
+    }
+}
+
+fn geom(what: &str) -> impl Fn(GeomError) -> CalibError + '_ {
+    move |source| CalibError::Geometry {
+        what: what.to_string(),
+        source,
+    }
+}
+
+/// Largest RMS reprojection error of a marker fit that is taken as the right layout.
+pub const MAX_FIT_RMS_PX: f64 = 1.0;
+
+/// One layout point's outcome.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct MarkerFit {
+    /// Position on the sheet, mm.
+    pub sheet: Point2<f64>,
+    /// Where it was found (`None`: missing).
+    pub pixel: Option<Point2<f64>>,
+    /// Predicted − found, pixels (`None`: missing or dropped).
+    pub residual: Option<Vector2<f64>>,
+    /// Found but dropped from the fit as an outlier (e.g. partly hidden).
+    pub dropped: bool,
+}
+
+/// A sheet's pose from its markers.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SheetFit {
+    /// Sheet → camera.
+    pub pose: Pose,
+    /// Its plane, normal towards the camera.
+    pub plane: Plane<f64>,
+    /// Every layout point.
+    pub markers: Vec<MarkerFit>,
+    /// RMS reprojection error of the used markers, pixels.
+    pub rms_px: f64,
+}
+
+impl SheetFit {
+    /// Layout indices not found or dropped.
+    pub fn missing(&self) -> Vec<usize> {
+        self.markers
+            .iter()
+            .enumerate()
+            .filter(|(_, m)| m.residual.is_none())
+            .map(|(i, _)| i)
+            .collect()
+    }
+}
+
+/// Pose of a planar layout from identified markers, with a camera known; markers whose residual
+/// is far above the others' are dropped (up to a quarter of them) and the pose refitted.
+fn fit_sheet(
+    what: &str,
+    camera: &Camera<f64>,
+    layout: &[Point2<f64>],
+    blobs: &Detections,
+    a: &Assignment,
+    radius: f64,
+) -> Result<SheetFit, CalibError> {
+    let found: Vec<usize> = (0..layout.len())
+        .filter(|&i| a.blob_of[i].is_some())
+        .collect();
+    let pixel = |i: usize| a.blob_of[i].map(|b| blobs.blobs[b].centre);
+    let too_few = |used: &[usize]| CalibError::TooFewMarkers {
+        what: what.to_string(),
+        found: used.len(),
+        expected: layout.len(),
+        needed: 4,
+        missing: (0..layout.len()).filter(|i| !used.contains(i)).collect(),
+    };
+    if found.len() < 4 {
+        return Err(too_few(&found));
+    }
+    // Pose and residuals from a subset of the layout.
+    let solve = |used: &[usize]| -> Result<(Pose, f64, Vec<Vector2<f64>>), CalibError> {
+        let l: Vec<Point2<f64>> = used.iter().map(|&i| layout[i]).collect();
+        let p: Vec<Point2<f64>> = used.iter().map(|&i| pixel(i).expect("found")).collect();
+        let view = View {
+            layout: &l,
+            pixels: &p,
+        };
+        let mut pose = [initial_pose(camera, &view).map_err(geom(what))?];
+        let r = refine(camera, Free::NONE, &[view], &mut pose, radius).map_err(geom(what))?;
+        let mut res = vec![Vector2::zeros(); l.len()];
+        residuals(camera, &view, &pose[0], radius, &mut res).map_err(geom(what))?;
+        Ok((pose[0], r.rms_px, res))
+    };
+    let mut used = found.clone();
+    let (mut pose, mut rms, mut res) = solve(&used)?;
+    // A marker partly hidden by the object, or a stray blob, pulls the fit: leave out the one
+    // whose removal helps most while that more than halves the error (at most a quarter of
+    // the layout, keeping four).
+    while rms > 0.15 && used.len() > 4 && found.len() - used.len() < layout.len().div_ceil(4) {
+        let mut best: Option<(usize, Pose, f64, Vec<Vector2<f64>>)> = None;
+        for k in 0..used.len() {
+            let mut trial = used.clone();
+            trial.remove(k);
+            if let Ok((p, r, e)) = solve(&trial)
+                && best.as_ref().is_none_or(|b| r < b.2)
+            {
+                best = Some((k, p, r, e));
+            }
+        }
+        match best {
+            Some((k, p, r, e)) if r < rms / 2.0 => {
+                used.remove(k);
+                (pose, rms, res) = (p, r, e);
+            }
+            _ => break,
+        }
+    }
+    if rms > MAX_FIT_RMS_PX {
+        return Err(CalibError::PoorFit {
+            what: what.to_string(),
+            rms_px: rms,
+            limit_px: MAX_FIT_RMS_PX,
+        });
+    }
+    let markers = (0..layout.len())
+        .map(|i| MarkerFit {
+            sheet: layout[i],
+            pixel: pixel(i),
+            residual: used.iter().position(|&u| u == i).map(|k| res[k]),
+            dropped: found.contains(&i) && !used.contains(&i),
+        })
+        .collect();
+    let plane = pose.plane().map_err(geom(what))?;
+    Ok(SheetFit {
+        pose,
+        plane,
+        markers,
+        rms_px: rms,
+    })
+}
+
+/// How the board planes were obtained.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum PlaneMethod {
+    /// Every marker of a sheet with its known layout (homography, refined with the disc model).
+    LayoutPose,
+    /// The paper's construction: two lines of three markers per sheet (eq. 1–6).
+    PaperLines,
+}
+
+impl PlaneMethod {
+    /// Name used in the calibration file.
+    pub fn name(self) -> &'static str {
+        match self {
+            PlaneMethod::LayoutPose => "layout-pose",
+            PlaneMethod::PaperLines => "paper-lines",
+        }
+    }
+}
+
+/// Both board planes from one image of the board.
+#[derive(Debug, Clone, PartialEq)]
+pub struct BoardFit {
+    /// Image size.
+    pub size: (u32, u32),
+    /// The left and right sheets by the layout pose.
+    pub sheets: [SheetFit; 2],
+    /// The planes by the paper's three-point lines, where the layout is the paper's and all six
+    /// markers of a sheet were found.
+    pub paper: [Option<Plane<f64>>; 2],
+    /// The board from the layout poses (crease `L_c`, angle).
+    pub board: Board<f64>,
+}
+
+/// Detection, identification and sheet fits on a board image. `detections` and `assignments`
+/// are kept even when the fit fails, for the overlay.
+#[derive(Debug, Clone)]
+pub struct BoardOutcome {
+    /// Everything detected.
+    pub detections: Detections,
+    /// Left and right sheet identification.
+    pub assignments: [Option<Assignment>; 2],
+    /// The result.
+    pub result: Result<BoardFit, CalibError>,
+}
+
+/// Candidate identifications of both sheets; the left sheet's `u` runs to the image's left
+/// (mirrored), the right one's to the right.
+fn sheet_candidates(det: &Detections, board: &BoardFile) -> [Vec<Assignment>; 2] {
+    let lo = Orientation {
+        mirrored: true,
+        u_along_x: Some(-1),
+    };
+    let ro = Orientation {
+        mirrored: false,
+        u_along_x: Some(1),
+    };
+    let mut l = candidates(&det.blobs, &[], &board.left.points(), lo);
+    let mut r = candidates(&det.blobs, &[], &board.right.points(), ro);
+    l.truncate(8);
+    r.truncate(8);
+    [l, r]
+}
+
+/// Board planes from an image of the board without laser.
+///
+/// Every pair of candidate identifications (left, right) that shares no marker is fitted with
+/// the camera; the pair keeping the most markers, then with the smallest residual, wins.
+pub fn board_planes(img: &GrayImage, board: &BoardFile, camera: &Camera<f64>) -> BoardOutcome {
+    let detections = find_markers(img, &DetectConfig::default());
+    let [lc, rc] = sheet_candidates(&detections, board);
+    let radius = board.marker_diameter / 2.0;
+    let layouts = [board.left.points(), board.right.points()];
+    let names = ["left sheet", "right sheet"];
+    let fit_all = |k: usize, cands: &[Assignment]| -> Vec<Result<SheetFit, CalibError>> {
+        cands
+            .iter()
+            .map(|a| fit_sheet(names[k], camera, &layouts[k], &detections, a, radius))
+            .collect()
+    };
+    let (lf, rf) = (fit_all(0, &lc), fit_all(1, &rc));
+    let used = |f: &SheetFit| f.markers.iter().filter(|m| m.residual.is_some()).count();
+    let mut best: Option<(usize, usize, (usize, f64))> = None;
+    for (i, l) in lf.iter().enumerate() {
+        for (j, r) in rf.iter().enumerate() {
+            let (Ok(l), Ok(r)) = (l, r) else { continue };
+            let shared = lc[i]
+                .blob_of
+                .iter()
+                .flatten()
+                .any(|b| rc[j].blob_of.contains(&Some(*b)));
+            // The left sheet is left of the right one (a symmetric layout also fits the other
+            // sheet mirrored).
+            let mean_x = |a: &Assignment| {
+                let xs: Vec<f64> = a.blob_of.iter().flatten().map(|&b| detections.blobs[b].centre.x).collect();
+                xs.iter().sum::<f64>() / xs.len().max(1) as f64
+            };
+            if shared || mean_x(&lc[i]) >= mean_x(&rc[j]) {
+                continue;
+            }
+            let score = (used(l) + used(r), -(l.rms_px + r.rms_px));
+            if best.is_none_or(|(_, _, s)| score.0 > s.0 || score.0 == s.0 && score.1 > s.1) {
+                best = Some((i, j, score));
+            }
+        }
+    }
+    let (assignments, result) = match best {
+        Some((i, j, _)) => (
+            [Some(lc[i].clone()), Some(rc[j].clone())],
+            finish_board(img, board, camera, [lf[i].clone().expect("ok"), rf[j].clone().expect("ok")]),
+        ),
+        None => {
+            // Report the best single-sheet failure (or a missing sheet).
+            let err = if detections.blobs.is_empty() {
+                CalibError::NoMarkers {
+                    found: detections.rejected.len(),
+                    hint: "is the board in view, lit, and printed with dark circles?",
+                }
+            } else {
+                let first_err = |k: usize, fits: &[Result<SheetFit, CalibError>]| {
+                    if fits.is_empty() {
+                        Some(CalibError::TooFewMarkers {
+                            what: names[k].to_string(),
+                            found: 0,
+                            expected: layouts[k].len(),
+                            needed: 4,
+                            missing: (0..layouts[k].len()).collect(),
+                        })
+                    } else if fits.iter().all(|f| f.is_err()) {
+                        fits[0].clone().err()
+                    } else {
+                        None
+                    }
+                };
+                first_err(0, &lf)
+                    .or_else(|| first_err(1, &rf))
+                    .unwrap_or_else(|| CalibError::TooFewMarkers {
+                        what: "board: the two sheets share markers in every identification".into(),
+                        found: 0,
+                        expected: layouts[0].len() + layouts[1].len(),
+                        needed: 8,
+                        missing: Vec::new(),
+                    })
+            };
+            ([lc.first().cloned(), rc.first().cloned()], Err(err))
+        }
+    };
+    BoardOutcome {
+        detections,
+        assignments,
+        result,
+    }
+}
+
+fn finish_board(
+    img: &GrayImage,
+    board: &BoardFile,
+    camera: &Camera<f64>,
+    [left, right]: [SheetFit; 2],
+) -> Result<BoardFit, CalibError> {
+    let board_geom = Board::new(left.plane, right.plane).map_err(geom("board"))?;
+    let paper = [&board.left, &board.right].map(|s| s.paper_lines());
+    let sheets = [left, right];
+    let paper_planes: Vec<Option<Plane<f64>>> = (0..2)
+        .map(|k| {
+            let lines = paper[k]?;
+            let fit = &sheets[k];
+            let ray = |i: usize| -> Option<_> { camera.pixel_to_ray(&fit.markers[i].pixel?).ok() };
+            let l = |line: [usize; 3]| -> Option<[_; 3]> {
+                Some([ray(line[0])?, ray(line[1])?, ray(line[2])?])
+            };
+            let rays = [l(lines[0])?, l(lines[1])?];
+            let spacing = lines
+                .map(|line| (fit.markers[line[2]].sheet - fit.markers[line[0]].sheet).norm() / 2.0);
+            plane_from_marker_lines(&rays, spacing)
+                .ok()
+                .map(|f| f.plane.facing_camera())
+        })
+        .collect();
+    Ok(BoardFit {
+        size: img.dimensions(),
+        sheets,
+        paper: [paper_planes[0], paper_planes[1]],
+        board: board_geom,
+    })
+}
+
+/// Checks that an image has the size a camera was calibrated at.
+///
+/// # Errors
+/// [`CalibError::ImageSize`].
+pub fn check_size(expected: (u32, u32), img: &GrayImage) -> Result<(), CalibError> {
+    let (w, h) = img.dimensions();
+    if (w, h) != expected {
+        return Err(CalibError::ImageSize {
+            expected_w: expected.0,
+            expected_h: expected.1,
+            found_w: w,
+            found_h: h,
+        });
+    }
+    Ok(())
+}
+
+/// A dot-grid calibration target: `cols × rows` dots, `pitch` apart, centred, `x` right and `y`
+/// down as printed.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct DotGrid {
+    /// Dots per row.
+    pub cols: usize,
+    /// Rows.
+    pub rows: usize,
+    /// Centre-to-centre distance, mm.
+    pub pitch: f64,
+    /// Dot diameter, mm.
+    pub dot: f64,
+}
+
+impl DotGrid {
+    /// Dot centres, row by row.
+    pub fn points(&self) -> Vec<Point2<f64>> {
+        (0..self.rows)
+            .flat_map(|r| {
+                (0..self.cols).map(move |c| {
+                    Point2::new(
+                        (c as f64 - (self.cols - 1) as f64 / 2.0) * self.pitch,
+                        (r as f64 - (self.rows - 1) as f64 / 2.0) * self.pitch,
+                    )
+                })
+            })
+            .collect()
+    }
+}
+
+/// One image's part in an intrinsics calibration.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ViewFit {
+    /// Layout index and pixel of every identified dot.
+    pub found: Vec<(usize, Point2<f64>)>,
+    /// Target pose.
+    pub pose: Pose,
+    /// RMS reprojection error, pixels.
+    pub rms_px: f64,
+    /// Largest reprojection error, pixels.
+    pub max_px: f64,
+}
+
+/// Full intrinsics from several images of a dot grid.
+#[derive(Debug, Clone, PartialEq)]
+pub struct IntrinsicsFit {
+    /// Image size.
+    pub size: (u32, u32),
+    /// The camera.
+    pub camera: Camera<f64>,
+    /// RMS reprojection error over all dots, pixels.
+    pub rms_px: f64,
+    /// Per image (in the order given; `Err` for an image that was left out, and why).
+    pub views: Vec<Result<ViewFit, CalibError>>,
+}
+
+/// The dots of a grid target found in one image: `(layout index, pixel)`.
+///
+/// # Errors
+/// [`CalibError::NoMarkers`] or [`CalibError::TooFewMarkers`] (fewer than half the grid).
+pub fn find_grid(img: &GrayImage, grid: &DotGrid) -> Result<Vec<(usize, Point2<f64>)>, CalibError> {
+    let det = find_markers(img, &DetectConfig::default());
+    if det.blobs.is_empty() {
+        return Err(CalibError::NoMarkers {
+            found: det.rejected.len(),
+            hint: "is the dot grid in view and lit?",
+        });
+    }
+    let layout = grid.points();
+    let orient = Orientation {
+        mirrored: false,
+        u_along_x: None,
+    };
+    let a = identify(&det.blobs, &[], &layout, orient);
+    let found: Vec<(usize, Point2<f64>)> = a
+        .map(|a| {
+            a.blob_of
+                .iter()
+                .enumerate()
+                .filter_map(|(i, b)| b.map(|b| (i, det.blobs[b].centre)))
+                .collect()
+        })
+        .unwrap_or_default();
+    let needed = (layout.len() / 2).max(4);
+    if found.len() < needed {
+        return Err(CalibError::TooFewMarkers {
+            what: "dot grid".into(),
+            found: found.len(),
+            expected: layout.len(),
+            needed,
+            missing: (0..layout.len())
+                .filter(|i| !found.iter().any(|(k, _)| k == i))
+                .collect(),
+        });
+    }
+    Ok(found)
+}
+
+/// Intrinsics from images of a dot grid; images where the grid is not found are left out and
+/// reported. `free` chooses the estimated parameters (normally [`Free::ALL`]).
+///
+/// # Errors
+/// [`CalibError::ImageSize`] if the images differ in size, [`CalibError::TooFewMarkers`] with
+/// fewer than three usable images, [`CalibError::Geometry`] if the solution fails.
+pub fn intrinsics(
+    images: &[GrayImage],
+    grid: &DotGrid,
+    free: Free,
+) -> Result<IntrinsicsFit, CalibError> {
+    let Some(first) = images.first() else {
+        return Err(CalibError::TooFewMarkers {
+            what: "intrinsics: images".into(),
+            found: 0,
+            expected: 3,
+            needed: 3,
+            missing: Vec::new(),
+        });
+    };
+    let size = first.dimensions();
+    let layout = grid.points();
+    let mut found: Vec<Result<Vec<(usize, Point2<f64>)>, CalibError>> = Vec::new();
+    for img in images {
+        check_size(size, img)?;
+        found.push(find_grid(img, grid));
+    }
+    let ok: Vec<usize> = (0..images.len()).filter(|&i| found[i].is_ok()).collect();
+    if ok.len() < 3 {
+        return Err(CalibError::TooFewMarkers {
+            what: "intrinsics: images with the grid found".into(),
+            found: ok.len(),
+            expected: images.len(),
+            needed: 3,
+            missing: (0..images.len()).filter(|i| !ok.contains(i)).collect(),
+        });
+    }
+    let data: Vec<(Vec<Point2<f64>>, Vec<Point2<f64>>)> = ok
+        .iter()
+        .map(|&i| {
+            let f = found[i].as_ref().expect("ok");
+            (
+                f.iter().map(|(k, _)| layout[*k]).collect(),
+                f.iter().map(|(_, p)| *p).collect(),
+            )
+        })
+        .collect();
+    let views: Vec<View> = data
+        .iter()
+        .map(|(l, p)| View {
+            layout: l,
+            pixels: p,
+        })
+        .collect();
+    let init =
+        initial_camera(&views, size.0, size.1).map_err(geom("intrinsics: initial estimate"))?;
+    let mut poses: Vec<Pose> = views
+        .iter()
+        .map(|v| initial_pose(&init, v))
+        .collect::<Result<_, _>>()
+        .map_err(geom("intrinsics: initial poses"))?;
+    let radius = grid.dot / 2.0;
+    let r =
+        refine(&init, free, &views, &mut poses, radius).map_err(geom("intrinsics: refinement"))?;
+    let mut out = Vec::with_capacity(found.len());
+    let mut k = 0;
+    for f in found {
+        out.push(match f {
+            Err(e) => Err(e),
+            Ok(found) => {
+                let mut res = vec![Vector2::zeros(); views[k].layout.len()];
+                let rms = residuals(&r.camera, &views[k], &poses[k], radius, &mut res)
+                    .map_err(geom("intrinsics: residuals"))?;
+                let fit = ViewFit {
+                    found,
+                    pose: poses[k],
+                    rms_px: rms,
+                    max_px: res.iter().map(|r| r.norm()).fold(0.0, f64::max),
+                };
+                k += 1;
+                Ok(fit)
+            }
+        });
+    }
+    Ok(IntrinsicsFit {
+        size,
+        camera: r.camera,
+        rms_px: r.rms_px,
+        views: out,
+    })
+}
+
+/// The arm's image length `(|A'E'| + |B'D'|) / 2` of the cross pattern in an image, pixels.
+///
+/// # Errors
+/// [`CalibError::NoMarkers`] or [`CalibError::TooFewMarkers`] when the five dots are not all
+/// found.
+pub fn cross_span(img: &GrayImage, cross: &board::Cross) -> Result<f64, CalibError> {
+    let a = cross.arm / 2.0;
+    // A, B, C, D, E
+    let layout = [
+        Point2::new(0.0, -a),
+        Point2::new(-a, 0.0),
+        Point2::new(0.0, 0.0),
+        Point2::new(a, 0.0),
+        Point2::new(0.0, a),
+    ];
+    let det = find_markers(img, &DetectConfig::default());
+    if det.blobs.is_empty() {
+        return Err(CalibError::NoMarkers {
+            found: det.rejected.len(),
+            hint: "is the cross pattern in view and lit?",
+        });
+    }
+    let orient = Orientation {
+        mirrored: false,
+        u_along_x: None,
+    };
+    let m = identify(&det.blobs, &[], &layout, orient);
+    let px: Vec<Option<Point2<f64>>> = (0..5)
+        .map(|i| {
+            m.as_ref()
+                .and_then(|m| m.blob_of[i])
+                .map(|b| det.blobs[b].centre)
+        })
+        .collect();
+    match (px[0], px[1], px[3], px[4]) {
+        (Some(a), Some(b), Some(d), Some(e)) if px[2].is_some() => {
+            Ok(((a - e).norm() + (b - d).norm()) / 2.0)
+        }
+        _ => Err(CalibError::TooFewMarkers {
+            what: "cross pattern".into(),
+            found: px.iter().flatten().count(),
+            expected: 5,
+            needed: 5,
+            missing: (0..5).filter(|&i| px[i].is_none()).collect(),
+        }),
+    }
+}
+
+/// The paper's two-position procedure on two images of the cross: `near`/`far` are the images
+/// with their tape-measured distances (mm).
+///
+/// # Errors
+/// From [`cross_span`] (naming the shot), or [`CalibError::Geometry`] for inconsistent data.
+pub fn image_distance(
+    cross: &board::Cross,
+    near: (&GrayImage, f64),
+    far: (&GrayImage, f64),
+) -> Result<ImageDistance, CalibError> {
+    let name = |what: &str, e: CalibError| match e {
+        CalibError::TooFewMarkers {
+            found,
+            expected,
+            needed,
+            missing,
+            ..
+        } => CalibError::TooFewMarkers {
+            what: format!("cross pattern in the {what} image"),
+            found,
+            expected,
+            needed,
+            missing,
+        },
+        e => e,
+    };
+    let s1 = cross_span(near.0, cross).map_err(|e| name("near", e))?;
+    let s2 = cross_span(far.0, cross).map_err(|e| name("far", e))?;
+    scanner_core::calib::image_distance(
+        cross.arm,
+        CrossShot {
+            tape_mm: near.1,
+            span_px: s1,
+        },
+        CrossShot {
+            tape_mm: far.1,
+            span_px: s2,
+        },
+    )
+    .map_err(geom("image distance"))
+}
