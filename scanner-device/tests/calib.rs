@@ -1,45 +1,26 @@
-//! Calibration from rendered images of the virtual rig, checked against the rig's truth.
+//! Calibration from rendered images of the virtual rig (never from its true values), checked
+//! against the rig's truth: marker detection, identification, intrinsics, board planes, the
+//! paper's image distance, and the errors on bad input.
 
+use scanner_core::calib::Free;
 use scanner_core::geometry::Plane;
 use scanner_core::nalgebra::{Point3, Vector3};
 use scanner_device::calib::board::BoardFile;
 use scanner_device::calib::detect::{DetectConfig, find_markers};
+use scanner_device::calib::{CalibError, DotGrid, board_planes, image_distance, intrinsics};
+use scanner_device::rig::target::{Pattern, TargetPose};
 use scanner_device::rig::{Rig, Scene, SurfaceId};
 
-/// The demo scene at `w`×`h` with the default board file and sensor noise σ = 2 DN.
+const W: u32 = 1280;
+const H: u32 = 960;
+
+/// The demo scene with the default board file and sensor noise σ = 2 DN.
 fn scene(w: u32, h: u32) -> Scene {
     let mut s = Scene::demo(w, h);
     s.board.markers = BoardFile::default().rig_markers();
     s.sensor.read_noise = 2.0;
     s.sensor.shot_noise = 0.0;
     s
-}
-
-#[test]
-fn markers_are_found_at_their_disc_centroids() {
-    let rig = Rig::new(scene(1280, 960)).unwrap();
-    let img = rig.reference().to_gray_image();
-    let det = find_markers(&img, &DetectConfig::default());
-    let truth = rig.markers();
-    let mut errs = Vec::new();
-    for t in truth.iter().filter(|t| t.visible) {
-        let best = det
-            .blobs
-            .iter()
-            .map(|b| (b.centre - t.disc_px).norm())
-            .fold(f64::INFINITY, f64::min);
-        errs.push(best);
-        println!(
-            "{:?} {} err {best:.4} vs centre {:.4}",
-            t.surface,
-            t.index,
-            (t.centre_px - t.disc_px).norm()
-        );
-    }
-    println!("blobs {} rejected {:?}", det.blobs.len(), det.rejected);
-    let mean = errs.iter().sum::<f64>() / errs.len() as f64;
-    println!("mean {mean:.4}");
-    assert!(mean < 0.05);
 }
 
 /// Normal error (degrees) and offset error (% of `distance`) of a plane, the offset measured at
@@ -56,86 +37,251 @@ fn plane_errors(
 }
 
 fn sheet_centre(rig: &Rig, k: usize) -> Point3<f64> {
+    let surface = [SurfaceId::Left, SurfaceId::Right][k];
     let m: Vec<_> = rig
         .markers()
         .into_iter()
-        .filter(|m| m.surface == [SurfaceId::Left, SurfaceId::Right][k])
+        .filter(|m| m.surface == surface)
         .collect();
     Point3::from(m.iter().fold(Vector3::zeros(), |s, m| s + m.centre.coords) / m.len() as f64)
 }
 
+/// Dot-grid shots for intrinsics: a 9×7 grid, 30 mm pitch, 12 mm dots, turned up to ±35° at
+/// 550–850 mm, spread over the image.
+fn grid_shots(rig: &Rig, n: usize) -> (DotGrid, Vec<image::GrayImage>) {
+    let grid = DotGrid {
+        cols: 9,
+        rows: 7,
+        pitch: 30.0,
+        dot: 12.0,
+    };
+    let pattern = Pattern::DotGrid {
+        cols: 9,
+        rows: 7,
+        pitch: 30.0,
+        dot: 12.0,
+    };
+    let images = (0..n)
+        .map(|i| {
+            let a = i as f64 / n as f64 * std::f64::consts::TAU;
+            let z = 550.0 + 300.0 * ((i * 7) % n) as f64 / n as f64;
+            let pose = TargetPose {
+                centre: Point3::new(0.22 * z * a.cos(), 0.15 * z * a.sin(), z),
+                turn_deg: [
+                    35.0 * a.sin(),
+                    -35.0 * a.cos(),
+                    10.0 * (i as f64 - n as f64 / 2.0) / n as f64,
+                ],
+            };
+            rig.shot(&pattern, &pose, i as u64).image.to_gray_image()
+        })
+        .collect();
+    (grid, images)
+}
+
 #[test]
-fn board_planes_from_a_rendered_board_with_the_true_camera() {
-    let rig = Rig::new(scene(1280, 960)).unwrap();
+fn markers_are_found_at_their_disc_centroids() {
+    let rig = Rig::new(scene(W, H)).unwrap();
     let img = rig.reference().to_gray_image();
-    let board = BoardFile::default();
-    let out = scanner_device::calib::board_planes(&img, &board, &rig.scene().camera);
-    for (k, a) in out.assignments.iter().enumerate() {
-        if let Some(a) = a {
-            println!("assignment {k}: rms {}", a.rms_px);
-            for (i, b) in a.blob_of.iter().enumerate() {
-                let t = rig
-                    .markers()
-                    .into_iter()
-                    .find(|m| m.index == i && m.surface == [SurfaceId::Left, SurfaceId::Right][k])
-                    .unwrap();
-                println!(
-                    "sheet {k} marker {i}: blob {:?} truth {:?}",
-                    b.map(|b| out.detections.blobs[b].centre),
-                    t.disc_px
-                );
-            }
-        }
+    let det = find_markers(&img, &DetectConfig::default());
+    let (mut errs, mut ecc) = (Vec::new(), Vec::new());
+    for t in rig.markers().iter().filter(|t| t.visible) {
+        let best = det
+            .blobs
+            .iter()
+            .map(|b| (b.centre - t.disc_px).norm())
+            .fold(f64::INFINITY, f64::min);
+        errs.push(best);
+        ecc.push((t.centre_px - t.disc_px).norm());
     }
-    let fit = out.result.unwrap();
+    let mean = errs.iter().sum::<f64>() / errs.len() as f64;
+    let worst = errs.iter().copied().fold(0.0, f64::max);
+    let ecc_mean = ecc.iter().sum::<f64>() / ecc.len() as f64;
+    println!(
+        "{} visible markers: centre error mean {mean:.4} px, worst {worst:.4} px (eccentricity of the discs' images: mean {ecc_mean:.3} px)",
+        errs.len()
+    );
+    assert!(errs.len() >= 10);
+    assert!(mean <= 0.05 && worst < 0.1, "mean {mean}, worst {worst}");
+}
+
+#[test]
+fn calibration_from_rendered_images_meets_the_targets() {
+    // Intrinsics from 12 dot-grid shots, then the board planes from the board image with that
+    // camera: nothing from the rig's truth but the images.
+    let rig = Rig::new(scene(W, H)).unwrap();
+    let (grid, images) = grid_shots(&rig, 12);
+    let fit = intrinsics(&images, &grid, Free::ALL).unwrap();
+    let (c, t) = (fit.camera, rig.scene().camera);
+    let (efx, efy) = (
+        (c.fx() / t.fx() - 1.0) * 100.0,
+        (c.fy() / t.fy() - 1.0) * 100.0,
+    );
+    let epp = (c.principal_point() - t.principal_point()).norm();
+    println!(
+        "intrinsics: rms {:.4} px over {} views; fx {efx:+.4} %, fy {efy:+.4} %, principal point {epp:.3} px",
+        fit.rms_px,
+        fit.views.len()
+    );
+    assert!(fit.views.iter().all(|v| v.is_ok()));
+    assert!(efx.abs() < 0.2 && efy.abs() < 0.2 && epp < 1.0);
+    assert!(fit.rms_px < 0.1);
+
+    let img = rig.reference().to_gray_image();
+    let out = board_planes(&img, &BoardFile::default(), &c);
+    let board = out.result.unwrap();
+    let truth = rig.board_planes();
+    for k in 0..2 {
+        let (a, o) = plane_errors(
+            &board.sheets[k].plane,
+            &truth[k],
+            &sheet_centre(&rig, k),
+            800.0,
+        );
+        println!(
+            "sheet {k}: normal {a:.4}°, offset {o:.4} % of 800 mm, rms {:.4} px, missing {:?}",
+            board.sheets[k].rms_px,
+            board.sheets[k].missing()
+        );
+        assert!(a < 0.05 && o < 0.05, "sheet {k}: normal {a}°, offset {o} %");
+    }
+    // The hidden markers (one per sheet behind the objects) are reported missing.
+    let hidden: Vec<_> = rig
+        .markers()
+        .into_iter()
+        .filter(|m| !m.visible)
+        .map(|m| (m.surface, m.index))
+        .collect();
+    for (surface, index) in hidden {
+        let k = if surface == SurfaceId::Left { 0 } else { 1 };
+        assert!(
+            board.sheets[k].missing().contains(&index),
+            "{surface:?} {index} hidden but used"
+        );
+    }
+    let angle = board.board.angle().to_degrees();
+    println!("angle between the planes {angle:.4}° (built: 90°)");
+    assert!((angle - 90.0).abs() < 0.1);
+}
+
+#[test]
+fn paper_lines_and_layout_pose_on_an_unobstructed_board() {
+    let mut s = scene(W, H);
+    s.objects.clear();
+    let rig = Rig::new(s).unwrap();
+    let img = rig.reference().to_gray_image();
+    let out = board_planes(&img, &BoardFile::default(), &rig.scene().camera);
+    let board = out.result.unwrap();
     let truth = rig.board_planes();
     for k in 0..2 {
         let c = sheet_centre(&rig, k);
-        let (a, o) = plane_errors(&fit.sheets[k].plane, &truth[k], &c, 800.0);
+        let (a, o) = plane_errors(&board.sheets[k].plane, &truth[k], &c, 800.0);
+        let paper = board.paper[k].expect("all six markers are visible");
+        let (pa, po) = plane_errors(&paper, &truth[k], &c, 800.0);
         println!(
-            "sheet {k}: normal {a:.4}°, offset {o:.4} %, rms {:.4}, missing {:?}",
-            fit.sheets[k].rms_px,
-            fit.sheets[k].missing()
+            "sheet {k}: layout pose normal {a:.4}° offset {o:.4} %; paper lines normal {pa:.4}° offset {po:.4} %"
         );
-        if let Some(p) = &fit.paper[k] {
-            let (a, o) = plane_errors(p, &truth[k], &c, 800.0);
-            println!("   paper: normal {a:.4}°, offset {o:.4} %");
-        }
+        assert!(board.sheets[k].missing().is_empty());
+        assert!(a < 0.05 && o < 0.05);
+        assert!(
+            pa < 1.0 && po < 0.5,
+            "paper construction far off: {pa}° {po} %"
+        );
     }
 }
 
 #[test]
-fn debug_identify() {
-    use scanner_device::calib::identify::{Orientation, identify};
-    let rig = Rig::new(scene(1280, 960)).unwrap();
-    let img = rig.reference().to_gray_image();
-    let det = find_markers(&img, &DetectConfig::default());
-    let board = BoardFile::default();
-    for b in &det.blobs {
-        println!("blob {:?} area {}", b.centre, b.area);
-    }
-    let r = identify(
-        &det.blobs,
-        &[],
-        &board.right.points(),
-        Orientation {
-            mirrored: false,
-            u_along_x: Some(1),
-        },
+fn the_paper_procedure_on_rendered_cross_images() {
+    let mut s = scene(W, H);
+    s.camera = scanner_core::Camera::new(
+        1120.0,
+        1120.0,
+        639.5,
+        479.5,
+        scanner_core::Distortion::none(),
+    )
+    .unwrap();
+    let rig = Rig::new(s).unwrap();
+    let cross = BoardFile::default().cross;
+    let pattern = Pattern::Cross {
+        arm: cross.arm,
+        dot: cross.dot,
+    };
+    let eps = 25.0;
+    let shot = |z: f64| {
+        let pose = TargetPose {
+            centre: Point3::new(0.0, 0.0, z),
+            turn_deg: [0.0; 3],
+        };
+        rig.shot(&pattern, &pose, z as u64).image.to_gray_image()
+    };
+    let (near, far) = (shot(500.0), shot(900.0));
+    let d = image_distance(&cross, (&near, 500.0 + eps), (&far, 900.0 + eps)).unwrap();
+    println!(
+        "d_z {:.2} px (true 1120), ε {:.2} mm (true {eps})",
+        d.d_z, d.epsilon_mm
     );
-    println!("{r:?}");
-    let mut ex = vec![false; det.blobs.len()];
-    for i in [0usize, 2, 4, 7, 8, 9] {
-        ex[i] = true;
+    assert!((d.d_z / 1120.0 - 1.0).abs() < 0.002);
+    assert!((d.epsilon_mm - eps).abs() < 2.0);
+}
+
+#[test]
+fn bad_input_names_what_was_expected_and_found() {
+    let rig = Rig::new(scene(640, 480)).unwrap();
+    let cam = rig.scene().camera;
+    // No board: a blank wall.
+    let blank = image::GrayImage::from_pixel(640, 480, image::Luma([180]));
+    let e = board_planes(&blank, &BoardFile::default(), &cam)
+        .result
+        .unwrap_err();
+    assert!(matches!(e, CalibError::NoMarkers { .. }), "{e}");
+    assert!(e.to_string().contains("no markers found"));
+    // Too few markers: the right half of the image covered.
+    let mut half = rig.reference().to_gray_image();
+    for (x, _, p) in half.enumerate_pixels_mut() {
+        if x >= 320 {
+            *p = image::Luma([180]);
+        }
     }
-    let r = identify(
-        &det.blobs,
-        &ex,
-        &board.right.points(),
-        Orientation {
-            mirrored: false,
-            u_along_x: Some(1),
-        },
+    let e = board_planes(&half, &BoardFile::default(), &cam)
+        .result
+        .unwrap_err();
+    assert!(
+        matches!(&e, CalibError::TooFewMarkers { what, .. } if what.contains("right")),
+        "{e}"
     );
-    println!("{r:?}");
+    // A board file that disagrees with the printed board: a 3×3 grid.
+    let mut other = BoardFile::default();
+    for s in [&mut other.left, &mut other.right] {
+        s.grid = Some(scanner_device::calib::board::Grid {
+            cols: 3,
+            rows: 3,
+            u0: 66.0,
+            v0: -110.0,
+            du: 110.0,
+            dv: 110.0,
+        });
+    }
+    let e = board_planes(&rig.reference().to_gray_image(), &other, &cam).result;
+    assert!(
+        e.is_err()
+            || e.as_ref()
+                .is_ok_and(|b| b.sheets.iter().all(|s| s.missing().len() >= 3)),
+        "{e:?}"
+    );
+    // An image of another size than the calibration.
+    let e = scanner_device::calib::check_size((1280, 960), &blank).unwrap_err();
+    assert_eq!(
+        e.to_string(),
+        "image is 640×480 but the camera was calibrated at 1280×960"
+    );
+    // Intrinsics from images without a grid.
+    let grid = DotGrid {
+        cols: 9,
+        rows: 7,
+        pitch: 30.0,
+        dot: 12.0,
+    };
+    let e = intrinsics(&[blank.clone(), blank.clone(), blank], &grid, Free::ALL).unwrap_err();
+    assert!(e.to_string().contains("images with the grid found"), "{e}");
 }

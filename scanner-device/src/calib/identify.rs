@@ -210,7 +210,9 @@ fn keeps_orientation(h: &Matrix3<f64>, layout: &[Point2<f64>], orient: Orientati
         let det = j.determinant();
         (det < 0.0) == orient.mirrored
             && det != 0.0
-            && orient.u_along_x.is_none_or(|s| j[(0, 0)] * f64::from(s) > 0.0)
+            && orient
+                .u_along_x
+                .is_none_or(|s| j[(0, 0)] * f64::from(s) > 0.0)
     })
 }
 
@@ -305,7 +307,9 @@ pub fn identify(
     layout: &[Point2<f64>],
     orient: Orientation,
 ) -> Option<Assignment> {
-    candidates(blobs, exclude, layout, orient).into_iter().next()
+    candidates(blobs, exclude, layout, orient)
+        .into_iter()
+        .next()
 }
 
 /// Every distinct consistent match of `layout` to `blobs`, best first (most layout points

@@ -319,22 +319,30 @@ pub fn board_planes(img: &GrayImage, board: &BoardFile, camera: &Camera<f64>) ->
     };
     let (lf, rf) = (fit_all(0, &lc), fit_all(1, &rc));
     let used = |f: &SheetFit| f.markers.iter().filter(|m| m.residual.is_some()).count();
+    // The left sheet is left of the right one (a symmetric layout also fits the other sheet
+    // mirrored), and the two share no marker.
+    let mean_x = |a: &Assignment| {
+        let xs: Vec<f64> = a
+            .blob_of
+            .iter()
+            .flatten()
+            .map(|&b| detections.blobs[b].centre.x)
+            .collect();
+        xs.iter().sum::<f64>() / xs.len().max(1) as f64
+    };
+    let compatible = |i: usize, j: usize| {
+        let shared = lc[i]
+            .blob_of
+            .iter()
+            .flatten()
+            .any(|b| rc[j].blob_of.contains(&Some(*b)));
+        !shared && mean_x(&lc[i]) < mean_x(&rc[j])
+    };
     let mut best: Option<(usize, usize, (usize, f64))> = None;
     for (i, l) in lf.iter().enumerate() {
         for (j, r) in rf.iter().enumerate() {
             let (Ok(l), Ok(r)) = (l, r) else { continue };
-            let shared = lc[i]
-                .blob_of
-                .iter()
-                .flatten()
-                .any(|b| rc[j].blob_of.contains(&Some(*b)));
-            // The left sheet is left of the right one (a symmetric layout also fits the other
-            // sheet mirrored).
-            let mean_x = |a: &Assignment| {
-                let xs: Vec<f64> = a.blob_of.iter().flatten().map(|&b| detections.blobs[b].centre.x).collect();
-                xs.iter().sum::<f64>() / xs.len().max(1) as f64
-            };
-            if shared || mean_x(&lc[i]) >= mean_x(&rc[j]) {
+            if !compatible(i, j) {
                 continue;
             }
             let score = (used(l) + used(r), -(l.rms_px + r.rms_px));
@@ -346,7 +354,12 @@ pub fn board_planes(img: &GrayImage, board: &BoardFile, camera: &Camera<f64>) ->
     let (assignments, result) = match best {
         Some((i, j, _)) => (
             [Some(lc[i].clone()), Some(rc[j].clone())],
-            finish_board(img, board, camera, [lf[i].clone().expect("ok"), rf[j].clone().expect("ok")]),
+            finish_board(
+                img,
+                board,
+                camera,
+                [lf[i].clone().expect("ok"), rf[j].clone().expect("ok")],
+            ),
         ),
         None => {
             // Report the best single-sheet failure (or a missing sheet).
@@ -371,15 +384,29 @@ pub fn board_planes(img: &GrayImage, board: &BoardFile, camera: &Camera<f64>) ->
                         None
                     }
                 };
-                first_err(0, &lf)
-                    .or_else(|| first_err(1, &rf))
-                    .unwrap_or_else(|| CalibError::TooFewMarkers {
-                        what: "board: the two sheets share markers in every identification".into(),
-                        found: 0,
-                        expected: layouts[0].len() + layouts[1].len(),
-                        needed: 8,
-                        missing: Vec::new(),
-                    })
+                let none_right_of = |k: usize| CalibError::TooFewMarkers {
+                    what: format!("{} (beside the other sheet's markers)", names[k]),
+                    found: 0,
+                    expected: layouts[k].len(),
+                    needed: 4,
+                    missing: (0..layouts[k].len()).collect(),
+                };
+                match (
+                    lf.iter().position(|f| f.is_ok()),
+                    rf.iter().position(|f| f.is_ok()),
+                ) {
+                    (None, _) => first_err(0, &lf).unwrap_or_else(|| none_right_of(0)),
+                    (_, None) => first_err(1, &rf).unwrap_or_else(|| none_right_of(1)),
+                    // Both sheets fit on their own but never side by side: blame the one
+                    // with fewer markers.
+                    (Some(i), Some(j)) => {
+                        let (li, rj) = (
+                            used(lf[i].as_ref().expect("ok")),
+                            used(rf[j].as_ref().expect("ok")),
+                        );
+                        none_right_of(if li >= rj { 1 } else { 0 })
+                    }
+                }
             };
             ([lc.first().cloned(), rc.first().cloned()], Err(err))
         }

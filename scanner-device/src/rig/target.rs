@@ -90,18 +90,32 @@ impl Pattern {
     }
 
     fn albedo(&self, x: f64, y: f64) -> f64 {
+        let ink = |inside: bool| if inside { INK } else { PAPER };
         match *self {
-            Pattern::Cross { dot, .. } | Pattern::DotGrid { dot, .. } => {
+            Pattern::Cross { dot, .. } => {
                 let r2 = (dot / 2.0).powi(2);
-                if self
+                ink(self
                     .dots()
                     .iter()
-                    .any(|c| (x - c[0]).powi(2) + (y - c[1]).powi(2) <= r2)
-                {
-                    INK
-                } else {
-                    PAPER
+                    .any(|c| (x - c[0]).powi(2) + (y - c[1]).powi(2) <= r2))
+            }
+            Pattern::DotGrid {
+                cols,
+                rows,
+                pitch,
+                dot,
+            } => {
+                // The nearest grid dot only (dots are less than a pitch wide).
+                let (fc, fr) = (
+                    x / pitch + (cols - 1) as f64 / 2.0,
+                    y / pitch + (rows - 1) as f64 / 2.0,
+                );
+                let (c, r) = (fc.round(), fr.round());
+                if c < 0.0 || r < 0.0 || c > (cols - 1) as f64 || r > (rows - 1) as f64 {
+                    return PAPER;
                 }
+                let (dx, dy) = ((fc - c) * pitch, (fr - r) * pitch);
+                ink(dx * dx + dy * dy <= (dot / 2.0).powi(2))
             }
             Pattern::Chessboard { cols, rows, square } => {
                 let (u, v) = (
