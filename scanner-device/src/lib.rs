@@ -8,6 +8,7 @@
 #![deny(missing_docs)]
 
 pub mod calib;
+pub mod calib_cli;
 pub mod render;
 pub mod rig;
 pub mod source;
@@ -53,6 +54,32 @@ pub enum Command {
         #[arg(long, short)]
         quiet: bool,
     },
+    /// Render calibration images of a rig scene: the board without laser, dot-grid shots and the
+    /// image-distance cross at two distances.
+    RenderCalibration {
+        /// Scene file (TOML); the demo scene at 640×480 without one.
+        #[arg(long)]
+        scene: Option<PathBuf>,
+        /// Output folder.
+        #[arg(long, default_value = "rig-calibration")]
+        out: PathBuf,
+    },
+    /// Write a board file (the paper's layout unless given one) and its printable 1:1 sheets:
+    /// left and right sheet and the image-distance cross, as SVG and PNG, with a scale ruler.
+    Board {
+        /// Board file to print; the default board without one.
+        #[arg(long)]
+        board: Option<PathBuf>,
+        /// Output folder.
+        #[arg(long, default_value = "board")]
+        out: PathBuf,
+        /// Resolution of the PNGs, dots per inch.
+        #[arg(long, default_value_t = 150.0)]
+        dpi: f64,
+    },
+    /// Calibrate from images: intrinsics, the paper's image distance, or the board planes.
+    #[command(subcommand)]
+    Calibrate(calib_cli::Calibrate),
 }
 
 /// Runs the scanner head with parsed arguments.
@@ -92,6 +119,23 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
                 out.display()
             );
         }
+        Some(Command::RenderCalibration { scene, out }) => {
+            let scene = render::load_scene(scene.as_deref())?;
+            let rig = rig::Rig::new(scene)
+                .map_err(|e| anyhow::anyhow!("building the virtual rig: {e}"))?;
+            calib_cli::render_calibration(&rig, out)?;
+            println!(
+                "wrote board.png, grid-00..11.png, cross-near.png, cross-far.png and shots.txt to {}",
+                out.display()
+            );
+        }
+        Some(Command::Board { board, out, dpi }) => {
+            if !(*dpi >= 25.0 && *dpi <= 1200.0) {
+                anyhow::bail!("--dpi must be between 25 and 1200, found {dpi}");
+            }
+            calib_cli::board_command(board.as_deref(), out, *dpi)?;
+        }
+        Some(Command::Calibrate(c)) => calib_cli::calibrate(c)?,
         None => println!("scanner-device: nothing to do yet (try --help)"),
     }
     Ok(())

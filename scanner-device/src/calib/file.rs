@@ -1,1 +1,461 @@
-//! (being written)
+//! The calibration file the scanner head loads: TOML, written atomically.
+//!
+//! ```toml
+//! version = 1
+//! [image]                  # the size everything below refers to
+//! width = 1280
+//! height = 960
+//! [camera]                 # pinhole + Brown–Conrady (OpenCV order), pixels
+//! fx = 1119.84 ...         # fy, cx, cy, k1, k2, p1, p2, k3
+//! source = "intrinsics from 12 dot-grid images"
+//! rms_px = 0.023
+//! [board]                  # camera coordinates, mm; planes n·x + d = 0, n towards the camera
+//! method = "layout-pose"   # or "paper-lines"
+//! angle_deg = 89.99
+//! crease_point = [...]     # L_c
+//! crease_direction = [...]
+//! [board.left]             # normal, offset, rms_px, and every marker:
+//! [[board.left.markers]]   # index, sheet [u, v] mm, pixel, residual_px (predicted − found),
+//!                          # status "used" | "missing" | "dropped"
+//! [board.paper]            # the paper's construction, where it applies (for comparison)
+//! [regions]                # image polygons, pixels: each sheet's outline, and the object's
+//!                          # region between the marker lines
+//! ```
+
+use std::path::Path;
+
+use scanner_core::calib::model::predict;
+use scanner_core::geometry::{Board, Plane, Pose};
+use scanner_core::nalgebra::{Point2, Vector3};
+use scanner_core::{Camera, Distortion};
+use serde::{Deserialize, Serialize};
+
+use super::board::BoardFile;
+use super::{BoardFit, PlaneMethod};
+
+/// Version of the file format.
+pub const VERSION: u32 = 1;
+
+/// Image size.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ImageSize {
+    /// Width, pixels.
+    pub width: u32,
+    /// Height, pixels.
+    pub height: u32,
+}
+
+/// The camera's intrinsics and where they came from.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct CameraSection {
+    /// Focal length along x, pixels.
+    pub fx: f64,
+    /// Focal length along y, pixels.
+    pub fy: f64,
+    /// Principal point x, pixels.
+    pub cx: f64,
+    /// Principal point y, pixels.
+    pub cy: f64,
+    /// Radial distortion.
+    pub k1: f64,
+    /// Radial distortion.
+    pub k2: f64,
+    /// Tangential distortion.
+    pub p1: f64,
+    /// Tangential distortion.
+    pub p2: f64,
+    /// Radial distortion.
+    pub k3: f64,
+    /// How they were obtained.
+    pub source: String,
+    /// RMS reprojection error of the calibration, pixels.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub rms_px: Option<f64>,
+}
+
+/// A plane `normal · x + offset = 0`.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PlaneEq {
+    /// Unit normal, towards the camera.
+    pub normal: [f64; 3],
+    /// Offset, mm.
+    pub offset: f64,
+}
+
+/// One marker's record.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MarkerEntry {
+    /// Index in the sheet's layout.
+    pub index: usize,
+    /// Position on the sheet, mm.
+    pub sheet: [f64; 2],
+    /// Where it was found, pixels.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub pixel: Option<[f64; 2]>,
+    /// Predicted − found, pixels.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub residual_px: Option<[f64; 2]>,
+    /// "used", "missing" or "dropped".
+    pub status: String,
+}
+
+/// A board sheet's plane and markers.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SheetSection {
+    /// Unit normal, towards the camera.
+    pub normal: [f64; 3],
+    /// Offset, mm.
+    pub offset: f64,
+    /// RMS reprojection error of the used markers, pixels.
+    pub rms_px: f64,
+    /// Every layout marker.
+    pub markers: Vec<MarkerEntry>,
+}
+
+/// The paper's construction, for comparison.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PaperSection {
+    /// Left plane by the three-point lines.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub left: Option<PlaneEq>,
+    /// Right plane.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub right: Option<PlaneEq>,
+}
+
+/// The board.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct BoardSection {
+    /// "layout-pose" or "paper-lines": which planes `left` and `right` are.
+    pub method: String,
+    /// Opening angle between the planes as built, degrees.
+    pub angle_deg: f64,
+    /// A point of the crease `L_c`, mm.
+    pub crease_point: [f64; 3],
+    /// Direction of the crease (unit).
+    pub crease_direction: [f64; 3],
+    /// Left sheet.
+    pub left: SheetSection,
+    /// Right sheet.
+    pub right: SheetSection,
+    /// The paper's construction where the layout is the paper's and all markers were found.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub paper: Option<PaperSection>,
+}
+
+/// Image regions, polygons in pixels.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Regions {
+    /// The left sheet's outline.
+    pub left: Vec<[f64; 2]>,
+    /// The right sheet's outline.
+    pub right: Vec<[f64; 2]>,
+    /// Where the object stands: both sheets between the upper and lower marker lines.
+    pub object: Vec<[f64; 2]>,
+}
+
+/// The calibration file.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct CalibrationFile {
+    /// Format version ([`VERSION`]).
+    pub version: u32,
+    /// Image size of the calibration.
+    pub image: ImageSize,
+    /// The camera.
+    pub camera: CameraSection,
+    /// The board, once calibrated.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub board: Option<BoardSection>,
+    /// Image regions.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub regions: Option<Regions>,
+}
+
+/// Why a calibration file is unusable.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum FileError {
+    /// Not readable, not TOML of this shape, or not writable.
+    #[error("calibration file {path}: {why}")]
+    Io {
+        /// The file.
+        path: String,
+        /// What went wrong.
+        why: String,
+    },
+    /// Readable, but the numbers are unusable.
+    #[error("calibration file {path}: {why}")]
+    Invalid {
+        /// The file.
+        path: String,
+        /// What is wrong.
+        why: String,
+    },
+}
+
+fn plane_eq(p: &Plane<f64>) -> PlaneEq {
+    PlaneEq {
+        normal: (*p.normal()).into(),
+        offset: p.offset(),
+    }
+}
+
+/// Pixel of a sheet point, with distortion.
+fn sheet_pixel(camera: &Camera<f64>, pose: &Pose, u: f64, v: f64) -> Option<[f64; 2]> {
+    predict(camera, pose, &Point2::new(u, v), 0.0)
+        .ok()
+        .map(|p| [p.x, p.y])
+}
+
+/// A sheet's rectangle `[u0, u1] × [v0, v1]` as an image polygon (8 points per edge).
+fn outline(camera: &Camera<f64>, pose: &Pose, u: (f64, f64), v: (f64, f64)) -> Vec<[f64; 2]> {
+    let corners = [(u.0, v.0), (u.1, v.0), (u.1, v.1), (u.0, v.1)];
+    let mut out = Vec::new();
+    for k in 0..4 {
+        let (a, b) = (corners[k], corners[(k + 1) % 4]);
+        for s in 0..8 {
+            let t = f64::from(s) / 8.0;
+            if let Some(p) = sheet_pixel(camera, pose, a.0 + t * (b.0 - a.0), a.1 + t * (b.1 - a.1))
+            {
+                out.push(p);
+            }
+        }
+    }
+    out
+}
+
+impl CalibrationFile {
+    /// A file holding only a camera.
+    pub fn from_camera(
+        camera: &Camera<f64>,
+        size: (u32, u32),
+        source: String,
+        rms_px: Option<f64>,
+    ) -> Self {
+        let d = camera.distortion();
+        let pp = camera.principal_point();
+        CalibrationFile {
+            version: VERSION,
+            image: ImageSize {
+                width: size.0,
+                height: size.1,
+            },
+            camera: CameraSection {
+                fx: camera.fx(),
+                fy: camera.fy(),
+                cx: pp.x,
+                cy: pp.y,
+                k1: d.k1,
+                k2: d.k2,
+                p1: d.p1,
+                p2: d.p2,
+                k3: d.k3,
+                source,
+                rms_px,
+            },
+            board: None,
+            regions: None,
+        }
+    }
+
+    /// The camera.
+    ///
+    /// # Errors
+    /// [`scanner_core::GeomError`] for unusable numbers.
+    pub fn camera(&self) -> Result<Camera<f64>, scanner_core::GeomError> {
+        let c = &self.camera;
+        Camera::new(
+            c.fx,
+            c.fy,
+            c.cx,
+            c.cy,
+            Distortion {
+                k1: c.k1,
+                k2: c.k2,
+                p1: c.p1,
+                p2: c.p2,
+                k3: c.k3,
+            },
+        )
+    }
+
+    /// Adds the board from a fit, by `method`, with the image regions.
+    pub fn set_board(
+        &mut self,
+        fit: &BoardFit,
+        board: &BoardFile,
+        camera: &Camera<f64>,
+        method: PlaneMethod,
+    ) {
+        let sheet = |k: usize, plane: &Plane<f64>| {
+            let s = &fit.sheets[k];
+            SheetSection {
+                normal: (*plane.normal()).into(),
+                offset: plane.offset(),
+                rms_px: s.rms_px,
+                markers: s
+                    .markers
+                    .iter()
+                    .enumerate()
+                    .map(|(i, m)| MarkerEntry {
+                        index: i,
+                        sheet: [m.sheet.x, m.sheet.y],
+                        pixel: m.pixel.map(|p| [p.x, p.y]),
+                        residual_px: m.residual.map(|r| [r.x, r.y]),
+                        status: if m.residual.is_some() {
+                            "used"
+                        } else if m.dropped {
+                            "dropped"
+                        } else {
+                            "missing"
+                        }
+                        .into(),
+                    })
+                    .collect(),
+            }
+        };
+        let planes = match (method, fit.paper) {
+            (PlaneMethod::PaperLines, [Some(l), Some(r)]) => [l, r],
+            _ => [fit.sheets[0].plane, fit.sheets[1].plane],
+        };
+        let used = if planes == [fit.sheets[0].plane, fit.sheets[1].plane] {
+            PlaneMethod::LayoutPose
+        } else {
+            method
+        };
+        let crease = fit.board.crease();
+        let paper = (fit.paper.iter().any(Option::is_some)).then(|| PaperSection {
+            left: fit.paper[0].as_ref().map(plane_eq),
+            right: fit.paper[1].as_ref().map(plane_eq),
+        });
+        let board_geom = Board::new(planes[0], planes[1]).unwrap_or(fit.board);
+        self.board = Some(BoardSection {
+            method: used.name().into(),
+            angle_deg: board_geom.angle().to_degrees(),
+            crease_point: crease.point().coords.into(),
+            crease_direction: (*crease.direction()).into(),
+            left: sheet(0, &planes[0]),
+            right: sheet(1, &planes[1]),
+            paper,
+        });
+        // Regions: each sheet's paper outline; the object's region between the marker lines.
+        let (w, h) = (board.sheet.width, board.sheet.height);
+        let poses = [fit.sheets[0].pose, fit.sheets[1].pose];
+        let lines = [board.left.points(), board.right.points()].map(|p| {
+            let (lo, hi) = p
+                .iter()
+                .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), q| {
+                    (lo.min(q.y), hi.max(q.y))
+                });
+            let umax = p.iter().fold(0.0f64, |m, q| m.max(q.x));
+            (lo, hi, umax)
+        });
+        let mut object = Vec::new();
+        let (l, r) = (lines[0], lines[1]);
+        let (vt, vb) = (l.0.max(r.0), l.1.min(r.1));
+        for p in [
+            sheet_pixel(camera, &poses[0], l.2, vt),
+            sheet_pixel(camera, &poses[0], 0.0, vt),
+            sheet_pixel(camera, &poses[1], r.2, vt),
+            sheet_pixel(camera, &poses[1], r.2, vb),
+            sheet_pixel(camera, &poses[1], 0.0, vb),
+            sheet_pixel(camera, &poses[0], l.2, vb),
+        ]
+        .into_iter()
+        .flatten()
+        {
+            object.push(p);
+        }
+        self.regions = Some(Regions {
+            left: outline(camera, &poses[0], (0.0, w), (-h / 2.0, h / 2.0)),
+            right: outline(camera, &poses[1], (0.0, w), (-h / 2.0, h / 2.0)),
+            object,
+        });
+    }
+
+    /// The board planes, if calibrated.
+    pub fn board(&self) -> Option<Result<Board<f64>, scanner_core::GeomError>> {
+        let b = self.board.as_ref()?;
+        let plane = |s: &SheetSection| Plane::new(Vector3::from(s.normal), s.offset);
+        Some(plane(&b.left).and_then(|l| Board::new(l, plane(&b.right)?)))
+    }
+
+    /// Reads a calibration file.
+    ///
+    /// # Errors
+    /// [`FileError`] naming the file and the problem.
+    pub fn load(path: &Path) -> Result<Self, FileError> {
+        let io = |why: String| FileError::Io {
+            path: path.display().to_string(),
+            why,
+        };
+        let text = std::fs::read_to_string(path).map_err(|e| io(e.to_string()))?;
+        let f: CalibrationFile = toml::from_str(&text).map_err(|e| io(e.to_string()))?;
+        let invalid = |why: String| FileError::Invalid {
+            path: path.display().to_string(),
+            why,
+        };
+        if f.version != VERSION {
+            return Err(invalid(format!(
+                "version {} (this build reads {VERSION})",
+                f.version
+            )));
+        }
+        if f.image.width == 0 || f.image.height == 0 {
+            return Err(invalid("image size is zero".into()));
+        }
+        f.camera().map_err(|e| invalid(format!("[camera]: {e}")))?;
+        if let Some(b) = f.board() {
+            b.map_err(|e| invalid(format!("[board]: {e}")))?;
+        }
+        Ok(f)
+    }
+
+    /// Writes the file atomically (a temporary file beside it, then a rename).
+    ///
+    /// # Errors
+    /// [`FileError::Io`].
+    pub fn save(&self, path: &Path) -> Result<(), FileError> {
+        let text = toml::to_string(self).map_err(|e| FileError::Io {
+            path: path.display().to_string(),
+            why: e.to_string(),
+        })?;
+        write_atomic(path, text.as_bytes()).map_err(|e| FileError::Io {
+            path: path.display().to_string(),
+            why: e.to_string(),
+        })
+    }
+}
+
+/// Writes `bytes` to `path` through a temporary file in the same folder and a rename, so that a
+/// crash never leaves a half-written file in place of a good one.
+///
+/// # Errors
+/// Any I/O error.
+pub fn write_atomic(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
+    use std::io::Write;
+    let dir = path
+        .parent()
+        .filter(|p| !p.as_os_str().is_empty())
+        .unwrap_or(Path::new("."));
+    let name = path
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    let tmp = dir.join(format!(".{name}.tmp{}", std::process::id()));
+    let mut f = std::fs::File::create(&tmp)?;
+    f.write_all(bytes)?;
+    f.sync_all()?;
+    drop(f);
+    std::fs::rename(&tmp, path).inspect_err(|_| {
+        let _ = std::fs::remove_file(&tmp);
+    })
+}

@@ -1,1 +1,397 @@
-//! (being written)
+//! Pictures of what calibration found: the board image with every marker numbered, missing and
+//! dropped ones marked, residuals drawn 100× enlarged, the marker lines, the crease `L_c`, and a
+//! legend; the same for dot-grid images. Also the small drawing kit the print module uses.
+
+use image::{GrayImage, Rgb, RgbImage};
+use scanner_core::Camera;
+use scanner_core::calib::model::predict;
+use scanner_core::nalgebra::{Point2, Point3};
+
+use super::board::BoardFile;
+use super::{BoardOutcome, ViewFit};
+
+/// Colours of the overlay.
+pub mod colour {
+    use image::Rgb;
+    /// A marker used in the fit.
+    pub const USED: Rgb<u8> = Rgb([40, 220, 60]);
+    /// A marker found but dropped as an outlier.
+    pub const DROPPED: Rgb<u8> = Rgb([255, 150, 0]);
+    /// A layout point not found.
+    pub const MISSING: Rgb<u8> = Rgb([255, 40, 40]);
+    /// Residual vectors.
+    pub const RESIDUAL: Rgb<u8> = Rgb([255, 255, 0]);
+    /// Marker lines.
+    pub const LINE: Rgb<u8> = Rgb([0, 200, 255]);
+    /// The crease.
+    pub const CREASE: Rgb<u8> = Rgb([255, 0, 255]);
+    /// Dark regions rejected as clutter.
+    pub const CLUTTER: Rgb<u8> = Rgb([150, 150, 150]);
+    /// Text.
+    pub const TEXT: Rgb<u8> = Rgb([255, 255, 255]);
+}
+
+/// An RGB picture with simple drawing.
+pub struct Canvas {
+    /// The picture.
+    pub image: RgbImage,
+}
+
+impl Canvas {
+    /// A canvas from a gray image.
+    pub fn from_gray(img: &GrayImage) -> Canvas {
+        let image = RgbImage::from_fn(img.width(), img.height(), |x, y| {
+            let v = img.get_pixel(x, y)[0];
+            Rgb([v, v, v])
+        });
+        Canvas { image }
+    }
+
+    /// A blank canvas.
+    pub fn blank(width: u32, height: u32, c: Rgb<u8>) -> Canvas {
+        Canvas {
+            image: RgbImage::from_pixel(width, height, c),
+        }
+    }
+
+    /// Sets a pixel if inside.
+    pub fn dot(&mut self, x: i64, y: i64, c: Rgb<u8>) {
+        if x >= 0 && y >= 0 && (x as u32) < self.image.width() && (y as u32) < self.image.height() {
+            self.image.put_pixel(x as u32, y as u32, c);
+        }
+    }
+
+    /// A line `width` pixels thick.
+    pub fn line(&mut self, a: (f64, f64), b: (f64, f64), width: f64, c: Rgb<u8>) {
+        let len = ((b.0 - a.0).powi(2) + (b.1 - a.1).powi(2)).sqrt();
+        if !len.is_finite() || len > 1e5 {
+            return;
+        }
+        let steps = (len * 2.0).ceil().max(1.0) as usize;
+        let r = (width / 2.0).max(0.5);
+        for s in 0..=steps {
+            let t = s as f64 / steps as f64;
+            let (x, y) = (a.0 + t * (b.0 - a.0), a.1 + t * (b.1 - a.1));
+            self.disc((x, y), r, c);
+        }
+    }
+
+    /// A filled disc.
+    pub fn disc(&mut self, at: (f64, f64), r: f64, c: Rgb<u8>) {
+        let ri = r.ceil() as i64;
+        for dy in -ri..=ri {
+            for dx in -ri..=ri {
+                let (x, y) = (at.0.round() as i64 + dx, at.1.round() as i64 + dy);
+                if ((x as f64 - at.0).powi(2) + (y as f64 - at.1).powi(2)) <= r * r + 0.25 {
+                    self.dot(x, y, c);
+                }
+            }
+        }
+    }
+
+    /// A circle outline.
+    pub fn circle(&mut self, at: (f64, f64), r: f64, width: f64, c: Rgb<u8>) {
+        let n = ((r * 8.0).ceil() as usize).clamp(16, 2000);
+        for i in 0..n {
+            let (a0, a1) = (
+                i as f64 / n as f64 * std::f64::consts::TAU,
+                (i + 1) as f64 / n as f64 * std::f64::consts::TAU,
+            );
+            self.line(
+                (at.0 + r * a0.cos(), at.1 + r * a0.sin()),
+                (at.0 + r * a1.cos(), at.1 + r * a1.sin()),
+                width,
+                c,
+            );
+        }
+    }
+
+    /// An × of half size `r`.
+    pub fn cross(&mut self, at: (f64, f64), r: f64, width: f64, c: Rgb<u8>) {
+        self.line((at.0 - r, at.1 - r), (at.0 + r, at.1 + r), width, c);
+        self.line((at.0 - r, at.1 + r), (at.0 + r, at.1 - r), width, c);
+    }
+
+    /// A filled rectangle.
+    pub fn rect(&mut self, x0: f64, y0: f64, x1: f64, y1: f64, c: Rgb<u8>) {
+        for y in y0.round() as i64..y1.round() as i64 {
+            for x in x0.round() as i64..x1.round() as i64 {
+                self.dot(x, y, c);
+            }
+        }
+    }
+
+    /// Text in the 8×8 bitmap font, `scale` pixels per font pixel, top-left at `(x, y)`;
+    /// returns the width drawn.
+    pub fn text(&mut self, x: f64, y: f64, s: &str, scale: u32, c: Rgb<u8>) -> f64 {
+        use font8x8::UnicodeFonts;
+        let sc = i64::from(scale.max(1));
+        let mut cx = x.round() as i64;
+        for ch in s.chars() {
+            let glyph = font8x8::BASIC_FONTS
+                .get(ch)
+                .or_else(|| font8x8::LATIN_FONTS.get(ch))
+                .unwrap_or([0; 8]);
+            for (row, bits) in glyph.iter().enumerate() {
+                for col in 0..8 {
+                    if bits >> col & 1 == 1 {
+                        for dy in 0..sc {
+                            for dx in 0..sc {
+                                self.dot(
+                                    cx + col * sc + dx,
+                                    y.round() as i64 + row as i64 * sc + dy,
+                                    c,
+                                );
+                            }
+                        }
+                    }
+                }
+            }
+            cx += 8 * sc;
+        }
+        (cx as f64) - x
+    }
+
+    /// Lines of text on a dark box at the top left.
+    pub fn legend(&mut self, lines: &[(String, Rgb<u8>)], scale: u32) {
+        let h = 10.0 * f64::from(scale);
+        let w = lines
+            .iter()
+            .map(|(l, _)| l.chars().count())
+            .max()
+            .unwrap_or(0) as f64
+            * 8.0
+            * f64::from(scale);
+        self.rect(
+            0.0,
+            0.0,
+            w + 12.0,
+            h * lines.len() as f64 + 8.0,
+            Rgb([0, 0, 0]),
+        );
+        for (i, (l, c)) in lines.iter().enumerate() {
+            self.text(6.0, 4.0 + h * i as f64, l, scale, *c);
+        }
+    }
+}
+
+fn font_scale(img: &GrayImage) -> u32 {
+    (img.width() / 640).max(1)
+}
+
+/// The annotated board image: markers found (numbered L0…, R0…), missing (red ×) and dropped
+/// (orange) ones, residuals ×100, the fitted marker lines, the crease `L_c`, clutter and a
+/// legend. Drawn whether calibration succeeded or not.
+pub fn board_overlay(
+    img: &GrayImage,
+    outcome: &BoardOutcome,
+    board: &BoardFile,
+    camera: &Camera<f64>,
+) -> RgbImage {
+    let mut cv = Canvas::from_gray(img);
+    let scale = font_scale(img);
+    let th = f64::from(scale);
+    for r in &outcome.detections.rejected {
+        let s = (r.area as f64).sqrt() / 2.0 + 2.0;
+        cv.line(
+            (r.centre.x - s, r.centre.y),
+            (r.centre.x + s, r.centre.y),
+            1.0,
+            colour::CLUTTER,
+        );
+        cv.line(
+            (r.centre.x, r.centre.y - s),
+            (r.centre.x, r.centre.y + s),
+            1.0,
+            colour::CLUTTER,
+        );
+    }
+    let mut legend: Vec<(String, Rgb<u8>)> = Vec::new();
+    let names = ["L", "R"];
+    let layouts = [board.left.points(), board.right.points()];
+    let radius = board.marker_diameter / 2.0;
+    match &outcome.result {
+        Ok(fit) => {
+            for k in 0..2 {
+                let s = &fit.sheets[k];
+                let px =
+                    |p: &Point2<f64>| predict(camera, &s.pose, p, radius).ok().map(|q| (q.x, q.y));
+                // Marker lines: layout points sharing a v.
+                let mut vs: Vec<f64> = layouts[k].iter().map(|p| p.y).collect();
+                vs.sort_by(f64::total_cmp);
+                vs.dedup_by(|a, b| (*a - *b).abs() < 1e-6);
+                for v in vs {
+                    let row: Vec<&Point2<f64>> = layouts[k]
+                        .iter()
+                        .filter(|p| (p.y - v).abs() < 1e-6)
+                        .collect();
+                    if row.len() >= 2 {
+                        let (u0, u1) = row
+                            .iter()
+                            .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), p| {
+                                (a.min(p.x), b.max(p.x))
+                            });
+                        let steps = 24;
+                        let pts: Vec<_> = (0..=steps)
+                            .filter_map(|i| {
+                                px(&Point2::new(
+                                    u0 + (u1 - u0) * f64::from(i) / f64::from(steps),
+                                    v,
+                                ))
+                            })
+                            .collect();
+                        for w in pts.windows(2) {
+                            cv.line(w[0], w[1], th, colour::LINE);
+                        }
+                    }
+                }
+                for (i, m) in s.markers.iter().enumerate() {
+                    let label = format!("{}{i}", names[k]);
+                    let r_px = 0.6 * radius * (img.width() as f64 / 1000.0).max(0.6);
+                    match (m.pixel, m.residual) {
+                        (Some(p), Some(res)) => {
+                            cv.circle((p.x, p.y), r_px + 4.0, th, colour::USED);
+                            cv.line(
+                                (p.x, p.y),
+                                (p.x + 100.0 * res.x, p.y + 100.0 * res.y),
+                                th + 1.0,
+                                colour::RESIDUAL,
+                            );
+                            cv.text(
+                                p.x + r_px + 6.0,
+                                p.y - 4.0 * th,
+                                &label,
+                                scale,
+                                colour::USED,
+                            );
+                        }
+                        (Some(p), None) => {
+                            cv.circle((p.x, p.y), r_px + 4.0, th, colour::DROPPED);
+                            cv.text(
+                                p.x + r_px + 6.0,
+                                p.y - 4.0 * th,
+                                &format!("{label} dropped"),
+                                scale,
+                                colour::DROPPED,
+                            );
+                        }
+                        (None, _) => {
+                            if let Some(q) = px(&m.sheet) {
+                                cv.cross(q, 10.0 * th, th + 1.0, colour::MISSING);
+                                cv.text(
+                                    q.0 + 12.0 * th,
+                                    q.1 - 4.0 * th,
+                                    &format!("{label} missing"),
+                                    scale,
+                                    colour::MISSING,
+                                );
+                            }
+                        }
+                    }
+                }
+                let missing = s.missing();
+                legend.push((
+                    format!(
+                        "{} sheet: {}/{} markers, rms {:.3} px{}",
+                        ["left", "right"][k],
+                        s.markers.len() - missing.len(),
+                        s.markers.len(),
+                        s.rms_px,
+                        if missing.is_empty() {
+                            String::new()
+                        } else {
+                            format!(", missing/dropped {missing:?}")
+                        }
+                    ),
+                    colour::USED,
+                ));
+            }
+            // The crease, between the sheets' top and bottom edges.
+            let c = fit.board.crease();
+            let hh = board.sheet.height / 2.0;
+            let pts: Vec<(f64, f64)> = (0..=32)
+                .filter_map(|i| {
+                    let t = -hh + 2.0 * hh * f64::from(i) / 32.0;
+                    let p: Point3<f64> = c.point() + c.direction() * t;
+                    camera.project(&p).ok().map(|q| (q.x, q.y))
+                })
+                .collect();
+            for w in pts.windows(2) {
+                cv.line(w[0], w[1], th + 1.0, colour::CREASE);
+            }
+            legend.push((
+                format!(
+                    "angle between the planes {:.3} deg; crease L_c in magenta",
+                    fit.board.angle().to_degrees()
+                ),
+                colour::CREASE,
+            ));
+            legend.push(("residuals drawn x100 (yellow)".into(), colour::RESIDUAL));
+        }
+        Err(e) => {
+            for (k, a) in outcome.assignments.iter().enumerate() {
+                if let Some(a) = a {
+                    for (i, b) in a.blob_of.iter().enumerate() {
+                        if let Some(b) = b {
+                            let p = outcome.detections.blobs[*b].centre;
+                            cv.text(
+                                p.x + 10.0,
+                                p.y,
+                                &format!("{}{i}?", names[k]),
+                                scale,
+                                colour::DROPPED,
+                            );
+                        }
+                    }
+                }
+            }
+            for b in &outcome.detections.blobs {
+                cv.circle(
+                    (b.centre.x, b.centre.y),
+                    b.axes.0 + 3.0,
+                    th,
+                    colour::DROPPED,
+                );
+            }
+            legend.push((format!("FAILED: {e}"), colour::MISSING));
+        }
+    }
+    legend.push((
+        format!(
+            "{} markers detected, {} dark regions rejected (grey +)",
+            outcome.detections.blobs.len(),
+            outcome.detections.rejected.len()
+        ),
+        colour::TEXT,
+    ));
+    cv.legend(&legend, scale);
+    cv.image
+}
+
+/// A dot-grid image with its identified dots numbered and residual ×100.
+pub fn grid_overlay(img: &GrayImage, view: &Result<ViewFit, super::CalibError>) -> RgbImage {
+    let mut cv = Canvas::from_gray(img);
+    let scale = font_scale(img);
+    match view {
+        Ok(v) => {
+            for (i, p) in &v.found {
+                cv.circle((p.x, p.y), 6.0, 1.0, colour::USED);
+                cv.text(p.x + 7.0, p.y - 10.0, &i.to_string(), scale, colour::USED);
+            }
+            cv.legend(
+                &[(
+                    format!(
+                        "{} dots, rms {:.3} px, max {:.3} px",
+                        v.found.len(),
+                        v.rms_px,
+                        v.max_px
+                    ),
+                    colour::USED,
+                )],
+                scale,
+            );
+        }
+        Err(e) => cv.legend(&[(format!("left out: {e}"), colour::MISSING)], scale),
+    }
+    cv.image
+}

@@ -1,1 +1,209 @@
-//! (being written)
+//! Printable 1:1 sheets of a board file: each plane's sheet and the image-distance cross, as SVG
+//! (exact millimetres, print at 100 % / "actual size") and PNG (at a chosen resolution). Every
+//! sheet carries a 100 mm scale ruler to check the print, and the board sheets mark their
+//! crease edge.
+
+use image::Rgb;
+
+use super::board::{BoardFile, Cross};
+use super::overlay::Canvas;
+
+/// One printable sheet: circles and strokes in mm.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Sheet {
+    /// Title printed at the top.
+    pub title: String,
+    /// Paper width, mm.
+    pub width: f64,
+    /// Paper height, mm.
+    pub height: f64,
+    /// Filled black circles: centre x, y and diameter, mm from the top-left corner.
+    pub dots: Vec<(f64, f64, f64)>,
+    /// The crease edge's x (mm), for a board sheet.
+    pub crease_x: Option<f64>,
+}
+
+const RULER: (f64, f64) = (15.0, 12.0); // left end and distance from the bottom, mm
+
+impl Sheet {
+    /// The board's left (`k = 0`) or right sheet. Seen from the front, the left sheet's crease
+    /// edge is its right edge (`u` runs to the left), the right sheet's its left edge.
+    pub fn board(board: &BoardFile, k: usize) -> Sheet {
+        let (w, h) = (board.sheet.width, board.sheet.height);
+        let layout = if k == 0 { &board.left } else { &board.right };
+        let dots = layout
+            .points()
+            .iter()
+            .map(|p| {
+                let x = if k == 0 { w - p.x } else { p.x };
+                (x, h / 2.0 + p.y, board.marker_diameter)
+            })
+            .collect();
+        Sheet {
+            title: format!(
+                "scanner board - {} sheet - {} markers of {} mm - print at 100 %",
+                ["left", "right"][k],
+                layout.points().len(),
+                board.marker_diameter
+            ),
+            width: w,
+            height: h,
+            dots,
+            crease_x: Some(if k == 0 { w } else { 0.0 }),
+        }
+    }
+
+    /// The paper's image-distance cross (Fig. 5): A top, B left, C centre, D right, E bottom.
+    pub fn cross(c: &Cross) -> Sheet {
+        let (w, h) = (c.arm + 4.0 * c.dot + 40.0, c.arm + 4.0 * c.dot + 60.0);
+        let (cx, cy) = (w / 2.0, h / 2.0);
+        let a = c.arm / 2.0;
+        Sheet {
+            title: format!(
+                "image-distance cross: |AE| = |BD| = {} mm - print at 100 %",
+                c.arm
+            ),
+            width: w,
+            height: h,
+            dots: [(0.0, -a), (-a, 0.0), (0.0, 0.0), (a, 0.0), (0.0, a)]
+                .iter()
+                .map(|(x, y)| (cx + x, cy + y, c.dot))
+                .collect(),
+            crease_x: None,
+        }
+    }
+
+    /// The sheet as SVG, sized in mm.
+    pub fn svg(&self) -> String {
+        let mut s = format!(
+            "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"{w}mm\" height=\"{h}mm\" viewBox=\"0 0 {w} {h}\">\n\
+             <rect width=\"{w}\" height=\"{h}\" fill=\"white\"/>\n\
+             <text x=\"10\" y=\"10\" font-family=\"sans-serif\" font-size=\"5\">{t}</text>\n",
+            w = self.width,
+            h = self.height,
+            t = self.title
+        );
+        for (x, y, d) in &self.dots {
+            s += &format!(
+                "<circle cx=\"{x:.3}\" cy=\"{y:.3}\" r=\"{:.3}\" fill=\"black\"/>\n",
+                d / 2.0
+            );
+        }
+        if let Some(x) = self.crease_x {
+            s += &format!(
+                "<line x1=\"{x}\" y1=\"0\" x2=\"{x}\" y2=\"{h}\" stroke=\"black\" stroke-width=\"0.5\" stroke-dasharray=\"4 3\"/>\n\
+                 <text x=\"{tx}\" y=\"{ty}\" font-family=\"sans-serif\" font-size=\"4\" text-anchor=\"{anchor}\">crease edge</text>\n",
+                h = self.height,
+                tx = if x > 0.0 { x - 3.0 } else { x + 3.0 },
+                ty = self.height / 2.0 - 20.0,
+                anchor = if x > 0.0 { "end" } else { "start" }
+            );
+        }
+        // The ruler: 100 mm with ticks every 10 mm.
+        let (x0, y) = (RULER.0, self.height - RULER.1);
+        s += &format!("<rect x=\"{x0}\" y=\"{y}\" width=\"100\" height=\"0.6\" fill=\"black\"/>\n");
+        for i in 0..=10 {
+            let x = x0 + 10.0 * f64::from(i);
+            let len = if i % 5 == 0 { 5.0 } else { 3.0 };
+            s += &format!(
+                "<rect x=\"{:.2}\" y=\"{:.2}\" width=\"0.4\" height=\"{len}\" fill=\"black\"/>\n",
+                x - 0.2,
+                y - len
+            );
+        }
+        s += &format!(
+            "<text x=\"{}\" y=\"{}\" font-family=\"sans-serif\" font-size=\"4\">100 mm: measure this to check the print scale</text>\n</svg>\n",
+            x0 + 105.0,
+            y
+        );
+        s
+    }
+
+    /// The sheet as a picture at `px_per_mm`.
+    pub fn png(&self, px_per_mm: f64) -> image::RgbImage {
+        let (w, h) = (
+            (self.width * px_per_mm).round() as u32,
+            (self.height * px_per_mm).round() as u32,
+        );
+        let mut cv = Canvas::blank(w.max(1), h.max(1), Rgb([255, 255, 255]));
+        let black = Rgb([0, 0, 0]);
+        // Discs with 4×4 supersampled rims.
+        for &(x, y, d) in &self.dots {
+            let (cx, cy, r) = (x * px_per_mm, y * px_per_mm, d / 2.0 * px_per_mm);
+            let ri = r.ceil() as i64 + 1;
+            for py in (cy as i64 - ri)..=(cy as i64 + ri) {
+                for px in (cx as i64 - ri)..=(cx as i64 + ri) {
+                    let mut inside = 0;
+                    for sy in 0..4 {
+                        for sx in 0..4 {
+                            let (fx, fy) = (
+                                px as f64 + (sx as f64 + 0.5) / 4.0,
+                                py as f64 + (sy as f64 + 0.5) / 4.0,
+                            );
+                            if (fx - cx).powi(2) + (fy - cy).powi(2) <= r * r {
+                                inside += 1;
+                            }
+                        }
+                    }
+                    if inside > 0 {
+                        let v = (255.0 * (1.0 - f64::from(inside) / 16.0)).round() as u8;
+                        cv.dot(px, py, Rgb([v, v, v]));
+                    }
+                }
+            }
+        }
+        let scale = ((px_per_mm * 0.6).round() as u32).max(1);
+        cv.text(10.0 * px_per_mm, 6.0 * px_per_mm, &self.title, scale, black);
+        if let Some(x) = self.crease_x {
+            let xp = (x * px_per_mm).min(f64::from(w) - 1.0);
+            let mut y = 0.0;
+            while y < f64::from(h) {
+                cv.line(
+                    (xp, y),
+                    (xp, (y + 4.0 * px_per_mm).min(f64::from(h))),
+                    0.5 * px_per_mm,
+                    black,
+                );
+                y += 7.0 * px_per_mm;
+            }
+            let label = "crease edge";
+            let tw = label.len() as f64 * 8.0 * f64::from(scale);
+            let tx = if x > 0.0 {
+                xp - tw - 3.0 * px_per_mm
+            } else {
+                xp + 3.0 * px_per_mm
+            };
+            cv.text(
+                tx,
+                (self.height / 2.0 - 24.0) * px_per_mm,
+                label,
+                scale,
+                black,
+            );
+        }
+        let (x0, y) = (RULER.0 * px_per_mm, (self.height - RULER.1) * px_per_mm);
+        cv.rect(x0, y, x0 + 100.0 * px_per_mm, y + 0.6 * px_per_mm, black);
+        for i in 0..=10 {
+            let x = x0 + 10.0 * f64::from(i) * px_per_mm;
+            let len = if i % 5 == 0 { 5.0 } else { 3.0 } * px_per_mm;
+            cv.rect(x - 0.2 * px_per_mm, y - len, x + 0.2 * px_per_mm, y, black);
+        }
+        cv.text(
+            x0 + 105.0 * px_per_mm,
+            y - 4.0 * px_per_mm,
+            "100 mm: check the print scale",
+            scale,
+            black,
+        );
+        cv.image
+    }
+}
+
+/// The three sheets of a board file: left, right, cross, with file stems.
+pub fn sheets(board: &BoardFile) -> [(&'static str, Sheet); 3] {
+    [
+        ("left-sheet", Sheet::board(board, 0)),
+        ("right-sheet", Sheet::board(board, 1)),
+        ("cross", Sheet::cross(&board.cross)),
+    ]
+}

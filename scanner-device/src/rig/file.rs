@@ -214,7 +214,7 @@ impl Scene {
                         albedo: m.albedo.unwrap_or([0.06; 3]),
                     }
                 }
-                None => Markers::paper(s.board.distance / 7.0),
+                None => Markers::paper(110.0),
             };
         }
         if let Some(objects) = f.objects {

@@ -196,7 +196,7 @@ pub struct Scene {
 }
 
 impl Scene {
-    /// The demo scene: a right-angled board 800 mm away, a sphere and a cylinder in front of it,
+    /// The demo scene: a right-angled board 800 mm away with the default board file's markers, a sphere and a cylinder in front of it,
     /// a red laser held 150 mm above the camera sweeping down over them; f = 0.875 × width px
     /// (1400 px at 1600 wide) with mild barrel distortion; sensor noise of a webcam.
     pub fn demo(width: u32, height: u32) -> Scene {
@@ -224,7 +224,7 @@ impl Scene {
                 yaw_deg: 0.0,
                 pitch_deg: 0.0,
                 albedo: [0.8, 0.8, 0.78],
-                markers: Markers::paper(d / 7.0),
+                markers: Markers::paper(110.0),
             },
             objects: vec![
                 Object {

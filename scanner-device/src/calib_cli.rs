@@ -1,0 +1,394 @@
+//! The calibration commands: print the board, calibrate intrinsics / image distance / board, and
+//! render calibration images on the virtual rig.
+
+use std::path::{Path, PathBuf};
+
+use anyhow::{Context, Result, bail};
+use clap::Subcommand;
+use image::GrayImage;
+use scanner_core::Camera;
+use scanner_core::calib::Free;
+
+use crate::calib::board::BoardFile;
+use crate::calib::file::{CalibrationFile, write_atomic};
+use crate::calib::{DotGrid, PlaneMethod, board_planes, check_size, intrinsics, overlay, print};
+
+/// What to calibrate.
+#[derive(Debug, Subcommand)]
+pub enum Calibrate {
+    /// Full intrinsics (fx, fy, cx, cy, k1, k2, p1, p2, k3) from several images of a dot grid.
+    Intrinsics {
+        /// The grid: dots per row × rows.
+        #[arg(long, default_value = "9x7", value_parser = parse_grid)]
+        dots: (usize, usize),
+        /// Centre-to-centre distance, mm.
+        #[arg(long, default_value_t = 30.0)]
+        pitch: f64,
+        /// Dot diameter, mm.
+        #[arg(long, default_value_t = 12.0)]
+        dot: f64,
+        /// Output camera file (TOML; a calibration file without a board).
+        #[arg(long, default_value = "camera.toml")]
+        out: PathBuf,
+        /// Folder for annotated copies of the images.
+        #[arg(long)]
+        overlays: Option<PathBuf>,
+        /// The images (PNG/JPEG), at least three.
+        #[arg(required = true)]
+        images: Vec<PathBuf>,
+    },
+    /// The paper's image distance d_z from two images of the cross pattern (eq. 7-9); the
+    /// principal point is taken at the image centre, no distortion.
+    Distance {
+        /// Board file (for the cross's size); the default board without one.
+        #[arg(long)]
+        board: Option<PathBuf>,
+        /// Image of the cross at the nearer position.
+        #[arg(long)]
+        near: PathBuf,
+        /// Tape-measured distance of the near shot, mm.
+        #[arg(long)]
+        near_mm: f64,
+        /// Image of the cross at the farther position.
+        #[arg(long)]
+        far: PathBuf,
+        /// Tape-measured distance of the far shot, mm.
+        #[arg(long)]
+        far_mm: f64,
+        /// Output camera file.
+        #[arg(long, default_value = "camera.toml")]
+        out: PathBuf,
+    },
+    /// Both board planes from an image of the board without laser.
+    Board {
+        /// Board file; the default board without one.
+        #[arg(long)]
+        board: Option<PathBuf>,
+        /// Camera file from `calibrate intrinsics` or `calibrate distance`.
+        #[arg(long)]
+        camera: PathBuf,
+        /// Planes by the layout pose (default) or the paper's three-point lines.
+        #[arg(long, default_value = "layout-pose", value_parser = ["layout-pose", "paper-lines"])]
+        method: String,
+        /// Output calibration file.
+        #[arg(long, default_value = "calibration.toml")]
+        out: PathBuf,
+        /// Annotated picture of what was found (written even when calibration fails).
+        #[arg(long, default_value = "calibration-overlay.png")]
+        overlay: PathBuf,
+        /// The board image.
+        image: PathBuf,
+    },
+}
+
+fn parse_grid(s: &str) -> Result<(usize, usize), String> {
+    let (a, b) = s
+        .split_once(['x', 'X'])
+        .ok_or_else(|| format!("expected COLSxROWS like 9x7, found {s:?}"))?;
+    let p = |t: &str| {
+        t.trim()
+            .parse::<usize>()
+            .ok()
+            .filter(|&n| n >= 2)
+            .ok_or_else(|| format!("{t:?} is not a count ≥ 2"))
+    };
+    Ok((p(a)?, p(b)?))
+}
+
+/// Reads an image file as gray.
+///
+/// # Errors
+/// Names the file and the problem.
+pub fn load_gray(path: &Path) -> Result<GrayImage> {
+    Ok(image::open(path)
+        .with_context(|| format!("cannot read image {}", path.display()))?
+        .to_luma8())
+}
+
+fn load_board(path: Option<&Path>) -> Result<BoardFile> {
+    match path {
+        Some(p) => Ok(BoardFile::load(p)?),
+        None => Ok(BoardFile::default()),
+    }
+}
+
+fn save_png(img: &image::RgbImage, path: &Path) -> Result<()> {
+    let mut bytes = Vec::new();
+    img.write_to(
+        &mut std::io::Cursor::new(&mut bytes),
+        image::ImageFormat::Png,
+    )?;
+    write_atomic(path, &bytes).with_context(|| format!("cannot write {}", path.display()))
+}
+
+/// `scanner-device board`: writes the board file and its printable sheets.
+///
+/// # Errors
+/// Unreadable board file, unwritable output.
+pub fn board_command(board: Option<&Path>, out: &Path, dpi: f64) -> Result<()> {
+    let b = load_board(board)?;
+    std::fs::create_dir_all(out).with_context(|| format!("cannot create {}", out.display()))?;
+    let bf = out.join("board.toml");
+    write_atomic(&bf, b.to_toml().as_bytes())
+        .with_context(|| format!("cannot write {}", bf.display()))?;
+    for (stem, sheet) in print::sheets(&b) {
+        let svg = out.join(format!("{stem}.svg"));
+        write_atomic(&svg, sheet.svg().as_bytes())
+            .with_context(|| format!("cannot write {}", svg.display()))?;
+        save_png(&sheet.png(dpi / 25.4), &out.join(format!("{stem}.png")))?;
+    }
+    println!(
+        "wrote board.toml, left-sheet, right-sheet and cross (.svg, .png at {dpi} dpi) to {}; print the SVGs at 100 % and check the 100 mm ruler",
+        out.display()
+    );
+    Ok(())
+}
+
+/// Runs a calibration command.
+///
+/// # Errors
+/// With context naming the file or step that failed.
+pub fn calibrate(cmd: &Calibrate) -> Result<()> {
+    match cmd {
+        Calibrate::Intrinsics {
+            dots,
+            pitch,
+            dot,
+            out,
+            overlays,
+            images,
+        } => {
+            let grid = DotGrid {
+                cols: dots.0,
+                rows: dots.1,
+                pitch: *pitch,
+                dot: *dot,
+            };
+            if !(pitch > dot && *dot > 0.0) {
+                bail!("--pitch ({pitch} mm) must exceed --dot ({dot} mm), both positive");
+            }
+            let imgs: Vec<GrayImage> =
+                images.iter().map(|p| load_gray(p)).collect::<Result<_>>()?;
+            let fit = intrinsics(&imgs, &grid, Free::ALL).context("intrinsics calibration")?;
+            for (p, v) in images.iter().zip(&fit.views) {
+                match v {
+                    Ok(v) => println!(
+                        "  {}: {} dots, rms {:.3} px, max {:.3} px",
+                        p.display(),
+                        v.found.len(),
+                        v.rms_px,
+                        v.max_px
+                    ),
+                    Err(e) => println!("  {}: left out: {e}", p.display()),
+                }
+            }
+            if let Some(dir) = overlays {
+                std::fs::create_dir_all(dir)
+                    .with_context(|| format!("cannot create {}", dir.display()))?;
+                for ((p, img), v) in images.iter().zip(&imgs).zip(&fit.views) {
+                    let name = p
+                        .file_stem()
+                        .map(|s| s.to_string_lossy().into_owned())
+                        .unwrap_or_default();
+                    save_png(
+                        &overlay::grid_overlay(img, v),
+                        &dir.join(format!("{name}-overlay.png")),
+                    )?;
+                }
+            }
+            let used = fit.views.iter().filter(|v| v.is_ok()).count();
+            let file = CalibrationFile::from_camera(
+                &fit.camera,
+                fit.size,
+                format!(
+                    "intrinsics from {used} dot-grid images ({}x{}, {} mm)",
+                    grid.cols, grid.rows, grid.pitch
+                ),
+                Some(fit.rms_px),
+            );
+            file.save(out)?;
+            let c = &fit.camera;
+            let d = c.distortion();
+            println!(
+                "fx {:.3} fy {:.3} cx {:.3} cy {:.3} k1 {:.5} k2 {:.5} p1 {:.6} p2 {:.6} k3 {:.5}; rms {:.4} px over {used} images -> {}",
+                c.fx(),
+                c.fy(),
+                c.principal_point().x,
+                c.principal_point().y,
+                d.k1,
+                d.k2,
+                d.p1,
+                d.p2,
+                d.k3,
+                fit.rms_px,
+                out.display()
+            );
+        }
+        Calibrate::Distance {
+            board,
+            near,
+            near_mm,
+            far,
+            far_mm,
+            out,
+        } => {
+            let b = load_board(board.as_deref())?;
+            let (n, f) = (load_gray(near)?, load_gray(far)?);
+            check_size(n.dimensions(), &f)
+                .with_context(|| format!("{} against {}", far.display(), near.display()))?;
+            let d = crate::calib::image_distance(&b.cross, (&n, *near_mm), (&f, *far_mm))
+                .context("image distance")?;
+            let (w, h) = n.dimensions();
+            let cam = Camera::paper(d.d_z, w, h).context("image distance")?;
+            let file = CalibrationFile::from_camera(
+                &cam,
+                (w, h),
+                format!(
+                    "image distance by the paper's two-position procedure (eq. 7-9); mark offset {:.2} mm",
+                    d.epsilon_mm
+                ),
+                None,
+            );
+            file.save(out)?;
+            println!(
+                "d_z {:.3} px, mark offset ε {:.2} mm -> {}",
+                d.d_z,
+                d.epsilon_mm,
+                out.display()
+            );
+        }
+        Calibrate::Board {
+            board,
+            camera,
+            method,
+            out,
+            overlay: overlay_path,
+            image,
+        } => {
+            let b = load_board(board.as_deref())?;
+            let cam_file = CalibrationFile::load(camera)?;
+            let cam = cam_file
+                .camera()
+                .with_context(|| format!("camera in {}", camera.display()))?;
+            let img = load_gray(image)?;
+            check_size((cam_file.image.width, cam_file.image.height), &img).with_context(|| {
+                format!(
+                    "{} with the camera of {}",
+                    image.display(),
+                    camera.display()
+                )
+            })?;
+            let outcome = board_planes(&img, &b, &cam);
+            save_png(
+                &overlay::board_overlay(&img, &outcome, &b, &cam),
+                overlay_path,
+            )?;
+            let fit = outcome.result.with_context(|| {
+                format!(
+                    "board calibration from {} (see {})",
+                    image.display(),
+                    overlay_path.display()
+                )
+            })?;
+            let method = if method == "paper-lines" {
+                PlaneMethod::PaperLines
+            } else {
+                PlaneMethod::LayoutPose
+            };
+            let mut file = cam_file.clone();
+            file.set_board(&fit, &b, &cam, method);
+            file.save(out)?;
+            let sec = file.board.as_ref().expect("set");
+            if method == PlaneMethod::PaperLines && sec.method != "paper-lines" {
+                eprintln!(
+                    "warning: the paper's construction needs all six markers of the paper's layout on each sheet; used the layout pose"
+                );
+            }
+            for (k, s) in fit.sheets.iter().enumerate() {
+                println!(
+                    "{} sheet: {}/{} markers, rms {:.3} px{}",
+                    ["left", "right"][k],
+                    s.markers.len() - s.missing().len(),
+                    s.markers.len(),
+                    s.rms_px,
+                    if s.missing().is_empty() {
+                        String::new()
+                    } else {
+                        format!(", missing or dropped: {:?}", s.missing())
+                    }
+                );
+            }
+            println!(
+                "planes by {}; angle between them {:.3}°; -> {} (picture: {})",
+                sec.method,
+                sec.angle_deg,
+                out.display(),
+                overlay_path.display()
+            );
+        }
+    }
+    Ok(())
+}
+
+/// Renders calibration images of a rig scene: the board without laser, 12 dot-grid shots and
+/// the cross at 500 and 900 mm (tape distances in `shots.txt`).
+///
+/// # Errors
+/// Unwritable output.
+pub fn render_calibration(rig: &crate::rig::Rig, out: &Path) -> Result<()> {
+    use crate::rig::target::{Pattern, TargetPose};
+    use scanner_core::nalgebra::Point3;
+    std::fs::create_dir_all(out).with_context(|| format!("cannot create {}", out.display()))?;
+    let gray = |img: &crate::rig::Rgb8, name: &str| -> Result<()> {
+        let p = out.join(name);
+        img.to_gray_image()
+            .save(&p)
+            .with_context(|| format!("cannot write {}", p.display()))
+    };
+    gray(&rig.reference(), "board.png")?;
+    let pattern = Pattern::DotGrid {
+        cols: 9,
+        rows: 7,
+        pitch: 30.0,
+        dot: 12.0,
+    };
+    let n = 12;
+    for i in 0..n {
+        let a = i as f64 / n as f64 * std::f64::consts::TAU;
+        let z = 550.0 + 300.0 * ((i * 7) % n) as f64 / n as f64;
+        let pose = TargetPose {
+            centre: Point3::new(0.22 * z * a.cos(), 0.15 * z * a.sin(), z),
+            turn_deg: [
+                35.0 * a.sin(),
+                -35.0 * a.cos(),
+                10.0 * (i as f64 - n as f64 / 2.0) / n as f64,
+            ],
+        };
+        gray(
+            &rig.shot(&pattern, &pose, i as u64).image,
+            &format!("grid-{i:02}.png"),
+        )?;
+    }
+    let cross = BoardFile::default().cross;
+    let cp = Pattern::Cross {
+        arm: cross.arm,
+        dot: cross.dot,
+    };
+    for (name, z) in [("cross-near.png", 500.0), ("cross-far.png", 900.0)] {
+        let pose = TargetPose {
+            centre: Point3::new(0.0, 0.0, z),
+            turn_deg: [0.0; 3],
+        };
+        gray(&rig.shot(&cp, &pose, z as u64).image, name)?;
+    }
+    let txt = out.join("shots.txt");
+    std::fs::write(
+        &txt,
+        "board.png: the board without laser\n\
+         grid-NN.png: a 9x7 dot grid, 30 mm pitch, 12 mm dots\n\
+         cross-near.png: the default board's cross, lens centre 500 mm away (a tape from a mark 25 mm behind it reads 525)\n\
+         cross-far.png: the same at 900 mm (tape 925)\n",
+    )
+    .with_context(|| format!("cannot write {}", txt.display()))?;
+    Ok(())
+}

@@ -1,0 +1,182 @@
+//! The calibration commands from the outside, on rendered rig images: render → intrinsics →
+//! board → calibration file; printable sheets at true scale; clear errors with the overlay still
+//! written.
+
+use std::path::Path;
+use std::process::Command;
+
+use scanner_device::calib::board::BoardFile;
+use scanner_device::calib::detect::{DetectConfig, find_markers};
+use scanner_device::calib::file::CalibrationFile;
+
+fn run(args: &[&str]) -> (bool, String, String) {
+    let out = Command::new(env!("CARGO_BIN_EXE_scanner-device"))
+        .args(args)
+        .output()
+        .expect("binary runs");
+    (
+        out.status.success(),
+        String::from_utf8_lossy(&out.stdout).into_owned(),
+        String::from_utf8_lossy(&out.stderr).into_owned(),
+    )
+}
+
+fn p(dir: &Path, name: &str) -> String {
+    dir.join(name).display().to_string()
+}
+
+#[test]
+fn calibrate_the_rig_from_its_images() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let (ok, _, err) = run(&["render-calibration", "--out", &p(d, "")]);
+    assert!(ok, "{err}");
+    let grids: Vec<String> = (0..12).map(|i| p(d, &format!("grid-{i:02}.png"))).collect();
+    let mut args = vec![
+        "calibrate",
+        "intrinsics",
+        "--out",
+        &*Box::leak(p(d, "camera.toml").into_boxed_str()),
+    ];
+    args.extend(grids.iter().map(String::as_str));
+    let (ok, out, err) = run(&args);
+    assert!(ok, "{err}");
+    assert!(out.contains("rms"), "{out}");
+    let (ok, out, err) = run(&[
+        "calibrate",
+        "board",
+        "--camera",
+        &p(d, "camera.toml"),
+        "--out",
+        &p(d, "calibration.toml"),
+        "--overlay",
+        &p(d, "overlay.png"),
+        &p(d, "board.png"),
+    ]);
+    assert!(ok, "{err}");
+    assert!(out.contains("left sheet: 5/6 markers"), "{out}");
+    let cal = CalibrationFile::load(&d.join("calibration.toml")).unwrap();
+    assert_eq!((cal.image.width, cal.image.height), (640, 480));
+    let board = cal.board().unwrap().unwrap();
+    assert!((board.angle().to_degrees() - 90.0).abs() < 0.2);
+    let regions = cal.regions.as_ref().unwrap();
+    assert!(regions.left.len() >= 4 && regions.object.len() == 6);
+    let overlay = image::open(d.join("overlay.png")).unwrap();
+    assert_eq!((overlay.width(), overlay.height()), (640, 480));
+
+    // The paper's procedure on the rendered crosses (tape readings 25 mm long).
+    let (ok, out, err) = run(&[
+        "calibrate",
+        "distance",
+        "--near",
+        &p(d, "cross-near.png"),
+        "--near-mm",
+        "525",
+        "--far",
+        &p(d, "cross-far.png"),
+        "--far-mm",
+        "925",
+        "--out",
+        &p(d, "paper.toml"),
+    ]);
+    assert!(ok, "{err}");
+    let paper = CalibrationFile::load(&d.join("paper.toml")).unwrap();
+    assert!((paper.camera.fx / 560.0 - 1.0).abs() < 0.005, "{out}");
+
+    // A camera calibrated at another size.
+    let mut other = CalibrationFile::load(&d.join("camera.toml")).unwrap();
+    other.image.width = 1280;
+    other.image.height = 960;
+    other.save(&d.join("other.toml")).unwrap();
+    let (ok, _, err) = run(&[
+        "calibrate",
+        "board",
+        "--camera",
+        &p(d, "other.toml"),
+        "--out",
+        &p(d, "x.toml"),
+        &p(d, "board.png"),
+    ]);
+    assert!(!ok);
+    assert!(
+        err.contains("image is 640×480 but the camera was calibrated at 1280×960"),
+        "{err}"
+    );
+
+    // No board in the image: a clear error, and the overlay is still written.
+    image::GrayImage::from_pixel(640, 480, image::Luma([170]))
+        .save(d.join("wall.png"))
+        .unwrap();
+    let (ok, _, err) = run(&[
+        "calibrate",
+        "board",
+        "--camera",
+        &p(d, "camera.toml"),
+        "--out",
+        &p(d, "y.toml"),
+        "--overlay",
+        &p(d, "wall-overlay.png"),
+        &p(d, "wall.png"),
+    ]);
+    assert!(!ok);
+    assert!(err.contains("no markers found"), "{err}");
+    assert!(d.join("wall-overlay.png").exists() && !d.join("y.toml").exists());
+
+    // A board file that is not one.
+    std::fs::write(d.join("bad.toml"), "marker_diameter = -3\n").unwrap();
+    let (ok, _, err) = run(&[
+        "calibrate",
+        "board",
+        "--board",
+        &p(d, "bad.toml"),
+        "--camera",
+        &p(d, "camera.toml"),
+        &p(d, "board.png"),
+    ]);
+    assert!(!ok);
+    assert!(err.contains("bad.toml"), "{err}");
+}
+
+#[test]
+fn printed_sheets_are_true_to_scale() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let (ok, _, err) = run(&["board", "--out", &p(d, ""), "--dpi", "100"]);
+    assert!(ok, "{err}");
+    let board = BoardFile::load(&d.join("board.toml")).unwrap();
+    assert_eq!(board, BoardFile::default());
+    let px_per_mm = 100.0 / 25.4;
+    for (name, k) in [("left-sheet", 0), ("right-sheet", 1)] {
+        let img = image::open(d.join(format!("{name}.png")))
+            .unwrap()
+            .to_luma8();
+        assert_eq!(img.width(), (board.sheet.width * px_per_mm).round() as u32);
+        let svg = std::fs::read_to_string(d.join(format!("{name}.svg"))).unwrap();
+        assert!(svg.contains("width=\"420mm\"") && svg.contains("r=\"13.750\""));
+        // The printed discs, found by the detector, sit where the layout says.
+        // (The title's letters are small dark blobs too: keep marker-sized ones.)
+        let disc = std::f64::consts::PI * (board.marker_diameter / 2.0 * px_per_mm).powi(2);
+        let mut det = find_markers(&img, &DetectConfig::default());
+        det.blobs.retain(|b| b.area > 0.5 * disc);
+        let layout = if k == 0 {
+            board.left.points()
+        } else {
+            board.right.points()
+        };
+        assert_eq!(det.blobs.len(), layout.len(), "{name}");
+        for q in layout {
+            let u = if k == 0 { board.sheet.width - q.x } else { q.x };
+            let (x, y) = (
+                u * px_per_mm - 0.5,
+                (board.sheet.height / 2.0 + q.y) * px_per_mm - 0.5,
+            );
+            let best = det
+                .blobs
+                .iter()
+                .map(|b| ((b.centre.x - x).powi(2) + (b.centre.y - y).powi(2)).sqrt())
+                .fold(f64::INFINITY, f64::min);
+            assert!(best < 0.05, "{name}: marker at ({x}, {y}) off by {best} px");
+        }
+    }
+    assert!(d.join("cross.svg").exists() && d.join("cross.png").exists());
+}
