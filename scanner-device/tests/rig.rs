@@ -386,6 +386,7 @@ fn markers_render_at_their_projected_centres() {
     let markers = rig.markers();
     assert_eq!(markers.len(), 12);
     let mut checked = 0;
+    let mut near_objects = 0;
     let mut worst = 0.0f64;
     for m in markers.iter().filter(|m| m.visible) {
         // darkness below the board's level, over the disc's box plus the blur's reach
@@ -400,10 +401,34 @@ fn markers_render_at_their_projected_centres() {
             (m.disc_px.y - r).floor() as usize,
             (m.disc_px.y + r).ceil() as usize,
         );
-        let board = f64::from(img[y0 * w + x0]);
+        // The board's level: the median of a ring just outside the window (a box corner may
+        // fall on an object); the window itself is the disc plus the blur's reach.
+        let dist = |x: usize, y: usize| {
+            ((x as f64 - m.disc_px.x).powi(2) + (y as f64 - m.disc_px.y).powi(2)).sqrt()
+        };
+        let mut ring: Vec<f64> = Vec::new();
+        for y in y0.saturating_sub(3)..=(y1 + 3).min(h - 1) {
+            for x in x0.saturating_sub(3)..=(x1 + 3).min(w - 1) {
+                let d = dist(x, y);
+                if d > r && d <= r + 2.0 {
+                    ring.push(f64::from(img[y * w + x]));
+                }
+            }
+        }
+        ring.sort_by(f64::total_cmp);
+        let board = ring[ring.len() / 2];
+        // An object next to the marker (in the ring) would bias this crude centroid: leave
+        // such markers to the detector's test (tests/calib.rs), and count them.
+        if ring[ring.len() * 9 / 10] - ring[ring.len() / 10] > 4.0 {
+            near_objects += 1;
+            continue;
+        }
         let (mut m0, mut mx, mut my) = (0.0, 0.0, 0.0);
         for y in y0..=y1.min(h - 1) {
             for x in x0..=x1.min(w - 1) {
+                if dist(x, y) > r {
+                    continue;
+                }
                 let d = (board - f64::from(img[y * w + x])).max(0.0);
                 m0 += d;
                 mx += d * x as f64;
@@ -419,7 +444,11 @@ fn markers_render_at_their_projected_centres() {
         worst = worst.max(err);
         checked += 1;
     }
-    assert!(checked >= 8, "only {checked} markers fully visible");
+    println!("{checked} markers checked, {near_objects} left out next to an object");
+    assert!(
+        checked >= 6,
+        "only {checked} markers fully visible and clear"
+    );
     assert!(
         worst <= 0.05,
         "a marker renders {worst} px from its projected disc's centroid"
