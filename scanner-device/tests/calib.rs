@@ -285,3 +285,31 @@ fn bad_input_names_what_was_expected_and_found() {
     let e = intrinsics(&[blank.clone(), blank.clone(), blank], &grid, Free::ALL).unwrap_err();
     assert!(e.to_string().contains("images with the grid found"), "{e}");
 }
+
+#[test]
+fn chessboard_corners_are_found_where_they_project() {
+    use scanner_device::calib::corners::{CornerConfig, find_corners};
+    let rig = Rig::new(scene(W, H)).unwrap();
+    let pattern = Pattern::Chessboard { cols: 10, rows: 8, square: 25.0 };
+    let mut errs = Vec::new();
+    for (i, turn) in [[0.0, 0.0, 5.0], [30.0, -20.0, 0.0], [-25.0, 35.0, -10.0]].iter().enumerate() {
+        let pose = TargetPose { centre: Point3::new(20.0, -10.0, 700.0), turn_deg: *turn };
+        let shot = rig.shot(&pattern, &pose, i as u64);
+        let corners = find_corners(&shot.image.to_gray_image(), &CornerConfig::default());
+        let mut matched = 0;
+        for f in &shot.features {
+            let best = corners.iter().map(|c| (c.centre - f.projected).norm()).fold(f64::INFINITY, f64::min);
+            if best < 1.0 {
+                errs.push(best);
+                matched += 1;
+            }
+        }
+        println!("shot {i}: {} corners found, {matched} of {} true ones matched", corners.len(), shot.features.len());
+        assert_eq!(matched, shot.features.len());
+        assert!(corners.len() <= shot.features.len() + 2, "clutter: {}", corners.len());
+    }
+    let mean = errs.iter().sum::<f64>() / errs.len() as f64;
+    let worst = errs.iter().copied().fold(0.0, f64::max);
+    println!("chessboard corners: mean error {mean:.4} px, worst {worst:.4} px");
+    assert!(mean < 0.05 && worst < 0.3, "{mean} {worst}");
+}

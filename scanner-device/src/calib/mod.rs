@@ -8,6 +8,7 @@
 //! The results go into one calibration file ([`file`]) with an annotated picture ([`overlay`]).
 
 pub mod board;
+pub mod corners;
 pub mod detect;
 pub mod file;
 pub mod identify;
