@@ -9,7 +9,7 @@ use std::fmt::Write as _;
 
 use scanner_core::calib::Free;
 use scanner_core::nalgebra::Point3;
-use scanner_device::calib::{DotGrid, intrinsics};
+use scanner_device::calib::{DotGrid, Target, intrinsics};
 use scanner_device::rig::target::{Pattern, TargetPose};
 use scanner_device::rig::{Rig, Scene};
 
@@ -51,7 +51,7 @@ fn main() -> anyhow::Result<()> {
         images.push(img);
     }
     let t0 = std::time::Instant::now();
-    let fit = intrinsics(&images, &grid, Free::ALL)?;
+    let fit = intrinsics(&images, &Target::Dots(grid), Free::ALL)?;
     let secs = t0.elapsed().as_secs_f64();
     let cam = |c: &scanner_core::Camera<f64>| {
         let d = c.distortion();

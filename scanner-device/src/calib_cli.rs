@@ -11,13 +11,22 @@ use scanner_core::calib::Free;
 
 use crate::calib::board::BoardFile;
 use crate::calib::file::{CalibrationFile, write_atomic};
-use crate::calib::{DotGrid, PlaneMethod, board_planes, check_size, intrinsics, overlay, print};
+use crate::calib::{
+    DotGrid, PlaneMethod, Target, board_planes, check_size, intrinsics, overlay, print,
+};
 
 /// What to calibrate.
 #[derive(Debug, Subcommand)]
 pub enum Calibrate {
-    /// Full intrinsics (fx, fy, cx, cy, k1, k2, p1, p2, k3) from several images of a dot grid.
+    /// Full intrinsics (fx, fy, cx, cy, k1, k2, p1, p2, k3) from several images of a dot grid
+    /// (default) or a chessboard.
     Intrinsics {
+        /// Use a chessboard of COLSxROWS squares instead of the dot grid.
+        #[arg(long, value_parser = parse_grid, conflicts_with_all = ["dots", "pitch", "dot"])]
+        chessboard: Option<(usize, usize)>,
+        /// Chessboard square side, mm.
+        #[arg(long, default_value_t = 25.0)]
+        square: f64,
         /// The grid: dots per row × rows.
         #[arg(long, default_value = "9x7", value_parser = parse_grid)]
         dots: (usize, usize),
@@ -151,6 +160,8 @@ pub fn board_command(board: Option<&Path>, out: &Path, dpi: f64) -> Result<()> {
 pub fn calibrate(cmd: &Calibrate) -> Result<()> {
     match cmd {
         Calibrate::Intrinsics {
+            chessboard,
+            square,
             dots,
             pitch,
             dot,
@@ -158,18 +169,32 @@ pub fn calibrate(cmd: &Calibrate) -> Result<()> {
             overlays,
             images,
         } => {
-            let grid = DotGrid {
-                cols: dots.0,
-                rows: dots.1,
-                pitch: *pitch,
-                dot: *dot,
+            let target = match chessboard {
+                Some((cols, rows)) => {
+                    if !(*square > 0.0) {
+                        bail!("--square must be positive, found {square}");
+                    }
+                    Target::Chessboard {
+                        cols: *cols,
+                        rows: *rows,
+                        square: *square,
+                    }
+                }
+                None => {
+                    if !(pitch > dot && *dot > 0.0) {
+                        bail!("--pitch ({pitch} mm) must exceed --dot ({dot} mm), both positive");
+                    }
+                    Target::Dots(DotGrid {
+                        cols: dots.0,
+                        rows: dots.1,
+                        pitch: *pitch,
+                        dot: *dot,
+                    })
+                }
             };
-            if !(pitch > dot && *dot > 0.0) {
-                bail!("--pitch ({pitch} mm) must exceed --dot ({dot} mm), both positive");
-            }
             let imgs: Vec<GrayImage> =
                 images.iter().map(|p| load_gray(p)).collect::<Result<_>>()?;
-            let fit = intrinsics(&imgs, &grid, Free::ALL).context("intrinsics calibration")?;
+            let fit = intrinsics(&imgs, &target, Free::ALL).context("intrinsics calibration")?;
             for (p, v) in images.iter().zip(&fit.views) {
                 match v {
                     Ok(v) => println!(
@@ -200,10 +225,15 @@ pub fn calibrate(cmd: &Calibrate) -> Result<()> {
             let file = CalibrationFile::from_camera(
                 &fit.camera,
                 fit.size,
-                format!(
-                    "intrinsics from {used} dot-grid images ({}x{}, {} mm)",
-                    grid.cols, grid.rows, grid.pitch
-                ),
+                match target {
+                    Target::Dots(g) => format!(
+                        "intrinsics from {used} dot-grid images ({}x{}, {} mm pitch)",
+                        g.cols, g.rows, g.pitch
+                    ),
+                    Target::Chessboard { cols, rows, square } => format!(
+                        "intrinsics from {used} chessboard images ({cols}x{rows} squares of {square} mm)"
+                    ),
+                },
                 Some(fit.rms_px),
             );
             file.save(out)?;

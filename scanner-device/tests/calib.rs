@@ -7,7 +7,9 @@ use scanner_core::geometry::Plane;
 use scanner_core::nalgebra::{Point3, Vector3};
 use scanner_device::calib::board::BoardFile;
 use scanner_device::calib::detect::{DetectConfig, find_markers};
-use scanner_device::calib::{CalibError, DotGrid, board_planes, image_distance, intrinsics};
+use scanner_device::calib::{
+    CalibError, DotGrid, Target, board_planes, image_distance, intrinsics,
+};
 use scanner_device::rig::target::{Pattern, TargetPose};
 use scanner_device::rig::{Rig, Scene, SurfaceId};
 
@@ -111,7 +113,7 @@ fn calibration_from_rendered_images_meets_the_targets() {
     // camera: nothing from the rig's truth but the images.
     let rig = Rig::new(scene(W, H)).unwrap();
     let (grid, images) = grid_shots(&rig, 12);
-    let fit = intrinsics(&images, &grid, Free::ALL).unwrap();
+    let fit = intrinsics(&images, &Target::Dots(grid), Free::ALL).unwrap();
     let (c, t) = (fit.camera, rig.scene().camera);
     let (efx, efy) = (
         (c.fx() / t.fx() - 1.0) * 100.0,
@@ -282,7 +284,12 @@ fn bad_input_names_what_was_expected_and_found() {
         pitch: 30.0,
         dot: 12.0,
     };
-    let e = intrinsics(&[blank.clone(), blank.clone(), blank], &grid, Free::ALL).unwrap_err();
+    let e = intrinsics(
+        &[blank.clone(), blank.clone(), blank],
+        &Target::Dots(grid),
+        Free::ALL,
+    )
+    .unwrap_err();
     assert!(e.to_string().contains("images with the grid found"), "{e}");
 }
 
@@ -290,26 +297,136 @@ fn bad_input_names_what_was_expected_and_found() {
 fn chessboard_corners_are_found_where_they_project() {
     use scanner_device::calib::corners::{CornerConfig, find_corners};
     let rig = Rig::new(scene(W, H)).unwrap();
-    let pattern = Pattern::Chessboard { cols: 10, rows: 8, square: 25.0 };
+    let pattern = Pattern::Chessboard {
+        cols: 10,
+        rows: 8,
+        square: 25.0,
+    };
     let mut errs = Vec::new();
-    for (i, turn) in [[0.0, 0.0, 5.0], [30.0, -20.0, 0.0], [-25.0, 35.0, -10.0]].iter().enumerate() {
-        let pose = TargetPose { centre: Point3::new(20.0, -10.0, 700.0), turn_deg: *turn };
+    for (i, turn) in [[0.0, 0.0, 5.0], [30.0, -20.0, 0.0], [-25.0, 35.0, -10.0]]
+        .iter()
+        .enumerate()
+    {
+        let pose = TargetPose {
+            centre: Point3::new(20.0, -10.0, 700.0),
+            turn_deg: *turn,
+        };
         let shot = rig.shot(&pattern, &pose, i as u64);
         let corners = find_corners(&shot.image.to_gray_image(), &CornerConfig::default());
         let mut matched = 0;
         for f in &shot.features {
-            let best = corners.iter().map(|c| (c.centre - f.projected).norm()).fold(f64::INFINITY, f64::min);
+            let best = corners
+                .iter()
+                .map(|c| (c.centre - f.projected).norm())
+                .fold(f64::INFINITY, f64::min);
             if best < 1.0 {
                 errs.push(best);
                 matched += 1;
             }
         }
-        println!("shot {i}: {} corners found, {matched} of {} true ones matched", corners.len(), shot.features.len());
+        println!(
+            "shot {i}: {} corners found, {matched} of {} true ones matched",
+            corners.len(),
+            shot.features.len()
+        );
         assert_eq!(matched, shot.features.len());
-        assert!(corners.len() <= shot.features.len() + 2, "clutter: {}", corners.len());
+        assert!(
+            corners.len() <= shot.features.len() + 2,
+            "clutter: {}",
+            corners.len()
+        );
     }
     let mean = errs.iter().sum::<f64>() / errs.len() as f64;
     let worst = errs.iter().copied().fold(0.0, f64::max);
     println!("chessboard corners: mean error {mean:.4} px, worst {worst:.4} px");
     assert!(mean < 0.05 && worst < 0.3, "{mean} {worst}");
+}
+
+#[test]
+fn a_sheet_may_carry_a_chessboard() {
+    use scanner_device::calib::board::Chessboard;
+    let mut board = BoardFile::default();
+    board.right.grid = None;
+    board.right.chessboard = Some(Chessboard {
+        cols: 8,
+        rows: 8,
+        square: 30.0,
+        u0: 60.0,
+        v0: -90.0,
+    });
+    board.check().unwrap();
+    let mut s = scene(W, H);
+    s.board.markers = board.rig_markers();
+    // A chessboard mostly hidden by the object is a periodic grid with its ends out of sight:
+    // which square is which can then be ambiguous (see the README). The board is left clear.
+    s.objects.clear();
+    let rig = Rig::new(s).unwrap();
+    let img = rig.reference().to_gray_image();
+    let out = board_planes(&img, &board, &rig.scene().camera);
+    let fit = out.result.unwrap();
+    let truth = rig.board_planes();
+    for k in 0..2 {
+        let (a, o) = plane_errors(
+            &fit.sheets[k].plane,
+            &truth[k],
+            &sheet_centre(&rig, k),
+            800.0,
+        );
+        let used = fit.sheets[k].markers.len() - fit.sheets[k].missing().len();
+        println!(
+            "sheet {k}: {used}/{} markers, normal {a:.4}°, offset {o:.4} %, rms {:.4} px",
+            fit.sheets[k].markers.len(),
+            fit.sheets[k].rms_px
+        );
+        assert!(a < 0.05 && o < 0.05, "sheet {k}: {a}° {o} %");
+    }
+    assert!(fit.sheets[1].missing().is_empty());
+}
+
+#[test]
+fn intrinsics_from_rendered_chessboards() {
+    let rig = Rig::new(scene(W, H)).unwrap();
+    let pattern = Pattern::Chessboard {
+        cols: 10,
+        rows: 8,
+        square: 25.0,
+    };
+    let n = 12;
+    let images: Vec<_> = (0..n)
+        .map(|i| {
+            let a = i as f64 / n as f64 * std::f64::consts::TAU;
+            let z = 550.0 + 300.0 * ((i * 7) % n) as f64 / n as f64;
+            let pose = TargetPose {
+                centre: Point3::new(0.22 * z * a.cos(), 0.15 * z * a.sin(), z),
+                turn_deg: [
+                    35.0 * a.sin(),
+                    -35.0 * a.cos(),
+                    10.0 * (i as f64 - n as f64 / 2.0) / n as f64,
+                ],
+            };
+            rig.shot(&pattern, &pose, i as u64).image.to_gray_image()
+        })
+        .collect();
+    let fit = intrinsics(
+        &images,
+        &Target::Chessboard {
+            cols: 10,
+            rows: 8,
+            square: 25.0,
+        },
+        Free::ALL,
+    )
+    .unwrap();
+    let (c, t) = (fit.camera, rig.scene().camera);
+    let (efx, efy) = (
+        (c.fx() / t.fx() - 1.0) * 100.0,
+        (c.fy() / t.fy() - 1.0) * 100.0,
+    );
+    let epp = (c.principal_point() - t.principal_point()).norm();
+    println!(
+        "chessboard intrinsics: rms {:.4} px; fx {efx:+.4} %, fy {efy:+.4} %, principal point {epp:.3} px",
+        fit.rms_px
+    );
+    assert!(fit.views.iter().all(|v| v.is_ok()));
+    assert!(efx.abs() < 0.2 && efy.abs() < 0.2 && epp < 1.0);
 }

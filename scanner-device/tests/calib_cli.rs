@@ -180,3 +180,69 @@ fn printed_sheets_are_true_to_scale() {
     }
     assert!(d.join("cross.svg").exists() && d.join("cross.png").exists());
 }
+
+#[test]
+fn a_board_file_with_a_chessboard_sheet_end_to_end() {
+    // The scene prints the board file's layout; calibration reads the same file.
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let mut board = BoardFile::default();
+    board.right.grid = None;
+    board.right.chessboard = Some(scanner_device::calib::board::Chessboard {
+        cols: 8,
+        rows: 8,
+        square: 30.0,
+        u0: 60.0,
+        v0: -90.0,
+    });
+    std::fs::write(d.join("board.toml"), board.to_toml()).unwrap();
+    std::fs::write(
+        d.join("scene.toml"),
+        "objects = []\n[board]\nlayout = \"board.toml\"\n",
+    )
+    .unwrap();
+    let (ok, _, err) = run(&[
+        "render-calibration",
+        "--scene",
+        &p(d, "scene.toml"),
+        "--out",
+        &p(d, "cal"),
+    ]);
+    assert!(ok, "{err}");
+    // The true camera of the demo scene at 640×480, written as a camera file.
+    let cam = scanner_device::rig::Scene::demo(640, 480).camera;
+    CalibrationFile::from_camera(&cam, (640, 480), "the rig's camera".into(), None)
+        .save(&d.join("camera.toml"))
+        .unwrap();
+    let (ok, out, err) = run(&[
+        "calibrate",
+        "board",
+        "--board",
+        &p(d, "board.toml"),
+        "--camera",
+        &p(d, "camera.toml"),
+        "--out",
+        &p(d, "calibration.toml"),
+        "--overlay",
+        &p(d, "overlay.png"),
+        &p(d, "cal/board.png"),
+    ]);
+    assert!(ok, "{err}");
+    assert!(out.contains("right sheet: 49/49 markers"), "{out}");
+    // The printed sheet shows the squares.
+    let (ok, _, err) = run(&[
+        "board",
+        "--board",
+        &p(d, "board.toml"),
+        "--out",
+        &p(d, "print"),
+    ]);
+    assert!(ok, "{err}");
+    assert!(
+        std::fs::read_to_string(d.join("print/right-sheet.svg"))
+            .unwrap()
+            .matches("<rect")
+            .count()
+            > 32
+    );
+}

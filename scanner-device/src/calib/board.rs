@@ -15,6 +15,8 @@
 //! [right]
 //! markers = [[66.0, -110.0], [176.0, -110.0], [286.0, -110.0],
 //!            [66.0, 110.0], [176.0, 110.0], [286.0, 110.0]]
+//! # or, instead of discs, a chessboard whose inner corners are the markers:
+//! # chessboard = { cols = 8, rows = 6, square = 30.0, u0 = 60.0, v0 = -60.0 }
 //! [cross]                          # the image-distance pattern (paper Fig. 5)
 //! arm = 200.0                      # |AE| = |BD|
 //! dot = 12.0
@@ -47,7 +49,24 @@ pub struct Grid {
     pub dv: f64,
 }
 
-/// One sheet's markers: listed, or a grid.
+/// A chessboard on a sheet: `cols × rows` squares of side `square`, its first inner corner at
+/// `(u0, v0)`; the inner corners are the sheet's markers (row by row, along `u` first).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Chessboard {
+    /// Squares along `u`.
+    pub cols: usize,
+    /// Squares along `v`.
+    pub rows: usize,
+    /// Square side, mm.
+    pub square: f64,
+    /// First inner corner's `u`, mm.
+    pub u0: f64,
+    /// First inner corner's `v`, mm.
+    pub v0: f64,
+}
+
+/// One sheet's markers: listed discs, a grid of discs, or a chessboard.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct SheetLayout {
@@ -57,6 +76,9 @@ pub struct SheetLayout {
     /// Or a grid of them.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub grid: Option<Grid>,
+    /// Or a chessboard instead of discs.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub chessboard: Option<Chessboard>,
 }
 
 /// Paper size of a sheet, mm.
@@ -133,10 +155,12 @@ impl Default for BoardFile {
             left: SheetLayout {
                 markers: None,
                 grid: Some(grid),
+                chessboard: None,
             },
             right: SheetLayout {
                 markers: None,
                 grid: Some(grid),
+                chessboard: None,
             },
             cross: Cross {
                 arm: 200.0,
@@ -149,6 +173,13 @@ impl Default for BoardFile {
 impl SheetLayout {
     /// Marker centres in order: listed ones as listed, a grid row by row (along `u` first).
     pub fn points(&self) -> Vec<Point2<f64>> {
+        if let Some(c) = self.rig_chess() {
+            return c
+                .corners()
+                .iter()
+                .map(|p| Point2::new(p[0], p[1]))
+                .collect();
+        }
         if let Some(m) = &self.markers {
             return m.iter().map(|p| Point2::new(p[0], p[1])).collect();
         }
@@ -160,6 +191,27 @@ impl SheetLayout {
                 })
                 .collect(),
             None => Vec::new(),
+        }
+    }
+
+    /// The rig's chessboard for this sheet, if it carries one.
+    pub fn rig_chess(&self) -> Option<crate::rig::Chess> {
+        self.chessboard.map(|c| crate::rig::Chess {
+            cols: c.cols,
+            rows: c.rows,
+            square: c.square,
+            u0: c.u0,
+            v0: c.v0,
+        })
+    }
+
+    /// Radius of this sheet's markers as the calibration models them: the discs' radius, or 0
+    /// for chessboard corners.
+    pub fn marker_radius(&self, diameter: f64) -> f64 {
+        if self.chessboard.is_some() {
+            0.0
+        } else {
+            diameter / 2.0
         }
     }
 
@@ -227,10 +279,35 @@ impl BoardFile {
             return bad("cross: arm must exceed twice the dot diameter, both positive".into());
         }
         for (name, s) in [("left", &self.left), ("right", &self.right)] {
-            if s.markers.is_some() == s.grid.is_some() {
+            let kinds = [
+                s.markers.is_some(),
+                s.grid.is_some(),
+                s.chessboard.is_some(),
+            ];
+            if kinds.iter().filter(|&&k| k).count() != 1 {
                 return bad(format!(
-                    "[{name}]: give either `markers` or `grid`, not both or neither"
+                    "[{name}]: give exactly one of `markers`, `grid` or `chessboard`"
                 ));
+            }
+            if let Some(c) = s.chessboard {
+                if !(c.cols >= 3 && c.rows >= 3 && c.square > 0.0) {
+                    return bad(format!(
+                        "[{name}].chessboard: needs at least 3×3 squares and a positive square"
+                    ));
+                }
+                let (u_lo, u_hi) = (c.u0 - c.square, c.u0 + (c.cols - 1) as f64 * c.square);
+                let (v_lo, v_hi) = (c.v0 - c.square, c.v0 + (c.rows - 1) as f64 * c.square);
+                if u_lo < 0.0
+                    || u_hi > self.sheet.width
+                    || v_lo < -self.sheet.height / 2.0
+                    || v_hi > self.sheet.height / 2.0
+                {
+                    return bad(format!(
+                        "[{name}].chessboard: runs off the {}×{} mm sheet",
+                        self.sheet.width, self.sheet.height
+                    ));
+                }
+                continue;
             }
             if let Some(g) = s.grid
                 && !(g.cols >= 1 && g.rows >= 1 && g.du > 0.0 && g.dv > 0.0)
@@ -279,11 +356,19 @@ impl BoardFile {
     /// The rig's markers for this board (for rendering it).
     pub fn rig_markers(&self) -> crate::rig::Markers {
         let pts = |s: &SheetLayout| s.points().iter().map(|p| [p.x, p.y]).collect();
+        let discs = |s: &SheetLayout| {
+            if s.chessboard.is_some() {
+                Vec::new()
+            } else {
+                pts(s)
+            }
+        };
         crate::rig::Markers {
-            left: pts(&self.left),
-            right: pts(&self.right),
+            left: discs(&self.left),
+            right: discs(&self.right),
             diameter: self.marker_diameter,
             albedo: [0.06, 0.06, 0.06],
+            chess: [self.left.rig_chess(), self.right.rig_chess()],
         }
     }
 }

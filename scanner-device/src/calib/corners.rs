@@ -47,7 +47,9 @@ impl Default for CornerConfig {
 fn gaussian_blur(img: &GrayImage, sigma: f64) -> Vec<f64> {
     let (w, h) = (img.width() as usize, img.height() as usize);
     let r = (3.0 * sigma).ceil() as i64;
-    let k: Vec<f64> = (-r..=r).map(|i| (-(i * i) as f64 / (2.0 * sigma * sigma)).exp()).collect();
+    let k: Vec<f64> = (-r..=r)
+        .map(|i| (-(i * i) as f64 / (2.0 * sigma * sigma)).exp())
+        .collect();
     let ks: f64 = k.iter().sum();
     let src: Vec<f64> = img.as_raw().iter().map(|&v| f64::from(v)).collect();
     let mut tmp = vec![0.0; w * h];
@@ -131,7 +133,8 @@ pub fn find_corners(img: &GrayImage, cfg: &CornerConfig) -> Vec<Blob> {
         for x in 1..w - 1 {
             let ixx = at(x + 1, y) - 2.0 * at(x, y) + at(x - 1, y);
             let iyy = at(x, y + 1) - 2.0 * at(x, y) + at(x, y - 1);
-            let ixy = (at(x + 1, y + 1) - at(x + 1, y - 1) - at(x - 1, y + 1) + at(x - 1, y - 1)) / 4.0;
+            let ixy =
+                (at(x + 1, y + 1) - at(x + 1, y - 1) - at(x - 1, y + 1) + at(x - 1, y - 1)) / 4.0;
             let r = (ixy * ixy - ixx * iyy).max(0.0);
             resp[y * w + x] = r;
             max_r = max_r.max(r);
@@ -163,7 +166,17 @@ pub fn find_corners(img: &GrayImage, cfg: &CornerConfig) -> Vec<Blob> {
                     }
                 }
             }
-            if !is_max || !is_x_junction(&s, w, h, x as f64, y as f64, cfg.check_radius, cfg.min_contrast) {
+            if !is_max
+                || !is_x_junction(
+                    &s,
+                    w,
+                    h,
+                    x as f64,
+                    y as f64,
+                    cfg.check_radius,
+                    cfg.min_contrast,
+                )
+            {
                 continue;
             }
             found.push(Point2::new(x as f64, y as f64));

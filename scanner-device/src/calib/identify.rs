@@ -226,14 +226,16 @@ fn grow(
     orient: Orientation,
 ) -> Option<Assignment> {
     let mut last = None;
-    for _ in 0..8 {
+    for _ in 0..24 {
         let (src, dst): (Vec<Point2<f64>>, Vec<Vector2<f64>>) = blob_of
             .iter()
             .enumerate()
             .filter_map(|(i, b)| b.map(|b| (layout[i], blobs[b].centre.coords)))
             .unzip();
         let h = sheet_to_image(&src, &dst)?;
-        if !keeps_orientation(&h, layout, orient) {
+        // Checked where the match is (extrapolating a small seed across a large layout is not
+        // reliable enough to judge points far from it).
+        if !keeps_orientation(&h, &src, orient) {
             return None;
         }
         // Markers of one sheet have similar sizes: a sliver of a hidden one does not count.

@@ -24,7 +24,8 @@ use scanner_core::nalgebra::{Point2, Vector2};
 use scanner_core::{Camera, GeomError};
 
 use board::BoardFile;
-use detect::{DetectConfig, Detections, find_markers};
+use corners::{CornerConfig, find_corners};
+use detect::{Blob, DetectConfig, Detections, find_markers};
 use identify::{Assignment, Orientation, candidates, identify};
 
 /// Why a calibration step failed. Each names what was expected and what was found.
@@ -159,14 +160,14 @@ fn fit_sheet(
     what: &str,
     camera: &Camera<f64>,
     layout: &[Point2<f64>],
-    blobs: &Detections,
+    features: &[Blob],
     a: &Assignment,
     radius: f64,
 ) -> Result<SheetFit, CalibError> {
     let found: Vec<usize> = (0..layout.len())
         .filter(|&i| a.blob_of[i].is_some())
         .collect();
-    let pixel = |i: usize| a.blob_of[i].map(|b| blobs.blobs[b].centre);
+    let pixel = |i: usize| a.blob_of[i].map(|b| features[b].centre);
     let too_few = |used: &[usize]| CalibError::TooFewMarkers {
         what: what.to_string(),
         found: used.len(),
@@ -276,30 +277,26 @@ pub struct BoardFit {
 /// are kept even when the fit fails, for the overlay.
 #[derive(Debug, Clone)]
 pub struct BoardOutcome {
-    /// Everything detected.
+    /// Every disc marker detected.
     pub detections: Detections,
+    /// Chessboard corners detected (when a sheet carries a chessboard).
+    pub corners: Vec<Blob>,
     /// Left and right sheet identification.
     pub assignments: [Option<Assignment>; 2],
     /// The result.
     pub result: Result<BoardFit, CalibError>,
 }
 
-/// Candidate identifications of both sheets; the left sheet's `u` runs to the image's left
-/// (mirrored), the right one's to the right.
-fn sheet_candidates(det: &Detections, board: &BoardFile) -> [Vec<Assignment>; 2] {
-    let lo = Orientation {
-        mirrored: true,
-        u_along_x: Some(-1),
+/// Candidate identifications of a sheet among its kind of features (discs or corners); the left
+/// sheet's `u` runs to the image's left (mirrored), the right one's to the right.
+fn sheet_candidates(features: &[Blob], layout: &[Point2<f64>], k: usize) -> Vec<Assignment> {
+    let orient = Orientation {
+        mirrored: k == 0,
+        u_along_x: Some(if k == 0 { -1 } else { 1 }),
     };
-    let ro = Orientation {
-        mirrored: false,
-        u_along_x: Some(1),
-    };
-    let mut l = candidates(&det.blobs, &[], &board.left.points(), lo);
-    let mut r = candidates(&det.blobs, &[], &board.right.points(), ro);
-    l.truncate(8);
-    r.truncate(8);
-    [l, r]
+    let mut c = candidates(features, &[], layout, orient);
+    c.truncate(16);
+    c
 }
 
 /// Board planes from an image of the board without laser.
@@ -308,36 +305,51 @@ fn sheet_candidates(det: &Detections, board: &BoardFile) -> [Vec<Assignment>; 2]
 /// the camera; the pair keeping the most markers, then with the smallest residual, wins.
 pub fn board_planes(img: &GrayImage, board: &BoardFile, camera: &Camera<f64>) -> BoardOutcome {
     let detections = find_markers(img, &DetectConfig::default());
-    let [lc, rc] = sheet_candidates(&detections, board);
-    let radius = board.marker_diameter / 2.0;
+    let sheets = [&board.left, &board.right];
+    let corners = if sheets.iter().any(|s| s.chessboard.is_some()) {
+        find_corners(img, &CornerConfig::default())
+    } else {
+        Vec::new()
+    };
+    let features = |k: usize| -> &[Blob] {
+        if sheets[k].chessboard.is_some() {
+            &corners
+        } else {
+            &detections.blobs
+        }
+    };
     let layouts = [board.left.points(), board.right.points()];
+    let [lc, rc] = [0, 1].map(|k| sheet_candidates(features(k), &layouts[k], k));
     let names = ["left sheet", "right sheet"];
     let fit_all = |k: usize, cands: &[Assignment]| -> Vec<Result<SheetFit, CalibError>> {
+        let radius = sheets[k].marker_radius(board.marker_diameter);
         cands
             .iter()
-            .map(|a| fit_sheet(names[k], camera, &layouts[k], &detections, a, radius))
+            .map(|a| fit_sheet(names[k], camera, &layouts[k], features(k), a, radius))
             .collect()
     };
     let (lf, rf) = (fit_all(0, &lc), fit_all(1, &rc));
     let used = |f: &SheetFit| f.markers.iter().filter(|m| m.residual.is_some()).count();
     // The left sheet is left of the right one (a symmetric layout also fits the other sheet
     // mirrored), and the two share no marker.
-    let mean_x = |a: &Assignment| {
+    let mean_x = |a: &Assignment, k: usize| {
         let xs: Vec<f64> = a
             .blob_of
             .iter()
             .flatten()
-            .map(|&b| detections.blobs[b].centre.x)
+            .map(|&b| features(k)[b].centre.x)
             .collect();
         xs.iter().sum::<f64>() / xs.len().max(1) as f64
     };
+    let same_kind = sheets[0].chessboard.is_some() == sheets[1].chessboard.is_some();
     let compatible = |i: usize, j: usize| {
-        let shared = lc[i]
-            .blob_of
-            .iter()
-            .flatten()
-            .any(|b| rc[j].blob_of.contains(&Some(*b)));
-        !shared && mean_x(&lc[i]) < mean_x(&rc[j])
+        let shared = same_kind
+            && lc[i]
+                .blob_of
+                .iter()
+                .flatten()
+                .any(|b| rc[j].blob_of.contains(&Some(*b)));
+        !shared && mean_x(&lc[i], 0) < mean_x(&rc[j], 1)
     };
     let mut best: Option<(usize, usize, (usize, f64))> = None;
     for (i, l) in lf.iter().enumerate() {
@@ -364,7 +376,7 @@ pub fn board_planes(img: &GrayImage, board: &BoardFile, camera: &Camera<f64>) ->
         ),
         None => {
             // Report the best single-sheet failure (or a missing sheet).
-            let err = if detections.blobs.is_empty() {
+            let err = if detections.blobs.is_empty() && corners.is_empty() {
                 CalibError::NoMarkers {
                     found: detections.rejected.len(),
                     hint: "is the board in view, lit, and printed with dark circles?",
@@ -414,6 +426,7 @@ pub fn board_planes(img: &GrayImage, board: &BoardFile, camera: &Camera<f64>) ->
     };
     BoardOutcome {
         detections,
+        corners,
         assignments,
         result,
     }
@@ -512,7 +525,58 @@ pub struct ViewFit {
     pub max_px: f64,
 }
 
-/// Full intrinsics from several images of a dot grid.
+/// A planar target for intrinsics: a dot grid or a chessboard.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Target {
+    /// Dark dots.
+    Dots(DotGrid),
+    /// A chessboard of `cols × rows` squares of side `square` (mm), centred; its inner corners
+    /// are the features.
+    Chessboard {
+        /// Squares per row.
+        cols: usize,
+        /// Rows of squares.
+        rows: usize,
+        /// Square side, mm.
+        square: f64,
+    },
+}
+
+impl Target {
+    /// Feature positions on the sheet, row by row.
+    pub fn points(&self) -> Vec<Point2<f64>> {
+        match *self {
+            Target::Dots(g) => g.points(),
+            Target::Chessboard { cols, rows, square } => (1..rows)
+                .flat_map(|r| {
+                    (1..cols).map(move |c| {
+                        Point2::new(
+                            (c as f64 - cols as f64 / 2.0) * square,
+                            (r as f64 - rows as f64 / 2.0) * square,
+                        )
+                    })
+                })
+                .collect(),
+        }
+    }
+
+    /// Radius the calibration models the features with (0 for corners).
+    pub fn radius(&self) -> f64 {
+        match *self {
+            Target::Dots(g) => g.dot / 2.0,
+            Target::Chessboard { .. } => 0.0,
+        }
+    }
+
+    fn name(&self) -> &'static str {
+        match self {
+            Target::Dots(_) => "dot grid",
+            Target::Chessboard { .. } => "chessboard",
+        }
+    }
+}
+
+/// Full intrinsics from several images of a dot grid or chessboard.
 #[derive(Debug, Clone, PartialEq)]
 pub struct IntrinsicsFit {
     /// Image size.
@@ -525,19 +589,32 @@ pub struct IntrinsicsFit {
     pub views: Vec<Result<ViewFit, CalibError>>,
 }
 
-/// The dots of a grid target found in one image: `(layout index, pixel)`.
+/// The features of a target found in one image: `(layout index, pixel)`.
 ///
 /// # Errors
-/// [`CalibError::NoMarkers`] or [`CalibError::TooFewMarkers`] (fewer than half the grid).
-pub fn find_grid(img: &GrayImage, grid: &DotGrid) -> Result<Vec<(usize, Point2<f64>)>, CalibError> {
-    let det = find_markers(img, &DetectConfig::default());
-    if det.blobs.is_empty() {
+/// [`CalibError::NoMarkers`] or [`CalibError::TooFewMarkers`] (fewer than half the target).
+pub fn find_grid(
+    img: &GrayImage,
+    target: &Target,
+) -> Result<Vec<(usize, Point2<f64>)>, CalibError> {
+    let (features, rejected) = match target {
+        Target::Dots(_) => {
+            let det = find_markers(img, &DetectConfig::default());
+            (det.blobs, det.rejected.len())
+        }
+        Target::Chessboard { .. } => (find_corners(img, &CornerConfig::default()), 0),
+    };
+    if features.len() < 4 {
         return Err(CalibError::NoMarkers {
-            found: det.rejected.len(),
-            hint: "is the dot grid in view and lit?",
+            found: rejected,
+            hint: "is the calibration target in view and lit?",
         });
     }
-    let layout = grid.points();
+    let det = Detections {
+        blobs: features,
+        rejected: Vec::new(),
+    };
+    let layout = target.points();
     let orient = Orientation {
         mirrored: false,
         u_along_x: None,
@@ -555,7 +632,7 @@ pub fn find_grid(img: &GrayImage, grid: &DotGrid) -> Result<Vec<(usize, Point2<f
     let needed = (layout.len() / 2).max(4);
     if found.len() < needed {
         return Err(CalibError::TooFewMarkers {
-            what: "dot grid".into(),
+            what: target.name().into(),
             found: found.len(),
             expected: layout.len(),
             needed,
@@ -575,7 +652,7 @@ pub fn find_grid(img: &GrayImage, grid: &DotGrid) -> Result<Vec<(usize, Point2<f
 /// fewer than three usable images, [`CalibError::Geometry`] if the solution fails.
 pub fn intrinsics(
     images: &[GrayImage],
-    grid: &DotGrid,
+    target: &Target,
     free: Free,
 ) -> Result<IntrinsicsFit, CalibError> {
     let Some(first) = images.first() else {
@@ -588,11 +665,11 @@ pub fn intrinsics(
         });
     };
     let size = first.dimensions();
-    let layout = grid.points();
+    let layout = target.points();
     let mut found: Vec<Result<Vec<(usize, Point2<f64>)>, CalibError>> = Vec::new();
     for img in images {
         check_size(size, img)?;
-        found.push(find_grid(img, grid));
+        found.push(find_grid(img, target));
     }
     let ok: Vec<usize> = (0..images.len()).filter(|&i| found[i].is_ok()).collect();
     if ok.len() < 3 {
@@ -628,7 +705,7 @@ pub fn intrinsics(
         .map(|v| initial_pose(&init, v))
         .collect::<Result<_, _>>()
         .map_err(geom("intrinsics: initial poses"))?;
-    let radius = grid.dot / 2.0;
+    let radius = target.radius();
     let r =
         refine(&init, free, &views, &mut poses, radius).map_err(geom("intrinsics: refinement"))?;
     let mut out = Vec::with_capacity(found.len());

@@ -209,11 +209,11 @@ pub fn board_overlay(
     let mut legend: Vec<(String, Rgb<u8>)> = Vec::new();
     let names = ["L", "R"];
     let layouts = [board.left.points(), board.right.points()];
-    let radius = board.marker_diameter / 2.0;
     match &outcome.result {
         Ok(fit) => {
             for k in 0..2 {
                 let s = &fit.sheets[k];
+                let radius = [&board.left, &board.right][k].marker_radius(board.marker_diameter);
                 let px =
                     |p: &Point2<f64>| predict(camera, &s.pose, p, radius).ok().map(|q| (q.x, q.y));
                 // Marker lines: layout points sharing a v.
@@ -247,7 +247,7 @@ pub fn board_overlay(
                 }
                 for (i, m) in s.markers.iter().enumerate() {
                     let label = format!("{}{i}", names[k]);
-                    let r_px = 0.6 * radius * (img.width() as f64 / 1000.0).max(0.6);
+                    let r_px = 0.6 * radius.max(5.0) * (img.width() as f64 / 1000.0).max(0.6);
                     match (m.pixel, m.residual) {
                         (Some(p), Some(res)) => {
                             cv.circle((p.x, p.y), r_px + 4.0, th, colour::USED);
@@ -330,10 +330,16 @@ pub fn board_overlay(
         }
         Err(e) => {
             for (k, a) in outcome.assignments.iter().enumerate() {
+                let sheet = if k == 0 { &board.left } else { &board.right };
+                let features = if sheet.chessboard.is_some() {
+                    &outcome.corners
+                } else {
+                    &outcome.detections.blobs
+                };
                 if let Some(a) = a {
                     for (i, b) in a.blob_of.iter().enumerate() {
                         if let Some(b) = b {
-                            let p = outcome.detections.blobs[*b].centre;
+                            let p = features[*b].centre;
                             cv.text(
                                 p.x + 10.0,
                                 p.y,

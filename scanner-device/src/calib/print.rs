@@ -19,6 +19,8 @@ pub struct Sheet {
     pub height: f64,
     /// Filled black circles: centre x, y and diameter, mm from the top-left corner.
     pub dots: Vec<(f64, f64, f64)>,
+    /// Filled black squares: top-left x, y and side, mm.
+    pub squares: Vec<(f64, f64, f64)>,
     /// The crease edge's x (mm), for a board sheet.
     pub crease_x: Option<f64>,
 }
@@ -31,24 +33,47 @@ impl Sheet {
     pub fn board(board: &BoardFile, k: usize) -> Sheet {
         let (w, h) = (board.sheet.width, board.sheet.height);
         let layout = if k == 0 { &board.left } else { &board.right };
-        let dots = layout
-            .points()
-            .iter()
-            .map(|p| {
-                let x = if k == 0 { w - p.x } else { p.x };
-                (x, h / 2.0 + p.y, board.marker_diameter)
-            })
-            .collect();
-        Sheet {
-            title: format!(
-                "scanner board - {} sheet - {} markers of {} mm - print at 100 %",
-                ["left", "right"][k],
+        let mut squares = Vec::new();
+        let dots = if let Some(c) = layout.chessboard {
+            for a in 0..c.cols {
+                for b in 0..c.rows {
+                    if (a + b) % 2 == 0 {
+                        let u = c.u0 - c.square + a as f64 * c.square;
+                        let v = c.v0 - c.square + b as f64 * c.square;
+                        let x = if k == 0 { w - u - c.square } else { u };
+                        squares.push((x, h / 2.0 + v, c.square));
+                    }
+                }
+            }
+            Vec::new()
+        } else {
+            layout
+                .points()
+                .iter()
+                .map(|p| {
+                    let x = if k == 0 { w - p.x } else { p.x };
+                    (x, h / 2.0 + p.y, board.marker_diameter)
+                })
+                .collect()
+        };
+        let what = if layout.chessboard.is_some() {
+            format!("a chessboard with {} inner corners", layout.points().len())
+        } else {
+            format!(
+                "{} markers of {} mm",
                 layout.points().len(),
                 board.marker_diameter
+            )
+        };
+        Sheet {
+            title: format!(
+                "scanner board - {} sheet - {what} - print at 100 %",
+                ["left", "right"][k]
             ),
             width: w,
             height: h,
             dots,
+            squares,
             crease_x: Some(if k == 0 { w } else { 0.0 }),
         }
     }
@@ -69,6 +94,7 @@ impl Sheet {
                 .iter()
                 .map(|(x, y)| (cx + x, cy + y, c.dot))
                 .collect(),
+            squares: Vec::new(),
             crease_x: None,
         }
     }
@@ -87,6 +113,11 @@ impl Sheet {
             s += &format!(
                 "<circle cx=\"{x:.3}\" cy=\"{y:.3}\" r=\"{:.3}\" fill=\"black\"/>\n",
                 d / 2.0
+            );
+        }
+        for (x, y, side) in &self.squares {
+            s += &format!(
+                "<rect x=\"{x:.3}\" y=\"{y:.3}\" width=\"{side:.3}\" height=\"{side:.3}\" fill=\"black\"/>\n"
             );
         }
         if let Some(x) = self.crease_x {
@@ -151,6 +182,15 @@ impl Sheet {
                     }
                 }
             }
+        }
+        for &(x, y, side) in &self.squares {
+            cv.rect(
+                x * px_per_mm,
+                y * px_per_mm,
+                (x + side) * px_per_mm,
+                (y + side) * px_per_mm,
+                black,
+            );
         }
         let scale = ((px_per_mm * 0.6).round() as u32).max(1);
         cv.text(10.0 * px_per_mm, 6.0 * px_per_mm, &self.title, scale, black);

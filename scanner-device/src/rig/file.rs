@@ -50,6 +50,9 @@ struct BoardFile {
     pitch_deg: Option<f64>,
     albedo: Option<[f64; 3]>,
     markers: Option<MarkersFile>,
+    /// A board file (`scanner-device board`) whose layout the rig prints, relative to the scene
+    /// file's folder; instead of `[board.markers]`.
+    layout: Option<String>,
 }
 
 #[derive(Debug, Deserialize)]
@@ -199,9 +202,16 @@ impl Scene {
             set(&mut s.board.yaw_deg, b.yaw_deg);
             set(&mut s.board.pitch_deg, b.pitch_deg);
             set(&mut s.board.albedo, b.albedo);
-            // the paper's layout scales with the board unless the file gives one
-            s.board.markers = match b.markers {
-                Some(m) => {
+            s.board.markers = match (b.markers, b.layout) {
+                (Some(_), Some(_)) => {
+                    return Err(RigError::Scene(
+                        "[board]: give `layout` (a board file) or [board.markers], not both".into(),
+                    ));
+                }
+                (None, Some(path)) => crate::calib::board::BoardFile::load(&base.join(&path))
+                    .map_err(|e| RigError::Scene(format!("[board] layout: {e}")))?
+                    .rig_markers(),
+                (Some(m), None) => {
                     if !(m.diameter > 0.0) {
                         return Err(RigError::Scene(
                             "[board.markers]: diameter must be positive".into(),
@@ -212,9 +222,11 @@ impl Scene {
                         right: m.right,
                         diameter: m.diameter,
                         albedo: m.albedo.unwrap_or([0.06; 3]),
+                        chess: [None, None],
                     }
                 }
-                None => Markers::paper(110.0),
+                // the default board file's layout
+                (None, None) => Markers::paper(110.0),
             };
         }
         if let Some(objects) = f.objects {

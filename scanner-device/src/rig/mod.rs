@@ -73,6 +73,73 @@ pub struct Markers {
     pub diameter: f64,
     /// RGB albedo of the marker ink.
     pub albedo: [f64; 3],
+    /// A sheet may carry a chessboard instead of discs (`[left, right]`); its inner corners are
+    /// that sheet's markers.
+    pub chess: [Option<Chess>; 2],
+}
+
+/// A chessboard printed on a board sheet: `cols × rows` squares of side `square` (mm), the first
+/// inner corner at sheet coordinates `(u0, v0)`, the square touching it on the low-`u`, low-`v`
+/// side dark.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Chess {
+    /// Squares along `u`.
+    pub cols: usize,
+    /// Squares along `v`.
+    pub rows: usize,
+    /// Square side, mm.
+    pub square: f64,
+    /// First inner corner's `u`, mm.
+    pub u0: f64,
+    /// First inner corner's `v`, mm.
+    pub v0: f64,
+}
+
+impl Chess {
+    /// Inner corners, row by row (along `u` first).
+    pub fn corners(&self) -> Vec<[f64; 2]> {
+        (0..self.rows.saturating_sub(1))
+            .flat_map(|r| {
+                (0..self.cols.saturating_sub(1)).map(move |c| {
+                    [
+                        self.u0 + c as f64 * self.square,
+                        self.v0 + r as f64 * self.square,
+                    ]
+                })
+            })
+            .collect()
+    }
+
+    /// `Some(dark)` inside the chessboard, `None` outside.
+    fn ink(&self, uv: [f64; 2]) -> Option<bool> {
+        let (a, b) = (
+            (uv[0] - self.u0) / self.square + 1.0,
+            (uv[1] - self.v0) / self.square + 1.0,
+        );
+        if a < 0.0 || b < 0.0 || a >= self.cols as f64 || b >= self.rows as f64 {
+            return None;
+        }
+        Some((a.floor() as i64 + b.floor() as i64) % 2 == 0)
+    }
+
+    /// Distance (mm) to the nearest square edge or the board's outline.
+    fn to_edge(&self, uv: [f64; 2]) -> f64 {
+        let (a, b) = (
+            (uv[0] - self.u0) / self.square + 1.0,
+            (uv[1] - self.v0) / self.square + 1.0,
+        );
+        let (ca, cb) = (
+            a.clamp(0.0, self.cols as f64),
+            b.clamp(0.0, self.rows as f64),
+        );
+        let outside = ((a - ca).powi(2) + (b - cb).powi(2)).sqrt();
+        if outside > 0.0 {
+            return outside * self.square;
+        }
+        let da = (a - a.round()).abs();
+        let db = (b - b.round()).abs();
+        da.min(db) * self.square
+    }
 }
 
 impl Markers {
@@ -88,6 +155,7 @@ impl Markers {
             right: sheet,
             diameter: 0.25 * spacing,
             albedo: [0.06, 0.06, 0.06],
+            chess: [None, None],
         }
     }
 }
@@ -673,6 +741,12 @@ impl Rig {
         };
         let m = &self.scene.board.markers;
         let uv = self.board.sheet(k, p);
+        if let Some(c) = &m.chess[k] {
+            return match c.ink(uv) {
+                Some(true) => m.albedo,
+                _ => self.scene.board.albedo,
+            };
+        }
         let r2 = (m.diameter / 2.0).powi(2);
         let list = if k == 0 { &m.left } else { &m.right };
         if list
@@ -689,6 +763,9 @@ impl Rig {
     fn to_rim(&self, k: usize, p: &Point3<f64>) -> f64 {
         let m = &self.scene.board.markers;
         let uv = self.board.sheet(k, p);
+        if let Some(c) = &m.chess[k] {
+            return c.to_edge(uv);
+        }
         let list = if k == 0 { &m.left } else { &m.right };
         list.iter()
             .map(|c| {
@@ -707,6 +784,38 @@ impl Rig {
             .into_iter()
             .enumerate()
         {
+            if let Some(c) = &m.chess[k] {
+                // Corners: seen when the camera sees the board at the corner and around it.
+                for (index, sheet) in c.corners().into_iter().enumerate() {
+                    let centre = self.board.point(k, sheet);
+                    let Ok(centre_px) = cam.project(&centre) else {
+                        continue;
+                    };
+                    let r = 0.3 * c.square;
+                    let visible = (0..16).all(|i| {
+                        let a = f64::from(i) / 16.0 * std::f64::consts::TAU;
+                        let p = self
+                            .board
+                            .point(k, [sheet[0] + r * a.cos(), sheet[1] + r * a.sin()]);
+                        cam.project(&p).is_ok_and(|px| {
+                            px.x >= 0.0 && px.y >= 0.0 && px.x <= w - 1.0 && px.y <= h - 1.0
+                        }) && self.cast(&p.coords.normalize()).is_some_and(|hit| {
+                            hit.surface == surface
+                                && (hit.point - p).norm() < 1e-6 * p.coords.norm() + 1e-9
+                        })
+                    });
+                    out.push(MarkerTruth {
+                        surface,
+                        index,
+                        sheet,
+                        centre,
+                        centre_px,
+                        disc_px: centre_px,
+                        visible,
+                    });
+                }
+                continue;
+            }
             for (index, &sheet) in list.iter().enumerate() {
                 let centre = self.board.point(k, sheet);
                 let Ok(centre_px) = cam.project(&centre) else {

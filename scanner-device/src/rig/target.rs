@@ -1,7 +1,8 @@
 //! Calibration shots: the paper's image-distance cross pattern (Fig. 5) and planar targets (dot
 //! grid, chessboard) in front of the rig's camera, with ground truth. Rendered with the scene's
-//! camera, ambient light, lens blur and sensor; every pixel is supersampled 3×3 (calibration
-//! shots are few, and their edges are what calibration measures).
+//! camera, ambient light, lens blur and sensor; every pixel is supersampled 3×3, and 12×12 where
+//! the pattern has an edge in it (calibration shots are few, and their edges are what
+//! calibration measures).
 
 use scanner_core::nalgebra::{Point2, Point3, Rotation3, Vector3};
 
@@ -12,6 +13,8 @@ const PAPER: f64 = 0.85;
 const INK: f64 = 0.06;
 /// Sub-samples per pixel side.
 const SUB: usize = 3;
+/// Sub-samples per pixel side on an edge of the pattern.
+const EDGE_SUB: usize = 12;
 
 /// What is printed on the target sheet. Sheet coordinates in mm, origin at the pattern's centre,
 /// `x` right and `y` down when the sheet faces the camera upright.
@@ -191,26 +194,43 @@ impl Rig {
         );
         let sheet = |p: &Point3<f64>| ((p - pose.centre).dot(&ex), (p - pose.centre).dot(&ey));
         let amb = self.scene.ambient;
+        let coverage = |u: usize, v: usize, sub: usize| {
+            let (mut sum, mut lo, mut hi) = (0.0, f64::INFINITY, 0.0f64);
+            for (su, sv) in super::subpixels(u, v, sub) {
+                let mut a = 0.0;
+                if let Some(d) = self.ray_fast(su, sv) {
+                    let den = d.dot(&n);
+                    let t = if den.abs() < 1e-9 {
+                        -1.0
+                    } else {
+                        pose.centre.coords.dot(&n) / den
+                    };
+                    if t > 0.0 {
+                        let (x, y) = sheet(&Point3::from(d * t));
+                        a = pattern.albedo(x, y);
+                    }
+                }
+                sum += a;
+                lo = lo.min(a);
+                hi = hi.max(a);
+            }
+            (sum / (sub * sub) as f64, lo < hi)
+        };
+        let coarse: Vec<(f64, bool)> = (0..w * h).map(|i| coverage(i % w, i / w, SUB)).collect();
+        // Pixels on an edge of the pattern, and their neighbours (a thin sliver can pass between
+        // the coarse samples), get a finer grid: the edges are what calibration measures.
         let mut flat = vec![[0.0; 3]; w * h];
         for v in 0..h {
             for u in 0..w {
-                let mut sum = 0.0;
-                for (su, sv) in super::subpixels(u, v, SUB) {
-                    let Some(d) = self.ray_fast(su, sv) else {
-                        continue;
-                    };
-                    let den = d.dot(&n);
-                    if den.abs() < 1e-9 {
-                        continue;
-                    }
-                    let t = pose.centre.coords.dot(&n) / den;
-                    if t <= 0.0 {
-                        continue;
-                    }
-                    let (x, y) = sheet(&Point3::from(d * t));
-                    sum += pattern.albedo(x, y);
-                }
-                flat[v * w + u] = [amb * sum / (SUB * SUB) as f64; 3];
+                let near_edge = (v.saturating_sub(1)..=(v + 1).min(h - 1)).any(|y| {
+                    (u.saturating_sub(1)..=(u + 1).min(w - 1)).any(|x| coarse[y * w + x].1)
+                });
+                let a = if near_edge {
+                    coverage(u, v, EDGE_SUB).0
+                } else {
+                    coarse[v * w + u].0
+                };
+                flat[v * w + u] = [amb * a; 3];
             }
         }
         let blurred: Vec<[f32; 3]> = super::blur(&flat, w, h, &self.kernel)
