@@ -77,3 +77,26 @@ if cv_own:
     print(row("OpenCV findCirclesGrid + calibrateCamera", *cv_own, len(obj_cv)))
 else:
     print("| OpenCV findCirclesGrid + calibrateCamera | fewer than 3 grids found | | | | | | | | | | |")
+
+# Chessboards: 10x8 squares of 25 mm, 9x7 inner corners.
+chess_files = sorted(glob.glob(os.path.join(d, "chess-*.png")))
+if chess_files and os.path.exists(os.path.join(d, "ours-chess.txt")):
+    cc, cr, sq = 9, 7, 25.0
+    cobj = np.array([[(c - (cc - 1) / 2) * sq, (r - (cr - 1) / 2) * sq, 0.0]
+                     for r in range(cr) for c in range(cc)], np.float32)
+    obj_ch, img_ch = [], []
+    t = time.time()
+    for f in chess_files:
+        img = cv2.imread(f, cv2.IMREAD_GRAYSCALE)
+        ok, corners = cv2.findChessboardCorners(img, (cc, cr))
+        if ok:
+            corners = cv2.cornerSubPix(img, corners, (11, 11), (-1, -1),
+                                       (cv2.TERM_CRITERIA_EPS + cv2.TERM_CRITERIA_MAX_ITER, 100, 1e-4))
+            obj_ch.append(cobj)
+            img_ch.append(corners)
+    oc = [float(v) for v in open(os.path.join(d, "ours-chess.txt")).read().split()]
+    print(row("ours, chessboards (Hessian saddles + gradient refinement)", oc[:9], oc[9], oc[10], len(chess_files)))
+    if len(obj_ch) >= 3:
+        print(row("OpenCV findChessboardCorners + cornerSubPix 11x11 + calibrateCamera", *calibrate(obj_ch, img_ch), len(obj_ch)))
+    else:
+        print(f"| OpenCV findChessboardCorners | {len(obj_ch)} of {len(chess_files)} boards found | | | | | | | | | | |")

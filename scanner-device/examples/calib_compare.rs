@@ -34,7 +34,13 @@ fn main() -> anyhow::Result<()> {
         pitch: 30.0,
         dot: 12.0,
     };
+    let chess = Pattern::Chessboard {
+        cols: 10,
+        rows: 8,
+        square: 25.0,
+    };
     let mut images = Vec::new();
+    let mut chess_images = Vec::new();
     for i in 0..n {
         let a = i as f64 / n as f64 * std::f64::consts::TAU;
         let z = 550.0 + 300.0 * ((i * 7) % n) as f64 / n as f64;
@@ -49,6 +55,12 @@ fn main() -> anyhow::Result<()> {
         let img = rig.shot(&pattern, &pose, i as u64).image.to_gray_image();
         img.save(out.join(format!("grid-{i:02}.png")))?;
         images.push(img);
+        let img = rig
+            .shot(&chess, &pose, 100 + i as u64)
+            .image
+            .to_gray_image();
+        img.save(out.join(format!("chess-{i:02}.png")))?;
+        chess_images.push(img);
     }
     let t0 = std::time::Instant::now();
     let fit = intrinsics(&images, &Target::Dots(grid), Free::ALL)?;
@@ -83,6 +95,25 @@ fn main() -> anyhow::Result<()> {
         }
     }
     std::fs::write(out.join("points.csv"), csv)?;
+    let t0 = std::time::Instant::now();
+    let cfit = intrinsics(
+        &chess_images,
+        &Target::Chessboard {
+            cols: 10,
+            rows: 8,
+            square: 25.0,
+        },
+        Free::ALL,
+    )?;
+    let csecs = t0.elapsed().as_secs_f64();
+    std::fs::write(
+        out.join("ours-chess.txt"),
+        format!("{} {} {csecs}\n", cam(&cfit.camera), cfit.rms_px),
+    )?;
+    println!(
+        "chessboards: ours rms {:.4} px in {csecs:.2} s",
+        cfit.rms_px
+    );
     println!(
         "{n} views: ours rms {:.4} px in {secs:.2} s; wrote {}",
         fit.rms_px,

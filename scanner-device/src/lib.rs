@@ -2,9 +2,9 @@
 //! `scanner-core` pipeline on each and sends compact point packets over a serial link.
 //!
 //! Where it sits: `camera ─► [scanner-device: sources → scanner-core per frame → link] ─► host`.
-//! At this stage it carries the command line, the frame-source interface ([`source`]) and the
-//! virtual rig ([`rig`]); V4L2 capture, the per-frame pipeline and the link come with their
-//! issues.
+//! At this stage it carries the command line, the frame-source interface ([`source`]), the
+//! virtual rig ([`rig`]) and calibration from images ([`calib`]); V4L2 capture, the per-frame
+//! pipeline and the link come with their issues.
 #![deny(missing_docs)]
 
 pub mod calib;

@@ -2,6 +2,8 @@
 //! against the rig's truth: marker detection, identification, intrinsics, board planes, the
 //! paper's image distance, and the errors on bad input.
 
+#![allow(clippy::needless_range_loop)] // k indexes the left/right pairs of several arrays
+
 use scanner_core::calib::Free;
 use scanner_core::geometry::Plane;
 use scanner_core::nalgebra::{Point3, Vector3};

@@ -32,6 +32,8 @@ pub const MIN_MARKERS: usize = 4;
 type Mat9 = SMatrix<f64, 9, 9>;
 type Vec9 = SVector<f64, 9>;
 type Mat69 = SMatrix<f64, 6, 9>;
+/// A marker's residual and its Jacobians (intrinsics, pose).
+type Observation = (Vector2<f64>, SMatrix<f64, 2, 9>, SMatrix<f64, 2, 6>);
 
 /// Which intrinsics a refinement estimates (the others stay as given), in the order
 /// `fx, fy, cx, cy, k1, k2, p1, p2, k3`.
@@ -130,7 +132,7 @@ fn observe(
     radius: f64,
     pixel: &Point2<f64>,
     jacobians: bool,
-) -> Result<(Vector2<f64>, SMatrix<f64, 2, 9>, SMatrix<f64, 2, 6>), GeomError> {
+) -> Result<Observation, GeomError> {
     let n = disc_centre(pose, sheet, radius)?;
     let (d, jd) = cam.distortion().apply_with_jacobian(n);
     let (fx, fy) = (cam.fx(), cam.fy());
@@ -395,7 +397,7 @@ pub fn refine(
     let (cost, max_px, _) = total_cost(&cam, views, poses, radius)?;
     Ok(Refinement {
         camera: cam,
-        rms_px: (cost / count as f64).sqrt(),
+        rms_px: libm::sqrt(cost / count as f64),
         max_px,
         iterations,
     })
@@ -423,7 +425,7 @@ pub fn residuals(
         *o = r;
         cost += r.norm_squared();
     }
-    Ok((cost / view.layout.len() as f64).sqrt())
+    Ok(libm::sqrt(cost / view.layout.len() as f64))
 }
 
 /// A view's pose for a known camera, from the homography of its undistorted markers (to be
@@ -536,8 +538,8 @@ pub fn initial_camera(views: &[View], width: u32, height: u32) -> Result<Camera<
         if b11 > 0.0 && den > 0.0 {
             let v0 = (b12 * b13 - b11 * b23) / den;
             let lambda = b33 - (b13 * b13 + v0 * (b12 * b13 - b11 * b23)) / b11;
-            let alpha = (lambda / b11).sqrt();
-            let beta = (lambda * b11 / den).sqrt();
+            let alpha = libm::sqrt(lambda / b11);
+            let beta = libm::sqrt(lambda * b11 / den);
             let u0 = -b13 * alpha * alpha / lambda;
             if let Ok(c) = scaled(alpha, beta, u0, v0) {
                 // Accept only a principal point inside the image.
@@ -558,5 +560,6 @@ pub fn initial_camera(views: &[View], width: u32, height: u32) -> Result<Camera<
     if !(b11 > 0.0 && b22 > 0.0 && b33 > 0.0) {
         return Err(GeomError::IllConditioned);
     }
-    scaled((b33 / b11).sqrt(), (b33 / b22).sqrt(), 0.0, 0.0).map_err(|_| GeomError::IllConditioned)
+    scaled(libm::sqrt(b33 / b11), libm::sqrt(b33 / b22), 0.0, 0.0)
+        .map_err(|_| GeomError::IllConditioned)
 }

@@ -397,11 +397,11 @@ pub fn candidates(
                         // No parallelogram in the layout: the affine guess must find a fourth.
                         let tol = 0.35 * spacing * det.abs().sqrt();
                         let mut found = 0;
-                        for l in 0..layout.len() {
-                            if blob_of[l].is_none()
+                        for (l, slot) in blob_of.iter_mut().enumerate() {
+                            if slot.is_none()
                                 && let Some(b) = nearest(blobs, &used, &predict(l), tol)
                             {
-                                blob_of[l] = Some(b);
+                                *slot = Some(b);
                                 used[b] = true;
                                 found += 1;
                             }

@@ -1,11 +1,11 @@
-//! Calibration from images: the printable board ([`board`], [`print`]), marker detection
-//! ([`detect`]) and identification ([`identify`]), and the three procedures —
+//! Calibration from images: the printable board ([`board`], [`print`](mod@print)), marker detection
+//! ([`detect`]) and identification ([`identify`](mod@identify)), and the three procedures —
 //! - [`image_distance`]: the paper's two-position procedure on two images of the cross pattern;
 //! - [`intrinsics`]: full intrinsics from several images of a dot grid (Zhang's method, refined);
 //! - [`board_planes`]: both board planes from an image of the board without laser, by the layout
 //!   pose (default) and, where the layout is the paper's, by the paper's three-point lines.
 //!
-//! The results go into one calibration file ([`file`]) with an annotated picture ([`overlay`]).
+//! The results go into one calibration file ([`file`](mod@file)) with an annotated picture ([`overlay`]).
 
 pub mod board;
 pub mod corners;
@@ -525,6 +525,11 @@ pub struct ViewFit {
     pub max_px: f64,
 }
 
+/// Identified features of one image: `(layout index, pixel)`.
+type Found = Vec<(usize, Point2<f64>)>;
+/// Sheet positions and their pixels.
+type Correspondences = (Vec<Point2<f64>>, Vec<Point2<f64>>);
+
 /// A planar target for intrinsics: a dot grid or a chessboard.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum Target {
@@ -666,7 +671,7 @@ pub fn intrinsics(
     };
     let size = first.dimensions();
     let layout = target.points();
-    let mut found: Vec<Result<Vec<(usize, Point2<f64>)>, CalibError>> = Vec::new();
+    let mut found: Vec<Result<Found, CalibError>> = Vec::new();
     for img in images {
         check_size(size, img)?;
         found.push(find_grid(img, target));
@@ -681,7 +686,7 @@ pub fn intrinsics(
             missing: (0..images.len()).filter(|i| !ok.contains(i)).collect(),
         });
     }
-    let data: Vec<(Vec<Point2<f64>>, Vec<Point2<f64>>)> = ok
+    let data: Vec<Correspondences> = ok
         .iter()
         .map(|&i| {
             let f = found[i].as_ref().expect("ok");

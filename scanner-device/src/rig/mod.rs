@@ -25,7 +25,8 @@
 //! Objects are analytic shapes or triangle meshes from OBJ files ([`mesh`]). Calibration shots —
 //! the paper's cross pattern and planar targets at any pose — are in [`target`].
 //!
-//! Not yet here (issue 4 continues): markers read from the board file of issue 5.
+//! The board's markers come from a board file ([`crate::calib::board`]): discs or a chessboard
+//! per sheet.
 //!
 //! Scenes can be read from TOML ([`Scene::from_toml`]); `scanner-device render` writes a scene's
 //! frames as PNG files with their ground truth.
@@ -123,7 +124,7 @@ impl Chess {
     }
 
     /// Distance (mm) to the nearest square edge or the board's outline.
-    fn to_edge(&self, uv: [f64; 2]) -> f64 {
+    fn edge_distance(&self, uv: [f64; 2]) -> f64 {
         let (a, b) = (
             (uv[0] - self.u0) / self.square + 1.0,
             (uv[1] - self.v0) / self.square + 1.0,
@@ -764,7 +765,7 @@ impl Rig {
         let m = &self.scene.board.markers;
         let uv = self.board.sheet(k, p);
         if let Some(c) = &m.chess[k] {
-            return c.to_edge(uv);
+            return c.edge_distance(uv);
         }
         let list = if k == 0 { &m.left } else { &m.right };
         list.iter()
