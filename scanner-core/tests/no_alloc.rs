@@ -1,8 +1,9 @@
 //! The per-frame calls allocate nothing: a counting global allocator watches the stripe extractor
-//! (every format, both methods and axes, every estimator) and the f32 geometry of one frame.
+//! (every format, both methods and axes, every estimator) and the f32 geometry of one frame; and
+//! the intrinsics calibration (Zhang's closed form, poses, joint refinement).
 
 use std::alloc::{GlobalAlloc, Layout, System};
-use std::sync::atomic::{AtomicUsize, Ordering};
+use std::cell::Cell;
 
 use scanner_core::geometry::{Board, LaserFitConfig, Limits, Plane, laser, triangulate};
 use scanner_core::nalgebra::{Point2, Point3, Vector3};
@@ -11,13 +12,16 @@ use scanner_core::{Camera, Distortion};
 
 struct Counting;
 
-static ALLOCATIONS: AtomicUsize = AtomicUsize::new(0);
+// Per thread: the test harness allocates on other threads while a test runs.
+thread_local! {
+    static ALLOCATIONS: Cell<usize> = const { Cell::new(0) };
+}
 
 // SAFETY: forwards to the system allocator unchanged; only counts.
 #[allow(unsafe_code)]
 unsafe impl GlobalAlloc for Counting {
     unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
-        ALLOCATIONS.fetch_add(1, Ordering::SeqCst);
+        let _ = ALLOCATIONS.try_with(|c| c.set(c.get() + 1));
         // SAFETY: same contract as the caller's.
         unsafe { System.alloc(layout) }
     }
@@ -31,9 +35,9 @@ unsafe impl GlobalAlloc for Counting {
 static GLOBAL: Counting = Counting;
 
 fn allocations_during(f: impl FnOnce()) -> usize {
-    let before = ALLOCATIONS.load(Ordering::SeqCst);
+    let before = ALLOCATIONS.with(Cell::get);
     f();
-    ALLOCATIONS.load(Ordering::SeqCst) - before
+    ALLOCATIONS.with(Cell::get) - before
 }
 
 #[test]
@@ -121,4 +125,52 @@ fn per_frame_calls_do_not_allocate() {
             std::hint::black_box(vec![1u8; 10]);
         }) > 0
     );
+}
+
+#[test]
+fn intrinsics_calibration_does_not_allocate() {
+    use scanner_core::calib::bundle::{initial_camera, initial_pose, refine};
+    use scanner_core::calib::model::predict;
+    use scanner_core::calib::{Free, View};
+    use scanner_core::geometry::Pose;
+    use scanner_core::nalgebra::{Point2, Rotation3, Vector3};
+    use scanner_core::{Camera, Distortion};
+    let truth = Camera::new(
+        900.0,
+        901.0,
+        322.0,
+        241.0,
+        Distortion {
+            k1: -0.1,
+            ..Distortion::none()
+        },
+    )
+    .unwrap();
+    let layout: [Point2<f64>; 20] = core::array::from_fn(|i| {
+        Point2::new((i % 5) as f64 * 20.0 - 40.0, (i / 5) as f64 * 20.0 - 30.0)
+    });
+    let poses: [Pose; 4] = core::array::from_fn(|k| Pose {
+        rotation: Rotation3::from_euler_angles(
+            0.4 * (k as f64 - 1.5),
+            0.3 * ((k % 2) as f64 - 0.5),
+            0.1,
+        ),
+        translation: Vector3::new(10.0 * k as f64, -5.0, 500.0 + 40.0 * k as f64),
+    });
+    let pixels: [[Point2<f64>; 20]; 4] = core::array::from_fn(|k| {
+        core::array::from_fn(|i| predict(&truth, &poses[k], &layout[i], 3.0).unwrap())
+    });
+    let mut result = None;
+    let n = allocations_during(|| {
+        let views: [View; 4] = core::array::from_fn(|k| View {
+            layout: &layout,
+            pixels: &pixels[k],
+        });
+        let init = initial_camera(&views, 640, 480).unwrap();
+        let mut p: [Pose; 4] = core::array::from_fn(|k| initial_pose(&init, &views[k]).unwrap());
+        result = Some(refine(&init, Free::NO_K3, &views, &mut p, 3.0).unwrap());
+    });
+    assert_eq!(n, 0, "calibration allocated {n} times");
+    let r = result.unwrap();
+    assert!((r.camera.fx() - 900.0).abs() < 1e-6, "{:?}", r.camera);
 }
