@@ -8,7 +8,6 @@
 use std::fmt::Write as _;
 
 use scanner_core::calib::Free;
-use scanner_core::nalgebra::Point3;
 use scanner_device::calib::{DotGrid, Target, intrinsics};
 use scanner_device::rig::target::{Pattern, TargetPose};
 use scanner_device::rig::{Rig, Scene};
@@ -42,16 +41,7 @@ fn main() -> anyhow::Result<()> {
     let mut images = Vec::new();
     let mut chess_images = Vec::new();
     for i in 0..n {
-        let a = i as f64 / n as f64 * std::f64::consts::TAU;
-        let z = 550.0 + 300.0 * ((i * 7) % n) as f64 / n as f64;
-        let pose = TargetPose {
-            centre: Point3::new(0.22 * z * a.cos(), 0.15 * z * a.sin(), z),
-            turn_deg: [
-                35.0 * a.sin(),
-                -35.0 * a.cos(),
-                10.0 * (i as f64 - n as f64 / 2.0) / n as f64,
-            ],
-        };
+        let pose = TargetPose::sweep(i, n);
         let img = rig.shot(&pattern, &pose, i as u64).image.to_gray_image();
         img.save(out.join(format!("grid-{i:02}.png")))?;
         images.push(img);

@@ -384,16 +384,7 @@ pub fn render_calibration(rig: &crate::rig::Rig, out: &Path) -> Result<()> {
     };
     let n = 12;
     for i in 0..n {
-        let a = i as f64 / n as f64 * std::f64::consts::TAU;
-        let z = 550.0 + 300.0 * ((i * 7) % n) as f64 / n as f64;
-        let pose = TargetPose {
-            centre: Point3::new(0.22 * z * a.cos(), 0.15 * z * a.sin(), z),
-            turn_deg: [
-                35.0 * a.sin(),
-                -35.0 * a.cos(),
-                10.0 * (i as f64 - n as f64 / 2.0) / n as f64,
-            ],
-        };
+        let pose = TargetPose::sweep(i, n);
         gray(
             &rig.shot(&pattern, &pose, i as u64).image,
             &format!("grid-{i:02}.png"),

@@ -67,16 +67,7 @@ fn grid_shots(rig: &Rig, n: usize) -> (DotGrid, Vec<image::GrayImage>) {
     };
     let images = (0..n)
         .map(|i| {
-            let a = i as f64 / n as f64 * std::f64::consts::TAU;
-            let z = 550.0 + 300.0 * ((i * 7) % n) as f64 / n as f64;
-            let pose = TargetPose {
-                centre: Point3::new(0.22 * z * a.cos(), 0.15 * z * a.sin(), z),
-                turn_deg: [
-                    35.0 * a.sin(),
-                    -35.0 * a.cos(),
-                    10.0 * (i as f64 - n as f64 / 2.0) / n as f64,
-                ],
-            };
+            let pose = TargetPose::sweep(i, n);
             rig.shot(&pattern, &pose, i as u64).image.to_gray_image()
         })
         .collect();
@@ -396,16 +387,7 @@ fn intrinsics_from_rendered_chessboards() {
     let n = 12;
     let images: Vec<_> = (0..n)
         .map(|i| {
-            let a = i as f64 / n as f64 * std::f64::consts::TAU;
-            let z = 550.0 + 300.0 * ((i * 7) % n) as f64 / n as f64;
-            let pose = TargetPose {
-                centre: Point3::new(0.22 * z * a.cos(), 0.15 * z * a.sin(), z),
-                turn_deg: [
-                    35.0 * a.sin(),
-                    -35.0 * a.cos(),
-                    10.0 * (i as f64 - n as f64 / 2.0) / n as f64,
-                ],
-            };
+            let pose = TargetPose::sweep(i, n);
             rig.shot(&pattern, &pose, i as u64).image.to_gray_image()
         })
         .collect();

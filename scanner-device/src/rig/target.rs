@@ -154,6 +154,24 @@ pub struct TargetPose {
     pub turn_deg: [f64; 3],
 }
 
+impl TargetPose {
+    /// Pose `i` of `n` for an intrinsics calibration: the target 550–850 mm away, spread over the
+    /// image and turned up to ±35° in every direction (what a user waving a printed target in
+    /// front of the camera does, evenly).
+    pub fn sweep(i: usize, n: usize) -> TargetPose {
+        let a = i as f64 / n as f64 * std::f64::consts::TAU;
+        let z = 550.0 + 300.0 * ((i * 7) % n) as f64 / n as f64;
+        TargetPose {
+            centre: Point3::new(0.22 * z * a.cos(), 0.15 * z * a.sin(), z),
+            turn_deg: [
+                35.0 * a.sin(),
+                -35.0 * a.cos(),
+                10.0 * (i as f64 - n as f64 / 2.0) / n as f64,
+            ],
+        }
+    }
+}
+
 /// Ground truth of one feature (a dot or a chessboard corner).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct FeatureTruth {
