@@ -35,6 +35,7 @@ mod error;
 pub mod geometry;
 mod real;
 pub mod stripe;
+pub mod wire;
 
 pub use camera::{Camera, Distortion};
 pub use error::GeomError;

@@ -1,0 +1,373 @@
+//! The wire between the scanner head and the host: message types and their framing. Shared by
+//! both ends; `no_std`, no heap (encoding writes into the caller's buffers, decoding borrows from
+//! them). The format is written down in `docs/wire.md`.
+//!
+//! A frame on the wire:
+//! ```text
+//! 0x00 ‖ COBS( version:u8 ‖ postcard(Message) ‖ crc32(version ‖ postcard(Message)):u32 LE ) ‖ 0x00
+//! ```
+//! COBS removes every zero byte, so `0x00` delimits frames: a reader that joins mid-stream or
+//! after garbage resynchronises at the next zero, and the leading zero cuts off any garbage just
+//! before a frame (empty frames between two zeros are ignored). The CRC is CRC-32/ISO-HDLC (the zlib one).
+//!
+//! Messages: a [`Header`] (image size, units, the calibration summary, scan id; repeated
+//! periodically so that a host that joins late can decode), one [`Points`] per frame
+//! (self-contained: losing one loses only that frame), and a [`Status`] (counters).
+
+pub mod points;
+
+use core::fmt;
+
+use serde::{Deserialize, Serialize};
+
+/// Protocol version, the first byte of every frame.
+pub const VERSION: u8 = 1;
+/// Size of one wire unit of length, mm (0.01 mm).
+pub const UNIT_MM: f32 = 0.01;
+/// Largest frame before COBS, bytes (a 4096-column frame with colour fits).
+pub const MAX_FRAME: usize = 4096 * 18 + 256;
+/// Largest encoded frame including COBS overhead and both delimiters.
+pub const MAX_ENCODED: usize = cobs::max_encoding_length(MAX_FRAME) + 2;
+/// Number of reasons a frame can be skipped.
+pub const SKIP_REASONS: usize = 6;
+
+const CRC: crc::Crc<u32> = crc::Crc::<u32>::new(&crc::CRC_32_ISO_HDLC);
+
+/// Why a frame produced no points, in [`Status::skipped`] order.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[repr(u8)]
+pub enum Skip {
+    /// Too few stripe pixels on the board (laser off, out of view, too faint).
+    NoStripe = 0,
+    /// The stripe was on one board plane only.
+    OnePlaneOnly = 1,
+    /// The laser plane (nearly) contains the camera centre.
+    PlaneThroughCamera = 2,
+    /// The laser plane failed its quality check (e.g. the stripe's board parts disagree).
+    PoorPlane = 3,
+    /// The camera delivered a bad frame (size, format).
+    BadFrame = 4,
+    /// The link was too slow: the frame was dropped whole.
+    LinkFull = 5,
+}
+
+impl Skip {
+    /// Every reason, in order.
+    pub const ALL: [Skip; SKIP_REASONS] = [
+        Skip::NoStripe,
+        Skip::OnePlaneOnly,
+        Skip::PlaneThroughCamera,
+        Skip::PoorPlane,
+        Skip::BadFrame,
+        Skip::LinkFull,
+    ];
+
+    /// A short name.
+    pub fn name(self) -> &'static str {
+        match self {
+            Skip::NoStripe => "no stripe on the board",
+            Skip::OnePlaneOnly => "stripe on one plane only",
+            Skip::PlaneThroughCamera => "laser plane through the camera",
+            Skip::PoorPlane => "laser plane failed its check",
+            Skip::BadFrame => "bad camera frame",
+            Skip::LinkFull => "link too slow (frame dropped)",
+        }
+    }
+}
+
+/// The session header.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct Header {
+    /// Scan id (random per scan): frames of different scans are not mixed.
+    pub scan_id: u32,
+    /// Image width, pixels.
+    pub width: u16,
+    /// Image height, pixels.
+    pub height: u16,
+    /// Length of one wire unit, micrometres (10: 0.01 mm).
+    pub unit_um: u16,
+    /// Camera intrinsics `fx, fy, cx, cy, k1, k2, p1, p2, k3`.
+    pub camera: [f32; 9],
+    /// Board planes `[nx, ny, nz, d]` (mm), left and right.
+    pub board: [[f32; 4]; 2],
+    /// Whether points carry colour.
+    pub colour: bool,
+    /// Laser-plane method: 0 least squares, 1 the paper's construction.
+    pub method: u8,
+}
+
+/// One frame's points.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct Points<'a> {
+    /// Scan id.
+    pub scan_id: u32,
+    /// Frame number in the scan (gaps: skipped or lost frames).
+    pub frame: u32,
+    /// Capture time since the scan started, microseconds.
+    pub time_us: u64,
+    /// The laser plane `[nx, ny, nz, d]` of this frame.
+    pub plane: [f32; 4],
+    /// Number of points.
+    pub count: u32,
+    /// Coordinates: [`points`] coding of the quantised points.
+    #[serde(borrow)]
+    pub xyz: &'a [u8],
+    /// Colour, 3 bytes (RGB) per point, or empty.
+    #[serde(borrow)]
+    pub rgb: &'a [u8],
+}
+
+/// Counters of the head.
+#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
+pub struct Status {
+    /// Scan id.
+    pub scan_id: u32,
+    /// Frames captured.
+    pub frames: u32,
+    /// Point packets sent.
+    pub packets: u32,
+    /// Points sent.
+    pub points: u64,
+    /// Bytes sent (framing included).
+    pub bytes: u64,
+    /// Frames skipped, by [`Skip`] reason.
+    pub skipped: [u32; SKIP_REASONS],
+    /// Frames per second processed, × 1000.
+    pub fps_milli: u32,
+    /// `true` in the last status of a scan.
+    pub done: bool,
+    /// Why the scan ended early (0: it did not; 1: camera lost; 2: stopped).
+    pub ended: u8,
+}
+
+/// A message.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub enum Message<'a> {
+    /// The session header.
+    Header(Header),
+    /// A frame's points.
+    #[serde(borrow)]
+    Points(Points<'a>),
+    /// Counters.
+    Status(Status),
+}
+
+/// Why encoding or decoding failed.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum WireError {
+    /// The output buffer is too small.
+    BufferFull,
+    /// The bytes end before the message does.
+    Truncated,
+    /// Not valid COBS.
+    BadCobs,
+    /// The CRC does not match.
+    BadCrc,
+    /// A protocol version this build does not read.
+    UnknownVersion(u8),
+    /// The payload is not a message of this version.
+    BadPayload,
+    /// The point data is inconsistent with its count.
+    BadPoints,
+    /// A frame longer than [`MAX_ENCODED`].
+    Oversize,
+}
+
+impl fmt::Display for WireError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Self::BufferFull => f.write_str("output buffer too small"),
+            Self::Truncated => f.write_str("data ends inside a message"),
+            Self::BadCobs => f.write_str("bad COBS framing"),
+            Self::BadCrc => f.write_str("CRC mismatch"),
+            Self::UnknownVersion(v) => write!(
+                f,
+                "unknown protocol version {v} (this build reads {VERSION})"
+            ),
+            Self::BadPayload => f.write_str("payload is not a valid message"),
+            Self::BadPoints => f.write_str("point data inconsistent with its count"),
+            Self::Oversize => write!(f, "frame longer than {MAX_ENCODED} bytes"),
+        }
+    }
+}
+
+impl core::error::Error for WireError {}
+
+/// Encodes `msg` as one delimited frame into `out`, using `scratch` for the unframed bytes;
+/// returns the number of bytes written to `out`.
+///
+/// # Errors
+/// [`WireError::BufferFull`] if `scratch` or `out` is too small.
+pub fn encode(msg: &Message, scratch: &mut [u8], out: &mut [u8]) -> Result<usize, WireError> {
+    let first = scratch.first_mut().ok_or(WireError::BufferFull)?;
+    *first = VERSION;
+    let body = postcard::to_slice(msg, &mut scratch[1..])
+        .map_err(|_| WireError::BufferFull)?
+        .len();
+    let n = 1 + body;
+    let crc = CRC.checksum(&scratch[..n]);
+    scratch
+        .get_mut(n..n + 4)
+        .ok_or(WireError::BufferFull)?
+        .copy_from_slice(&crc.to_le_bytes());
+    let raw = &scratch[..n + 4];
+    if out.len() < cobs::max_encoding_length(raw.len()) + 2 {
+        return Err(WireError::BufferFull);
+    }
+    out[0] = 0;
+    let len = cobs::encode(raw, &mut out[1..]);
+    out[len + 1] = 0;
+    Ok(len + 2)
+}
+
+/// Decodes one frame's bytes (between delimiters, without the `0x00`) in place.
+///
+/// # Errors
+/// Every [`WireError`] but [`WireError::BufferFull`].
+pub fn decode_frame(frame: &mut [u8]) -> Result<Message<'_>, WireError> {
+    let n = cobs::decode_in_place(frame).map_err(|_| WireError::BadCobs)?;
+    if n < 5 {
+        return Err(WireError::Truncated);
+    }
+    let (body, crc) = frame[..n].split_at(n - 4);
+    let want = u32::from_le_bytes([crc[0], crc[1], crc[2], crc[3]]);
+    if CRC.checksum(body) != want {
+        return Err(WireError::BadCrc);
+    }
+    if body[0] != VERSION {
+        return Err(WireError::UnknownVersion(body[0]));
+    }
+    let (msg, rest): (Message, _) =
+        postcard::take_from_bytes(&body[1..]).map_err(|_| WireError::BadPayload)?;
+    if !rest.is_empty() {
+        return Err(WireError::BadPayload);
+    }
+    if let Message::Points(p) = &msg {
+        if !(p.rgb.is_empty() || p.rgb.len() == 3 * p.count as usize) {
+            return Err(WireError::BadPoints);
+        }
+        // Every coordinate takes at least one byte.
+        if p.xyz.len() < 3 * p.count as usize {
+            return Err(WireError::BadPoints);
+        }
+    }
+    Ok(msg)
+}
+
+/// Counts of what a [`Decoder`] saw.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct DecodeStats {
+    /// Frames decoded.
+    pub frames: u64,
+    /// Bytes consumed.
+    pub bytes: u64,
+    /// Frames rejected: bad COBS.
+    pub bad_cobs: u64,
+    /// Frames rejected: CRC mismatch.
+    pub bad_crc: u64,
+    /// Frames rejected: unknown version.
+    pub bad_version: u64,
+    /// Frames rejected: payload not a message, or inconsistent points.
+    pub bad_payload: u64,
+    /// Frames rejected: longer than the buffer.
+    pub oversize: u64,
+    /// Frames rejected: too short.
+    pub truncated: u64,
+}
+
+impl DecodeStats {
+    /// All rejected frames.
+    pub fn rejected(&self) -> u64 {
+        self.bad_cobs
+            + self.bad_crc
+            + self.bad_version
+            + self.bad_payload
+            + self.oversize
+            + self.truncated
+    }
+}
+
+/// A streaming decoder with a fixed buffer of `N` bytes: feed it bytes in any chunks; it calls
+/// back with every complete frame (decoded, or the reason it was rejected) and resynchronises at
+/// the next delimiter after garbage. Never panics on any input.
+pub struct Decoder<const N: usize> {
+    buf: [u8; N],
+    len: usize,
+    overflow: bool,
+    stats: DecodeStats,
+}
+
+impl<const N: usize> Default for Decoder<N> {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl<const N: usize> Decoder<N> {
+    /// An empty decoder.
+    pub const fn new() -> Self {
+        Decoder {
+            buf: [0; N],
+            len: 0,
+            overflow: false,
+            stats: DecodeStats {
+                frames: 0,
+                bytes: 0,
+                bad_cobs: 0,
+                bad_crc: 0,
+                bad_version: 0,
+                bad_payload: 0,
+                oversize: 0,
+                truncated: 0,
+            },
+        }
+    }
+
+    /// What it has seen so far.
+    pub fn stats(&self) -> DecodeStats {
+        self.stats
+    }
+
+    /// Bytes of an unfinished frame held.
+    pub fn pending(&self) -> usize {
+        self.len
+    }
+
+    /// Feeds bytes; `f` gets each complete frame in order.
+    pub fn feed(&mut self, bytes: &[u8], mut f: impl FnMut(Result<Message<'_>, WireError>)) {
+        for &b in bytes {
+            self.stats.bytes += 1;
+            if b != 0 {
+                if self.len < N {
+                    self.buf[self.len] = b;
+                    self.len += 1;
+                } else {
+                    self.overflow = true;
+                }
+                continue;
+            }
+            // A delimiter: a frame ends (empty ones are ignored).
+            let (len, overflow) = (self.len, self.overflow);
+            self.len = 0;
+            self.overflow = false;
+            if overflow {
+                self.stats.oversize += 1;
+                f(Err(WireError::Oversize));
+                continue;
+            }
+            if len == 0 {
+                continue;
+            }
+            let res = decode_frame(&mut self.buf[..len]);
+            match &res {
+                Ok(_) => self.stats.frames += 1,
+                Err(WireError::BadCobs) => self.stats.bad_cobs += 1,
+                Err(WireError::BadCrc) => self.stats.bad_crc += 1,
+                Err(WireError::UnknownVersion(_)) => self.stats.bad_version += 1,
+                Err(WireError::Truncated) => self.stats.truncated += 1,
+                Err(_) => self.stats.bad_payload += 1,
+            }
+            f(res);
+        }
+    }
+}
