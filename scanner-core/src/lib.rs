@@ -33,6 +33,7 @@ pub mod calib;
 pub mod camera;
 mod error;
 pub mod geometry;
+pub mod pipeline;
 mod real;
 pub mod stripe;
 pub mod wire;

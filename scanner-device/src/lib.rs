@@ -9,9 +9,14 @@
 
 pub mod calib;
 pub mod calib_cli;
+pub mod convert;
+pub mod head;
+pub mod link;
 pub mod render;
 pub mod rig;
+pub mod scan_cli;
 pub mod source;
+pub mod v4l_source;
 
 use std::path::PathBuf;
 
@@ -80,6 +85,10 @@ pub enum Command {
     /// Calibrate from images: intrinsics, the paper's image distance, or the board planes.
     #[command(subcommand)]
     Calibrate(calib_cli::Calibrate),
+    /// Scan: frames from the source through the pipeline to point packets on the link.
+    Scan(scan_cli::ScanArgs),
+    /// List the V4L2 cameras with their formats and sizes.
+    Devices,
 }
 
 /// Runs the scanner head with parsed arguments.
@@ -136,6 +145,14 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
             calib_cli::board_command(board.as_deref(), out, *dpi)?;
         }
         Some(Command::Calibrate(c)) => calib_cli::calibrate(c)?,
+        Some(Command::Scan(a)) => {
+            let report = scan_cli::scan(a)?;
+            scan_cli::print_report(&report);
+            if let Some(e) = report.ended_early {
+                anyhow::bail!("{e}");
+            }
+        }
+        Some(Command::Devices) => scan_cli::devices(),
         None => println!("scanner-device: nothing to do yet (try --help)"),
     }
     Ok(())

@@ -1,0 +1,192 @@
+//! Camera buffers to the pixel formats the pipeline reads. Pure functions, tested on recorded
+//! buffers, so that the V4L2 path's format handling is checked without a camera.
+//!
+//! Camera formats (V4L2 FourCC): `YUYV` (4:2:2, luma every other byte), `GREY` (8-bit), `RGB3`
+//! (24-bit RGB), `MJPG` (motion JPEG: each buffer a JPEG image). Buffers may have padded rows
+//! (`stride` ≥ the packed row).
+
+use scanner_core::stripe::PixelFormat;
+
+/// A camera's pixel format.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum CameraFormat {
+    /// `YUYV`.
+    Yuyv,
+    /// `GREY`.
+    Grey,
+    /// `RGB3`.
+    Rgb3,
+    /// `MJPG`.
+    Mjpeg,
+}
+
+impl CameraFormat {
+    /// From a FourCC code.
+    pub fn from_fourcc(code: [u8; 4]) -> Option<CameraFormat> {
+        match &code {
+            b"YUYV" => Some(CameraFormat::Yuyv),
+            b"GREY" => Some(CameraFormat::Grey),
+            b"RGB3" => Some(CameraFormat::Rgb3),
+            b"MJPG" => Some(CameraFormat::Mjpeg),
+            _ => None,
+        }
+    }
+
+    /// The FourCC code.
+    pub fn fourcc(self) -> [u8; 4] {
+        match self {
+            CameraFormat::Yuyv => *b"YUYV",
+            CameraFormat::Grey => *b"GREY",
+            CameraFormat::Rgb3 => *b"RGB3",
+            CameraFormat::Mjpeg => *b"MJPG",
+        }
+    }
+
+    fn bytes_per_pixel(self) -> usize {
+        match self {
+            CameraFormat::Yuyv => 2,
+            CameraFormat::Grey => 1,
+            CameraFormat::Rgb3 => 3,
+            CameraFormat::Mjpeg => 0,
+        }
+    }
+}
+
+/// Why a buffer could not be converted.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum ConvertError {
+    /// The buffer is shorter than its size says.
+    #[error(
+        "camera buffer of {got} bytes, {want} expected for {width}×{height} {format:?} (stride {stride})"
+    )]
+    Short {
+        /// Bytes received.
+        got: usize,
+        /// Bytes needed.
+        want: usize,
+        /// Width.
+        width: usize,
+        /// Height.
+        height: usize,
+        /// Format.
+        format: CameraFormat,
+        /// Row stride.
+        stride: usize,
+    },
+    /// A MJPEG frame that does not decode, or decodes to another size.
+    #[error("MJPEG frame: {0}")]
+    Jpeg(String),
+    /// An odd width for YUYV.
+    #[error("YUYV needs an even width, got {0}")]
+    OddWidth(usize),
+}
+
+fn luma(r: u8, g: u8, b: u8) -> u8 {
+    (0.299 * f32::from(r) + 0.587 * f32::from(g) + 0.114 * f32::from(b)).round() as u8
+}
+
+/// Converts one camera buffer to `want` into `out` (resized to fit, rows packed).
+///
+/// # Errors
+/// [`ConvertError`] naming what is wrong with the buffer.
+pub fn convert(
+    format: CameraFormat,
+    data: &[u8],
+    width: usize,
+    height: usize,
+    stride: usize,
+    want: PixelFormat,
+    out: &mut Vec<u8>,
+) -> Result<(), ConvertError> {
+    if format == CameraFormat::Mjpeg {
+        let img = image::load_from_memory_with_format(data, image::ImageFormat::Jpeg)
+            .map_err(|e| ConvertError::Jpeg(e.to_string()))?;
+        if (img.width() as usize, img.height() as usize) != (width, height) {
+            return Err(ConvertError::Jpeg(format!(
+                "decodes to {}×{}, the stream is {width}×{height}",
+                img.width(),
+                img.height()
+            )));
+        }
+        let rgb = img.to_rgb8();
+        return convert(
+            CameraFormat::Rgb3,
+            rgb.as_raw(),
+            width,
+            height,
+            3 * width,
+            want,
+            out,
+        );
+    }
+    let bpp = format.bytes_per_pixel();
+    let stride = stride.max(bpp * width);
+    let need = if height == 0 {
+        0
+    } else {
+        stride * (height - 1) + bpp * width
+    };
+    if data.len() < need {
+        return Err(ConvertError::Short {
+            got: data.len(),
+            want: need,
+            width,
+            height,
+            format,
+            stride,
+        });
+    }
+    if (format == CameraFormat::Yuyv || want == PixelFormat::Yuyv) && width % 2 != 0 {
+        return Err(ConvertError::OddWidth(width));
+    }
+    out.clear();
+    out.reserve(want.bytes_per_pixel() * width * height);
+    for y in 0..height {
+        let row = &data[y * stride..y * stride + bpp * width];
+        match (format, want) {
+            (CameraFormat::Yuyv, PixelFormat::Yuyv)
+            | (CameraFormat::Grey, PixelFormat::Gray8)
+            | (CameraFormat::Rgb3, PixelFormat::Rgb24) => out.extend_from_slice(row),
+            (CameraFormat::Yuyv, PixelFormat::Gray8) => out.extend(row.iter().step_by(2)),
+            (CameraFormat::Grey, PixelFormat::Rgb24) => {
+                row.iter().for_each(|&v| out.extend([v, v, v]))
+            }
+            (CameraFormat::Grey, PixelFormat::Yuyv) => {
+                row.iter().for_each(|&v| out.extend([v, 128]))
+            }
+            (CameraFormat::Rgb3, PixelFormat::Gray8) => {
+                out.extend(row.chunks_exact(3).map(|p| luma(p[0], p[1], p[2])));
+            }
+            (CameraFormat::Rgb3, PixelFormat::Yuyv) => {
+                for pair in row.chunks_exact(6) {
+                    let y0 = luma(pair[0], pair[1], pair[2]);
+                    let y1 = luma(pair[3], pair[4], pair[5]);
+                    let (r, g, b) = (
+                        (f32::from(pair[0]) + f32::from(pair[3])) / 2.0,
+                        (f32::from(pair[1]) + f32::from(pair[4])) / 2.0,
+                        (f32::from(pair[2]) + f32::from(pair[5])) / 2.0,
+                    );
+                    let yy = 0.299 * r + 0.587 * g + 0.114 * b;
+                    let u = ((b - yy) * 0.564 + 128.0).round().clamp(0.0, 255.0) as u8;
+                    let v = ((r - yy) * 0.713 + 128.0).round().clamp(0.0, 255.0) as u8;
+                    out.extend([y0, u, y1, v]);
+                }
+            }
+            (CameraFormat::Yuyv, PixelFormat::Rgb24) => {
+                for q in row.chunks_exact(4) {
+                    let (u, v) = (f32::from(q[1]) - 128.0, f32::from(q[3]) - 128.0);
+                    for yy in [f32::from(q[0]), f32::from(q[2])] {
+                        let c = |f: f32| f.round().clamp(0.0, 255.0) as u8;
+                        out.extend([
+                            c(yy + 1.402 * v),
+                            c(yy - 0.344_136 * u - 0.714_136 * v),
+                            c(yy + 1.772 * u),
+                        ]);
+                    }
+                }
+            }
+            (CameraFormat::Mjpeg, _) => return Err(ConvertError::Jpeg("not decoded".into())),
+        }
+    }
+    Ok(())
+}

@@ -1,0 +1,295 @@
+//! A scan on the head: frames from a source through [`scanner_core::pipeline::Head`] into
+//! point packets on the link, with the session header repeated and status counters.
+
+use std::time::Instant;
+
+use anyhow::{Result, bail};
+use scanner_core::geometry::Board;
+use scanner_core::pipeline::{Head, HeadConfig, PlaneMethod};
+use scanner_core::wire::{self, Header, Message, Points, Skip, Status};
+
+use crate::calib::file::CalibrationFile;
+use crate::link::Link;
+use crate::source::{FrameSource, OwnedFrame};
+
+/// Most lines (columns or rows) per frame the head handles.
+pub const MAX_LINES: usize = 4096;
+
+/// Settings of a scan.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ScanOptions {
+    /// The pipeline.
+    pub head: HeadConfig,
+    /// Repeat the header every this many frames.
+    pub header_every: u32,
+    /// Send a status every this many frames.
+    pub status_every: u32,
+    /// Scan id (random per scan unless given).
+    pub scan_id: u32,
+}
+
+/// How a scan went.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ScanReport {
+    /// The final counters (also the last message on the link; its `bytes` counts what was sent
+    /// before it).
+    pub status: Status,
+    /// Bytes sent, the final status included.
+    pub bytes: u64,
+    /// Point packets dropped because the link was busy.
+    pub dropped: u64,
+    /// Wall time, seconds.
+    pub seconds: f64,
+    /// Why the scan ended early, if it did.
+    pub ended_early: Option<String>,
+}
+
+impl ScanReport {
+    /// Bytes on the link per point sent, headers and framing included.
+    pub fn bytes_per_point(&self) -> f64 {
+        self.bytes as f64 / self.status.points.max(1) as f64
+    }
+}
+
+/// One scan's state: the pipeline and its buffers, allocated once.
+pub struct Session {
+    head: Box<Head<MAX_LINES>>,
+    reference: OwnedFrame,
+    header: Header,
+    status: Status,
+    opts: ScanOptions,
+    scratch: Vec<u8>,
+    xyz: Vec<u8>,
+    started: Instant,
+    frames_since_header: u32,
+    frames_since_status: u32,
+}
+
+impl Session {
+    /// A session for a calibration and the laser-off reference frame.
+    ///
+    /// # Errors
+    /// A calibration without a board, for another image size, or with unusable numbers.
+    pub fn new(cal: &CalibrationFile, reference: OwnedFrame, opts: ScanOptions) -> Result<Session> {
+        let (w, h) = (cal.image.width as usize, cal.image.height as usize);
+        if (reference.width, reference.height) != (w, h) {
+            bail!(
+                "the calibration is for {w}×{h} images but the camera gives {}×{}: calibrate at this resolution or choose {w}×{h}",
+                reference.width,
+                reference.height
+            );
+        }
+        let lines = match opts.head.stripe.axis {
+            scanner_core::stripe::Axis::Columns => w,
+            scanner_core::stripe::Axis::Rows => h,
+        };
+        if lines > MAX_LINES {
+            bail!("{lines} lines per frame: the head handles at most {MAX_LINES}");
+        }
+        let camera = cal.camera()?;
+        let Some(board) = cal.board() else {
+            bail!("the calibration file has no board: run `scanner-device calibrate board` first");
+        };
+        let board: Board<f64> = board?;
+        let c = &cal.camera;
+        let plane = |p: &scanner_core::geometry::Plane<f64>| {
+            let n = p.normal();
+            [n.x as f32, n.y as f32, n.z as f32, p.offset() as f32]
+        };
+        let header = Header {
+            scan_id: opts.scan_id,
+            width: w as u16,
+            height: h as u16,
+            unit_um: (wire::UNIT_MM * 1000.0).round() as u16,
+            camera: [c.fx, c.fy, c.cx, c.cy, c.k1, c.k2, c.p1, c.p2, c.k3].map(|v| v as f32),
+            board: [plane(board.left()), plane(board.right())],
+            colour: opts.head.colour,
+            method: match opts.head.method {
+                PlaneMethod::LeastSquares => 0,
+                PlaneMethod::Paper => 1,
+            },
+        };
+        Ok(Session {
+            head: Box::new(Head::new(camera.cast(), board.cast(), opts.head)),
+            reference,
+            header,
+            status: Status {
+                scan_id: opts.scan_id,
+                ..Status::default()
+            },
+            opts,
+            scratch: vec![0; wire::MAX_FRAME],
+            xyz: vec![0; 15 * MAX_LINES],
+            started: Instant::now(),
+            frames_since_header: 0,
+            frames_since_status: 0,
+        })
+    }
+
+    /// The session header.
+    pub fn header(&self) -> &Header {
+        &self.header
+    }
+
+    /// The counters so far.
+    pub fn status(&self) -> Status {
+        let mut s = self.status;
+        let secs = self.started.elapsed().as_secs_f64();
+        s.fps_milli = if secs > 0.0 {
+            (f64::from(s.frames) / secs * 1000.0) as u32
+        } else {
+            0
+        };
+        s
+    }
+
+    /// Encodes `msg` into a link buffer (`None`: the link is busy and the message is dropped).
+    fn send(&mut self, link: &mut Link, msg: &Message, must: bool) -> Result<bool> {
+        let buf = if must {
+            Some(link.buffer_blocking()?)
+        } else {
+            link.buffer()
+        };
+        let Some(mut buf) = buf else {
+            return Ok(false);
+        };
+        buf.resize(buf.capacity().max(wire::MAX_ENCODED), 0);
+        let n = wire::encode(msg, &mut self.scratch, &mut buf)
+            .map_err(|e| anyhow::anyhow!("encoding a message: {e}"))?;
+        buf.truncate(n);
+        self.status.bytes += n as u64;
+        link.send(buf)?;
+        Ok(true)
+    }
+
+    /// Sends the session header (dropped if the link is busy: it repeats).
+    ///
+    /// # Errors
+    /// The link failed.
+    pub fn send_header(&mut self, link: &mut Link) -> Result<()> {
+        let h = Message::Header(self.header);
+        self.send(link, &h, false)?;
+        self.frames_since_header = 0;
+        Ok(())
+    }
+
+    /// Runs one frame and sends its points. `on_points` sees the frame number and the points
+    /// exactly as sent. Returns the skip reason when the frame gave no packet.
+    ///
+    /// # Errors
+    /// The link failed.
+    pub fn frame(
+        &mut self,
+        frame: &OwnedFrame,
+        link: &mut Link,
+        mut on_points: impl FnMut(u32, &[[i32; 3]]),
+    ) -> Result<Option<Skip>> {
+        let number = self.status.frames;
+        self.status.frames += 1;
+        self.frames_since_header += 1;
+        self.frames_since_status += 1;
+        let time_us = self.started.elapsed().as_micros() as u64;
+        let outcome = match (frame.view(), self.reference.view()) {
+            (Ok(f), Ok(r)) => match self.head.process(&f, Some(&r)) {
+                Ok(out) => {
+                    let n = scanner_core::wire::points::encode(out.points, &mut self.xyz)
+                        .map_err(|e| anyhow::anyhow!("encoding points: {e}"))?;
+                    let msg = Message::Points(Points {
+                        scan_id: self.opts.scan_id,
+                        frame: number,
+                        time_us,
+                        plane: out.plane,
+                        count: out.points.len() as u32,
+                        xyz: &self.xyz[..n],
+                        rgb: out.rgb.as_flattened(),
+                    });
+                    let count = out.points.len() as u64;
+                    on_points(number, out.points);
+                    // The head's buffers are borrowed by `msg`: encode before they change.
+                    let buf = link.buffer();
+                    match buf {
+                        None => {
+                            link.count_drop();
+                            Some(Skip::LinkFull)
+                        }
+                        Some(mut buf) => {
+                            buf.resize(buf.capacity().max(wire::MAX_ENCODED), 0);
+                            let len = wire::encode(&msg, &mut self.scratch, &mut buf)
+                                .map_err(|e| anyhow::anyhow!("encoding a packet: {e}"))?;
+                            buf.truncate(len);
+                            self.status.bytes += len as u64;
+                            self.status.packets += 1;
+                            self.status.points += count;
+                            link.send(buf)?;
+                            None
+                        }
+                    }
+                }
+                Err(skip) => Some(skip),
+            },
+            _ => Some(Skip::BadFrame),
+        };
+        if let Some(s) = outcome {
+            self.status.skipped[s as usize] += 1;
+        }
+        if self.frames_since_header >= self.opts.header_every {
+            self.send_header(link)?;
+        }
+        if self.frames_since_status >= self.opts.status_every {
+            let s = Message::Status(self.status());
+            self.send(link, &s, false)?;
+            self.frames_since_status = 0;
+        }
+        Ok(outcome)
+    }
+
+    /// Sends the final status (waiting for the link) and reports.
+    ///
+    /// # Errors
+    /// The link failed.
+    pub fn finish(mut self, link: &mut Link, ended_early: Option<String>) -> Result<ScanReport> {
+        let mut s = self.status();
+        s.done = true;
+        s.ended = u8::from(ended_early.is_some());
+        let before = self.status.bytes;
+        self.send(link, &Message::Status(s), true)?;
+        let bytes = self.status.bytes;
+        debug_assert!(bytes > before);
+        Ok(ScanReport {
+            status: s,
+            bytes,
+            dropped: link.stats().dropped,
+            seconds: self.started.elapsed().as_secs_f64(),
+            ended_early,
+        })
+    }
+}
+
+/// Runs a whole scan: reference, header, every frame, final status. A source that fails
+/// mid-scan ends the scan cleanly (final status, then the report says why).
+///
+/// # Errors
+/// Calibration problems, the source failing before the first frame, the link failing.
+pub fn run_scan(
+    source: &mut dyn FrameSource,
+    cal: &CalibrationFile,
+    opts: ScanOptions,
+    link: &mut Link,
+    mut progress: impl FnMut(&Status),
+    mut on_points: impl FnMut(u32, &[[i32; 3]]),
+) -> Result<ScanReport> {
+    let reference = source.reference()?;
+    let mut session = Session::new(cal, reference, opts)?;
+    session.send_header(link)?;
+    let ended = loop {
+        match source.next_frame() {
+            Ok(Some(frame)) => {
+                session.frame(&frame, link, &mut on_points)?;
+                progress(&session.status());
+            }
+            Ok(None) => break None,
+            Err(e) => break Some(format!("the camera stopped: {e}")),
+        }
+    };
+    session.finish(link, ended)
+}

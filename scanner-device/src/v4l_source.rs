@@ -1,0 +1,306 @@
+//! V4L2 cameras through the `v4l` crate: list devices and formats, choose format, resolution
+//! and frame rate, lock exposure and white balance (the difference image needs the reference
+//! and the laser frames taken alike), memory-mapped streaming. Buffers are converted by
+//! [`crate::convert`], which is tested on recorded buffers; this file needs a camera and is
+//! exercised only by the ignored hardware test.
+
+use scanner_core::stripe::PixelFormat;
+
+use crate::source::{FrameSource, SourceError, SourceOptions};
+
+#[cfg(feature = "v4l")]
+mod imp {
+    use std::time::{Duration, Instant};
+
+    use scanner_core::stripe::PixelFormat;
+    use v4l::buffer::Type;
+    use v4l::control::{Control, Value};
+    use v4l::io::mmap::Stream;
+    use v4l::io::traits::CaptureStream;
+    use v4l::video::Capture;
+    use v4l::{Device, FourCC};
+
+    use crate::convert::{CameraFormat, convert};
+    use crate::source::{FrameSource, OwnedFrame, SourceError, SourceOptions, average};
+
+    /// `V4L2_CID_EXPOSURE_AUTO` and its manual setting.
+    const CID_EXPOSURE_AUTO: u32 = 0x009a_0901;
+    const EXPOSURE_MANUAL: i64 = 1;
+    /// `V4L2_CID_AUTO_WHITE_BALANCE`.
+    const CID_AUTO_WHITE_BALANCE: u32 = 0x0098_090c;
+
+    fn cam(path: &str, what: &str, e: impl std::fmt::Display) -> SourceError {
+        SourceError::Camera(format!("{path}: {what}: {e}"))
+    }
+
+    /// A streaming V4L2 camera.
+    pub struct V4lSource {
+        path: String,
+        // Declared before the device: the stream unmaps its buffers first.
+        stream: Stream<'static>,
+        _device: Device,
+        camera: CameraFormat,
+        format: PixelFormat,
+        size: (usize, usize),
+        stride: usize,
+        next: u64,
+        reference: Option<std::path::PathBuf>,
+        reference_frames: usize,
+        locked: Vec<&'static str>,
+    }
+
+    impl V4lSource {
+        pub fn open(
+            path: &str,
+            format: PixelFormat,
+            opts: &SourceOptions,
+        ) -> Result<Self, SourceError> {
+            let dev =
+                Device::with_path(path).map_err(|e| cam(path, "cannot open the device", e))?;
+            let mut fmt = dev
+                .format()
+                .map_err(|e| cam(path, "cannot read the format", e))?;
+            let offered: Vec<[u8; 4]> = dev
+                .enum_formats()
+                .map_err(|e| cam(path, "cannot list formats", e))?
+                .into_iter()
+                .map(|d| d.fourcc.repr)
+                .collect();
+            let wanted: Option<[u8; 4]> = match &opts.fourcc {
+                Some(s) => {
+                    let b = s.as_bytes();
+                    if b.len() != 4 || CameraFormat::from_fourcc([b[0], b[1], b[2], b[3]]).is_none()
+                    {
+                        return Err(SourceError::BadSpec(format!(
+                            "pixel format {s:?}: this head reads YUYV, GREY, RGB3 and MJPG"
+                        )));
+                    }
+                    Some([b[0], b[1], b[2], b[3]])
+                }
+                None => [*b"YUYV", *b"GREY", *b"RGB3", *b"MJPG"]
+                    .into_iter()
+                    .find(|c| offered.contains(c)),
+            };
+            let Some(code) = wanted else {
+                let list: Vec<String> = offered
+                    .iter()
+                    .map(|c| String::from_utf8_lossy(c).into_owned())
+                    .collect();
+                return Err(SourceError::Camera(format!(
+                    "{path}: offers {} but none this head reads (YUYV, GREY, RGB3, MJPG)",
+                    list.join(", ")
+                )));
+            };
+            if !offered.contains(&code) {
+                return Err(SourceError::Camera(format!(
+                    "{path}: does not offer {}",
+                    String::from_utf8_lossy(&code)
+                )));
+            }
+            fmt.fourcc = FourCC::new(&code);
+            if let Some((w, h)) = opts.size {
+                fmt.width = w;
+                fmt.height = h;
+            }
+            let fmt = dev
+                .set_format(&fmt)
+                .map_err(|e| cam(path, "cannot set the format", e))?;
+            if fmt.fourcc.repr != code
+                || opts
+                    .size
+                    .is_some_and(|(w, h)| (fmt.width, fmt.height) != (w, h))
+            {
+                return Err(SourceError::Camera(format!(
+                    "{path}: asked for {} {:?}, the camera chose {} {}×{}",
+                    String::from_utf8_lossy(&code),
+                    opts.size,
+                    String::from_utf8_lossy(&fmt.fourcc.repr),
+                    fmt.width,
+                    fmt.height
+                )));
+            }
+            if let Some(fps) = opts.fps {
+                dev.set_params(&v4l::video::capture::Parameters::with_fps(fps))
+                    .map_err(|e| cam(path, "cannot set the frame rate", e))?;
+            }
+            // Lock exposure and white balance where the camera allows.
+            let mut locked = Vec::new();
+            if dev
+                .set_control(Control {
+                    id: CID_EXPOSURE_AUTO,
+                    value: Value::Integer(EXPOSURE_MANUAL),
+                })
+                .is_ok()
+            {
+                locked.push("exposure");
+            }
+            if dev
+                .set_control(Control {
+                    id: CID_AUTO_WHITE_BALANCE,
+                    value: Value::Boolean(false),
+                })
+                .is_ok()
+                || dev
+                    .set_control(Control {
+                        id: CID_AUTO_WHITE_BALANCE,
+                        value: Value::Integer(0),
+                    })
+                    .is_ok()
+            {
+                locked.push("white balance");
+            }
+            let stream = Stream::with_buffers(&dev, Type::VideoCapture, 4)
+                .map_err(|e| cam(path, "cannot start streaming", e))?;
+            let camera = CameraFormat::from_fourcc(code).expect("checked above");
+            Ok(V4lSource {
+                path: path.to_string(),
+                stream,
+                _device: dev,
+                camera,
+                format,
+                size: (fmt.width as usize, fmt.height as usize),
+                stride: fmt.stride as usize,
+                next: 0,
+                reference: opts.reference.clone(),
+                reference_frames: if opts.reference_frames == 0 {
+                    8
+                } else {
+                    opts.reference_frames
+                },
+                locked,
+            })
+        }
+
+        fn grab(&mut self, index: u64) -> Result<OwnedFrame, SourceError> {
+            let t0 = Instant::now();
+            let (buf, meta) = CaptureStream::next(&mut self.stream)
+                .map_err(|e| cam(&self.path, "the camera stopped", e))?;
+            if t0.elapsed() > Duration::from_secs(5) {
+                return Err(cam(&self.path, "no frame", "more than 5 s"));
+            }
+            let used = (meta.bytesused as usize).min(buf.len());
+            let mut data = Vec::new();
+            convert(
+                self.camera,
+                &buf[..used],
+                self.size.0,
+                self.size.1,
+                self.stride,
+                self.format,
+                &mut data,
+            )
+            .map_err(|e| cam(&self.path, "bad buffer", e))?;
+            Ok(OwnedFrame {
+                data,
+                width: self.size.0,
+                height: self.size.1,
+                format: self.format,
+                index,
+            })
+        }
+    }
+
+    impl FrameSource for V4lSource {
+        fn describe(&self) -> String {
+            format!(
+                "{} {}×{} {:?} → {:?}; locked: {}",
+                self.path,
+                self.size.0,
+                self.size.1,
+                self.camera,
+                self.format,
+                if self.locked.is_empty() {
+                    "nothing (the camera offers no such controls)".to_string()
+                } else {
+                    self.locked.join(", ")
+                }
+            )
+        }
+        fn format(&self) -> PixelFormat {
+            self.format
+        }
+        fn size(&self) -> (usize, usize) {
+            self.size
+        }
+        fn reference(&mut self) -> Result<OwnedFrame, SourceError> {
+            if let Some(p) = self.reference.clone() {
+                return crate::source::load_frame(&p, self.format, u64::MAX);
+            }
+            let frames = (0..self.reference_frames)
+                .map(|_| self.grab(u64::MAX))
+                .collect::<Result<Vec<_>, _>>()?;
+            average(&frames)
+        }
+        fn next_frame(&mut self) -> Result<Option<OwnedFrame>, SourceError> {
+            let i = self.next;
+            self.next += 1;
+            self.grab(i).map(Some)
+        }
+    }
+
+    /// Every V4L2 device with its formats and sizes, one line each.
+    pub fn list() -> Vec<String> {
+        let mut out = Vec::new();
+        for node in v4l::context::enum_devices() {
+            let path = node.path().display().to_string();
+            let name = node.name().unwrap_or_default();
+            let formats = Device::with_path(node.path())
+                .and_then(|d| {
+                    let fs = d.enum_formats()?;
+                    Ok(fs
+                        .iter()
+                        .map(|f| {
+                            let sizes = d
+                                .enum_framesizes(f.fourcc)
+                                .map(|v| {
+                                    v.iter()
+                                        .map(|s| s.size.to_string())
+                                        .collect::<Vec<_>>()
+                                        .join(" ")
+                                })
+                                .unwrap_or_default();
+                            format!("{} [{sizes}]", f.fourcc)
+                        })
+                        .collect::<Vec<_>>()
+                        .join("; "))
+                })
+                .unwrap_or_else(|e| format!("(cannot query: {e})"));
+            out.push(format!("{path}: {name}: {formats}"));
+        }
+        out
+    }
+}
+
+/// Opens a V4L2 camera.
+///
+/// # Errors
+/// [`SourceError::Camera`] naming the device and what failed (also when built without V4L2).
+pub fn open(
+    path: &str,
+    format: PixelFormat,
+    opts: &SourceOptions,
+) -> Result<Box<dyn FrameSource>, SourceError> {
+    #[cfg(feature = "v4l")]
+    {
+        Ok(Box::new(imp::V4lSource::open(path, format, opts)?))
+    }
+    #[cfg(not(feature = "v4l"))]
+    {
+        let _ = (format, opts);
+        Err(SourceError::Camera(format!(
+            "{path}: this build has no V4L2 support (built without the `v4l` feature)"
+        )))
+    }
+}
+
+/// Every V4L2 device with its formats, one line each (empty without V4L2 support or devices).
+pub fn list() -> Vec<String> {
+    #[cfg(feature = "v4l")]
+    {
+        imp::list()
+    }
+    #[cfg(not(feature = "v4l"))]
+    {
+        Vec::new()
+    }
+}

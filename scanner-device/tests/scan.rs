@@ -1,0 +1,249 @@
+//! The scanner head end to end on the virtual rig: the stream in a file decodes to exactly the
+//! points the head computed; a whole scan crosses a pseudo-terminal pair intact; a slow link
+//! drops whole frames and never corrupts the stream; the pipeline allocates nothing per frame.
+
+use std::collections::BTreeMap;
+use std::io::Read;
+
+use serialport::SerialPort;
+
+use scanner_core::pipeline::HeadConfig;
+use scanner_core::stripe::{Axis, Method, PixelFormat, StripeConfig};
+use scanner_core::wire::{self, Decoder, MAX_ENCODED, Message, points};
+use scanner_device::head::{ScanOptions, run_scan};
+use scanner_device::link::Link;
+use scanner_device::rig::{Rig, Scene};
+use scanner_device::scan_cli::rig_truth;
+use scanner_device::source::RigSource;
+
+fn options(scan_id: u32) -> ScanOptions {
+    ScanOptions {
+        head: HeadConfig::new(StripeConfig::new(Method::Dim, Axis::Columns)),
+        header_every: 10,
+        status_every: 10,
+        scan_id,
+    }
+}
+
+/// Decodes a byte stream: (frame → points) of every point packet, headers seen, the last
+/// status, the decoder's counts.
+fn decode(
+    bytes: &[u8],
+) -> (
+    BTreeMap<u32, Vec<[i32; 3]>>,
+    usize,
+    Option<wire::Status>,
+    wire::DecodeStats,
+) {
+    let mut d = Box::new(Decoder::<MAX_ENCODED>::new());
+    let (mut frames, mut headers, mut last) = (BTreeMap::new(), 0, None);
+    for chunk in bytes.chunks(777) {
+        d.feed(chunk, |m| match m.expect("a valid frame") {
+            Message::Header(_) => headers += 1,
+            Message::Points(p) => {
+                let mut v = Vec::new();
+                points::decode(p.xyz, p.count as usize, |q| v.push(q)).unwrap();
+                frames.insert(p.frame, v);
+            }
+            Message::Status(s) => last = Some(s),
+        });
+    }
+    (frames, headers, last, d.stats())
+}
+
+#[test]
+fn the_stream_in_a_file_decodes_to_exactly_the_heads_points() {
+    let rig = Rig::new(Scene::demo(640, 480)).unwrap();
+    let cal = rig_truth(&rig);
+    let mut source = RigSource::new(rig, PixelFormat::Gray8);
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("scan.stream");
+    let mut link = Link::spawn(
+        Box::new(std::fs::File::create(&path).unwrap()),
+        8,
+        MAX_ENCODED,
+    );
+    let mut mine: BTreeMap<u32, Vec<[i32; 3]>> = BTreeMap::new();
+    let report = run_scan(
+        &mut source,
+        &cal,
+        options(11),
+        &mut link,
+        |_| {},
+        |f, p| {
+            mine.insert(f, p.to_vec());
+        },
+    )
+    .unwrap();
+    link.finish().unwrap();
+    let bytes = std::fs::read(&path).unwrap();
+    let (theirs, headers, last, stats) = decode(&bytes);
+    assert_eq!(stats.rejected(), 0);
+    assert_eq!(theirs, mine, "decoded points differ from the head's");
+    let status = last.expect("a final status");
+    assert!(status.done && status.ended == 0);
+    assert_eq!(u64::from(status.packets), mine.len() as u64);
+    assert_eq!(
+        status.points,
+        mine.values().map(|v| v.len() as u64).sum::<u64>()
+    );
+    assert_eq!(bytes.len() as u64, report.bytes);
+    assert!(headers >= 6, "{headers} headers for 60 frames");
+    assert!(report.status.points > 3000);
+    println!(
+        "{} points, {:.2} bytes per point",
+        report.status.points,
+        report.bytes_per_point()
+    );
+    assert!(
+        report.bytes_per_point() <= 4.0,
+        "{}",
+        report.bytes_per_point()
+    );
+}
+
+#[test]
+fn a_whole_scan_crosses_a_pseudo_terminal_pair() {
+    use serialport::TTYPort;
+    let (device_end, mut host_end) = TTYPort::pair().expect("a pseudo-terminal pair");
+    let reader = std::thread::spawn(move || {
+        let mut d = Box::new(Decoder::<MAX_ENCODED>::new());
+        let mut buf = [0u8; 4096];
+        let (mut packets, mut done) = (0u32, None);
+        host_end
+            .set_timeout(std::time::Duration::from_secs(10))
+            .unwrap();
+        while done.is_none() {
+            let n = match host_end.read(&mut buf) {
+                Ok(n) => n,
+                Err(e) if e.kind() == std::io::ErrorKind::TimedOut => break,
+                Err(e) => panic!("reading the host end: {e}"),
+            };
+            d.feed(&buf[..n], |m| match m {
+                Ok(Message::Points(_)) => packets += 1,
+                Ok(Message::Status(s)) if s.done => done = Some(s),
+                _ => {}
+            });
+        }
+        (packets, done, d.stats())
+    });
+    let rig = Rig::new(Scene::demo(320, 240)).unwrap();
+    let cal = rig_truth(&rig);
+    let mut source = RigSource::new(rig, PixelFormat::Gray8);
+    let mut link = Link::spawn(Box::new(device_end), 64, MAX_ENCODED);
+    let report = run_scan(&mut source, &cal, options(12), &mut link, |_| {}, |_, _| {}).unwrap();
+    link.finish().unwrap();
+    let (packets, done, stats) = reader.join().unwrap();
+    let done = done.expect("the final status arrived");
+    assert_eq!(stats.rejected(), 0, "{stats:?}");
+    assert_eq!(packets, report.status.packets, "every packet decoded");
+    assert_eq!(done.packets, report.status.packets);
+    assert!(packets > 40, "{packets} packets");
+}
+
+/// A writer slower than the camera: 20 ms per write.
+struct Slow(Vec<u8>, std::sync::Arc<std::sync::Mutex<Vec<u8>>>);
+
+impl std::io::Write for Slow {
+    fn write(&mut self, b: &[u8]) -> std::io::Result<usize> {
+        self.0.extend_from_slice(b);
+        Ok(b.len())
+    }
+    fn flush(&mut self) -> std::io::Result<()> {
+        std::thread::sleep(std::time::Duration::from_millis(20));
+        self.1.lock().unwrap().extend(self.0.drain(..));
+        Ok(())
+    }
+}
+
+#[test]
+fn a_slow_link_drops_whole_frames_and_the_stream_stays_valid() {
+    let rig = Rig::new(Scene::demo(320, 240)).unwrap();
+    let cal = rig_truth(&rig);
+    // Pre-render so that the camera is faster than the link.
+    let mut source = RigSource::new(rig, PixelFormat::Gray8);
+    let out = std::sync::Arc::new(std::sync::Mutex::new(Vec::new()));
+    let mut link = Link::spawn(Box::new(Slow(Vec::new(), out.clone())), 2, MAX_ENCODED);
+    let mut mine: BTreeMap<u32, Vec<[i32; 3]>> = BTreeMap::new();
+    let report = run_scan(
+        &mut source,
+        &cal,
+        options(13),
+        &mut link,
+        |_| {},
+        |f, p| {
+            mine.insert(f, p.to_vec());
+        },
+    )
+    .unwrap();
+    link.finish().unwrap();
+    let bytes = out.lock().unwrap().clone();
+    let (theirs, _, last, stats) = decode(&bytes);
+    assert_eq!(stats.rejected(), 0);
+    let dropped = report.status.skipped[wire::Skip::LinkFull as usize];
+    println!(
+        "{dropped} of {} packets dropped by the slow link",
+        mine.len()
+    );
+    assert!(dropped > 0, "the link kept up: make it slower");
+    assert_eq!(dropped as u64, report.dropped);
+    // What arrived is exactly what the head computed for those frames.
+    assert_eq!(theirs.len() + dropped as usize, mine.len());
+    for (f, p) in &theirs {
+        assert_eq!(Some(p), mine.get(f));
+    }
+    assert!(last.is_some_and(|s| s.done));
+}
+
+#[test]
+fn a_camera_that_fails_mid_scan_ends_with_a_final_status() {
+    struct Failing(RigSource, u32);
+    impl scanner_device::source::FrameSource for Failing {
+        fn describe(&self) -> String {
+            "failing".into()
+        }
+        fn format(&self) -> PixelFormat {
+            self.0.format()
+        }
+        fn size(&self) -> (usize, usize) {
+            self.0.size()
+        }
+        fn reference(
+            &mut self,
+        ) -> Result<scanner_device::source::OwnedFrame, scanner_device::source::SourceError>
+        {
+            self.0.reference()
+        }
+        fn next_frame(
+            &mut self,
+        ) -> Result<Option<scanner_device::source::OwnedFrame>, scanner_device::source::SourceError>
+        {
+            self.1 += 1;
+            if self.1 > 5 {
+                return Err(scanner_device::source::SourceError::Camera(
+                    "/dev/video0: the camera stopped: No such device".into(),
+                ));
+            }
+            self.0.next_frame()
+        }
+    }
+    let rig = Rig::new(Scene::demo(320, 240)).unwrap();
+    let cal = rig_truth(&rig);
+    let mut source = Failing(RigSource::new(rig, PixelFormat::Gray8), 0);
+    let out = std::sync::Arc::new(std::sync::Mutex::new(Vec::new()));
+    let mut link = Link::spawn(Box::new(Slow(Vec::new(), out.clone())), 64, MAX_ENCODED);
+    let report = run_scan(&mut source, &cal, options(14), &mut link, |_| {}, |_, _| {}).unwrap();
+    link.finish().unwrap();
+    assert!(
+        report
+            .ended_early
+            .as_ref()
+            .is_some_and(|e| e.contains("No such device")),
+        "{:?}",
+        report.ended_early
+    );
+    let (_, _, last, stats) = decode(&out.lock().unwrap());
+    assert_eq!(stats.rejected(), 0);
+    let last = last.expect("a final status");
+    assert!(last.done && last.ended == 1 && last.frames == 5);
+}
