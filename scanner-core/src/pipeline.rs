@@ -4,7 +4,7 @@
 //!
 //! [`Head`] owns every buffer (sized by the const `W`, the most lines per frame); a frame
 //! allocates nothing. A frame whose laser plane cannot be trusted is skipped with a
-//! [`Skip`](crate::wire::Skip) reason.
+//! [`Skip`] reason.
 
 use nalgebra::{Point2, Point3, Vector3};
 

@@ -136,7 +136,7 @@ pub fn convert(
             stride,
         });
     }
-    if (format == CameraFormat::Yuyv || want == PixelFormat::Yuyv) && width % 2 != 0 {
+    if (format == CameraFormat::Yuyv || want == PixelFormat::Yuyv) && !width.is_multiple_of(2) {
         return Err(ConvertError::OddWidth(width));
     }
     out.clear();

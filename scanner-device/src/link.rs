@@ -4,7 +4,7 @@
 //! the stream is never cut inside a frame.
 
 use std::io::Write;
-use std::sync::mpsc::{Receiver, SyncSender, TryRecvError, TrySendError, sync_channel};
+use std::sync::mpsc::{Receiver, SyncSender, TrySendError, sync_channel};
 use std::thread::JoinHandle;
 use std::time::Duration;
 
@@ -130,11 +130,8 @@ impl Link {
     }
 
     fn reclaim(&mut self) {
-        loop {
-            match self.back.try_recv() {
-                Ok(b) => self.free.push(b),
-                Err(TryRecvError::Empty | TryRecvError::Disconnected) => break,
-            }
+        while let Ok(b) = self.back.try_recv() {
+            self.free.push(b);
         }
     }
 

@@ -25,16 +25,16 @@ fn options(scan_id: u32) -> ScanOptions {
     }
 }
 
-/// Decodes a byte stream: (frame → points) of every point packet, headers seen, the last
-/// status, the decoder's counts.
-fn decode(
-    bytes: &[u8],
-) -> (
+type Decoded = (
     BTreeMap<u32, Vec<[i32; 3]>>,
     usize,
     Option<wire::Status>,
     wire::DecodeStats,
-) {
+);
+
+/// Decodes a byte stream: (frame → points) of every point packet, headers seen, the last
+/// status, the decoder's counts.
+fn decode(bytes: &[u8]) -> Decoded {
     let mut d = Box::new(Decoder::<MAX_ENCODED>::new());
     let (mut frames, mut headers, mut last) = (BTreeMap::new(), 0, None);
     for chunk in bytes.chunks(777) {
@@ -130,10 +130,17 @@ fn a_whole_scan_crosses_a_pseudo_terminal_pair() {
     let rig = Rig::new(Scene::demo(320, 240)).unwrap();
     let cal = rig_truth(&rig);
     let mut source = RigSource::new(rig, PixelFormat::Gray8);
-    let mut link = Link::spawn(Box::new(device_end), 64, MAX_ENCODED);
+    // The link writes through a clone; this end stays open until the reader is done (a pty
+    // master reads EIO once its slave is closed, even with data pending).
+    let mut link = Link::spawn(
+        Box::new(device_end.try_clone_native().unwrap()),
+        64,
+        MAX_ENCODED,
+    );
     let report = run_scan(&mut source, &cal, options(12), &mut link, |_| {}, |_, _| {}).unwrap();
     link.finish().unwrap();
     let (packets, done, stats) = reader.join().unwrap();
+    drop(device_end);
     let done = done.expect("the final status arrived");
     assert_eq!(stats.rejected(), 0, "{stats:?}");
     assert_eq!(packets, report.status.packets, "every packet decoded");
@@ -246,4 +253,28 @@ fn a_camera_that_fails_mid_scan_ends_with_a_final_status() {
     assert_eq!(stats.rejected(), 0);
     let last = last.expect("a final status");
     assert!(last.done && last.ended == 1 && last.frames == 5);
+}
+
+#[test]
+fn the_papers_construction_and_least_squares_agree_on_the_rig() {
+    let mut counts = Vec::new();
+    for method in [
+        scanner_core::pipeline::PlaneMethod::LeastSquares,
+        scanner_core::pipeline::PlaneMethod::Paper,
+    ] {
+        let rig = Rig::new(Scene::demo(320, 240)).unwrap();
+        let cal = rig_truth(&rig);
+        let mut source = RigSource::new(rig, PixelFormat::Gray8);
+        let mut link = Link::spawn(Box::new(std::io::sink()), 8, MAX_ENCODED);
+        let mut opts = options(15);
+        opts.head.method = method;
+        let report = run_scan(&mut source, &cal, opts, &mut link, |_| {}, |_, _| {}).unwrap();
+        link.finish().unwrap();
+        println!(
+            "{method:?}: {} packets, {} points, skipped {:?}",
+            report.status.packets, report.status.points, report.status.skipped
+        );
+        counts.push(report.status.points as f64);
+    }
+    assert!(counts[1] > 0.9 * counts[0], "{counts:?}");
 }

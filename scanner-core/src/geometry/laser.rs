@@ -16,8 +16,8 @@
 use nalgebra::{Point3, Vector3};
 
 use super::board::Board;
-use super::fit::{fit_line, fit_plane};
-use super::plane::Plane;
+use super::fit::{LineFit, fit_line, fit_plane};
+use super::plane::{Line, Plane};
 use crate::{GeomError, Real};
 
 /// Tuning of the laser-plane estimators. Lengths in mm.
@@ -139,8 +139,8 @@ pub fn paper<T: Real>(
     cfg: &LaserFitConfig<T>,
 ) -> Result<LaserPlane<T>, GeomError> {
     check_sides(left, right, cfg)?;
-    let mn = fit_line(left.iter().copied())?;
-    let qr = fit_line(right.iter().copied())?;
+    let (mn, mn_tol) = robust_line(left, cfg)?;
+    let (qr, qr_tol) = robust_line(right, cfg)?;
     let min_sin = T::lit(0.02);
     let (s, _) = mn.line.closest_points(board.crease(), min_sin)?;
     let (t, _) = qr.line.closest_points(board.crease(), min_sin)?;
@@ -154,17 +154,76 @@ pub fn paper<T: Real>(
     }
     let plane = Plane::from_point_normal(&mid, &normal)?.facing_camera();
     check_view(&plane, &mid, cfg)?;
-    let (rms, max, used) = residuals(&plane, left.iter().chain(right));
+    // Quality over each side's line inliers (the object's pixels behind which the board lies
+    // are not board points).
+    let inliers = left
+        .iter()
+        .filter(within(&mn.line, mn_tol))
+        .chain(right.iter().filter(within(&qr.line, qr_tol)));
+    let (rms, max, used) = residuals(&plane, inliers);
     Ok(LaserPlane {
         plane,
         quality: LaserQuality {
             rms,
             max,
             used,
-            rejected: 0,
+            rejected: left.len() + right.len() - used,
             st_gap: Some((s - t).norm()),
         },
     })
+}
+
+/// Points within `tol` of `line`.
+fn within<T: Real>(line: &Line<T>, tol: T) -> impl Fn(&&Point3<T>) -> bool + Clone + '_ {
+    move |p| line.distance(p) <= tol
+}
+
+/// A side's stripe line, robust to the object's pixels among the board points (the paper limits
+/// MN and QR to hand-drawn board regions; this finds them): a small deterministic MSAC over point
+/// pairs, then least squares on the inliers, refitted once with a tolerance of three times their
+/// RMS (never below `inlier_tol`). Returns the line and the final inlier tolerance.
+fn robust_line<T: Real>(
+    pts: &[Point3<T>],
+    cfg: &LaserFitConfig<T>,
+) -> Result<(LineFit<T>, T), GeomError> {
+    let mut state: u32 = 0x85EB_CA6B ^ (pts.len() as u32).wrapping_mul(0x9E37);
+    let mut next = |n: usize| {
+        state ^= state << 13;
+        state ^= state >> 17;
+        state ^= state << 5;
+        state as usize % n
+    };
+    let mut best: Option<(Line<T>, T, T)> = None;
+    for _ in 0..SEED_HYPOTHESES {
+        let (a, b) = (pts[next(pts.len())], pts[next(pts.len())]);
+        let Ok(line) = Line::new(a, b - a) else {
+            continue;
+        };
+        let mid = Point3::from((a.coords + b.coords) / T::lit(2.0));
+        let tol = cfg.inlier_tol.max(cfg.inlier_tol_rel * mid.coords.norm());
+        let tol2 = tol * tol;
+        let mut score = T::zero();
+        for p in pts {
+            let d = line.distance(p);
+            score += (d * d).min(tol2) / tol2;
+        }
+        if best.as_ref().is_none_or(|b| score < b.2) {
+            best = Some((line, tol, score));
+        }
+    }
+    let (line, tol, _) = best.ok_or(GeomError::Collinear)?;
+    let fit = fit_line(pts.iter().filter(within(&line, tol)).copied())?;
+    let tol = (T::lit(3.0) * fit.rms)
+        .max(cfg.inlier_tol)
+        .min(tol * T::lit(3.0));
+    let refit = fit_line(pts.iter().filter(within(&fit.line, tol)).copied())?;
+    if refit.count < cfg.min_points_per_side {
+        return Err(GeomError::TooFewPoints {
+            needed: cfg.min_points_per_side,
+            got: refit.count,
+        });
+    }
+    Ok((refit, tol))
 }
 
 /// Candidate planes the seed tries.

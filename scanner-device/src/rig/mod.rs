@@ -533,7 +533,7 @@ impl Rgb8 {
 }
 
 /// The rig: a scene with its geometry buffer.
-#[derive(Debug)]
+#[derive(Debug, Clone)]
 pub struct Rig {
     scene: Scene,
     board: BoardGeometry,

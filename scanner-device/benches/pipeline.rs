@@ -1,0 +1,84 @@
+//! The head's whole per-frame pipeline — extraction, board points, laser plane, triangulation,
+//! packet encoding, hand-over to the link thread — on pre-rendered virtual-rig frames (rendering
+//! excluded). `cargo bench -p scanner-device --bench pipeline` (one core for the pipeline; the
+//! link thread writes to a sink). Target (issue 6): ≥ 300 frames/s at 1600×1200.
+
+use std::time::Instant;
+
+use scanner_core::pipeline::{HeadConfig, PlaneMethod};
+use scanner_core::stripe::{Axis, Method, PixelFormat, StripeConfig};
+use scanner_core::wire::MAX_ENCODED;
+use scanner_device::head::{ScanOptions, Session};
+use scanner_device::link::Link;
+use scanner_device::rig::{Rig, Scene};
+use scanner_device::scan_cli::rig_truth;
+use scanner_device::source::{FrameSource, RigSource};
+
+fn main() {
+    println!(
+        "| frames | format | method | laser plane | points/frame | median ms/frame | frames/s | bytes/point |"
+    );
+    println!("|---|---|---|---|---|---|---|---|");
+    let (w, h) = (1600u32, 1200u32);
+    let rig = Rig::new(Scene::demo(w, h)).expect("demo scene");
+    let cal = rig_truth(&rig);
+    let cases = [
+        (PixelFormat::Gray8, Method::Dim, PlaneMethod::LeastSquares),
+        (PixelFormat::Yuyv, Method::Dim, PlaneMethod::LeastSquares),
+        (PixelFormat::Gray8, Method::Lim, PlaneMethod::LeastSquares),
+        (PixelFormat::Gray8, Method::Dim, PlaneMethod::Paper),
+    ];
+    let mut rendered: Vec<(PixelFormat, _, Vec<_>)> = Vec::new();
+    for (format, ..) in cases {
+        if rendered.iter().any(|(f, ..)| *f == format) {
+            continue;
+        }
+        let mut source = RigSource::new(rig.clone(), format);
+        let reference = source.reference().expect("reference");
+        // Frames across the sweep (every third), rendered once.
+        let frames: Vec<_> = (0..60)
+            .filter_map(|_| source.next_frame().expect("frame"))
+            .step_by(3)
+            .collect();
+        rendered.push((format, reference, frames));
+    }
+    for (format, method, plane) in cases {
+        let (_, reference, frames) = rendered
+            .iter()
+            .find(|(f, ..)| *f == format)
+            .expect("rendered");
+        let mut head = HeadConfig::new(StripeConfig::new(method, Axis::Columns));
+        head.method = plane;
+        let opts = ScanOptions {
+            head,
+            header_every: 30,
+            status_every: 30,
+            scan_id: 1,
+        };
+        let mut session = Session::new(&cal, reference.clone(), opts).expect("session");
+        let mut link = Link::spawn(Box::new(std::io::sink()), 64, MAX_ENCODED);
+        let mut times = Vec::new();
+        let mut points = 0usize;
+        for round in 0..5 {
+            for f in frames {
+                let t = Instant::now();
+                session
+                    .frame(f, &mut link, |_, p| points += p.len())
+                    .expect("frame");
+                if round > 0 {
+                    times.push(t.elapsed().as_secs_f64() * 1e3);
+                }
+            }
+        }
+        times.sort_by(f64::total_cmp);
+        let median = times[times.len() / 2];
+        let s = session.status();
+        link.finish().expect("link");
+        println!(
+            "| {w}×{h} | {format:?} | {method:?} | {plane:?} | {:.0} | {median:.3} | {:.0} | {:.2} |",
+            points as f64 / (5 * frames.len()) as f64,
+            1e3 / median,
+            s.bytes as f64 / s.points.max(1) as f64
+        );
+    }
+}

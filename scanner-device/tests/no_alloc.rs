@@ -1,0 +1,92 @@
+//! The head's steady state allocates nothing: after the first frames, extraction, the laser
+//! plane, triangulation, packet encoding and handing the packet to the link thread run without a
+//! single heap allocation (a counting allocator watches this thread).
+
+use std::alloc::{GlobalAlloc, Layout, System};
+use std::cell::Cell;
+
+use scanner_core::pipeline::HeadConfig;
+use scanner_core::stripe::{Axis, Method, PixelFormat, StripeConfig};
+use scanner_core::wire::MAX_ENCODED;
+use scanner_device::head::{ScanOptions, Session};
+use scanner_device::link::Link;
+use scanner_device::rig::{Rig, Scene};
+use scanner_device::scan_cli::rig_truth;
+use scanner_device::source::{FrameSource, RigSource};
+
+struct Counting;
+
+thread_local! {
+    static ALLOCATIONS: Cell<usize> = const { Cell::new(0) };
+}
+
+// SAFETY: forwards to the system allocator unchanged; only counts (per thread).
+#[allow(unsafe_code)]
+unsafe impl GlobalAlloc for Counting {
+    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
+        let _ = ALLOCATIONS.try_with(|c| c.set(c.get() + 1));
+        // SAFETY: same contract as the caller's.
+        unsafe { System.alloc(layout) }
+    }
+    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
+        // SAFETY: same contract as the caller's.
+        unsafe { System.dealloc(ptr, layout) }
+    }
+}
+
+#[global_allocator]
+static GLOBAL: Counting = Counting;
+
+#[test]
+fn the_steady_state_allocates_nothing() {
+    for (format, colour) in [
+        (PixelFormat::Gray8, false),
+        (PixelFormat::Yuyv, true),
+        (PixelFormat::Rgb24, true),
+    ] {
+        let rig = Rig::new(Scene::demo(640, 480)).unwrap();
+        let cal = rig_truth(&rig);
+        let mut source = RigSource::new(rig, format);
+        let reference = source.reference().unwrap();
+        let frames: Vec<_> = (0..40)
+            .filter_map(|_| source.next_frame().unwrap())
+            .skip(28)
+            .collect();
+        let mut head = HeadConfig::new(StripeConfig::new(Method::Dim, Axis::Columns));
+        head.colour = colour;
+        let opts = ScanOptions {
+            head,
+            header_every: 3,
+            status_every: 2,
+            scan_id: 1,
+        };
+        let mut session = Session::new(&cal, reference, opts).unwrap();
+        let mut link = Link::spawn(Box::new(std::io::sink()), 4, MAX_ENCODED);
+        // Warm up: the link's buffers reach their size.
+        for f in &frames[..4] {
+            session.frame(f, &mut link, |_, _| {}).unwrap();
+        }
+        let before = ALLOCATIONS.with(Cell::get);
+        let mut points = 0;
+        for f in &frames[4..] {
+            session
+                .frame(f, &mut link, |_, p| points += p.len())
+                .unwrap();
+            // Let the writer catch up, as a camera's frame period would.
+            std::thread::sleep(std::time::Duration::from_millis(2));
+        }
+        let n = ALLOCATIONS.with(Cell::get) - before;
+        assert!(points > 500, "{format:?}: only {points} points");
+        assert_eq!(
+            n,
+            0,
+            "{format:?}: {n} allocations in {} frames",
+            frames.len() - 4
+        );
+        link.finish().unwrap();
+    }
+    // The counter works.
+    let before = ALLOCATIONS.with(Cell::get);
+    std::hint::black_box(vec![0u8; 3]);
+    assert!(ALLOCATIONS.with(Cell::get) > before);
+}
