@@ -2,9 +2,10 @@
 //! `scanner-core` pipeline on each and sends compact point packets over a serial link.
 //!
 //! Where it sits: `camera ─► [scanner-device: sources → scanner-core per frame → link] ─► host`.
-//! At this stage it carries the command line, the frame-source interface ([`source`]), the
-//! virtual rig ([`rig`]) and calibration from images ([`calib`]); V4L2 capture, the per-frame
-//! pipeline and the link come with their issues.
+//! Frame sources ([`source`]: V4L2 cameras via [`v4l_source`] with [`convert`], image folders, the
+//! virtual rig [`rig`]), calibration from images ([`calib`]), the scan session ([`head`]: the
+//! per-frame pipeline of `scanner-core` and the wire messages) and the link to the host
+//! ([`link`]).
 #![deny(missing_docs)]
 
 pub mod calib;
