@@ -39,20 +39,31 @@ pub struct HeadConfig {
     pub keep_board: bool,
     /// Colour each point from the reference frame.
     pub colour: bool,
+    /// Continuity: a point is kept only when a neighbouring line's point lies within this many
+    /// pixel footprints of it (plus 1 mm) in 3-D. Points between an object's edge and the board
+    /// behind it (the stripe blurred across the occlusion: "flying pixels") have none. 0 keeps
+    /// every point.
+    pub continuity: f32,
 }
 
 impl HeadConfig {
     /// Defaults for a stripe configuration: least squares, plane RMS ≤ 1 mm, object points only,
-    /// no colour.
+    /// no colour; points within 3 mm of a board plane count as board (the stripe where it
+    /// crosses a dark printed marker is off by a couple of millimetres: without this margin those
+    /// board points would be sent as object points).
     pub fn new(stripe: StripeConfig) -> Self {
         HeadConfig {
             stripe,
             laser: LaserFitConfig::default(),
-            limits: Limits::default(),
+            limits: Limits {
+                board_tol: 3.0,
+                ..Limits::default()
+            },
             method: PlaneMethod::LeastSquares,
             max_plane_rms: 1.0,
             keep_board: false,
             colour: false,
+            continuity: 6.0,
         }
     }
 }
@@ -84,6 +95,7 @@ pub struct Head<const W: usize> {
     right: [Point3<f32>; W],
     out: [[i32; 3]; W],
     rgb: [[u8; 3]; W],
+    tri: [Option<Point3<f32>>; W],
 }
 
 impl<const W: usize> Head<W> {
@@ -100,6 +112,7 @@ impl<const W: usize> Head<W> {
             right: [Point3::origin(); W],
             out: [[0; 3]; W],
             rgb: [[0; 3]; W],
+            tri: [None; W],
         }
     }
 
@@ -180,13 +193,33 @@ impl<const W: usize> Head<W> {
         }
         let plane = fit.plane;
         let limits = self.cfg.limits;
+        for i in 0..n {
+            self.tri[i] = plane
+                .intersect_ray(&self.rays[i], limits.min_sin)
+                .ok()
+                .filter(|p| p.coords.norm() <= limits.max_range);
+        }
+        let line_of = |px: &Point2<f32>| match self.cfg.stripe.axis {
+            Axis::Columns => px.x,
+            Axis::Rows => px.y,
+        };
+        let fx = self.camera.fx();
         let mut m = 0;
         for i in 0..n {
-            let Ok(p) = plane.intersect_ray(&self.rays[i], limits.min_sin) else {
+            let Some(p) = self.tri[i] else {
                 continue;
             };
-            if p.coords.norm() > limits.max_range {
-                continue;
+            if self.cfg.continuity > 0.0 {
+                let footprint = p.coords.norm() / fx;
+                let near = |j: usize| -> bool {
+                    let dl = libm::fabsf(line_of(&self.pixels[j]) - line_of(&self.pixels[i]));
+                    self.tri[j].is_some_and(|q| {
+                        dl <= 2.0 && (q - p).norm() <= self.cfg.continuity * footprint * dl + 1.0
+                    })
+                };
+                if !((i > 0 && near(i - 1)) || (i + 1 < n && near(i + 1))) {
+                    continue;
+                }
             }
             match self.board.locate(&p, limits.board_tol) {
                 Ok(Surface::Object) => {}

@@ -884,6 +884,30 @@ impl Rig {
         r.iter().all(|x| x.is_finite()).then(|| r.normalize())
     }
 
+    /// Distance from `p` to the nearest true surface (a board sheet or an analytic object;
+    /// meshes are left out), mm: how far a measured point is from what it measured.
+    pub fn surface_distance(&self, p: &Point3<f64>) -> f64 {
+        let mut best = f64::INFINITY;
+        for k in 0..2 {
+            let (plane, h) = &self.board.halves[k];
+            let u = (p - self.board.crease).dot(h);
+            let d = if u >= 0.0 {
+                plane.signed_distance(p).abs()
+            } else {
+                // Beyond the crease: the distance to the crease line.
+                let r = p - self.board.crease;
+                (r - self.board.along * r.dot(&self.board.along)).norm()
+            };
+            best = best.min(d);
+        }
+        for o in &self.scene.objects {
+            if let Some(d) = o.shape.distance(p) {
+                best = best.min(d);
+            }
+        }
+        best
+    }
+
     /// The nearest surface along a unit ray from the camera centre.
     pub fn cast(&self, dir: &Vector3<f64>) -> Option<Hit> {
         let mut best = self.board.hit(dir);

@@ -79,6 +79,59 @@ fn facing(n: Vector3<f64>, dir: &Vector3<f64>) -> Vector3<f64> {
 }
 
 impl Shape {
+    /// Distance from `p` to the shape's surface, mm (`None` for a mesh).
+    pub fn distance(&self, p: &Point3<f64>) -> Option<f64> {
+        match self {
+            Shape::Sphere { centre, radius } => Some(((p - centre).norm() - radius).abs()),
+            Shape::Cylinder {
+                base,
+                axis,
+                radius,
+                height,
+            } => {
+                let d = p - base;
+                let t = d.dot(axis);
+                let rho = (d - axis.as_ref() * t).norm();
+                let (dt, dr) = (
+                    if t < 0.0 {
+                        -t
+                    } else if t > *height {
+                        t - height
+                    } else {
+                        0.0
+                    },
+                    (rho - radius).max(0.0),
+                );
+                Some(if dt > 0.0 || dr > 0.0 {
+                    (dt * dt + dr * dr).sqrt()
+                } else {
+                    // Inside: the nearest of the side and the caps.
+                    (radius - rho).min(t).min(height - t)
+                })
+            }
+            Shape::Cuboid { centre, half, axes } => {
+                let d = p - centre;
+                let q: Vec<f64> = (0..3).map(|k| d.dot(&axes[k]).abs() - half[k]).collect();
+                let outside = q.iter().map(|v| v.max(0.0).powi(2)).sum::<f64>().sqrt();
+                Some(if outside > 0.0 {
+                    outside
+                } else {
+                    -q.iter().copied().fold(f64::NEG_INFINITY, f64::max)
+                })
+            }
+            Shape::Rectangle { centre, axes, half } => {
+                let d = p - centre;
+                let n = axes[0].cross(&axes[1]).normalize();
+                let (a, b) = (
+                    (d.dot(&axes[0]).abs() - half[0]).max(0.0),
+                    (d.dot(&axes[1]).abs() - half[1]).max(0.0),
+                );
+                Some((d.dot(&n).powi(2) + a * a + b * b).sqrt())
+            }
+            Shape::Mesh(_) => None,
+        }
+    }
+
     /// The nearest hit of the ray `origin + t·dir` (unit `dir`) with `t > t_min`.
     pub fn hit(
         &self,

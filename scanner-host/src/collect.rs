@@ -1,0 +1,334 @@
+//! From bytes to the grid: the streaming decoder (any chunks, resynchronising, counting every
+//! rejection), the journal (every accepted frame appended and flushed as it arrives, so that a
+//! crash, a pulled cable or Ctrl-C loses nothing already received), and the grid.
+
+use std::collections::{BTreeMap, BTreeSet, VecDeque};
+use std::io::Write;
+use std::path::Path;
+use std::time::Instant;
+
+use anyhow::{Context, Result};
+use scanner_core::nalgebra::Point3;
+use scanner_core::wire::{
+    self, DecodeStats, Decoder, Header, MAX_ENCODED, Message, SKIP_REASONS, Status, points,
+};
+use scanner_core::{Camera, Distortion};
+
+use crate::grid::{Cell, Grid};
+
+/// Settings of the collection.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct CollectOptions {
+    /// Grid cell.
+    pub cell: Cell,
+    /// Outlier threshold of a cell, mm (at least; 3σ of the cell's samples otherwise).
+    pub outlier_mm: f32,
+    /// Point packets kept while no header has arrived yet (a host that joins mid-stream).
+    pub pending_max: usize,
+}
+
+impl Default for CollectOptions {
+    fn default() -> Self {
+        CollectOptions {
+            cell: Cell::Pixels(2.0),
+            outlier_mm: 2.0,
+            pending_max: 256,
+        }
+    }
+}
+
+/// What arrived.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Counts {
+    /// The decoder's counts (frames, bytes, rejections by kind).
+    pub decode: DecodeStats,
+    /// Headers received.
+    pub headers: u64,
+    /// Point packets received.
+    pub packets: u64,
+    /// Points received.
+    pub points: u64,
+    /// Points in the grid (not outside, not outliers).
+    pub gridded: u64,
+    /// Packets whose point data did not decode.
+    pub bad_points: u64,
+    /// Packets dropped because no header came within `pending_max` packets.
+    pub no_header: u64,
+    /// Scans seen.
+    pub scans: BTreeSet<u32>,
+    /// The latest status of each scan.
+    pub status: BTreeMap<u32, Status>,
+    /// Capture time span of the points, µs (first, last).
+    pub time_us: Option<(u64, u64)>,
+}
+
+impl Counts {
+    /// Frames the head skipped, by reason, summed over the scans.
+    pub fn skipped(&self) -> [u64; SKIP_REASONS] {
+        let mut s = [0u64; SKIP_REASONS];
+        for st in self.status.values() {
+            for (k, v) in st.skipped.iter().enumerate() {
+                s[k] += u64::from(*v);
+            }
+        }
+        s
+    }
+}
+
+/// The session's journal: accepted frames, re-encoded exactly, appended and flushed one by one
+/// (and synced to disk at most once a second).
+pub struct Journal {
+    file: std::fs::File,
+    scratch: Vec<u8>,
+    out: Vec<u8>,
+    last_sync: Instant,
+}
+
+impl Journal {
+    /// Creates (or appends to) a journal file.
+    ///
+    /// # Errors
+    /// Names the file.
+    pub fn open(path: &Path) -> Result<Journal> {
+        let file = std::fs::OpenOptions::new()
+            .create(true)
+            .append(true)
+            .open(path)
+            .with_context(|| format!("cannot open the journal {}", path.display()))?;
+        Ok(Journal {
+            file,
+            scratch: vec![0; wire::MAX_FRAME],
+            out: vec![0; MAX_ENCODED],
+            last_sync: Instant::now(),
+        })
+    }
+
+    /// Appends one message.
+    ///
+    /// # Errors
+    /// The write failed.
+    pub fn append(&mut self, msg: &Message) -> Result<()> {
+        let n = wire::encode(msg, &mut self.scratch, &mut self.out)
+            .map_err(|e| anyhow::anyhow!("journal: {e}"))?;
+        self.file
+            .write_all(&self.out[..n])
+            .context("writing the journal")?;
+        self.file.flush().context("writing the journal")?;
+        if self.last_sync.elapsed().as_secs_f64() >= 1.0 {
+            self.file.sync_data().context("syncing the journal")?;
+            self.last_sync = Instant::now();
+        }
+        Ok(())
+    }
+
+    /// Syncs to disk.
+    ///
+    /// # Errors
+    /// The sync failed.
+    pub fn sync(&mut self) -> Result<()> {
+        self.file.sync_all().context("syncing the journal")
+    }
+}
+
+/// A decoded point packet held until a header arrives.
+struct Pending {
+    points: Vec<Point3<f32>>,
+    rgb: Vec<[u8; 3]>,
+}
+
+/// Bytes in, grid out.
+pub struct Collector {
+    opts: CollectOptions,
+    decoder: Box<Decoder<MAX_ENCODED>>,
+    journal: Option<Journal>,
+    header: Option<Header>,
+    grid: Option<Grid>,
+    colour: bool,
+    pending: VecDeque<Pending>,
+    counts: Counts,
+    error: Option<anyhow::Error>,
+    points: Vec<Point3<f32>>,
+}
+
+impl Collector {
+    /// A collector, journaling to `journal` if given.
+    pub fn new(opts: CollectOptions, journal: Option<Journal>) -> Collector {
+        Collector {
+            opts,
+            decoder: Box::new(Decoder::new()),
+            journal,
+            header: None,
+            grid: None,
+            colour: false,
+            pending: VecDeque::new(),
+            counts: Counts::default(),
+            error: None,
+            points: Vec::with_capacity(4096),
+        }
+    }
+
+    /// The counts so far.
+    pub fn counts(&self) -> Counts {
+        let mut c = self.counts.clone();
+        c.decode = self.decoder.stats();
+        c
+    }
+
+    /// The first header.
+    pub fn header(&self) -> Option<&Header> {
+        self.header.as_ref()
+    }
+
+    /// The grid (once a header has arrived).
+    pub fn grid(&self) -> Option<&Grid> {
+        self.grid.as_ref()
+    }
+
+    /// Whether points carried colour.
+    pub fn colour(&self) -> bool {
+        self.colour
+    }
+
+    /// Feeds bytes in any chunks.
+    ///
+    /// # Errors
+    /// The journal could not be written (nothing received is dropped from memory).
+    pub fn feed(&mut self, bytes: &[u8]) -> Result<()> {
+        let mut decoder = std::mem::replace(&mut self.decoder, Box::new(Decoder::new()));
+        decoder.feed(bytes, |m| {
+            if let Ok(msg) = m
+                && let Err(e) = self.handle(&msg)
+            {
+                self.error.get_or_insert(e);
+            }
+        });
+        self.decoder = decoder;
+        match self.error.take() {
+            Some(e) => Err(e),
+            None => Ok(()),
+        }
+    }
+
+    fn handle(&mut self, msg: &Message) -> Result<()> {
+        if let Some(j) = &mut self.journal {
+            j.append(msg)?;
+        }
+        match msg {
+            Message::Header(h) => {
+                self.counts.headers += 1;
+                self.counts.scans.insert(h.scan_id);
+                if self.grid.is_none() {
+                    self.start(h)?;
+                }
+            }
+            Message::Status(s) => {
+                self.counts.scans.insert(s.scan_id);
+                self.counts.status.insert(s.scan_id, *s);
+            }
+            Message::Points(p) => {
+                self.counts.packets += 1;
+                self.counts.scans.insert(p.scan_id);
+                self.counts.time_us = Some(match self.counts.time_us {
+                    Some((a, b)) => (a.min(p.time_us), b.max(p.time_us)),
+                    None => (p.time_us, p.time_us),
+                });
+                self.points.clear();
+                let unit = f32::from(self.header.map_or(10, |h| h.unit_um)) / 1000.0;
+                let pts = &mut self.points;
+                if points::decode(p.xyz, p.count as usize, |q| {
+                    pts.push(Point3::new(
+                        q[0] as f32 * unit,
+                        q[1] as f32 * unit,
+                        q[2] as f32 * unit,
+                    ));
+                })
+                .is_err()
+                {
+                    self.counts.bad_points += 1;
+                    return Ok(());
+                }
+                self.counts.points += u64::from(p.count);
+                let rgb: Vec<[u8; 3]> = p.rgb.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect();
+                if !rgb.is_empty() {
+                    self.colour = true;
+                }
+                if self.grid.is_some() {
+                    let points = std::mem::take(&mut self.points);
+                    self.insert(&points, &rgb);
+                    self.points = points;
+                } else {
+                    if self.pending.len() >= self.opts.pending_max {
+                        self.pending.pop_front();
+                        self.counts.no_header += 1;
+                    }
+                    self.pending.push_back(Pending {
+                        points: self.points.clone(),
+                        rgb,
+                    });
+                }
+            }
+        }
+        Ok(())
+    }
+
+    fn start(&mut self, h: &Header) -> Result<()> {
+        let c = h.camera.map(f64::from);
+        let camera = Camera::new(
+            c[0],
+            c[1],
+            c[2],
+            c[3],
+            Distortion {
+                k1: c[4],
+                k2: c[5],
+                p1: c[6],
+                p2: c[7],
+                k3: c[8],
+            },
+        )
+        .map_err(|e| anyhow::anyhow!("the header's camera is unusable: {e}"))?;
+        // Millimetre grids span the view out to the board's crease distance (or 2 m).
+        let depth = h
+            .board
+            .iter()
+            .map(|b| f64::from(b[3]).abs())
+            .fold(0.0, f64::max)
+            .max(200.0)
+            * 1.5;
+        let grid = Grid::new(
+            camera,
+            u32::from(h.width),
+            u32::from(h.height),
+            self.opts.cell,
+            depth,
+            self.opts.outlier_mm,
+        )
+        .map_err(|e| anyhow::anyhow!(e))?;
+        self.header = Some(*h);
+        self.grid = Some(grid);
+        while let Some(p) = self.pending.pop_front() {
+            self.insert(&p.points, &p.rgb);
+        }
+        Ok(())
+    }
+
+    fn insert(&mut self, pts: &[Point3<f32>], rgb: &[[u8; 3]]) {
+        let Some(grid) = &mut self.grid else { return };
+        for (i, p) in pts.iter().enumerate() {
+            if grid.insert(p, rgb.get(i).copied()) {
+                self.counts.gridded += 1;
+            }
+        }
+    }
+
+    /// Flushes the journal to disk.
+    ///
+    /// # Errors
+    /// The sync failed.
+    pub fn sync(&mut self) -> Result<()> {
+        if let Some(j) = &mut self.journal {
+            j.sync()?;
+        }
+        Ok(())
+    }
+}

@@ -1,0 +1,219 @@
+//! The 2-D structured grid (paper section 4, done better): points binned into regular cells over
+//! the camera's view, each cell a robust running mean with an outlier test and a count. Several
+//! sweeps merge into one grid; memory is the grid's, whatever the scan's length.
+//!
+//! Cells are either image pixels (`Cell::Pixels(n)`: the point is projected with the header's
+//! camera, cells of n×n pixels — a perspective grid, the paper's) or millimetres
+//! (`Cell::Mm(s)`: cells of s×s mm in the camera's x–y plane — an orthographic grid).
+//!
+//! The robust mean: a sample farther from the cell's running mean along the viewing direction
+//! than `max(3σ, outlier_mm)` (σ from the cell's samples, once it has three) is rejected and
+//! counted; the others update mean and spread (Welford).
+
+use scanner_core::Camera;
+use scanner_core::nalgebra::{Point3, Vector2};
+
+/// Cell size.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Cell {
+    /// Square cells of this many image pixels.
+    Pixels(f64),
+    /// Square cells of this many millimetres in the camera's x–y plane.
+    Mm(f64),
+}
+
+impl std::str::FromStr for Cell {
+    type Err = String;
+
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        let s = s.trim();
+        let (num, unit) = if let Some(n) = s.strip_suffix("px") {
+            (n, "px")
+        } else if let Some(n) = s.strip_suffix("mm") {
+            (n, "mm")
+        } else {
+            return Err(format!(
+                "cell size {s:?}: give a number with px or mm, e.g. 2px or 0.5mm"
+            ));
+        };
+        let v: f64 = num
+            .trim()
+            .parse()
+            .map_err(|_| format!("cell size {s:?}: {num:?} is not a number"))?;
+        if !(v > 0.0 && v.is_finite()) {
+            return Err(format!("cell size {s:?} must be positive"));
+        }
+        Ok(if unit == "px" {
+            Cell::Pixels(v)
+        } else {
+            Cell::Mm(v)
+        })
+    }
+}
+
+/// One cell's state.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct CellState {
+    /// Accepted samples.
+    pub count: u32,
+    /// Rejected samples.
+    pub rejected: u32,
+    /// Mean position, mm.
+    pub mean: [f32; 3],
+    /// Sum of squared deviations of the range (distance from the camera).
+    m2: f32,
+    /// Mean range.
+    range: f32,
+    /// Mean colour.
+    pub rgb: [f32; 3],
+}
+
+/// The grid.
+#[derive(Debug, Clone)]
+pub struct Grid {
+    cell: Cell,
+    camera: Camera<f64>,
+    /// Cells per row and rows.
+    pub cols: usize,
+    /// Rows.
+    pub rows: usize,
+    origin: Vector2<f64>,
+    cells: Vec<CellState>,
+    outlier_mm: f32,
+    outside: u64,
+}
+
+impl Grid {
+    /// A grid over a `width`×`height` view of `camera`. For millimetre cells the view is taken
+    /// out to `depth` mm (the board's distance): the grid spans what the camera sees there.
+    ///
+    /// # Errors
+    /// A cell size that would make more than 64 million cells.
+    pub fn new(
+        camera: Camera<f64>,
+        width: u32,
+        height: u32,
+        cell: Cell,
+        depth: f64,
+        outlier_mm: f32,
+    ) -> Result<Grid, String> {
+        let (cols, rows, origin) = match cell {
+            Cell::Pixels(p) => (
+                (f64::from(width) / p).ceil() as usize,
+                (f64::from(height) / p).ceil() as usize,
+                Vector2::zeros(),
+            ),
+            Cell::Mm(s) => {
+                // The view's extent at `depth`, from the image corners' rays.
+                let mut lo = Vector2::new(f64::INFINITY, f64::INFINITY);
+                let mut hi = -lo;
+                for (u, v) in [
+                    (0.0, 0.0),
+                    (f64::from(width), 0.0),
+                    (0.0, f64::from(height)),
+                    (f64::from(width), f64::from(height)),
+                ] {
+                    let r = camera
+                        .pixel_to_ray(&scanner_core::nalgebra::Point2::new(u, v))
+                        .map_err(|e| format!("camera: {e}"))?;
+                    let p = Vector2::new(r.x * depth, r.y * depth);
+                    lo = lo.inf(&p);
+                    hi = hi.sup(&p);
+                }
+                (
+                    ((hi.x - lo.x) / s).ceil() as usize,
+                    ((hi.y - lo.y) / s).ceil() as usize,
+                    lo,
+                )
+            }
+        };
+        if cols == 0 || rows == 0 || cols.saturating_mul(rows) > 64 << 20 {
+            return Err(format!(
+                "a grid of {cols}×{rows} cells: choose a larger cell size"
+            ));
+        }
+        Ok(Grid {
+            cell,
+            camera,
+            cols,
+            rows,
+            origin,
+            cells: vec![CellState::default(); cols * rows],
+            outlier_mm,
+            outside: 0,
+        })
+    }
+
+    /// The cell size.
+    pub fn cell(&self) -> Cell {
+        self.cell
+    }
+
+    /// Cell index of a point, if inside.
+    pub fn locate(&self, p: &Point3<f32>) -> Option<(usize, usize)> {
+        let (fx, fy) = match self.cell {
+            Cell::Pixels(s) => {
+                let px = self.camera.project(&p.cast::<f64>()).ok()?;
+                (px.x / s, px.y / s)
+            }
+            Cell::Mm(s) => (
+                (f64::from(p.x) - self.origin.x) / s,
+                (f64::from(p.y) - self.origin.y) / s,
+            ),
+        };
+        (fx >= 0.0 && fy >= 0.0 && fx < self.cols as f64 && fy < self.rows as f64)
+            .then(|| (fx as usize, fy as usize))
+    }
+
+    /// Adds a point (with its colour, if any); returns `false` if it fell outside or was
+    /// rejected as an outlier.
+    pub fn insert(&mut self, p: &Point3<f32>, rgb: Option<[u8; 3]>) -> bool {
+        let Some((c, r)) = self.locate(p) else {
+            self.outside += 1;
+            return false;
+        };
+        let cell = &mut self.cells[r * self.cols + c];
+        let range = p.coords.norm();
+        if cell.count >= 3 {
+            let sigma = (cell.m2 / (cell.count - 1) as f32).sqrt();
+            if (range - cell.range).abs() > (3.0 * sigma).max(self.outlier_mm) {
+                cell.rejected += 1;
+                return false;
+            }
+        }
+        cell.count += 1;
+        let n = cell.count as f32;
+        let d = range - cell.range;
+        cell.range += d / n;
+        cell.m2 += d * (range - cell.range);
+        for k in 0..3 {
+            cell.mean[k] += (p[k] - cell.mean[k]) / n;
+        }
+        if let Some(c) = rgb {
+            for k in 0..3 {
+                cell.rgb[k] += (f32::from(c[k]) - cell.rgb[k]) / n;
+            }
+        }
+        true
+    }
+
+    /// The cell at column `c`, row `r`.
+    pub fn at(&self, c: usize, r: usize) -> &CellState {
+        &self.cells[r * self.cols + c]
+    }
+
+    /// Cells with at least one sample.
+    pub fn filled(&self) -> usize {
+        self.cells.iter().filter(|c| c.count > 0).count()
+    }
+
+    /// Points that fell outside the grid.
+    pub fn outside(&self) -> u64 {
+        self.outside
+    }
+
+    /// Samples rejected as outliers.
+    pub fn rejected(&self) -> u64 {
+        self.cells.iter().map(|c| u64::from(c.rejected)).sum()
+    }
+}
