@@ -162,7 +162,7 @@ impl Grid {
             ),
         };
         (fx >= 0.0 && fy >= 0.0 && fx < self.cols as f64 && fy < self.rows as f64)
-            .then(|| (fx as usize, fy as usize))
+            .then_some((fx as usize, fy as usize))
     }
 
     /// Adds a point (with its colour, if any); returns `false` if it fell outside or was
@@ -190,8 +190,8 @@ impl Grid {
             cell.mean[k] += (p[k] - cell.mean[k]) / n;
         }
         if let Some(c) = rgb {
-            for k in 0..3 {
-                cell.rgb[k] += (f32::from(c[k]) - cell.rgb[k]) / n;
+            for (m, v) in cell.rgb.iter_mut().zip(c) {
+                *m += (f32::from(v) - *m) / n;
             }
         }
         true

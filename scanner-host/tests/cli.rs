@@ -4,3 +4,256 @@
 fn info_and_usage_errors() {
     scanner_tests::check_cli(env!("CARGO_BIN_EXE_scanner-host"), "scanner-host");
 }
+
+use std::io::Write;
+use std::process::{Command, Stdio};
+
+fn host() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_scanner-host"))
+}
+
+/// A recorded rig scan (320×240, 30 frames).
+fn recording(dir: &std::path::Path) -> std::path::PathBuf {
+    use scanner_core::pipeline::HeadConfig;
+    use scanner_core::stripe::{Axis, Method, PixelFormat, StripeConfig};
+    let mut scene = scanner_device::rig::Scene::demo(320, 240);
+    scene.laser.frames = 30;
+    let rig = scanner_device::rig::Rig::new(scene).unwrap();
+    let cal = scanner_device::scan_cli::rig_truth(&rig);
+    let mut src = scanner_device::source::RigSource::new(rig, PixelFormat::Gray8);
+    let path = dir.join("rec.stream");
+    let mut link = scanner_device::link::Link::spawn(
+        Box::new(std::fs::File::create(&path).unwrap()),
+        8,
+        scanner_core::wire::MAX_ENCODED,
+    );
+    let opts = scanner_device::head::ScanOptions {
+        head: HeadConfig::new(StripeConfig::new(Method::Dim, Axis::Columns)),
+        header_every: 10,
+        status_every: 10,
+        scan_id: 3,
+    };
+    scanner_device::head::run_scan(&mut src, &cal, opts, &mut link, |_| {}, |_, _| {}).unwrap();
+    link.finish().unwrap();
+    path
+}
+
+#[test]
+fn receive_from_stdin_with_garbage_then_replay_the_journal() {
+    let dir = tempfile::tempdir().unwrap();
+    let rec = std::fs::read(recording(dir.path())).unwrap();
+    // Garbage at the start and a corrupted byte in the middle.
+    let mut bytes = b"\x01\x02garbage\x00".to_vec();
+    bytes.extend(&rec);
+    let mid = bytes.len() / 2;
+    bytes[mid] ^= 0x5a;
+    let out = dir.path().join("live");
+    let mut child = host()
+        .args(["receive", "-", "--quiet", "--out", out.to_str().unwrap()])
+        .stdin(Stdio::piped())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    child.stdin.take().unwrap().write_all(&bytes).unwrap();
+    let res = child.wait_with_output().unwrap();
+    let text = String::from_utf8_lossy(&res.stdout);
+    assert!(
+        res.status.success(),
+        "{}",
+        String::from_utf8_lossy(&res.stderr)
+    );
+    assert!(
+        text.contains("rejected frames: 1 bad CRC") || text.contains("1 bad COBS"),
+        "{text}"
+    );
+    for f in [
+        "scan.obj",
+        "scan.ply",
+        "scan.stl",
+        "depth.png",
+        "preview.png",
+        "summary.txt",
+        "journal.stream",
+    ] {
+        assert!(out.join(f).exists(), "{f}");
+    }
+    // Replaying the journal rebuilds the same mesh.
+    let again = dir.path().join("again");
+    let res = host()
+        .args([
+            "replay",
+            out.join("journal.stream").to_str().unwrap(),
+            "--out",
+            again.to_str().unwrap(),
+        ])
+        .output()
+        .unwrap();
+    assert!(res.status.success());
+    assert_eq!(
+        std::fs::read(out.join("scan.obj")).unwrap(),
+        std::fs::read(again.join("scan.obj")).unwrap()
+    );
+    let replay_text = String::from_utf8_lossy(&res.stdout);
+    assert!(
+        replay_text.contains("0 bad CRC, 0 bad COBS"),
+        "the journal holds only good frames: {replay_text}"
+    );
+}
+
+#[test]
+fn ctrl_c_finishes_cleanly_and_writes_the_outputs() {
+    let dir = tempfile::tempdir().unwrap();
+    let rec = std::fs::read(recording(dir.path())).unwrap();
+    let out = dir.path().join("out");
+    let mut child = host()
+        .args(["receive", "-", "--quiet", "--out", out.to_str().unwrap()])
+        .stdin(Stdio::piped())
+        .stdout(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut stdin = child.stdin.take().unwrap();
+    stdin.write_all(&rec).unwrap();
+    stdin.flush().unwrap();
+    // The input stays open (a live link); wait until the journal has it all, then Ctrl-C.
+    let journal = out.join("journal.stream");
+    let t0 = std::time::Instant::now();
+    while std::fs::metadata(&journal).map_or(0, |m| m.len()) < rec.len() as u64 - 64
+        && t0.elapsed().as_secs() < 20
+    {
+        std::thread::sleep(std::time::Duration::from_millis(50));
+    }
+    let status = Command::new("kill")
+        .args(["-INT", &child.id().to_string()])
+        .status()
+        .unwrap();
+    assert!(status.success());
+    // The reader may be blocked on stdin: closing it lets the loop see the flag.
+    drop(stdin);
+    let res = child.wait_with_output().unwrap();
+    assert!(res.status.success());
+    assert!(out.join("scan.obj").exists() && out.join("summary.txt").exists());
+}
+
+#[test]
+fn bad_inputs_are_named() {
+    let dir = tempfile::tempdir().unwrap();
+    let res = host()
+        .args([
+            "replay",
+            "/nonexistent.stream",
+            "--out",
+            dir.path().to_str().unwrap(),
+        ])
+        .output()
+        .unwrap();
+    assert!(!res.status.success());
+    assert!(String::from_utf8_lossy(&res.stderr).contains("cannot read /nonexistent.stream"));
+    // Not a scanner stream: nothing to build, said so.
+    let junk = dir.path().join("junk.bin");
+    std::fs::write(
+        &junk,
+        (0..5000u32)
+            .map(|i| (i * 7 % 251) as u8)
+            .collect::<Vec<_>>(),
+    )
+    .unwrap();
+    let res = host()
+        .args([
+            "replay",
+            junk.to_str().unwrap(),
+            "--out",
+            dir.path().join("o").to_str().unwrap(),
+        ])
+        .output()
+        .unwrap();
+    assert!(!res.status.success());
+    assert!(
+        String::from_utf8_lossy(&res.stderr).contains("no session header received"),
+        "{}",
+        String::from_utf8_lossy(&res.stderr)
+    );
+    let res = host()
+        .args([
+            "receive",
+            "serial:/dev/ttyNONE@115200",
+            "--out",
+            dir.path().join("p").to_str().unwrap(),
+        ])
+        .output()
+        .unwrap();
+    assert!(
+        String::from_utf8_lossy(&res.stderr)
+            .contains("cannot open serial port /dev/ttyNONE at 115200 baud")
+    );
+    let res = host()
+        .args(["replay", junk.to_str().unwrap(), "--cell", "2furlongs"])
+        .output()
+        .unwrap();
+    assert!(String::from_utf8_lossy(&res.stderr).contains("give a number with px or mm"));
+    let res = host().arg("ports").output().unwrap();
+    assert!(res.status.success());
+}
+
+#[test]
+fn head_to_host_over_a_pseudo_terminal() {
+    use scanner_core::pipeline::HeadConfig;
+    use scanner_core::stripe::{Axis, Method, StripeConfig};
+    use scanner_core::wire::MAX_ENCODED;
+    use scanner_device::head::ScanOptions;
+    use scanner_device::link::Link;
+    use serialport::SerialPort;
+    let (device_end, host_end) = serialport::TTYPort::pair().expect("a pseudo-terminal pair");
+    let name = host_end.name().expect("the host end has a device name");
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("out");
+    let host = std::process::Command::new(env!("CARGO_BIN_EXE_scanner-host"))
+        .args([
+            "receive",
+            &format!("serial:{name}@921600"),
+            "--until-done",
+            "--quiet",
+            "--out",
+            out.to_str().unwrap(),
+        ])
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    std::thread::sleep(std::time::Duration::from_millis(300));
+    let mut scene = scanner_device::rig::Scene::demo(320, 240);
+    scene.laser.frames = 40;
+    let rig = scanner_device::rig::Rig::new(scene).unwrap();
+    let cal = scanner_device::scan_cli::rig_truth(&rig);
+    let mut source =
+        scanner_device::source::RigSource::new(rig, scanner_core::stripe::PixelFormat::Gray8);
+    let mut link = Link::spawn(
+        Box::new(device_end.try_clone_native().unwrap()),
+        64,
+        MAX_ENCODED,
+    );
+    let opts = ScanOptions {
+        head: HeadConfig::new(StripeConfig::new(Method::Dim, Axis::Columns)),
+        header_every: 10,
+        status_every: 10,
+        scan_id: 8,
+    };
+    let report =
+        scanner_device::head::run_scan(&mut source, &cal, opts, &mut link, |_| {}, |_, _| {})
+            .unwrap();
+    link.finish().unwrap();
+    let res = host.wait_with_output().unwrap();
+    drop((device_end, host_end));
+    let text = String::from_utf8_lossy(&res.stdout);
+    assert!(
+        res.status.success(),
+        "{}",
+        String::from_utf8_lossy(&res.stderr)
+    );
+    assert!(
+        text.contains(&format!("({} point packets", report.status.packets)),
+        "{text}"
+    );
+    assert!(text.contains("0 bad CRC, 0 bad COBS"), "{text}");
+    assert!(out.join("scan.ply").exists());
+}

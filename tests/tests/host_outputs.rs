@@ -9,7 +9,7 @@ use proptest::prelude::*;
 use scanner_core::nalgebra::{Point3, Vector3};
 use scanner_core::pipeline::HeadConfig;
 use scanner_core::stripe::{Axis, Method, PixelFormat, StripeConfig};
-use scanner_core::wire::{Decoder, MAX_ENCODED, Message};
+use scanner_core::wire::{Decoder, MAX_ENCODED};
 use scanner_device::head::{ScanOptions, run_scan};
 use scanner_device::link::Link;
 use scanner_device::rig::{Rig, Scene};
@@ -148,8 +148,8 @@ fn a_recorded_scan_becomes_a_mesh_on_the_true_surface() {
     for (k, f) in pf.iter().enumerate() {
         for (j, &vi) in f.iter().enumerate() {
             let t = mesh.indices[3 * k + j] as usize;
-            for a in 0..3 {
-                let (x, y) = (mesh.positions[3 * t + a], pv[vi as usize][a]);
+            for (a, &y) in pv[vi as usize].iter().enumerate() {
+                let x = mesh.positions[3 * t + a];
                 assert!(
                     (x - y).abs() <= 1e-3 * y.abs().max(1.0),
                     "face {k} corner {j}"
