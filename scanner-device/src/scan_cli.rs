@@ -19,6 +19,9 @@ pub struct ScanArgs {
     /// Frame source: `rig`, `rig:WIDTHxHEIGHT`, `dir:FOLDER` (or a folder), `/dev/videoN`.
     #[arg(long, default_value = "rig")]
     pub source: String,
+    /// With the virtual rig: this scene file instead of the demo scene.
+    #[arg(long)]
+    pub scene: Option<PathBuf>,
     /// Pixel format the pipeline reads: gray, yuyv or rgb.
     #[arg(long, default_value = "gray", value_parser = ["gray", "yuyv", "rgb"])]
     pub format: String,
@@ -179,9 +182,27 @@ pub fn scan(a: &ScanArgs) -> Result<ScanReport> {
             "no calibration: give --calibration FILE (from `scanner-device calibrate board`), or --calibration rig-truth with the virtual rig"
         );
     };
-    let mut source = open_with(&a.source, format, &opts)
-        .with_context(|| format!("opening the frame source {:?}", a.source))?;
-    let cal = if cal_name == "rig-truth" {
+    let scene_rig = match &a.scene {
+        Some(path) => {
+            if !a.source.starts_with("rig") {
+                bail!("--scene works with the virtual rig only (--source rig)");
+            }
+            let scene = crate::render::load_scene(Some(path))?;
+            Some(
+                crate::rig::Rig::new(scene)
+                    .map_err(|e| anyhow::anyhow!("building the virtual rig: {e}"))?,
+            )
+        }
+        None => None,
+    };
+    let mut source: Box<dyn crate::source::FrameSource> = match &scene_rig {
+        Some(rig) => Box::new(crate::source::RigSource::new(rig.clone(), format)),
+        None => open_with(&a.source, format, &opts)
+            .with_context(|| format!("opening the frame source {:?}", a.source))?,
+    };
+    let cal = if let (Some(rig), "rig-truth") = (&scene_rig, cal_name.as_str()) {
+        rig_truth(rig)
+    } else if cal_name == "rig-truth" {
         let spec = a
             .source
             .strip_prefix("rig")

@@ -131,6 +131,99 @@ pub fn stl(mesh: &Mesh) -> Vec<u8> {
     b
 }
 
+/// Fills the triangle with corners `p` (pixels) by `colour(w)` where `w` are barycentric weights.
+fn fill_triangle(img: &mut RgbImage, p: [(f32, f32); 3], colour: impl Fn([f32; 3]) -> Rgb<u8>) {
+    let (w, h) = (img.width() as i64, img.height() as i64);
+    let x0 = p
+        .iter()
+        .map(|q| q.0)
+        .fold(f32::INFINITY, f32::min)
+        .floor()
+        .max(0.0) as i64;
+    let x1 = (p
+        .iter()
+        .map(|q| q.0)
+        .fold(f32::NEG_INFINITY, f32::max)
+        .ceil() as i64)
+        .min(w - 1);
+    let y0 = p
+        .iter()
+        .map(|q| q.1)
+        .fold(f32::INFINITY, f32::min)
+        .floor()
+        .max(0.0) as i64;
+    let y1 = (p
+        .iter()
+        .map(|q| q.1)
+        .fold(f32::NEG_INFINITY, f32::max)
+        .ceil() as i64)
+        .min(h - 1);
+    let area = (p[1].0 - p[0].0) * (p[2].1 - p[0].1) - (p[2].0 - p[0].0) * (p[1].1 - p[0].1);
+    if area.abs() < 1e-6 {
+        return;
+    }
+    for y in y0..=y1 {
+        for x in x0..=x1 {
+            let (fx, fy) = (x as f32 + 0.5, y as f32 + 0.5);
+            let e = |a: (f32, f32), b: (f32, f32)| {
+                ((b.0 - a.0) * (fy - a.1) - (fx - a.0) * (b.1 - a.1)) / area
+            };
+            let wts = [e(p[1], p[2]), e(p[2], p[0]), e(p[0], p[1])];
+            if wts.iter().all(|&v| v >= -1e-4) {
+                img.put_pixel(x as u32, y as u32, colour(wts));
+            }
+        }
+    }
+}
+
+/// The part of the grid a picture shows (the filled cells with a margin) and its scale.
+struct View {
+    c0: u32,
+    r0: u32,
+    cols: u32,
+    rows: u32,
+    k: u32,
+}
+
+impl View {
+    fn of(grid: &Grid) -> View {
+        let (mut c0, mut c1, mut r0, mut r1) = (usize::MAX, 0, usize::MAX, 0);
+        for r in 0..grid.rows {
+            for c in 0..grid.cols {
+                if grid.at(c, r).count > 0 {
+                    (c0, c1, r0, r1) = (c0.min(c), c1.max(c), r0.min(r), r1.max(r));
+                }
+            }
+        }
+        if c0 == usize::MAX {
+            (c0, c1, r0, r1) = (0, grid.cols - 1, 0, grid.rows - 1);
+        }
+        let m = ((c1 - c0).max(r1 - r0) / 20).max(4);
+        let (c0, r0) = (c0.saturating_sub(m), r0.saturating_sub(m));
+        let (c1, r1) = ((c1 + m).min(grid.cols - 1), (r1 + m).min(grid.rows - 1));
+        let cols = (c1 - c0 + 1) as u32;
+        View {
+            c0: c0 as u32,
+            r0: r0 as u32,
+            cols,
+            rows: (r1 - r0 + 1) as u32,
+            k: 800u32.div_ceil(cols).clamp(1, 8),
+        }
+    }
+
+    /// Pixel centre of a cell.
+    fn px(&self, c: (u32, u32)) -> (f32, f32) {
+        (
+            (c.0 as f32 - self.c0 as f32 + 0.5) * self.k as f32,
+            (c.1 as f32 - self.r0 as f32 + 0.5) * self.k as f32,
+        )
+    }
+
+    fn size(&self) -> (u32, u32) {
+        (self.cols * self.k, self.rows * self.k)
+    }
+}
+
 /// Blue (far) → green → red (near).
 fn bgr_ramp(t: f32) -> Rgb<u8> {
     let t = t.clamp(0.0, 1.0);
@@ -144,15 +237,11 @@ fn bgr_ramp(t: f32) -> Rgb<u8> {
     Rgb([(r * 255.0) as u8, (g * 255.0) as u8, (b * 255.0) as u8])
 }
 
-/// Scale so that the picture is at least about 600 pixels wide.
-fn scale(grid: &Grid) -> u32 {
-    (600 / grid.cols.max(1) as u32).clamp(1, 8)
-}
-
-/// The depth map: each filled cell coloured by its distance from the camera, blue far to red
-/// near (2nd to 98th percentile), empty cells black.
-pub fn depth_png(grid: &Grid) -> RgbImage {
-    let k = scale(grid);
+/// The depth map: the mesh's faces and every filled cell coloured by the distance from the
+/// camera, blue far to red near (2nd to 98th percentile), empty space black.
+pub fn depth_png(grid: &Grid, mesh: &Mesh) -> RgbImage {
+    let v = View::of(grid);
+    let k = v.k;
     let mut depths: Vec<f32> = (0..grid.rows)
         .flat_map(|r| (0..grid.cols).map(move |c| (c, r)))
         .map(|(c, r)| grid.at(c, r))
@@ -168,37 +257,76 @@ pub fn depth_png(grid: &Grid) -> RgbImage {
             depths[depths.len() * 49 / 50].max(depths[depths.len() / 50] + 1e-3),
         )
     };
-    RgbImage::from_fn(grid.cols as u32 * k, grid.rows as u32 * k, |x, y| {
-        let cell = grid.at((x / k) as usize, (y / k) as usize);
+    let ramp = |z: f32| bgr_ramp((far - z) / (far - near));
+    let (w, h) = v.size();
+    let mut img = RgbImage::from_fn(w, h, |x, y| {
+        let cell = grid.at((v.c0 + x / k) as usize, (v.r0 + y / k) as usize);
         if cell.count == 0 {
             Rgb([0, 0, 0])
         } else {
-            bgr_ramp((far - cell.mean[2]) / (far - near))
+            ramp(cell.mean[2])
         }
-    })
+    });
+    for f in &mesh.faces {
+        let p = f.map(|i| v.px(mesh.cells[i as usize]));
+        let z = f.map(|i| mesh.vertices[i as usize].z);
+        fill_triangle(&mut img, p, |w| {
+            ramp(w[0] * z[0] + w[1] * z[1] + w[2] * z[2])
+        });
+    }
+    img
 }
 
-/// A shaded preview of the mesh seen from the camera: Lambert shading under a light from the
-/// camera and above, in the vertex colours when there are any.
+/// A shaded preview of the mesh seen from the camera: its faces under a light from the camera
+/// and above (Lambert, Gouraud-interpolated), in the vertex colours (brightened to use the range)
+/// when there are any.
 pub fn shaded_png(grid: &Grid, mesh: &Mesh) -> RgbImage {
-    let k = scale(grid);
-    let mut img = RgbImage::from_pixel(
-        grid.cols as u32 * k,
-        grid.rows as u32 * k,
-        Rgb([24, 24, 32]),
-    );
+    let v = View::of(grid);
+    let k = v.k;
+    let (w, h) = v.size();
+    let mut img = RgbImage::from_pixel(w, h, Rgb([24, 24, 32]));
     let light = scanner_core::nalgebra::Vector3::new(0.2f32, -0.5, -1.0).normalize();
-    for (i, &(c, r)) in mesh.cells.iter().enumerate() {
-        let n = mesh.normals[i];
-        let shade = 0.15 + 0.85 * n.dot(&light).max(0.0);
-        let base = mesh
-            .colours
+    // Colours from the reference frame are dim: stretch so that their 95th percentile is 230.
+    let mut lum: Vec<f32> = mesh
+        .colours
+        .iter()
+        .map(|c| c.iter().map(|&x| f32::from(x)).fold(0.0, f32::max))
+        .collect();
+    lum.sort_by(f32::total_cmp);
+    let gain = lum
+        .get(lum.len() * 95 / 100)
+        .map_or(1.0, |&l| 230.0 / l.max(1.0));
+    let base = |i: usize| {
+        mesh.colours
             .get(i)
-            .map_or([200.0, 200.0, 200.0], |c| c.map(f32::from));
-        let px = Rgb(base.map(|v| (v * shade).clamp(0.0, 255.0) as u8));
+            .map_or([200.0, 200.0, 200.0], |c| c.map(|v| f32::from(v) * gain))
+    };
+    let shade = |i: usize| 0.15 + 0.85 * mesh.normals[i].dot(&light).max(0.0);
+    let colour = |i: usize| base(i).map(|v| v * shade(i));
+    for f in &mesh.faces {
+        let p = f.map(|i| v.px(mesh.cells[i as usize]));
+        let c = f.map(|i| colour(i as usize));
+        fill_triangle(&mut img, p, |w| {
+            Rgb([0, 1, 2].map(|ch| {
+                (w[0] * c[0][ch] + w[1] * c[1][ch] + w[2] * c[2][ch]).clamp(0.0, 255.0) as u8
+            }))
+        });
+    }
+    // Vertices of no face, as single cells.
+    let mut in_face = vec![false; mesh.vertices.len()];
+    for f in &mesh.faces {
+        for &i in f {
+            in_face[i as usize] = true;
+        }
+    }
+    for (i, &(c, r)) in mesh.cells.iter().enumerate() {
+        if in_face[i] || c < v.c0 || r < v.r0 || c >= v.c0 + v.cols || r >= v.r0 + v.rows {
+            continue;
+        }
+        let px = Rgb(colour(i).map(|v| v.clamp(0.0, 255.0) as u8));
         for dy in 0..k {
             for dx in 0..k {
-                img.put_pixel(c * k + dx, r * k + dy, px);
+                img.put_pixel((c - v.c0) * k + dx, (r - v.r0) * k + dy, px);
             }
         }
     }

@@ -179,7 +179,7 @@ pub fn write_outputs(c: &Collector, dir: &Path, min_count: u32) -> Result<Summar
     export::write_atomic(&dir.join("scan.stl"), &export::stl(&m))?;
     export::write_atomic(
         &dir.join("depth.png"),
-        &export::png_bytes(&export::depth_png(grid))?,
+        &export::png_bytes(&export::depth_png(grid, &m))?,
     )?;
     export::write_atomic(
         &dir.join("preview.png"),
