@@ -2,43 +2,15 @@
 //! (every format, both methods and axes, every estimator) and the f32 geometry of one frame; and
 //! the intrinsics calibration (Zhang's closed form, poses, joint refinement).
 
-use std::alloc::{GlobalAlloc, Layout, System};
-use std::cell::Cell;
-
 use scanner_core::geometry::{Board, LaserFitConfig, Limits, Plane, laser, triangulate};
 use scanner_core::nalgebra::{Point2, Point3, Vector3};
 use scanner_core::stripe::{Axis, Estimator, Extractor, Frame, Method, PixelFormat, StripeConfig};
 use scanner_core::{Camera, Distortion};
 
-struct Counting;
-
-// Per thread: the test harness allocates on other threads while a test runs.
-thread_local! {
-    static ALLOCATIONS: Cell<usize> = const { Cell::new(0) };
-}
-
-// SAFETY: forwards to the system allocator unchanged; only counts.
-#[allow(unsafe_code)]
-unsafe impl GlobalAlloc for Counting {
-    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
-        let _ = ALLOCATIONS.try_with(|c| c.set(c.get() + 1));
-        // SAFETY: same contract as the caller's.
-        unsafe { System.alloc(layout) }
-    }
-    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
-        // SAFETY: same contract as the caller's.
-        unsafe { System.dealloc(ptr, layout) }
-    }
-}
-
 #[global_allocator]
-static GLOBAL: Counting = Counting;
+static GLOBAL: scanner_tests::Counting = scanner_tests::Counting;
 
-fn allocations_during(f: impl FnOnce()) -> usize {
-    let before = ALLOCATIONS.with(Cell::get);
-    f();
-    ALLOCATIONS.with(Cell::get) - before
-}
+use scanner_tests::allocations_during;
 
 #[test]
 fn per_frame_calls_do_not_allocate() {

@@ -3,22 +3,13 @@
 //! written.
 
 use std::path::Path;
-use std::process::Command;
 
 use scanner_device::calib::board::BoardFile;
 use scanner_device::calib::detect::{DetectConfig, find_markers};
 use scanner_device::calib::file::CalibrationFile;
 
 fn run(args: &[&str]) -> (bool, String, String) {
-    let out = Command::new(env!("CARGO_BIN_EXE_scanner-device"))
-        .args(args)
-        .output()
-        .expect("binary runs");
-    (
-        out.status.success(),
-        String::from_utf8_lossy(&out.stdout).into_owned(),
-        String::from_utf8_lossy(&out.stderr).into_owned(),
-    )
+    scanner_tests::run(env!("CARGO_BIN_EXE_scanner-device"), args)
 }
 
 fn p(dir: &Path, name: &str) -> String {

@@ -2,9 +2,6 @@
 //! plane, triangulation, packet encoding and handing the packet to the link thread run without a
 //! single heap allocation (a counting allocator watches this thread).
 
-use std::alloc::{GlobalAlloc, Layout, System};
-use std::cell::Cell;
-
 use scanner_core::pipeline::HeadConfig;
 use scanner_core::stripe::{Axis, Method, PixelFormat, StripeConfig};
 use scanner_core::wire::MAX_ENCODED;
@@ -14,28 +11,8 @@ use scanner_device::rig::{Rig, Scene};
 use scanner_device::scan_cli::rig_truth;
 use scanner_device::source::{FrameSource, RigSource};
 
-struct Counting;
-
-thread_local! {
-    static ALLOCATIONS: Cell<usize> = const { Cell::new(0) };
-}
-
-// SAFETY: forwards to the system allocator unchanged; only counts (per thread).
-#[allow(unsafe_code)]
-unsafe impl GlobalAlloc for Counting {
-    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
-        let _ = ALLOCATIONS.try_with(|c| c.set(c.get() + 1));
-        // SAFETY: same contract as the caller's.
-        unsafe { System.alloc(layout) }
-    }
-    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
-        // SAFETY: same contract as the caller's.
-        unsafe { System.dealloc(ptr, layout) }
-    }
-}
-
 #[global_allocator]
-static GLOBAL: Counting = Counting;
+static GLOBAL: scanner_tests::Counting = scanner_tests::Counting;
 
 #[test]
 fn the_steady_state_allocates_nothing() {
@@ -66,7 +43,7 @@ fn the_steady_state_allocates_nothing() {
         for f in &frames[..4] {
             session.frame(f, &mut link, |_, _| {}).unwrap();
         }
-        let before = ALLOCATIONS.with(Cell::get);
+        let before = scanner_tests::allocations();
         let mut points = 0;
         for f in &frames[4..] {
             session
@@ -75,7 +52,7 @@ fn the_steady_state_allocates_nothing() {
             // Let the writer catch up, as a camera's frame period would.
             std::thread::sleep(std::time::Duration::from_millis(2));
         }
-        let n = ALLOCATIONS.with(Cell::get) - before;
+        let n = scanner_tests::allocations() - before;
         assert!(points > 500, "{format:?}: only {points} points");
         assert_eq!(
             n,
@@ -86,7 +63,7 @@ fn the_steady_state_allocates_nothing() {
         link.finish().unwrap();
     }
     // The counter works.
-    let before = ALLOCATIONS.with(Cell::get);
+    let before = scanner_tests::allocations();
     std::hint::black_box(vec![0u8; 3]);
-    assert!(ALLOCATIONS.with(Cell::get) > before);
+    assert!(scanner_tests::allocations() > before);
 }

@@ -1,18 +1,8 @@
 //! `scanner-device scan` from the outside: a rig scan into a file with its summary, and a clear
 //! error for each thing that can be wrong before the first frame.
 
-use std::process::Command;
-
 fn run(args: &[&str]) -> (bool, String, String) {
-    let out = Command::new(env!("CARGO_BIN_EXE_scanner-device"))
-        .args(args)
-        .output()
-        .expect("binary runs");
-    (
-        out.status.success(),
-        String::from_utf8_lossy(&out.stdout).into_owned(),
-        String::from_utf8_lossy(&out.stderr).into_owned(),
-    )
+    scanner_tests::run(env!("CARGO_BIN_EXE_scanner-device"), args)
 }
 
 #[test]

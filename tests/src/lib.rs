@@ -32,3 +32,52 @@ pub fn check_cli(exe: &str, name: &str) {
     let err = String::from_utf8(out.stderr).expect("UTF-8 output");
     assert!(err.contains("--no-such-flag"), "{err}");
 }
+
+/// Runs a binary with arguments: (success, stdout, stderr).
+///
+/// # Panics
+/// When the binary cannot be started: this is a test helper.
+pub fn run(exe: &str, args: &[&str]) -> (bool, String, String) {
+    let out = Command::new(exe).args(args).output().expect("binary runs");
+    (
+        out.status.success(),
+        String::from_utf8_lossy(&out.stdout).into_owned(),
+        String::from_utf8_lossy(&out.stderr).into_owned(),
+    )
+}
+
+/// A global allocator that counts allocations per thread (the test harness allocates on other
+/// threads while a test runs). Install it in a test binary with
+/// `#[global_allocator] static A: scanner_tests::Counting = scanner_tests::Counting;` and
+/// measure with [`allocations_during`].
+pub struct Counting;
+
+thread_local! {
+    static ALLOCATIONS: std::cell::Cell<usize> = const { std::cell::Cell::new(0) };
+}
+
+// SAFETY: forwards to the system allocator unchanged; only counts.
+#[allow(unsafe_code)]
+unsafe impl std::alloc::GlobalAlloc for Counting {
+    unsafe fn alloc(&self, layout: std::alloc::Layout) -> *mut u8 {
+        let _ = ALLOCATIONS.try_with(|c| c.set(c.get() + 1));
+        // SAFETY: same contract as the caller's.
+        unsafe { std::alloc::System.alloc(layout) }
+    }
+    unsafe fn dealloc(&self, ptr: *mut u8, layout: std::alloc::Layout) {
+        // SAFETY: same contract as the caller's.
+        unsafe { std::alloc::System.dealloc(ptr, layout) }
+    }
+}
+
+/// Allocations this thread made so far (with [`Counting`] installed).
+pub fn allocations() -> usize {
+    ALLOCATIONS.with(std::cell::Cell::get)
+}
+
+/// Allocations this thread makes while `f` runs (with [`Counting`] installed).
+pub fn allocations_during(f: impl FnOnce()) -> usize {
+    let before = allocations();
+    f();
+    allocations() - before
+}

@@ -186,13 +186,7 @@ fn robust_line<T: Real>(
     pts: &[Point3<T>],
     cfg: &LaserFitConfig<T>,
 ) -> Result<(LineFit<T>, T), GeomError> {
-    let mut state: u32 = 0x85EB_CA6B ^ (pts.len() as u32).wrapping_mul(0x9E37);
-    let mut next = |n: usize| {
-        state ^= state << 13;
-        state ^= state >> 17;
-        state ^= state << 5;
-        state as usize % n
-    };
+    let mut next = picker(0x85EB_CA6B ^ (pts.len() as u32).wrapping_mul(0x9E37));
     let mut best: Option<(Line<T>, T, T)> = None;
     for _ in 0..SEED_HYPOTHESES {
         let (a, b) = (pts[next(pts.len())], pts[next(pts.len())]);
@@ -226,6 +220,16 @@ fn robust_line<T: Real>(
     Ok((refit, tol))
 }
 
+/// A deterministic index picker (xorshift32 from `state`): `next(n)` is in `0..n`.
+fn picker(mut state: u32) -> impl FnMut(usize) -> usize {
+    move |n| {
+        state ^= state << 13;
+        state ^= state >> 17;
+        state ^= state << 5;
+        state as usize % n
+    }
+}
+
 /// Candidate planes the seed tries.
 const SEED_HYPOTHESES: u32 = 64;
 
@@ -239,14 +243,7 @@ fn seed<T: Real>(
     right: &[Point3<T>],
     cfg: &LaserFitConfig<T>,
 ) -> Option<(Plane<T>, T)> {
-    let mut state: u32 = 0x9E37_79B9 ^ (left.len() as u32).wrapping_mul(31) ^ right.len() as u32;
-    let mut next = |n: usize| {
-        // xorshift32
-        state ^= state << 13;
-        state ^= state >> 17;
-        state ^= state << 5;
-        state as usize % n
-    };
+    let mut next = picker(0x9E37_79B9 ^ (left.len() as u32).wrapping_mul(31) ^ right.len() as u32);
     let mut best: Option<(Plane<T>, T, T)> = None;
     for h in 0..SEED_HYPOTHESES {
         let (one, two) = if h % 2 == 0 {
