@@ -64,8 +64,9 @@ pub struct OutputArgs {
 /// The host's commands.
 #[derive(Debug, Subcommand)]
 pub enum Command {
-    /// Receive a scan from the head: `serial:PATH[@BAUD]`, a recorded stream file, or `-` for
-    /// stdin. Every accepted frame is journaled to OUT/journal.stream as it arrives; the outputs
+    /// Receive a scan from the head: `serial:PATH[@BAUD]`, a recorded stream file, `-` for
+    /// stdin, or `pty`: a new pseudo-terminal pair whose device end (printed, and written to
+    /// OUT/device-port) the head writes to, like a serial cable. Every accepted frame is journaled to OUT/journal.stream as it arrives; the outputs
     /// are written when the input ends, the head's final status arrives (`--until-done`), or on
     /// Ctrl-C.
     Receive {
@@ -251,8 +252,19 @@ fn receive(input: &str, until_done: bool, o: &OutputArgs) -> Result<Summary> {
         // A second handler cannot be installed in the same process (tests): ignore that.
         let _ = ctrlc::set_handler(move || stop.store(true, Ordering::SeqCst));
     }
+    // For `pty`: the far end stays open here so that the head may open and close it freely.
+    let mut _keep_open = None;
     let mut reader: Box<dyn Read> = if input == "-" {
         Box::new(std::io::stdin())
+    } else if input == "pty" {
+        use serialport::SerialPort;
+        let (mut ours, theirs) = serialport::TTYPort::pair().context("cannot create a pseudo-terminal pair")?;
+        let name = theirs.name().context("the pseudo-terminal has no name")?;
+        ours.set_timeout(Duration::from_millis(200)).context("pseudo-terminal timeout")?;
+        export::write_atomic(&o.out.join("device-port"), name.as_bytes())?;
+        eprintln!("device end of the link: {name}");
+        _keep_open = Some(theirs);
+        Box::new(ours)
     } else if let Some(spec) = input.strip_prefix("serial:") {
         let (path, baud) = match spec.split_once('@') {
             Some((p, b)) => (
