@@ -14,6 +14,7 @@ pub mod convert;
 pub mod head;
 pub mod link;
 pub mod render;
+pub mod report;
 pub mod rig;
 pub mod scan_cli;
 pub mod source;

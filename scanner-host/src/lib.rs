@@ -258,9 +258,11 @@ fn receive(input: &str, until_done: bool, o: &OutputArgs) -> Result<Summary> {
         Box::new(std::io::stdin())
     } else if input == "pty" {
         use serialport::SerialPort;
-        let (mut ours, theirs) = serialport::TTYPort::pair().context("cannot create a pseudo-terminal pair")?;
+        let (mut ours, theirs) =
+            serialport::TTYPort::pair().context("cannot create a pseudo-terminal pair")?;
         let name = theirs.name().context("the pseudo-terminal has no name")?;
-        ours.set_timeout(Duration::from_millis(200)).context("pseudo-terminal timeout")?;
+        ours.set_timeout(Duration::from_millis(200))
+            .context("pseudo-terminal timeout")?;
         export::write_atomic(&o.out.join("device-port"), name.as_bytes())?;
         eprintln!("device end of the link: {name}");
         _keep_open = Some(theirs);
