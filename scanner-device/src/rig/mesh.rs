@@ -109,6 +109,15 @@ impl Mesh {
         mesh
     }
 
+    /// Distance from `p` to the nearest triangle, mm (every triangle is tried: for tests and
+    /// reports, not for rendering).
+    pub fn distance(&self, p: &Point3<f64>) -> f64 {
+        self.triangles
+            .iter()
+            .map(|t| (closest_on_triangle(p, t) - p).norm())
+            .fold(f64::INFINITY, f64::min)
+    }
+
     /// Number of triangles.
     pub fn len(&self) -> usize {
         self.triangles.len()
@@ -247,4 +256,38 @@ fn triangle(
     }
     let n = e1.cross(&e2).normalize();
     Some((dist, if n.dot(d) > 0.0 { -n } else { n }))
+}
+
+/// The point of triangle `t` closest to `p` (Ericson, Real-Time Collision Detection, 5.1.5).
+fn closest_on_triangle(p: &Point3<f64>, t: &[Point3<f64>; 3]) -> Point3<f64> {
+    let [a, b, c] = *t;
+    let (ab, ac, ap) = (b - a, c - a, p - a);
+    let (d1, d2) = (ab.dot(&ap), ac.dot(&ap));
+    if d1 <= 0.0 && d2 <= 0.0 {
+        return a;
+    }
+    let bp = p - b;
+    let (d3, d4) = (ab.dot(&bp), ac.dot(&bp));
+    if d3 >= 0.0 && d4 <= d3 {
+        return b;
+    }
+    let vc = d1 * d4 - d3 * d2;
+    if vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0 {
+        return a + ab * (d1 / (d1 - d3));
+    }
+    let cp = p - c;
+    let (d5, d6) = (ab.dot(&cp), ac.dot(&cp));
+    if d6 >= 0.0 && d5 <= d6 {
+        return c;
+    }
+    let vb = d5 * d2 - d1 * d6;
+    if vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0 {
+        return a + ac * (d2 / (d2 - d6));
+    }
+    let va = d3 * d6 - d5 * d4;
+    if va <= 0.0 && (d4 - d3) >= 0.0 && (d5 - d6) >= 0.0 {
+        return b + (c - b) * ((d4 - d3) / ((d4 - d3) + (d5 - d6)));
+    }
+    let denom = 1.0 / (va + vb + vc);
+    a + ab * (vb * denom) + ac * (vc * denom)
 }

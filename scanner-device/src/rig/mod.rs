@@ -884,8 +884,8 @@ impl Rig {
         r.iter().all(|x| x.is_finite()).then(|| r.normalize())
     }
 
-    /// Distance from `p` to the nearest true surface (a board sheet or an analytic object;
-    /// meshes are left out), mm: how far a measured point is from what it measured.
+    /// Distance from `p` to the nearest true surface (a board sheet or an object), mm: how far a
+    /// measured point is from what it measured.
     pub fn surface_distance(&self, p: &Point3<f64>) -> f64 {
         let mut best = f64::INFINITY;
         for k in 0..2 {

@@ -79,7 +79,7 @@ fn facing(n: Vector3<f64>, dir: &Vector3<f64>) -> Vector3<f64> {
 }
 
 impl Shape {
-    /// Distance from `p` to the shape's surface, mm (`None` for a mesh).
+    /// Distance from `p` to the shape's surface, mm (meshes: every triangle is tried).
     pub fn distance(&self, p: &Point3<f64>) -> Option<f64> {
         match self {
             Shape::Sphere { centre, radius } => Some(((p - centre).norm() - radius).abs()),
@@ -128,7 +128,7 @@ impl Shape {
                 );
                 Some((d.dot(&n).powi(2) + a * a + b * b).sqrt())
             }
-            Shape::Mesh(_) => None,
+            Shape::Mesh(m) => Some(m.distance(p)),
         }
     }
 
