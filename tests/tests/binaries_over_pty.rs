@@ -140,8 +140,10 @@ fn a_sphere_a_box_and_a_mesh_over_a_serial_link() {
         v.len(),
         f.len()
     );
+    // 400×300 for speed: a pixel is 2.3 mm on the board, so the bound is looser than the host's
+    // 640×480 test (0.2 %).
     assert!(
-        median < 0.2 && p99 <= 0.002 * d,
+        median < 0.3 && p99 <= 0.005 * d,
         "median {median}, p99 {p99}"
     );
     // Every object was scanned: vertices near each.
