@@ -21,18 +21,8 @@ fn main() -> anyhow::Result<()> {
     scene.sensor.read_noise = 2.0;
     scene.sensor.shot_noise = 0.0;
     let rig = Rig::new(scene)?;
-    let grid = DotGrid {
-        cols: 9,
-        rows: 7,
-        pitch: 30.0,
-        dot: 12.0,
-    };
-    let pattern = Pattern::DotGrid {
-        cols: 9,
-        rows: 7,
-        pitch: 30.0,
-        dot: 12.0,
-    };
+    let grid = DotGrid::RIG;
+    let pattern = grid.pattern();
     let chess = Pattern::Chessboard {
         cols: 10,
         rows: 8,

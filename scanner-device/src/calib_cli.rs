@@ -376,19 +376,10 @@ pub fn render_calibration(rig: &crate::rig::Rig, out: &Path) -> Result<()> {
             .with_context(|| format!("cannot write {}", p.display()))
     };
     gray(&rig.reference(), "board.png")?;
-    let pattern = Pattern::DotGrid {
-        cols: 9,
-        rows: 7,
-        pitch: 30.0,
-        dot: 12.0,
-    };
-    let n = 12;
-    for i in 0..n {
-        let pose = TargetPose::sweep(i, n);
-        gray(
-            &rig.shot(&pattern, &pose, i as u64).image,
-            &format!("grid-{i:02}.png"),
-        )?;
+    for (i, img) in DotGrid::RIG.shots(rig, 12).iter().enumerate() {
+        let p = out.join(format!("grid-{i:02}.png"));
+        img.save(&p)
+            .with_context(|| format!("cannot write {}", p.display()))?;
     }
     let cross = BoardFile::default().cross;
     let cp = Pattern::Cross {

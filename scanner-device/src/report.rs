@@ -6,7 +6,6 @@
 
 use crate::calib::board::{BoardFile, Cross, Grid, SheetLayout, SheetSize};
 use crate::calib::{DotGrid, Target, board_planes, intrinsics};
-use crate::rig::target::{Pattern, TargetPose};
 use crate::rig::{Object, Rig, Scene, Shape};
 use scanner_core::Camera;
 use scanner_core::calib::Free;
@@ -124,25 +123,8 @@ pub fn scene(width: u32, height: u32, d: f64, frames: usize) -> (Scene, BoardFil
 /// Intrinsics from 12 rendered dot-grid images of the demo camera at this size.
 pub fn calibrate_camera(width: u32, height: u32) -> Camera<f64> {
     let rig = Rig::new(Scene::demo(width, height)).expect("demo rig");
-    let grid = DotGrid {
-        cols: 9,
-        rows: 7,
-        pitch: 30.0,
-        dot: 12.0,
-    };
-    let pattern = Pattern::DotGrid {
-        cols: 9,
-        rows: 7,
-        pitch: 30.0,
-        dot: 12.0,
-    };
-    let images: Vec<_> = (0..12)
-        .map(|i| {
-            rig.shot(&pattern, &TargetPose::sweep(i, 12), i as u64)
-                .image
-                .to_gray_image()
-        })
-        .collect();
+    let grid = DotGrid::RIG;
+    let images = grid.shots(&rig, 12);
     intrinsics(&images, &Target::Dots(grid), Free::ALL)
         .expect("intrinsics")
         .camera

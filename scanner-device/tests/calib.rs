@@ -53,25 +53,7 @@ fn sheet_centre(rig: &Rig, k: usize) -> Point3<f64> {
 /// Dot-grid shots for intrinsics: a 9×7 grid, 30 mm pitch, 12 mm dots, turned up to ±35° at
 /// 550–850 mm, spread over the image.
 fn grid_shots(rig: &Rig, n: usize) -> (DotGrid, Vec<image::GrayImage>) {
-    let grid = DotGrid {
-        cols: 9,
-        rows: 7,
-        pitch: 30.0,
-        dot: 12.0,
-    };
-    let pattern = Pattern::DotGrid {
-        cols: 9,
-        rows: 7,
-        pitch: 30.0,
-        dot: 12.0,
-    };
-    let images = (0..n)
-        .map(|i| {
-            let pose = TargetPose::sweep(i, n);
-            rig.shot(&pattern, &pose, i as u64).image.to_gray_image()
-        })
-        .collect();
-    (grid, images)
+    (DotGrid::RIG, DotGrid::RIG.shots(rig, n))
 }
 
 #[test]

@@ -497,6 +497,43 @@ pub struct DotGrid {
 }
 
 impl DotGrid {
+    /// The dot grid the rig's calibration shots show (9×7 dots, 30 mm pitch, 12 mm dots).
+    pub const RIG: DotGrid = DotGrid {
+        cols: 9,
+        rows: 7,
+        pitch: 30.0,
+        dot: 12.0,
+    };
+
+    /// The rig pattern of this grid.
+    pub fn pattern(&self) -> crate::rig::target::Pattern {
+        crate::rig::target::Pattern::DotGrid {
+            cols: self.cols,
+            rows: self.rows,
+            pitch: self.pitch,
+            dot: self.dot,
+        }
+    }
+
+    /// `n` rendered shots of this grid in front of the rig's camera ([`TargetPose::sweep`]
+    /// poses), gray.
+    ///
+    /// [`TargetPose::sweep`]: crate::rig::target::TargetPose::sweep
+    pub fn shots(&self, rig: &crate::rig::Rig, n: usize) -> Vec<GrayImage> {
+        let pattern = self.pattern();
+        (0..n)
+            .map(|i| {
+                rig.shot(
+                    &pattern,
+                    &crate::rig::target::TargetPose::sweep(i, n),
+                    i as u64,
+                )
+                .image
+                .to_gray_image()
+            })
+            .collect()
+    }
+
     /// Dot centres, row by row.
     pub fn points(&self) -> Vec<Point2<f64>> {
         (0..self.rows)
