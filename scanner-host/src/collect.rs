@@ -54,6 +54,9 @@ pub struct Counts {
     pub bad_points: u64,
     /// Packets dropped because no header came within `pending_max` packets.
     pub no_header: u64,
+    /// Point packets received again (same scan and frame: a duplicated frame on the link), not
+    /// counted twice.
+    pub duplicates: u64,
     /// Scans seen.
     pub scans: BTreeSet<u32>,
     /// The latest status of each scan.
@@ -148,6 +151,7 @@ pub struct Collector {
     counts: Counts,
     error: Option<anyhow::Error>,
     points: Vec<Point3<f32>>,
+    seen: BTreeSet<(u32, u32)>,
 }
 
 impl Collector {
@@ -164,6 +168,7 @@ impl Collector {
             counts: Counts::default(),
             error: None,
             points: Vec::with_capacity(4096),
+            seen: BTreeSet::new(),
         }
     }
 
@@ -226,6 +231,10 @@ impl Collector {
                 self.counts.status.insert(s.scan_id, *s);
             }
             Message::Points(p) => {
+                if !self.seen.insert((p.scan_id, p.frame)) {
+                    self.counts.duplicates += 1;
+                    return Ok(());
+                }
                 self.counts.packets += 1;
                 self.counts.scans.insert(p.scan_id);
                 self.counts.time_us = Some(match self.counts.time_us {

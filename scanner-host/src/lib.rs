@@ -128,7 +128,7 @@ impl Summary {
             self.point_rate
         );
         s += &format!(
-            "link: {} bytes; rejected frames: {} bad CRC, {} bad COBS, {} unknown version, {} bad payload, {} oversize, {} truncated; {} packets with bad points, {} without a header\n",
+            "link: {} bytes; rejected frames: {} bad CRC, {} bad COBS, {} unknown version, {} bad payload, {} oversize, {} truncated; {} packets with bad points, {} without a header, {} duplicates\n",
             d.bytes,
             d.bad_crc,
             d.bad_cobs,
@@ -137,7 +137,8 @@ impl Summary {
             d.oversize,
             d.truncated,
             c.bad_points,
-            c.no_header
+            c.no_header,
+            c.duplicates
         );
         let skipped = c.skipped();
         for r in Skip::ALL {

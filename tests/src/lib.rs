@@ -81,3 +81,20 @@ pub fn allocations_during(f: impl FnOnce()) -> usize {
     f();
     allocations() - before
 }
+
+/// A workspace binary next to the running test (`cargo test --workspace` builds them all).
+///
+/// # Panics
+/// When the binary is not built: this is a test helper.
+pub fn workspace_bin(name: &str) -> std::path::PathBuf {
+    let mut p = std::env::current_exe().expect("test path");
+    p.pop(); // deps
+    p.pop(); // the profile's folder
+    let exe = p.join(name);
+    assert!(
+        exe.exists(),
+        "{} not built: run the workspace's tests (`cargo test --workspace`)",
+        exe.display()
+    );
+    exe
+}

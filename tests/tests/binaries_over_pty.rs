@@ -9,18 +9,8 @@ use std::time::{Duration, Instant};
 
 use scanner_core::nalgebra::{Point3, Vector3};
 
-/// A workspace binary next to this test (`cargo test --workspace` builds them all).
 fn bin(name: &str) -> PathBuf {
-    let mut p = std::env::current_exe().expect("test path");
-    p.pop(); // deps
-    p.pop(); // debug
-    let exe = p.join(name);
-    assert!(
-        exe.exists(),
-        "{} not built: run the workspace's tests (`cargo test --workspace`)",
-        exe.display()
-    );
-    exe
+    scanner_tests::workspace_bin(name)
 }
 
 /// The scene: a sphere, a box and the bunny in front of the demo board, 400×300.
