@@ -242,8 +242,16 @@ impl BoardFile {
             path: path.display().to_string(),
             why: e.to_string(),
         })?;
-        let b: BoardFile = toml::from_str(&text).map_err(|e| BoardError::Read {
-            path: path.display().to_string(),
+        Self::parse(&text, &path.display().to_string())
+    }
+
+    /// Parses and checks a board file's text; `name` names it in errors.
+    ///
+    /// # Errors
+    /// [`BoardError`] naming the file and what is wrong.
+    pub fn parse(text: &str, name: &str) -> Result<BoardFile, BoardError> {
+        let b: BoardFile = toml::from_str(text).map_err(|e| BoardError::Read {
+            path: name.to_string(),
             why: e.to_string(),
         })?;
         b.check()?;

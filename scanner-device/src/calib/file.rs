@@ -393,14 +393,24 @@ impl CalibrationFile {
     /// # Errors
     /// [`FileError`] naming the file and the problem.
     pub fn load(path: &Path) -> Result<Self, FileError> {
-        let io = |why: String| FileError::Io {
+        let text = std::fs::read_to_string(path).map_err(|e| FileError::Io {
             path: path.display().to_string(),
-            why,
-        };
-        let text = std::fs::read_to_string(path).map_err(|e| io(e.to_string()))?;
-        let f: CalibrationFile = toml::from_str(&text).map_err(|e| io(e.to_string()))?;
+            why: e.to_string(),
+        })?;
+        Self::parse(&text, &path.display().to_string())
+    }
+
+    /// Parses and checks a calibration file's text; `name` names it in errors.
+    ///
+    /// # Errors
+    /// [`FileError`] naming the file and the problem.
+    pub fn parse(text: &str, name: &str) -> Result<Self, FileError> {
+        let f: CalibrationFile = toml::from_str(text).map_err(|e| FileError::Io {
+            path: name.to_string(),
+            why: e.to_string(),
+        })?;
         let invalid = |why: String| FileError::Invalid {
-            path: path.display().to_string(),
+            path: name.to_string(),
             why,
         };
         if f.version != VERSION {
