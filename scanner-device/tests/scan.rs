@@ -278,3 +278,109 @@ fn the_papers_construction_and_least_squares_agree_on_the_rig() {
     }
     assert!(counts[1] > 0.9 * counts[0], "{counts:?}");
 }
+
+/// The skip reasons of the middle frames of a scene, with a head configured by `tweak`.
+fn skips(scene: Scene, tweak: impl Fn(&mut HeadConfig)) -> Vec<Option<wire::Skip>> {
+    let rig = Rig::new(scene).unwrap();
+    let cal = rig_truth(&rig);
+    let mut source = RigSource::new(rig, PixelFormat::Gray8);
+    use scanner_device::source::FrameSource;
+    let reference = source.reference().unwrap();
+    let frames: Vec<_> = (0..40)
+        .filter_map(|_| source.next_frame().unwrap())
+        .skip(25)
+        .take(6)
+        .collect();
+    let mut opts = options(16);
+    tweak(&mut opts.head);
+    let mut session = scanner_device::head::Session::new(&cal, reference, opts).unwrap();
+    let mut link = Link::spawn(Box::new(std::io::sink()), 8, MAX_ENCODED);
+    let out = frames
+        .iter()
+        .map(|f| session.frame(f, &mut link, |_, _| {}).unwrap())
+        .collect();
+    let s = session.status();
+    link.finish().unwrap();
+    // Every frame is counted: packets plus skips.
+    assert_eq!(
+        u64::from(s.packets) + s.skipped.iter().map(|&v| u64::from(v)).sum::<u64>(),
+        6
+    );
+    out
+}
+
+#[test]
+fn degenerate_frames_are_skipped_and_counted_by_reason() {
+    use scanner_core::wire::Skip;
+    let base = || Scene::demo(320, 240);
+    // The normal case sends packets.
+    assert!(skips(base(), |_| {}).iter().all(Option::is_none));
+    // No laser at all.
+    let mut s = base();
+    s.laser.power = 0.0;
+    assert!(skips(s, |_| {}).iter().all(|k| *k == Some(Skip::NoStripe)));
+    // The stripe on one board plane only (the left third of the image).
+    let one = skips(base(), |h| {
+        h.stripe.roi = Some(scanner_core::stripe::Roi {
+            x: 0,
+            y: 0,
+            width: 100,
+            height: 240,
+        });
+    });
+    assert!(
+        one.iter().all(|k| *k == Some(Skip::OnePlaneOnly)),
+        "{one:?}"
+    );
+    // A laser held at the camera: its plane passes through the camera centre.
+    let mut s = base();
+    s.laser.source = scanner_core::nalgebra::Point3::new(0.0, 0.0, 0.0);
+    let through = skips(s, |_| {});
+    assert!(
+        through.iter().all(|k| matches!(
+            k,
+            Some(Skip::PlaneThroughCamera | Skip::NoStripe | Skip::PoorPlane)
+        )),
+        "{through:?}"
+    );
+    assert!(
+        through.contains(&Some(Skip::PlaneThroughCamera)),
+        "{through:?}"
+    );
+    // The whole frame saturated by ambient light.
+    let mut s = base();
+    s.ambient = 40.0;
+    assert!(skips(s, |_| {}).iter().all(|k| *k == Some(Skip::NoStripe)));
+}
+
+#[test]
+fn a_frame_of_the_wrong_size_or_format_is_skipped_not_sent() {
+    use scanner_core::wire::Skip;
+    let rig = Rig::new(Scene::demo(320, 240)).unwrap();
+    let cal = rig_truth(&rig);
+    let mut source = RigSource::new(rig, PixelFormat::Gray8);
+    use scanner_device::source::FrameSource;
+    let reference = source.reference().unwrap();
+    let mut session =
+        scanner_device::head::Session::new(&cal, reference.clone(), options(17)).unwrap();
+    let mut link = Link::spawn(Box::new(std::io::sink()), 8, MAX_ENCODED);
+    let mut bad = reference.clone();
+    bad.width = 160; // the buffer no longer matches
+    assert_eq!(
+        session
+            .frame(&bad, &mut link, |_, _| panic!("no points"))
+            .unwrap(),
+        Some(Skip::BadFrame)
+    );
+    let mut other = reference.clone();
+    other.format = PixelFormat::Rgb24;
+    other.data = vec![0; 320 * 240 * 3];
+    assert_eq!(
+        session
+            .frame(&other, &mut link, |_, _| panic!("no points"))
+            .unwrap(),
+        Some(Skip::BadFrame)
+    );
+    assert_eq!(session.status().skipped[Skip::BadFrame as usize], 2);
+    link.finish().unwrap();
+}

@@ -257,3 +257,48 @@ fn head_to_host_over_a_pseudo_terminal() {
     assert!(text.contains("0 bad CRC, 0 bad COBS"), "{text}");
     assert!(out.join("scan.ply").exists());
 }
+
+#[test]
+fn an_output_that_cannot_be_written_is_named_and_the_journal_kept() {
+    let dir = tempfile::tempdir().unwrap();
+    let rec = recording(dir.path());
+    let out = dir.path().join("out");
+    std::fs::create_dir_all(out.join("scan.obj")).unwrap(); // a folder where the mesh should go
+    let res = host()
+        .args([
+            "receive",
+            rec.to_str().unwrap(),
+            "--quiet",
+            "--out",
+            out.to_str().unwrap(),
+        ])
+        .output()
+        .unwrap();
+    assert!(!res.status.success());
+    let err = String::from_utf8_lossy(&res.stderr);
+    assert!(
+        err.contains("cannot write") && err.contains("scan.obj"),
+        "{err}"
+    );
+    // Everything received is in the journal, and replays elsewhere.
+    let journal = out.join("journal.stream");
+    assert_eq!(
+        std::fs::metadata(&journal).unwrap().len(),
+        std::fs::metadata(&rec).unwrap().len()
+    );
+    let again = dir.path().join("again");
+    assert!(
+        host()
+            .args([
+                "replay",
+                journal.to_str().unwrap(),
+                "--out",
+                again.to_str().unwrap()
+            ])
+            .output()
+            .unwrap()
+            .status
+            .success()
+    );
+    assert!(again.join("scan.obj").is_file());
+}
