@@ -384,3 +384,36 @@ fn a_frame_of_the_wrong_size_or_format_is_skipped_not_sent() {
     assert_eq!(session.status().skipped[Skip::BadFrame as usize], 2);
     link.finish().unwrap();
 }
+
+/// A serial port that vanishes after `left` writes.
+struct Vanishing(usize);
+
+impl std::io::Write for Vanishing {
+    fn write(&mut self, b: &[u8]) -> std::io::Result<usize> {
+        if self.0 == 0 {
+            return Err(std::io::Error::new(
+                std::io::ErrorKind::BrokenPipe,
+                "/dev/ttyACM0 was unplugged",
+            ));
+        }
+        self.0 -= 1;
+        Ok(b.len())
+    }
+    fn flush(&mut self) -> std::io::Result<()> {
+        Ok(())
+    }
+}
+
+#[test]
+fn a_serial_port_that_vanishes_stops_the_scan_with_a_clear_error() {
+    let rig = Rig::new(Scene::demo(320, 240)).unwrap();
+    let cal = rig_truth(&rig);
+    let mut source = RigSource::new(rig, PixelFormat::Gray8);
+    let mut link = Link::spawn(Box::new(Vanishing(5)), 2, MAX_ENCODED);
+    let e = run_scan(&mut source, &cal, options(18), &mut link, |_| {}, |_, _| {}).unwrap_err();
+    assert!(
+        e.to_string()
+            .contains("the link failed: /dev/ttyACM0 was unplugged"),
+        "{e}"
+    );
+}

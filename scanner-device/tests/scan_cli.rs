@@ -78,6 +78,22 @@ fn errors_before_the_first_frame_are_clear() {
         &d("c"),
     ]);
     assert!(!ok && err.contains("no board"), "{err}");
+    // A corrupt calibration file.
+    std::fs::write(
+        dir.path().join("corrupt.toml"),
+        "version = 1\n[image]\nwidth = 320\n",
+    )
+    .unwrap();
+    let (ok, _, err) = run(&[
+        "scan",
+        "--source",
+        "rig:320x240",
+        "--calibration",
+        &d("corrupt.toml"),
+        "--out",
+        &d("g"),
+    ]);
+    assert!(!ok && err.contains("corrupt.toml"), "{err}");
     // An unknown camera.
     let (ok, _, err) = run(&[
         "scan",
