@@ -257,3 +257,142 @@ fn a_host_killed_at_random_moments_keeps_a_replayable_journal() {
     }
     println!("{kills} kills survived: every journal a replayable prefix of the stream");
 }
+
+#[test]
+fn faults_on_a_pseudo_terminal_link_between_head_and_host() {
+    use serialport::{SerialPort, TTYPort};
+    use std::io::Read;
+    // head → pty A → fault-injecting proxy → pty B → host.
+    let (a_head, mut a_proxy) = TTYPort::pair().unwrap();
+    let (mut b_proxy, mut b_host) = TTYPort::pair().unwrap();
+    a_proxy
+        .set_timeout(std::time::Duration::from_millis(500))
+        .unwrap();
+    b_host
+        .set_timeout(std::time::Duration::from_millis(500))
+        .unwrap();
+    let rate = 0.2;
+    let proxy = std::thread::spawn(move || {
+        // Frames are delimited by zeros: forward each whole frame with faults, count them.
+        let mut rng = SmallRng::seed_from_u64(4242);
+        let (mut buf, mut frame, mut faults, mut frames) = ([0u8; 4096], Vec::new(), 0u32, 0u32);
+        let mut damaged = Vec::new();
+        let mut idle = 0;
+        while idle < 6 {
+            let n = match a_proxy.read(&mut buf) {
+                Ok(0) => break,
+                Ok(n) => n,
+                Err(e) if e.kind() == std::io::ErrorKind::TimedOut => {
+                    idle += 1;
+                    continue;
+                }
+                Err(_) => break,
+            };
+            idle = 0;
+            for &b in &buf[..n] {
+                frame.push(b);
+                if b == 0 && frame.len() > 2 {
+                    frames += 1;
+                    let mut f = std::mem::take(&mut frame);
+                    let mut hurt = false;
+                    if rng.random_bool(rate) {
+                        faults += 1;
+                        let i = rng.random_range(1..f.len() - 1);
+                        match rng.random_range(0..4) {
+                            0 => {
+                                f[i] ^= 1 << rng.random_range(0..8);
+                                hurt = true;
+                            }
+                            1 => {
+                                f.remove(i);
+                                hurt = true;
+                            }
+                            2 => {
+                                f.truncate(i);
+                                hurt = true;
+                            }
+                            _ => f.extend_from_within(..),
+                        }
+                    }
+                    damaged.push(hurt);
+                    b_proxy.write_all(&f).unwrap();
+                } else if b == 0 {
+                    frame = vec![0];
+                }
+            }
+        }
+        (frames, faults, damaged)
+    });
+    let host = std::thread::spawn(move || {
+        let mut c = Collector::new(CollectOptions::default(), None);
+        let mut d = Box::new(Decoder::<MAX_ENCODED>::new());
+        let (mut buf, mut got, mut idle) = ([0u8; 4096], Vec::new(), 0);
+        while idle < 8 {
+            match b_host.read(&mut buf) {
+                Ok(0) => break,
+                Ok(n) => {
+                    idle = 0;
+                    c.feed(&buf[..n]).unwrap();
+                    d.feed(&buf[..n], |m| {
+                        if let Ok(m) = m {
+                            got.push(format!("{m:?}"));
+                        }
+                    });
+                }
+                Err(e) if e.kind() == std::io::ErrorKind::TimedOut => idle += 1,
+                Err(_) => break,
+            }
+        }
+        (got, c.counts())
+    });
+    let mut scene = Scene::demo(320, 240);
+    scene.laser.frames = 40;
+    let rig = Rig::new(scene).unwrap();
+    let cal = rig_truth(&rig);
+    let mut src = RigSource::new(rig, PixelFormat::Gray8);
+    let dir = tempfile::tempdir().unwrap();
+    let clean_path = dir.path().join("clean");
+    // The head writes to pty A and, for comparison, the same bytes to a file.
+    struct Tee(TTYPort, std::fs::File);
+    impl Write for Tee {
+        fn write(&mut self, b: &[u8]) -> std::io::Result<usize> {
+            self.0.write_all(b)?;
+            self.1.write_all(b)?;
+            Ok(b.len())
+        }
+        fn flush(&mut self) -> std::io::Result<()> {
+            self.0.flush()?;
+            self.1.flush()
+        }
+    }
+    let tee = Tee(
+        a_head.try_clone_native().unwrap(),
+        std::fs::File::create(&clean_path).unwrap(),
+    );
+    let mut link = Link::spawn(Box::new(tee), 64, MAX_ENCODED);
+    let opts = ScanOptions {
+        head: HeadConfig::new(StripeConfig::new(Method::Dim, Axis::Columns)),
+        header_every: 10,
+        status_every: 10,
+        scan_id: 31,
+    };
+    run_scan(&mut src, &cal, opts, &mut link, |_| {}, |_, _| {}).unwrap();
+    link.finish().unwrap();
+    let (frames, faults, damaged) = proxy.join().unwrap();
+    let (got, counts) = host.join().unwrap();
+    drop(a_head);
+    let clean = accepted(&std::fs::read(&clean_path).unwrap());
+    let wrong = got.iter().filter(|m| !clean.contains(m)).count();
+    println!(
+        "over ptys at {:.0} %: {frames} frames, {faults} faults, {} accepted, {} rejected, {wrong} wrongly accepted",
+        rate * 100.0,
+        got.len(),
+        counts.decode.rejected()
+    );
+    assert_eq!(frames as usize, clean.len(), "the proxy saw every frame");
+    assert!(faults > 0);
+    assert_eq!(wrong, 0);
+    for (k, m) in clean.iter().enumerate() {
+        assert!(damaged[k] || got.contains(m), "intact frame {k} was lost");
+    }
+}
