@@ -6,9 +6,11 @@
 //! camera, cells of n×n pixels — a perspective grid, the paper's) or millimetres
 //! (`Cell::Mm(s)`: cells of s×s mm in the camera's x–y plane — an orthographic grid).
 //!
-//! The robust mean: a sample farther from the cell's running mean along the viewing direction
-//! than `max(3σ, outlier_mm)` (σ from the cell's samples, once it has three) is rejected and
-//! counted; the others update mean and spread (Welford).
+//! The robust mean: each cell keeps two running clusters (Welford) of its samples by distance from
+//! the camera; a sample joins a cluster within `max(3σ, outlier_mm)` of it (σ once it has three
+//! samples), else it is rejected. The cluster with more samples is the cell's surface: a cell on
+//! an object's outline, which sees the object and the board behind it, takes the better-supported
+//! depth instead of averaging the two.
 
 use scanner_core::Camera;
 use scanner_core::nalgebra::{Point3, Vector2};
@@ -54,9 +56,9 @@ impl std::str::FromStr for Cell {
 /// One cell's state.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub struct CellState {
-    /// Accepted samples.
+    /// Samples of the cell's surface (its main cluster).
     pub count: u32,
-    /// Rejected samples.
+    /// Samples that fitted neither cluster.
     pub rejected: u32,
     /// Mean position, mm.
     pub mean: [f32; 3],
@@ -66,6 +68,65 @@ pub struct CellState {
     range: f32,
     /// Mean colour.
     pub rgb: [f32; 3],
+    /// The other cluster: samples at another depth (a cell on an object's outline sees the
+    /// object and the board behind it). Whichever has more samples is the cell's surface.
+    alt: Cluster,
+}
+
+/// A running cluster of samples.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+struct Cluster {
+    count: u32,
+    mean: [f32; 3],
+    m2: f32,
+    range: f32,
+    rgb: [f32; 3],
+}
+
+impl CellState {
+    fn main(&self) -> Cluster {
+        Cluster {
+            count: self.count,
+            mean: self.mean,
+            m2: self.m2,
+            range: self.range,
+            rgb: self.rgb,
+        }
+    }
+
+    fn set_main(&mut self, c: Cluster) {
+        (self.count, self.mean, self.m2, self.range, self.rgb) =
+            (c.count, c.mean, c.m2, c.range, c.rgb);
+    }
+}
+
+impl Cluster {
+    /// Whether a sample at `range` belongs here: within 3σ of the cluster's samples (once it
+    /// has three) and never closer than `floor`.
+    fn accepts(&self, range: f32, floor: f32) -> bool {
+        let tol = if self.count >= 3 {
+            (3.0 * (self.m2 / (self.count - 1) as f32).sqrt()).max(floor)
+        } else {
+            floor
+        };
+        (range - self.range).abs() <= tol
+    }
+
+    fn add(&mut self, p: &Point3<f32>, range: f32, rgb: Option<[u8; 3]>) {
+        self.count += 1;
+        let n = self.count as f32;
+        let d = range - self.range;
+        self.range += d / n;
+        self.m2 += d * (range - self.range);
+        for (m, v) in self.mean.iter_mut().zip(p.iter()) {
+            *m += (v - *m) / n;
+        }
+        if let Some(c) = rgb {
+            for (m, v) in self.rgb.iter_mut().zip(c) {
+                *m += (f32::from(v) - *m) / n;
+            }
+        }
+    }
 }
 
 /// The grid.
@@ -174,27 +235,25 @@ impl Grid {
         };
         let cell = &mut self.cells[r * self.cols + c];
         let range = p.coords.norm();
-        if cell.count >= 3 {
-            let sigma = (cell.m2 / (cell.count - 1) as f32).sqrt();
-            if (range - cell.range).abs() > (3.0 * sigma).max(self.outlier_mm) {
-                cell.rejected += 1;
-                return false;
+        let mut main = cell.main();
+        if main.count == 0 || main.accepts(range, self.outlier_mm) {
+            main.add(p, range, rgb);
+            cell.set_main(main);
+            return true;
+        }
+        if cell.alt.count == 0 || cell.alt.accepts(range, self.outlier_mm) {
+            cell.alt.add(p, range, rgb);
+            if cell.alt.count > main.count {
+                // The other depth has more support: it is the cell's surface.
+                let alt = cell.alt;
+                cell.alt = main;
+                cell.set_main(alt);
+                return true;
             }
+            return false;
         }
-        cell.count += 1;
-        let n = cell.count as f32;
-        let d = range - cell.range;
-        cell.range += d / n;
-        cell.m2 += d * (range - cell.range);
-        for k in 0..3 {
-            cell.mean[k] += (p[k] - cell.mean[k]) / n;
-        }
-        if let Some(c) = rgb {
-            for (m, v) in cell.rgb.iter_mut().zip(c) {
-                *m += (f32::from(v) - *m) / n;
-            }
-        }
-        true
+        cell.rejected += 1;
+        false
     }
 
     /// The cell at column `c`, row `r`.
@@ -212,8 +271,11 @@ impl Grid {
         self.outside
     }
 
-    /// Samples rejected as outliers.
+    /// Samples not in their cell's surface (outliers, and the other depth of a mixed cell).
     pub fn rejected(&self) -> u64 {
-        self.cells.iter().map(|c| u64::from(c.rejected)).sum()
+        self.cells
+            .iter()
+            .map(|c| u64::from(c.rejected) + u64::from(c.alt.count))
+            .sum()
     }
 }
