@@ -12,7 +12,8 @@ use scanner_core::calib::Free;
 use crate::calib::board::BoardFile;
 use crate::calib::file::{CalibrationFile, write_atomic};
 use crate::calib::{
-    DotGrid, PlaneMethod, Target, board_planes, check_size, intrinsics, overlay, print,
+    CalibError, DotGrid, PlaneMethod, Target, board_planes, check_size, intrinsics_outcome,
+    overlay, print,
 };
 
 /// What to calibrate.
@@ -21,9 +22,17 @@ pub enum Calibrate {
     /// Full intrinsics (fx, fy, cx, cy, k1, k2, p1, p2, k3) from several images of a dot grid
     /// (default) or a chessboard.
     Intrinsics {
-        /// Use a chessboard of COLSxROWS squares instead of the dot grid.
+        /// A chessboard with COLSxROWS inner corners (OpenCV's count: 9x6 for a board of 10x7
+        /// squares) instead of the dot grid.
+        #[arg(long, value_parser = parse_grid, conflicts_with_all = ["dots", "pitch", "dot", "chessboard_squares"])]
+        chessboard_corners: Option<(usize, usize)>,
+        /// A chessboard of COLSxROWS squares (10x7 has 9x6 inner corners) instead of the dot
+        /// grid.
         #[arg(long, value_parser = parse_grid, conflicts_with_all = ["dots", "pitch", "dot"])]
-        chessboard: Option<(usize, usize)>,
+        chessboard_squares: Option<(usize, usize)>,
+        /// Refused: it did not say whether it counts squares or inner corners.
+        #[arg(long, hide = true)]
+        chessboard: Option<String>,
         /// Chessboard square side, mm.
         #[arg(long, default_value_t = 25.0)]
         square: f64,
@@ -39,7 +48,8 @@ pub enum Calibrate {
         /// Output camera file (TOML; a calibration file without a board).
         #[arg(long, default_value = "camera.toml")]
         out: PathBuf,
-        /// Folder for annotated copies of the images.
+        /// Folder for an annotated copy of every image (used or not, and why); default: beside
+        /// the output, `<out>-overlays/`.
         #[arg(long)]
         overlays: Option<PathBuf>,
         /// The images (PNG/JPEG), at least three.
@@ -146,7 +156,7 @@ pub fn board_command(board: Option<&Path>, out: &Path, dpi: f64) -> Result<()> {
             .with_context(|| format!("cannot write {}", svg.display()))?;
         save_png(&sheet.png(dpi / 25.4), &out.join(format!("{stem}.png")))?;
     }
-    println!(
+    outln!(
         "wrote board.toml, left-sheet, right-sheet and cross (.svg, .png at {dpi} dpi) to {}; print the SVGs at 100 % and check the 100 mm ruler",
         out.display()
     );
@@ -160,6 +170,8 @@ pub fn board_command(board: Option<&Path>, out: &Path, dpi: f64) -> Result<()> {
 pub fn calibrate(cmd: &Calibrate) -> Result<()> {
     match cmd {
         Calibrate::Intrinsics {
+            chessboard_corners,
+            chessboard_squares,
             chessboard,
             square,
             dots,
@@ -169,14 +181,25 @@ pub fn calibrate(cmd: &Calibrate) -> Result<()> {
             overlays,
             images,
         } => {
-            let target = match chessboard {
+            if let Some(v) = chessboard {
+                bail!(
+                    "--chessboard {v} is ambiguous: say what it counts, --chessboard-squares {v} (squares along each side) or --chessboard-corners {v} (inner corners, OpenCV's convention; a board of 10x7 squares has 9x6)"
+                );
+            }
+            let squares = chessboard_squares.or(chessboard_corners.map(|(c, r)| (c + 1, r + 1)));
+            let target = match squares {
                 Some((cols, rows)) => {
                     if !(*square > 0.0) {
                         bail!("--square must be positive, found {square}");
                     }
+                    if cols < 3 || rows < 3 {
+                        bail!(
+                            "a chessboard needs at least 3x3 squares (2x2 inner corners), found {cols}x{rows} squares"
+                        );
+                    }
                     Target::Chessboard {
-                        cols: *cols,
-                        rows: *rows,
+                        cols,
+                        rows,
                         square: *square,
                     }
                 }
@@ -192,67 +215,7 @@ pub fn calibrate(cmd: &Calibrate) -> Result<()> {
                     })
                 }
             };
-            let imgs: Vec<GrayImage> =
-                images.iter().map(|p| load_gray(p)).collect::<Result<_>>()?;
-            let fit = intrinsics(&imgs, &target, Free::ALL).context("intrinsics calibration")?;
-            for (p, v) in images.iter().zip(&fit.views) {
-                match v {
-                    Ok(v) => println!(
-                        "  {}: {} dots, rms {:.3} px, max {:.3} px",
-                        p.display(),
-                        v.found.len(),
-                        v.rms_px,
-                        v.max_px
-                    ),
-                    Err(e) => println!("  {}: left out: {e}", p.display()),
-                }
-            }
-            if let Some(dir) = overlays {
-                std::fs::create_dir_all(dir)
-                    .with_context(|| format!("cannot create {}", dir.display()))?;
-                for ((p, img), v) in images.iter().zip(&imgs).zip(&fit.views) {
-                    let name = p
-                        .file_stem()
-                        .map(|s| s.to_string_lossy().into_owned())
-                        .unwrap_or_default();
-                    save_png(
-                        &overlay::grid_overlay(img, v),
-                        &dir.join(format!("{name}-overlay.png")),
-                    )?;
-                }
-            }
-            let used = fit.views.iter().filter(|v| v.is_ok()).count();
-            let file = CalibrationFile::from_camera(
-                &fit.camera,
-                fit.size,
-                match target {
-                    Target::Dots(g) => format!(
-                        "intrinsics from {used} dot-grid images ({}x{}, {} mm pitch)",
-                        g.cols, g.rows, g.pitch
-                    ),
-                    Target::Chessboard { cols, rows, square } => format!(
-                        "intrinsics from {used} chessboard images ({cols}x{rows} squares of {square} mm)"
-                    ),
-                },
-                Some(fit.rms_px),
-            );
-            file.save(out)?;
-            let c = &fit.camera;
-            let d = c.distortion();
-            println!(
-                "fx {:.3} fy {:.3} cx {:.3} cy {:.3} k1 {:.5} k2 {:.5} p1 {:.6} p2 {:.6} k3 {:.5}; rms {:.4} px over {used} images -> {}",
-                c.fx(),
-                c.fy(),
-                c.principal_point().x,
-                c.principal_point().y,
-                d.k1,
-                d.k2,
-                d.p1,
-                d.p2,
-                d.k3,
-                fit.rms_px,
-                out.display()
-            );
+            intrinsics_command(&target, images, out, overlays.as_deref())?;
         }
         Calibrate::Distance {
             board,
@@ -280,7 +243,7 @@ pub fn calibrate(cmd: &Calibrate) -> Result<()> {
                 None,
             );
             file.save(out)?;
-            println!(
+            outln!(
                 "d_z {:.3} px, mark offset ε {:.2} mm -> {}",
                 d.d_z,
                 d.epsilon_mm,
@@ -335,7 +298,7 @@ pub fn calibrate(cmd: &Calibrate) -> Result<()> {
                 );
             }
             for (k, s) in fit.sheets.iter().enumerate() {
-                println!(
+                outln!(
                     "{} sheet: {}/{} markers, rms {:.3} px{}",
                     ["left", "right"][k],
                     s.markers.len() - s.missing().len(),
@@ -348,7 +311,7 @@ pub fn calibrate(cmd: &Calibrate) -> Result<()> {
                     }
                 );
             }
-            println!(
+            outln!(
                 "planes by {}; angle between them {:.3}°; -> {} (picture: {})",
                 sec.method,
                 sec.angle_deg,
@@ -357,6 +320,108 @@ pub fn calibrate(cmd: &Calibrate) -> Result<()> {
             );
         }
     }
+    Ok(())
+}
+
+/// `calibrate intrinsics`: a line and an overlay per image (also when the calibration fails),
+/// then the camera file.
+fn intrinsics_command(
+    target: &Target,
+    images: &[PathBuf],
+    out: &Path,
+    overlays: Option<&Path>,
+) -> Result<()> {
+    let imgs: Vec<GrayImage> = images.iter().map(|p| load_gray(p)).collect::<Result<_>>()?;
+    let outcome = intrinsics_outcome(&imgs, target, Free::ALL);
+    let name = |i: usize| images[i].display().to_string();
+    for (i, r) in outcome.images.iter().enumerate() {
+        let what = match &r.status {
+            Ok(v) => format!(
+                "used: {} features, rms {:.3} px, max {:.3} px{}",
+                v.found.len(),
+                v.rms_px,
+                v.max_px,
+                if v.dropped.is_empty() {
+                    String::new()
+                } else {
+                    format!(
+                        "; dropped {} far off the fit ({})",
+                        v.dropped.len(),
+                        v.dropped
+                            .iter()
+                            .map(|(k, _, e)| format!("#{k} {e:.1} px"))
+                            .collect::<Vec<_>>()
+                            .join(", ")
+                    )
+                }
+            ),
+            Err(CalibError::SameView { other }) => {
+                format!(
+                    "refused: the same view as {} (it adds nothing)",
+                    name(*other)
+                )
+            }
+            Err(e) => format!("refused: {e}"),
+        };
+        outln!("  {}: {what}", name(i));
+    }
+    let dir = match overlays {
+        Some(d) => d.to_path_buf(),
+        None => {
+            let stem = out
+                .file_stem()
+                .map_or("camera".into(), |s| s.to_string_lossy());
+            out.with_file_name(format!("{stem}-overlays"))
+        }
+    };
+    std::fs::create_dir_all(&dir).with_context(|| format!("cannot create {}", dir.display()))?;
+    for ((p, img), r) in images.iter().zip(&imgs).zip(&outcome.images) {
+        let stem = p
+            .file_stem()
+            .map_or("image".into(), |s| s.to_string_lossy());
+        save_png(
+            &overlay::grid_overlay(img, r),
+            &dir.join(format!("{stem}-overlay.png")),
+        )?;
+    }
+    let overlays_note = format!("(pictures: {})", dir.display());
+    let fit = outcome
+        .into_fit()
+        .with_context(|| format!("intrinsics calibration {overlays_note}"))?;
+    let used = fit.views.iter().filter(|v| v.is_ok()).count();
+    let file = CalibrationFile::from_camera(
+        &fit.camera,
+        fit.size,
+        match *target {
+            Target::Dots(g) => format!(
+                "intrinsics from {used} dot-grid images ({}x{}, {} mm pitch)",
+                g.cols, g.rows, g.pitch
+            ),
+            Target::Chessboard { cols, rows, square } => format!(
+                "intrinsics from {used} chessboard images ({cols}x{rows} squares of {square} mm, {}x{} inner corners)",
+                cols - 1,
+                rows - 1
+            ),
+        },
+        Some(fit.rms_px),
+    );
+    file.save(out)?;
+    let c = &fit.camera;
+    let d = c.distortion();
+    outln!(
+        "fx {:.3} fy {:.3} cx {:.3} cy {:.3} k1 {:.5} k2 {:.5} p1 {:.6} p2 {:.6} k3 {:.5}; rms {:.4} px over {used} images -> {} {overlays_note}",
+        c.fx(),
+        c.fy(),
+        c.principal_point().x,
+        c.principal_point().y,
+        d.k1,
+        d.k2,
+        d.p1,
+        d.p2,
+        d.k3,
+        fit.rms_px,
+        out.display()
+    );
     Ok(())
 }
 

@@ -8,6 +8,16 @@
 //! ([`link`]).
 #![deny(missing_docs)]
 
+/// Prints a line to standard output. A closed stdout (piped into `head`, say) is not an error
+/// for the work itself, so a failed write is ignored and the command carries on.
+#[macro_export]
+macro_rules! outln {
+    ($($t:tt)*) => {{
+        use std::io::Write as _;
+        let _ = writeln!(std::io::stdout().lock(), $($t)*);
+    }};
+}
+
 pub mod calib;
 pub mod calib_cli;
 pub mod convert;

@@ -90,22 +90,31 @@ fn sample(img: &[f64], w: usize, h: usize, x: f64, y: f64) -> Option<f64> {
     Some(a * (1.0 - fy) + b * fy)
 }
 
-/// Exactly four alternating sectors with clear contrast on a circle around `(x, y)`.
-fn is_x_junction(s: &[f64], w: usize, h: usize, x: f64, y: f64, r: f64, min_contrast: f64) -> bool {
+/// Exactly four alternating sectors with clear contrast on a circle around `(x, y)`; if so, the
+/// direction of the bisector of the two dark sectors (radians, modulo π).
+fn x_junction(
+    s: &[f64],
+    w: usize,
+    h: usize,
+    x: f64,
+    y: f64,
+    r: f64,
+    min_contrast: f64,
+) -> Option<f64> {
     let n = 48;
     let mut vals = Vec::with_capacity(n);
     for i in 0..n {
         let a = i as f64 / n as f64 * std::f64::consts::TAU;
         match sample(s, w, h, x + r * a.cos(), y + r * a.sin()) {
             Some(v) => vals.push(v),
-            None => return false,
+            None => return None,
         }
     }
     let mut sorted = vals.clone();
     sorted.sort_by(f64::total_cmp);
     let (lo, hi) = (sorted[n / 8], sorted[n - 1 - n / 8]);
     if hi - lo < min_contrast {
-        return false;
+        return None;
     }
     let mid = (lo + hi) / 2.0;
     let crossings = (0..n)
@@ -115,7 +124,21 @@ fn is_x_junction(s: &[f64], w: usize, h: usize, x: f64, y: f64, r: f64, min_cont
     let opposite = (0..n / 2)
         .filter(|&i| (vals[i] > mid) == (vals[i + n / 2] > mid))
         .count();
-    crossings == 4 && opposite >= n / 2 - 4
+    if crossings != 4 || opposite < n / 2 - 4 {
+        return None;
+    }
+    // The dark sectors are opposite each other: on doubled angles they point the same way, and
+    // their mean is the dark bisector (the two bisectors of any two lines are perpendicular, so
+    // a corner's neighbour along a grid line has its dark bisector turned by 90°).
+    let (mut sx, mut sy) = (0.0, 0.0);
+    for (i, v) in vals.iter().enumerate() {
+        if *v < mid {
+            let a = 2.0 * i as f64 / n as f64 * std::f64::consts::TAU;
+            sx += a.cos();
+            sy += a.sin();
+        }
+    }
+    Some(sy.atan2(sx).rem_euclid(std::f64::consts::TAU) / 2.0)
 }
 
 /// Finds chessboard inner corners. Returned as [`Blob`]s (area 1, no axes) so that the same
@@ -166,31 +189,24 @@ pub fn find_corners(img: &GrayImage, cfg: &CornerConfig) -> Vec<Blob> {
                     }
                 }
             }
-            if !is_max
-                || !is_x_junction(
-                    &s,
-                    w,
-                    h,
-                    x as f64,
-                    y as f64,
-                    cfg.check_radius,
-                    cfg.min_contrast,
-                )
-            {
+            if !is_max {
                 continue;
             }
-            found.push(Point2::new(x as f64, y as f64));
+            let (xf, yf) = (x as f64, y as f64);
+            if let Some(dark) = x_junction(&s, w, h, xf, yf, cfg.check_radius, cfg.min_contrast) {
+                found.push((Point2::new(xf, yf), dark));
+            }
         }
     }
     // The window grows with the corner spacing (noise averages out) but stays inside the
     // squares next to the corner.
     let mut out = Vec::new();
-    for (i, p) in found.iter().enumerate() {
+    for (i, (p, dark)) in found.iter().enumerate() {
         let nn = found
             .iter()
             .enumerate()
             .filter(|(j, _)| *j != i)
-            .map(|(_, q)| (q - p).norm())
+            .map(|(_, (q, _))| (q - p).norm())
             .fold(f64::INFINITY, f64::min);
         let win = ((0.35 * nn).floor() as i64).clamp(3, cfg.window.max(3));
         if let Some(c) = refine(img, *p, win) {
@@ -200,6 +216,7 @@ pub fn find_corners(img: &GrayImage, cfg: &CornerConfig) -> Vec<Blob> {
                 axes: (0.0, 0.0),
                 angle: 0.0,
                 contrast: 0.0,
+                dark_axis: Some(*dark),
             });
         }
     }

@@ -62,6 +62,9 @@ pub struct Blob {
     pub angle: f64,
     /// Darkness: background minus the marker's mean level, DN.
     pub contrast: f64,
+    /// For a chessboard corner: the direction of the bisector of its two dark quadrants,
+    /// radians modulo π, x right, y down (`None` for a disc).
+    pub dark_axis: Option<f64>,
 }
 
 /// A rejected dark region (for the overlay and error messages).
@@ -251,6 +254,7 @@ fn examine(img: &GrayImage, region: &Region, cfg: &DetectConfig, max_area: usize
             axes: (a, b),
             angle,
             contrast,
+            dark_axis: None,
         })
         .ok_or((centre, "no clear background around it"))
 }

@@ -12,11 +12,13 @@ pub mod corners;
 pub mod detect;
 pub mod file;
 pub mod identify;
+pub mod intrinsics;
+pub mod lattice;
 pub mod overlay;
 pub mod print;
 
 use image::GrayImage;
-use scanner_core::calib::bundle::{initial_camera, initial_pose, refine, residuals};
+use scanner_core::calib::bundle::{initial_pose, refine, residuals};
 use scanner_core::calib::{CrossShot, Free, ImageDistance, View};
 use scanner_core::geometry::board::plane_from_marker_lines;
 use scanner_core::geometry::{Board, Plane, Pose};
@@ -27,6 +29,10 @@ use board::BoardFile;
 use corners::{CornerConfig, find_corners};
 use detect::{Blob, DetectConfig, Detections, find_markers};
 use identify::{Assignment, Orientation, candidates, identify};
+pub use intrinsics::{
+    Found, GridView, ImageReport, IntrinsicsFit, IntrinsicsOutcome, ViewFit, find_grid, intrinsics,
+    intrinsics_outcome,
+};
 
 /// Why a calibration step failed. Each names what was expected and what was found.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
@@ -78,6 +84,90 @@ pub enum CalibError {
         /// Why.
         source: GeomError,
     },
+    /// Too many features for a target: clutter, not a grid.
+    #[error("{found} features detected, more than the {limit} a target search takes (clutter?)")]
+    TooManyFeatures {
+        /// Detected.
+        found: usize,
+        /// [`lattice::MAX_FEATURES`].
+        limit: usize,
+    },
+    /// Features were detected but none form a grid.
+    #[error("{what} not found: {features} features detected, none of them in a grid")]
+    NoGrid {
+        /// Which target.
+        what: String,
+        /// Features detected.
+        features: usize,
+    },
+    /// The grid seen is larger than the target described.
+    #[error(
+        "{what}: the image shows a grid of {}×{} {unit}, more than the {}×{} given: is the count right?",
+        seen.0, seen.1, given.0, given.1
+    )]
+    CountMismatch {
+        /// Which target.
+        what: String,
+        /// Columns × rows seen.
+        seen: (usize, usize),
+        /// Columns × rows given.
+        given: (usize, usize),
+        /// What is counted ("inner corners", "dots").
+        unit: &'static str,
+    },
+    /// Every image shows the same complete grid, smaller than the target described.
+    #[error(
+        "every image shows a complete grid of {}×{} {unit}, but {}×{} were given{hint}",
+        seen.0, seen.1, given.0, given.1
+    )]
+    CountTooLarge {
+        /// Columns × rows seen.
+        seen: (usize, usize),
+        /// Columns × rows given.
+        given: (usize, usize),
+        /// What is counted.
+        unit: &'static str,
+        /// What to do.
+        hint: String,
+    },
+    /// An image repeats another image's view.
+    #[error("the same view as image {} (its features lie within 1 px): it adds nothing", other + 1)]
+    SameView {
+        /// Index of the earlier image.
+        other: usize,
+    },
+    /// An image's features fit the common camera far worse than the others'.
+    #[error(
+        "reprojection error {rms_px:.2} px, far above the other images' (limit {limit_px:.2} px)"
+    )]
+    ResidualTooHigh {
+        /// The image's RMS error.
+        rms_px: f64,
+        /// The limit.
+        limit_px: f64,
+    },
+    /// Zhang's closed form succeeds without this image but not with it.
+    #[error(
+        "disagrees with the other images (the closed-form start fails with it, succeeds without)"
+    )]
+    Disagrees,
+    /// Zhang's closed form fails on the images, whichever one is left out.
+    #[error(
+        "intrinsics: the closed-form start fails on images {} whichever one is left out ({source}): are the views varied enough (tilt the target 20-45° in different directions)?",
+        images.iter().map(|i| (i + 1).to_string()).collect::<Vec<_>>().join(", ")
+    )]
+    ClosedForm {
+        /// The images (0-based).
+        images: Vec<usize>,
+        /// Why.
+        source: GeomError,
+    },
+    /// The fit kept changing its set of features and images.
+    #[error("intrinsics: the fit did not settle on a set of features in 10 rounds")]
+    Unstable,
+    /// The image's grid was found but the calibration as a whole failed.
+    #[error("grid found, but the calibration failed")]
+    NotSolved,
     /// The markers fit the layout badly (wrong board file, or a mis-identification).
     #[error(
         "{what}: markers fit the layout with {rms_px:.2} px RMS (expected < {limit_px} px): does the board file match the printed board?"
@@ -549,24 +639,6 @@ impl DotGrid {
     }
 }
 
-/// One image's part in an intrinsics calibration.
-#[derive(Debug, Clone, PartialEq)]
-pub struct ViewFit {
-    /// Layout index and pixel of every identified dot.
-    pub found: Vec<(usize, Point2<f64>)>,
-    /// Target pose.
-    pub pose: Pose,
-    /// RMS reprojection error, pixels.
-    pub rms_px: f64,
-    /// Largest reprojection error, pixels.
-    pub max_px: f64,
-}
-
-/// Identified features of one image: `(layout index, pixel)`.
-type Found = Vec<(usize, Point2<f64>)>;
-/// Sheet positions and their pixels.
-type Correspondences = (Vec<Point2<f64>>, Vec<Point2<f64>>);
-
 /// A planar target for intrinsics: a dot grid or a chessboard.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum Target {
@@ -616,166 +688,33 @@ impl Target {
             Target::Chessboard { .. } => "chessboard",
         }
     }
-}
 
-/// Full intrinsics from several images of a dot grid or chessboard.
-#[derive(Debug, Clone, PartialEq)]
-pub struct IntrinsicsFit {
-    /// Image size.
-    pub size: (u32, u32),
-    /// The camera.
-    pub camera: Camera<f64>,
-    /// RMS reprojection error over all dots, pixels.
-    pub rms_px: f64,
-    /// Per image (in the order given; `Err` for an image that was left out, and why).
-    pub views: Vec<Result<ViewFit, CalibError>>,
-}
-
-/// The features of a target found in one image: `(layout index, pixel)`.
-///
-/// # Errors
-/// [`CalibError::NoMarkers`] or [`CalibError::TooFewMarkers`] (fewer than half the target).
-pub fn find_grid(
-    img: &GrayImage,
-    target: &Target,
-) -> Result<Vec<(usize, Point2<f64>)>, CalibError> {
-    let (features, rejected) = match target {
-        Target::Dots(_) => {
-            let det = find_markers(img, &DetectConfig::default());
-            (det.blobs, det.rejected.len())
-        }
-        Target::Chessboard { .. } => (find_corners(img, &CornerConfig::default()), 0),
-    };
-    if features.len() < 4 {
-        return Err(CalibError::NoMarkers {
-            found: rejected,
-            hint: "is the calibration target in view and lit?",
-        });
-    }
-    let det = Detections {
-        blobs: features,
-        rejected: Vec::new(),
-    };
-    let layout = target.points();
-    let orient = Orientation {
-        mirrored: false,
-        u_along_x: None,
-    };
-    let a = identify(&det.blobs, &[], &layout, orient);
-    let found: Vec<(usize, Point2<f64>)> = a
-        .map(|a| {
-            a.blob_of
-                .iter()
-                .enumerate()
-                .filter_map(|(i, b)| b.map(|b| (i, det.blobs[b].centre)))
-                .collect()
-        })
-        .unwrap_or_default();
-    let needed = (layout.len() / 2).max(4);
-    if found.len() < needed {
-        return Err(CalibError::TooFewMarkers {
-            what: target.name().into(),
-            found: found.len(),
-            expected: layout.len(),
-            needed,
-            missing: (0..layout.len())
-                .filter(|i| !found.iter().any(|(k, _)| k == i))
-                .collect(),
-        });
-    }
-    Ok(found)
-}
-
-/// Intrinsics from images of a dot grid; images where the grid is not found are left out and
-/// reported. `free` chooses the estimated parameters (normally [`Free::ALL`]).
-///
-/// # Errors
-/// [`CalibError::ImageSize`] if the images differ in size, [`CalibError::TooFewMarkers`] with
-/// fewer than three usable images, [`CalibError::Geometry`] if the solution fails.
-pub fn intrinsics(
-    images: &[GrayImage],
-    target: &Target,
-    free: Free,
-) -> Result<IntrinsicsFit, CalibError> {
-    let Some(first) = images.first() else {
-        return Err(CalibError::TooFewMarkers {
-            what: "intrinsics: images".into(),
-            found: 0,
-            expected: 3,
-            needed: 3,
-            missing: Vec::new(),
-        });
-    };
-    let size = first.dimensions();
-    let layout = target.points();
-    let mut found: Vec<Result<Found, CalibError>> = Vec::new();
-    for img in images {
-        check_size(size, img)?;
-        found.push(find_grid(img, target));
-    }
-    let ok: Vec<usize> = (0..images.len()).filter(|&i| found[i].is_ok()).collect();
-    if ok.len() < 3 {
-        return Err(CalibError::TooFewMarkers {
-            what: "intrinsics: images with the grid found".into(),
-            found: ok.len(),
-            expected: images.len(),
-            needed: 3,
-            missing: (0..images.len()).filter(|i| !ok.contains(i)).collect(),
-        });
-    }
-    let data: Vec<Correspondences> = ok
-        .iter()
-        .map(|&i| {
-            let f = found[i].as_ref().expect("ok");
-            (
-                f.iter().map(|(k, _)| layout[*k]).collect(),
-                f.iter().map(|(_, p)| *p).collect(),
-            )
-        })
-        .collect();
-    let views: Vec<View> = data
-        .iter()
-        .map(|(l, p)| View {
-            layout: l,
-            pixels: p,
-        })
-        .collect();
-    let init =
-        initial_camera(&views, size.0, size.1).map_err(geom("intrinsics: initial estimate"))?;
-    let mut poses: Vec<Pose> = views
-        .iter()
-        .map(|v| initial_pose(&init, v))
-        .collect::<Result<_, _>>()
-        .map_err(geom("intrinsics: initial poses"))?;
-    let radius = target.radius();
-    let r =
-        refine(&init, free, &views, &mut poses, radius).map_err(geom("intrinsics: refinement"))?;
-    let mut out = Vec::with_capacity(found.len());
-    let mut k = 0;
-    for f in found {
-        out.push(match f {
-            Err(e) => Err(e),
-            Ok(found) => {
-                let mut res = vec![Vector2::zeros(); views[k].layout.len()];
-                let rms = residuals(&r.camera, &views[k], &poses[k], radius, &mut res)
-                    .map_err(geom("intrinsics: residuals"))?;
-                let fit = ViewFit {
-                    found,
-                    pose: poses[k],
-                    rms_px: rms,
-                    max_px: res.iter().map(|r| r.norm()).fold(0.0, f64::max),
-                };
-                k += 1;
-                Ok(fit)
+    /// Columns × rows of the feature grid (a chessboard's inner corners).
+    pub fn grid(&self) -> (usize, usize) {
+        match *self {
+            Target::Dots(g) => (g.cols, g.rows),
+            Target::Chessboard { cols, rows, .. } => {
+                (cols.saturating_sub(1), rows.saturating_sub(1))
             }
-        });
+        }
     }
-    Ok(IntrinsicsFit {
-        size,
-        camera: r.camera,
-        rms_px: r.rms_px,
-        views: out,
-    })
+
+    /// For a chessboard: its inner corner `(c, r)` has its (+x, +y) square dark when `c + r`
+    /// is even (the first square is dark); `None` for dots.
+    fn dark_even(&self) -> Option<bool> {
+        match self {
+            Target::Dots(_) => None,
+            Target::Chessboard { .. } => Some(true),
+        }
+    }
+
+    /// What the grid counts.
+    fn unit(&self) -> &'static str {
+        match self {
+            Target::Dots(_) => "dots",
+            Target::Chessboard { .. } => "inner corners",
+        }
+    }
 }
 
 /// The arm's image length `(|A'E'| + |B'D'|) / 2` of the cross pattern in an image, pixels.

@@ -7,8 +7,8 @@ use scanner_core::Camera;
 use scanner_core::calib::model::predict;
 use scanner_core::nalgebra::{Point2, Point3};
 
+use super::BoardOutcome;
 use super::board::BoardFile;
-use super::{BoardOutcome, ViewFit};
 
 /// Colours of the overlay.
 pub mod colour {
@@ -154,6 +154,14 @@ impl Canvas {
 
     /// Lines of text on a dark box at the top left.
     pub fn legend(&mut self, lines: &[(String, Rgb<u8>)], scale: u32) {
+        // Long lines (an error message) wrap at spaces to stay inside the image.
+        let per_line =
+            ((self.image.width() as usize).saturating_sub(12) / (8 * scale as usize)).max(16);
+        let wrapped: Vec<(String, Rgb<u8>)> = lines
+            .iter()
+            .flat_map(|(l, c)| wrap(l, per_line).into_iter().map(move |w| (w, *c)))
+            .collect();
+        let lines = &wrapped[..];
         let h = 10.0 * f64::from(scale);
         let w = lines
             .iter()
@@ -173,6 +181,33 @@ impl Canvas {
             self.text(6.0, 4.0 + h * i as f64, l, scale, *c);
         }
     }
+}
+
+/// Splits `s` at spaces into lines of at most `width` characters (a longer word is cut).
+fn wrap(s: &str, width: usize) -> Vec<String> {
+    let mut out = Vec::new();
+    let mut line = String::new();
+    for word in s.split(' ') {
+        let mut word: Vec<char> = word.chars().collect();
+        while word.len() > width {
+            if !line.is_empty() {
+                out.push(std::mem::take(&mut line));
+            }
+            out.push(word.drain(..width).collect());
+        }
+        let word: String = word.into_iter().collect();
+        if !line.is_empty() && line.chars().count() + 1 + word.chars().count() > width {
+            out.push(std::mem::take(&mut line));
+        }
+        if !line.is_empty() {
+            line.push(' ');
+        }
+        line.push_str(&word);
+    }
+    if !line.is_empty() || out.is_empty() {
+        out.push(line);
+    }
+    out
 }
 
 fn font_scale(img: &GrayImage) -> u32 {
@@ -374,30 +409,67 @@ pub fn board_overlay(
     cv.image
 }
 
-/// A dot-grid image with its identified dots numbered and residual ×100.
-pub fn grid_overlay(img: &GrayImage, view: &Result<ViewFit, super::CalibError>) -> RgbImage {
+/// An intrinsics image: every feature detected (grey +), the ones used (green, numbered by
+/// their place on the target), the ones dropped from the fit (orange, with their error), the
+/// residuals ×20 (yellow), and a legend saying whether the image was used and why not.
+pub fn grid_overlay(img: &GrayImage, report: &super::ImageReport) -> RgbImage {
     let mut cv = Canvas::from_gray(img);
     let scale = font_scale(img);
-    match view {
+    if let Some(g) = &report.grid {
+        for f in &g.features {
+            cv.cross((f.centre.x, f.centre.y), 3.0, 1.0, colour::CLUTTER);
+        }
+    }
+    let mut lines = Vec::new();
+    match &report.status {
         Ok(v) => {
             for (i, p) in &v.found {
-                cv.circle((p.x, p.y), 6.0, 1.0, colour::USED);
-                cv.text(p.x + 7.0, p.y - 10.0, &i.to_string(), scale, colour::USED);
+                cv.circle((p.x, p.y), 5.0, 1.0, colour::USED);
+                cv.text(p.x + 6.0, p.y - 9.0, &i.to_string(), scale, colour::USED);
             }
-            cv.legend(
-                &[(
+            for (i, p, e) in &v.dropped {
+                cv.circle((p.x, p.y), 7.0, 2.0, colour::DROPPED);
+                cv.text(
+                    p.x + 8.0,
+                    p.y + 2.0,
+                    &format!("{i}: {e:.1} px"),
+                    scale,
+                    colour::DROPPED,
+                );
+            }
+            if !v.dropped.is_empty() {
+                lines.push((
                     format!(
-                        "{} dots, rms {:.3} px, max {:.3} px",
+                        "{} dropped from the fit (error far above the rest)",
+                        v.dropped.len()
+                    ),
+                    colour::DROPPED,
+                ));
+            }
+            lines.insert(
+                0,
+                (
+                    format!(
+                        "used: {} features, rms {:.3} px, max {:.3} px",
                         v.found.len(),
                         v.rms_px,
                         v.max_px
                     ),
                     colour::USED,
-                )],
-                scale,
+                ),
             );
         }
-        Err(e) => cv.legend(&[(format!("left out: {e}"), colour::MISSING)], scale),
+        Err(e) => {
+            if let Some(g) = &report.grid {
+                for (i, p) in &g.found {
+                    cv.circle((p.x, p.y), 5.0, 1.0, colour::DROPPED);
+                    cv.text(p.x + 6.0, p.y - 9.0, &i.to_string(), scale, colour::DROPPED);
+                }
+            }
+            lines.push((format!("not used: {e}"), colour::MISSING));
+        }
     }
+    lines.push(("grey +: every feature detected".into(), colour::CLUTTER));
+    cv.legend(&lines, scale);
     cv.image
 }

@@ -1,0 +1,509 @@
+//! Intrinsics from several images of a planar grid target (dots or a chessboard), with a line of
+//! outcome per image.
+//!
+//! 1. **Find** the grid in each image ([`find_grid`]): features, then a lattice grown through
+//!    them ([`super::lattice`]) and placed on the target; a grid larger than the target given is
+//!    an error that says what was seen.
+//! 2. **Refuse** what cannot help: images without the grid, of another size, repeating another
+//!    image's view.
+//! 3. **Start** with Zhang's closed form; if it fails, the images that disagree are found by
+//!    leaving each out, named and refused, and it is tried again.
+//! 4. **Refine** intrinsics and poses jointly; features far off the fit (a false corner on the
+//!    board's edge or on clutter) are dropped, images whose error stays far above the others'
+//!    are refused, and the fit is repeated until nothing changes.
+
+use image::GrayImage;
+use scanner_core::Camera;
+use scanner_core::calib::bundle::{initial_camera, initial_pose, refine, residuals};
+use scanner_core::calib::{Free, View};
+use scanner_core::geometry::Pose;
+use scanner_core::nalgebra::{Point2, Vector2};
+
+use super::corners::{CornerConfig, find_corners};
+use super::detect::{Blob, DetectConfig, find_markers};
+use super::lattice::{MAX_FEATURES, lattices};
+use super::{CalibError, Target, geom};
+
+/// A feature is dropped from the fit when its reprojection error exceeds this many times the
+/// median error of all features…
+pub const OUTLIER_OF_MEDIAN: f64 = 5.0;
+/// …and this many pixels (the median of a good fit can be tiny).
+pub const OUTLIER_MIN_PX: f64 = 0.5;
+/// An image is refused when its RMS error exceeds this many times the median image's…
+pub const VIEW_RMS_OF_MEDIAN: f64 = 3.0;
+/// …and this many pixels.
+pub const VIEW_RMS_MIN_PX: f64 = 0.5;
+/// Two images whose common features lie within this RMS distance (pixels) show the same view.
+pub const SAME_VIEW_PX: f64 = 1.0;
+
+/// Identified features of one image: `(layout index, pixel)`.
+pub type Found = Vec<(usize, Point2<f64>)>;
+
+/// The target as found in one image.
+#[derive(Debug, Clone, PartialEq)]
+pub struct GridView {
+    /// Every feature detected (dots or corners), identified or not.
+    pub features: Vec<Blob>,
+    /// The identified ones: `(layout index, pixel)`.
+    pub found: Found,
+    /// Columns × rows of the target seen.
+    pub extent: (usize, usize),
+    /// Every grid point in that rectangle was found.
+    pub complete: bool,
+}
+
+/// The features of a target found in one image.
+///
+/// # Errors
+/// [`CalibError::NoMarkers`] (nothing detected), [`CalibError::TooManyFeatures`],
+/// [`CalibError::NoGrid`], [`CalibError::CountMismatch`] (a grid larger than the target
+/// described), [`CalibError::TooFewMarkers`] (less than half the target).
+pub fn find_grid(img: &GrayImage, target: &Target) -> Result<GridView, CalibError> {
+    let (features, rejected) = match target {
+        Target::Dots(_) => {
+            let det = find_markers(img, &DetectConfig::default());
+            (det.blobs, det.rejected.len())
+        }
+        Target::Chessboard { .. } => (find_corners(img, &CornerConfig::default()), 0),
+    };
+    if features.len() < 4 {
+        return Err(CalibError::NoMarkers {
+            found: rejected,
+            hint: "is the calibration target in view and lit?",
+        });
+    }
+    if features.len() > MAX_FEATURES {
+        return Err(CalibError::TooManyFeatures {
+            found: features.len(),
+            limit: MAX_FEATURES,
+        });
+    }
+    let (cols, rows) = target.grid();
+    let layout_len = cols * rows;
+    let Some(lattice) = lattices(&features, layout_len).into_iter().next() else {
+        return Err(CalibError::NoGrid {
+            what: target.name().into(),
+            features: features.len(),
+        });
+    };
+    let placed = lattice
+        .place(&features, cols, rows, target.dark_even())
+        .map_err(|e| CalibError::CountMismatch {
+            what: target.name().into(),
+            seen: e.seen,
+            given: (cols, rows),
+            unit: target.unit(),
+        })?;
+    let found: Found = placed
+        .found
+        .iter()
+        .map(|&(k, f)| (k, features[f].centre))
+        .collect();
+    let needed = (layout_len / 2).max(4);
+    if found.len() < needed {
+        return Err(CalibError::TooFewMarkers {
+            what: target.name().into(),
+            found: found.len(),
+            expected: layout_len,
+            needed,
+            missing: (0..layout_len)
+                .filter(|i| !found.iter().any(|(k, _)| k == i))
+                .collect(),
+        });
+    }
+    Ok(GridView {
+        features,
+        found,
+        extent: placed.extent,
+        complete: placed.complete,
+    })
+}
+
+/// One image's part in the fit.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ViewFit {
+    /// Layout index and pixel of every feature used.
+    pub found: Found,
+    /// Identified but left out of the fit: layout index, pixel, reprojection error (px).
+    pub dropped: Vec<(usize, Point2<f64>, f64)>,
+    /// Target pose.
+    pub pose: Pose,
+    /// RMS reprojection error of the features used, pixels.
+    pub rms_px: f64,
+    /// Largest reprojection error of the features used, pixels.
+    pub max_px: f64,
+}
+
+/// What became of one image.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ImageReport {
+    /// The grid found in it (`None`: not found, see `status`).
+    pub grid: Option<GridView>,
+    /// Used with its fit, or refused and why.
+    pub status: Result<ViewFit, CalibError>,
+}
+
+/// Intrinsics from several images: every image's outcome, and the result.
+#[derive(Debug, Clone, PartialEq)]
+pub struct IntrinsicsOutcome {
+    /// Image size (of the first image).
+    pub size: (u32, u32),
+    /// Per image, in the order given.
+    pub images: Vec<ImageReport>,
+    /// The camera and the RMS reprojection error over all features used (pixels).
+    pub result: Result<(Camera<f64>, f64), CalibError>,
+}
+
+/// Full intrinsics from several images of a grid target.
+#[derive(Debug, Clone, PartialEq)]
+pub struct IntrinsicsFit {
+    /// Image size.
+    pub size: (u32, u32),
+    /// The camera.
+    pub camera: Camera<f64>,
+    /// RMS reprojection error over all features used, pixels.
+    pub rms_px: f64,
+    /// Per image (in the order given; `Err` for an image that was left out, and why).
+    pub views: Vec<Result<ViewFit, CalibError>>,
+}
+
+impl IntrinsicsOutcome {
+    /// The fit, or the error that stopped it.
+    ///
+    /// # Errors
+    /// The calibration's error.
+    pub fn into_fit(self) -> Result<IntrinsicsFit, CalibError> {
+        let (camera, rms_px) = self.result?;
+        Ok(IntrinsicsFit {
+            size: self.size,
+            camera,
+            rms_px,
+            views: self.images.into_iter().map(|r| r.status).collect(),
+        })
+    }
+}
+
+/// Intrinsics from images of a grid target; see [`intrinsics_outcome`] for every image's
+/// outcome also when the calibration fails. `free` chooses the estimated parameters (normally
+/// [`Free::ALL`]).
+///
+/// # Errors
+/// [`CalibError::TooFewMarkers`] with fewer than three usable images,
+/// [`CalibError::ClosedForm`] or [`CalibError::Geometry`] if the solution fails.
+pub fn intrinsics(
+    images: &[GrayImage],
+    target: &Target,
+    free: Free,
+) -> Result<IntrinsicsFit, CalibError> {
+    intrinsics_outcome(images, target, free).into_fit()
+}
+
+/// Status of an image whose grid was found, until the fit says more.
+fn pending() -> Result<ViewFit, CalibError> {
+    Err(CalibError::NotSolved)
+}
+
+fn is_pending(r: &ImageReport) -> bool {
+    matches!(r.status, Err(CalibError::NotSolved))
+}
+
+/// A usable image: its index and its correspondences (sheet mm, pixels, layout indices).
+struct Active {
+    image: usize,
+    layout: Vec<Point2<f64>>,
+    pixels: Vec<Point2<f64>>,
+    index: Vec<usize>,
+    dropped: Vec<(usize, Point2<f64>, f64)>,
+}
+
+impl Active {
+    fn view(&self) -> View<'_> {
+        View {
+            layout: &self.layout,
+            pixels: &self.pixels,
+        }
+    }
+}
+
+/// Every image's outcome and the intrinsics (see the module docs for the steps).
+pub fn intrinsics_outcome(images: &[GrayImage], target: &Target, free: Free) -> IntrinsicsOutcome {
+    let size = images.first().map_or((0, 0), |i| i.dimensions());
+    let layout = target.points();
+    let mut reports: Vec<ImageReport> = images
+        .iter()
+        .map(|img| {
+            if let Err(e) = super::check_size(size, img) {
+                return ImageReport {
+                    grid: None,
+                    status: Err(e),
+                };
+            }
+            match find_grid(img, target) {
+                Ok(g) => ImageReport {
+                    grid: Some(g),
+                    status: pending(),
+                },
+                Err(e) => ImageReport {
+                    grid: None,
+                    status: Err(e),
+                },
+            }
+        })
+        .collect();
+    refuse_repeated_views(&mut reports);
+    let result = match count_too_large(&reports, target) {
+        Some(e) => Err(e),
+        None => solve(&mut reports, &layout, target.radius(), size, free),
+    };
+    IntrinsicsOutcome {
+        size,
+        images: reports,
+        result,
+    }
+}
+
+/// Every image shows a complete grid of the same size, smaller than the target given: the count
+/// is wrong (a chessboard's squares given as its corners, say), not the images.
+fn count_too_large(reports: &[ImageReport], target: &Target) -> Option<CalibError> {
+    let grids: Vec<&GridView> = reports.iter().filter_map(|r| r.grid.as_ref()).collect();
+    let first = grids.first()?;
+    let (c, r) = first.extent;
+    let same = |g: &&GridView| g.complete && (g.extent == (c, r) || g.extent == (r, c));
+    let given = target.grid();
+    let smaller = (c * r) < given.0 * given.1;
+    if grids.len() < 2 || !smaller || !grids.iter().all(same) {
+        return None;
+    }
+    let seen = if (c <= r) == (given.0 <= given.1) {
+        (c, r)
+    } else {
+        (r, c)
+    };
+    let hint = match target {
+        Target::Chessboard { .. } => format!(
+            " (a chessboard of {}×{} squares has {}×{} inner corners)",
+            seen.0 + 1,
+            seen.1 + 1,
+            seen.0,
+            seen.1
+        ),
+        Target::Dots(_) => String::new(),
+    };
+    Some(CalibError::CountTooLarge {
+        seen,
+        given,
+        unit: target.unit(),
+        hint,
+    })
+}
+
+/// Refuses an image whose features lie where another image's do: a repeated view adds no
+/// constraint but counts as one, and three copies of one view leave the focal length free.
+fn refuse_repeated_views(reports: &mut [ImageReport]) {
+    for j in 1..reports.len() {
+        let Some(gj) = &reports[j].grid else { continue };
+        let same = (0..j).find(|&i| {
+            is_pending(&reports[i])
+                && reports[i].grid.as_ref().is_some_and(|gi| {
+                    let d: Vec<f64> = gj
+                        .found
+                        .iter()
+                        .filter_map(|(k, p)| {
+                            gi.found
+                                .iter()
+                                .find(|(ki, _)| ki == k)
+                                .map(|(_, q)| (p - q).norm_squared())
+                        })
+                        .collect();
+                    d.len() >= 4 && (d.iter().sum::<f64>() / d.len() as f64).sqrt() < SAME_VIEW_PX
+                })
+        });
+        if let Some(i) = same
+            && is_pending(&reports[j])
+        {
+            reports[j].status = Err(CalibError::SameView { other: i });
+        }
+    }
+}
+
+fn too_few_images(reports: &[ImageReport], active: usize) -> CalibError {
+    CalibError::TooFewMarkers {
+        what: "intrinsics: images with the grid found and usable".into(),
+        found: active,
+        expected: reports.len(),
+        needed: 3,
+        missing: (0..reports.len())
+            .filter(|&i| !is_pending(&reports[i]))
+            .collect(),
+    }
+}
+
+/// Closed form, refinement and outlier rejection over the images still pending.
+fn solve(
+    reports: &mut [ImageReport],
+    layout: &[Point2<f64>],
+    radius: f64,
+    size: (u32, u32),
+    free: Free,
+) -> Result<(Camera<f64>, f64), CalibError> {
+    let mut active: Vec<Active> = reports
+        .iter()
+        .enumerate()
+        .filter(|(_, r)| is_pending(r))
+        .filter_map(|(i, r)| {
+            let g = r.grid.as_ref()?;
+            Some(Active {
+                image: i,
+                layout: g.found.iter().map(|(k, _)| layout[*k]).collect(),
+                pixels: g.found.iter().map(|(_, p)| *p).collect(),
+                index: g.found.iter().map(|(k, _)| *k).collect(),
+                dropped: Vec::new(),
+            })
+        })
+        .collect();
+    let mut camera = closed_form(reports, &mut active, size)?;
+    for _round in 0..10 {
+        if active.len() < 3 {
+            return Err(too_few_images(reports, active.len()));
+        }
+        let views: Vec<View> = active.iter().map(Active::view).collect();
+        let mut poses: Vec<Pose> = views
+            .iter()
+            .map(|v| initial_pose(&camera, v))
+            .collect::<Result<_, _>>()
+            .map_err(geom("intrinsics: initial poses"))?;
+        let r = refine(&camera, free, &views, &mut poses, radius)
+            .map_err(geom("intrinsics: refinement"))?;
+        camera = r.camera;
+        let mut errs: Vec<Vec<f64>> = Vec::with_capacity(views.len());
+        for (v, p) in views.iter().zip(&poses) {
+            let mut res = vec![Vector2::zeros(); v.layout.len()];
+            residuals(&camera, v, p, radius, &mut res).map_err(geom("intrinsics: residuals"))?;
+            errs.push(res.iter().map(|e| e.norm()).collect());
+        }
+        let mut all: Vec<f64> = errs.iter().flatten().copied().collect();
+        all.sort_by(f64::total_cmp);
+        let limit = (OUTLIER_OF_MEDIAN * all[all.len() / 2]).max(OUTLIER_MIN_PX);
+        let rms = |e: &[f64]| (e.iter().map(|x| x * x).sum::<f64>() / e.len() as f64).sqrt();
+        let mut view_rms: Vec<f64> = errs.iter().map(|e| rms(e)).collect();
+        view_rms.sort_by(f64::total_cmp);
+        let view_limit = (VIEW_RMS_OF_MEDIAN * view_rms[view_rms.len() / 2]).max(VIEW_RMS_MIN_PX);
+        drop(views);
+        let mut changed = false;
+        // Features far off the fit first; an image whose rest still fits badly goes after.
+        for (a, e) in active.iter_mut().zip(&errs) {
+            let keep: Vec<bool> = e.iter().map(|&x| x <= limit).collect();
+            if keep.iter().all(|&k| k) {
+                continue;
+            }
+            changed = true;
+            let mut n = 0;
+            for (i, &k) in keep.iter().enumerate() {
+                if k {
+                    a.layout[n] = a.layout[i];
+                    a.pixels[n] = a.pixels[i];
+                    a.index[n] = a.index[i];
+                    n += 1;
+                } else {
+                    a.dropped.push((a.index[i], a.pixels[i], e[i]));
+                }
+            }
+            a.layout.truncate(n);
+            a.pixels.truncate(n);
+            a.index.truncate(n);
+        }
+        let needed = (layout.len() / 2).max(4);
+        let before = active.len();
+        let mut kept = Vec::with_capacity(before);
+        for (a, e) in active.drain(..).zip(&errs) {
+            let r = rms(e);
+            let refused = if r > view_limit {
+                Some(CalibError::ResidualTooHigh {
+                    rms_px: r,
+                    limit_px: view_limit,
+                })
+            } else if a.layout.len() < needed {
+                Some(CalibError::TooFewMarkers {
+                    what: "after dropping features off the fit".into(),
+                    found: a.layout.len(),
+                    expected: layout.len(),
+                    needed,
+                    missing: a.dropped.iter().map(|d| d.0).collect(),
+                })
+            } else {
+                None
+            };
+            match refused {
+                Some(e) => reports[a.image].status = Err(e),
+                None => kept.push(a),
+            }
+        }
+        active = kept;
+        if !changed && active.len() == before {
+            for (a, p) in active.iter().zip(&poses) {
+                let view = a.view();
+                let mut res = vec![Vector2::zeros(); a.layout.len()];
+                let rms_px = residuals(&camera, &view, p, radius, &mut res)
+                    .map_err(geom("intrinsics: residuals"))?;
+                reports[a.image].status = Ok(ViewFit {
+                    found: a
+                        .index
+                        .iter()
+                        .copied()
+                        .zip(a.pixels.iter().copied())
+                        .collect(),
+                    dropped: a.dropped.clone(),
+                    pose: *p,
+                    rms_px,
+                    max_px: res.iter().map(|r| r.norm()).fold(0.0, f64::max),
+                });
+            }
+            return Ok((camera, r.rms_px));
+        }
+    }
+    Err(CalibError::Unstable)
+}
+
+/// Zhang's closed form over the active images; when it fails, each image is left out in turn,
+/// and the ones whose absence lets it succeed are refused as disagreeing.
+fn closed_form(
+    reports: &mut [ImageReport],
+    active: &mut Vec<Active>,
+    size: (u32, u32),
+) -> Result<Camera<f64>, CalibError> {
+    let run = |set: &[&Active]| {
+        let views: Vec<View> = set.iter().map(|a| a.view()).collect();
+        initial_camera(&views, size.0, size.1)
+    };
+    loop {
+        if active.len() < 3 {
+            return Err(too_few_images(reports, active.len()));
+        }
+        let all: Vec<&Active> = active.iter().collect();
+        let first = match run(&all) {
+            Ok(c) => return Ok(c),
+            Err(e) => e,
+        };
+        let culprit = (0..active.len()).find(|&k| {
+            let rest: Vec<&Active> = active
+                .iter()
+                .enumerate()
+                .filter(|(i, _)| *i != k)
+                .map(|(_, a)| a)
+                .collect();
+            rest.len() >= 3 && run(&rest).is_ok()
+        });
+        match culprit {
+            Some(k) => {
+                let a = active.remove(k);
+                reports[a.image].status = Err(CalibError::Disagrees);
+            }
+            None => {
+                return Err(CalibError::ClosedForm {
+                    images: active.iter().map(|a| a.image).collect(),
+                    source: first,
+                });
+            }
+        }
+    }
+}
