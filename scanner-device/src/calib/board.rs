@@ -194,6 +194,18 @@ impl SheetLayout {
         }
     }
 
+    /// For a chessboard sheet: per marker (inner corner, in [`Self::points`] order), whether its
+    /// (+u, +v) square is dark, as [`crate::calib::print`] prints it (the first square is dark).
+    pub fn corner_colours(&self) -> Option<Vec<bool>> {
+        let c = self.chessboard?;
+        let per_row = c.cols.saturating_sub(1);
+        Some(
+            (0..per_row * c.rows.saturating_sub(1))
+                .map(|k| (k % per_row + k / per_row) % 2 == 0)
+                .collect(),
+        )
+    }
+
     /// The rig's chessboard for this sheet, if it carries one.
     pub fn rig_chess(&self) -> Option<crate::rig::Chess> {
         self.chessboard.map(|c| crate::rig::Chess {

@@ -187,6 +187,39 @@ fn sheet_to_image(src: &[Point2<f64>], dst: &[Vector2<f64>]) -> Option<Matrix3<f
     ))
 }
 
+/// Jacobian of the homography's image point with respect to the sheet point `p`.
+fn jacobian(h: &Matrix3<f64>, p: &Point2<f64>) -> Option<Matrix2<f64>> {
+    let q = h * Vector3::new(p.x, p.y, 1.0);
+    let wp = q.z;
+    if wp == 0.0 || !wp.is_finite() {
+        return None;
+    }
+    let (x, y) = (q.x / wp, q.y / wp);
+    Some(Matrix2::new(
+        (h[(0, 0)] - x * h[(2, 0)]) / wp,
+        (h[(0, 1)] - x * h[(2, 1)]) / wp,
+        (h[(1, 0)] - y * h[(2, 0)]) / wp,
+        (h[(1, 1)] - y * h[(2, 1)]) / wp,
+    ))
+}
+
+/// For a chessboard corner: whether the blob's dark quadrants agree with the layout's colour
+/// at `p` (`dark`: its (+u, +v) square is dark), seen through `h`. True where unknown.
+fn colour_agrees(h: &Matrix3<f64>, p: &Point2<f64>, blob: &Blob, dark: Option<bool>) -> bool {
+    let (Some(dark), Some(axis)) = (dark, blob.dark_axis) else {
+        return true;
+    };
+    let Some(j) = jacobian(h, p) else {
+        return false;
+    };
+    let (gu, gv) = (j.column(0).into_owned(), j.column(1).into_owned());
+    if gu.norm() == 0.0 || gv.norm() == 0.0 {
+        return false;
+    }
+    let diag = gu.normalize() + gv.normalize();
+    super::lattice::turned(diag.y.atan2(diag.x), axis) != dark
+}
+
 /// Whether `h` maps the whole layout the way a sheet in front of the camera appears: no point
 /// beyond the horizon (the homography's denominator keeps its sign), the handedness and the
 /// direction of `u` as required at every layout point.
@@ -198,15 +231,9 @@ fn keeps_orientation(h: &Matrix3<f64>, layout: &[Point2<f64>], orient: Orientati
         if wp.signum() != sign || wp == 0.0 {
             return false;
         }
-        // Jacobian of (x, y) = (h0·p / w, h1·p / w).
-        let q = h * Vector3::new(p.x, p.y, 1.0);
-        let (x, y) = (q.x / wp, q.y / wp);
-        let j = Matrix2::new(
-            (h[(0, 0)] - x * h[(2, 0)]) / wp,
-            (h[(0, 1)] - x * h[(2, 1)]) / wp,
-            (h[(1, 0)] - y * h[(2, 0)]) / wp,
-            (h[(1, 1)] - y * h[(2, 1)]) / wp,
-        );
+        let Some(j) = jacobian(h, p) else {
+            return false;
+        };
         let det = j.determinant();
         (det < 0.0) == orient.mirrored
             && det != 0.0
@@ -220,6 +247,7 @@ fn keeps_orientation(h: &Matrix3<f64>, layout: &[Point2<f64>], orient: Orientati
 fn grow(
     blobs: &[Blob],
     layout: &[Point2<f64>],
+    dark: Option<&[bool]>,
     exclude: &[bool],
     mut blob_of: Vec<Option<usize>>,
     spacing: f64,
@@ -262,7 +290,7 @@ fn grow(
                     continue;
                 }
                 let d = (blob.centre - c).norm();
-                if d <= tol {
+                if d <= tol && colour_agrees(&h, p, blob, dark.map(|d| d[i])) {
                     cands.push((d, i, b));
                 }
             }
@@ -309,7 +337,7 @@ pub fn identify(
     layout: &[Point2<f64>],
     orient: Orientation,
 ) -> Option<Assignment> {
-    candidates(blobs, exclude, layout, orient)
+    candidates(blobs, exclude, layout, None, orient)
         .into_iter()
         .next()
 }
@@ -318,10 +346,15 @@ pub fn identify(
 /// matched, then the smallest residual). More than one survives where the layout leaves an
 /// ambiguity (e.g. the paper's 2×3 layout with a marker hidden: a row can shift along itself
 /// under a homography); a calibrated camera then decides ([`super::board_planes`]).
+///
+/// `dark`, for a chessboard's corners: per layout point, whether its (+u, +v) square is dark.
+/// A corner is then matched only where its dark quadrants agree, so a match never runs along
+/// the diagonals nor sits one square off.
 pub fn candidates(
     blobs: &[Blob],
     exclude: &[bool],
     layout: &[Point2<f64>],
+    dark: Option<&[bool]>,
     orient: Orientation,
 ) -> Vec<Assignment> {
     if layout.len() < 4 || blobs.len() < 4 {
@@ -373,6 +406,16 @@ pub fn candidates(
                     {
                         continue;
                     }
+                    // A seed inside a match already grown would grow it again. (Every seed is
+                    // tried even after a full match: a symmetric layout also fits the other
+                    // sheet's markers, mirrored, in full.)
+                    if all.iter().any(|m| {
+                        m.blob_of[p] == Some(i)
+                            && m.blob_of[q] == Some(j)
+                            && m.blob_of[r] == Some(k)
+                    }) {
+                        continue;
+                    }
                     let mut blob_of = vec![None; layout.len()];
                     let mut used = vec![false; blobs.len()];
                     for (e, ex) in exclude.iter().enumerate() {
@@ -388,7 +431,10 @@ pub fn candidates(
                     if let Some(s) = fourth {
                         // The parallelogram's fourth corner, allowing for strong perspective;
                         // with it, a homography.
-                        let tol = 0.35 * im.column(0).norm().min(im.column(1).norm());
+                        // A close, angled sheet foreshortens one side of the parallelogram
+                        // by a fraction of its length.
+                        let (c0, c1) = (im.column(0).norm(), im.column(1).norm());
+                        let tol = (0.35 * c0.min(c1)).max(0.25 * c0.max(c1));
                         match nearest(blobs, &used, &predict(s), tol) {
                             Some(b) => blob_of[s] = Some(b),
                             None => continue,
@@ -410,7 +456,8 @@ pub fn candidates(
                             continue;
                         }
                     }
-                    let Some(m) = grow(blobs, layout, exclude, blob_of, spacing, orient) else {
+                    let Some(m) = grow(blobs, layout, dark, exclude, blob_of, spacing, orient)
+                    else {
                         continue;
                     };
                     if m.matched() >= 4 && !all.iter().any(|a| a.blob_of == m.blob_of) {
@@ -418,9 +465,6 @@ pub fn candidates(
                     }
                 }
             }
-        }
-        if all.iter().any(|b| b.matched() == layout.len()) {
-            break;
         }
     }
     all.sort_by(|a, b| {

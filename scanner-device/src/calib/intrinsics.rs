@@ -124,6 +124,8 @@ pub fn find_grid(img: &GrayImage, target: &Target) -> Result<GridView, CalibErro
 pub struct ViewFit {
     /// Layout index and pixel of every feature used.
     pub found: Found,
+    /// Their reprojection errors (predicted − found), pixels.
+    pub residuals: Vec<Vector2<f64>>,
     /// Identified but left out of the fit: layout index, pixel, reprojection error (px).
     pub dropped: Vec<(usize, Point2<f64>, f64)>,
     /// Target pose.
@@ -456,6 +458,7 @@ fn solve(
                     pose: *p,
                     rms_px,
                     max_px: res.iter().map(|r| r.norm()).fold(0.0, f64::max),
+                    residuals: res,
                 });
             }
             return Ok((camera, r.rms_px));

@@ -68,20 +68,22 @@ pub struct TooLarge {
 }
 
 /// Whether two dark bisectors (mod π) are about 90° apart: neighbours along a grid line.
-fn turned(a: f64, b: f64) -> bool {
+pub(super) fn turned(a: f64, b: f64) -> bool {
     let d = (a - b).rem_euclid(PI);
     d > FRAC_PI_4 && d < 3.0 * FRAC_PI_4
 }
 
 /// Whether feature `f` may be a grid neighbour of feature `n`: opposite colour orientation for
-/// corners, similar size for discs (perspective changes sizes only gradually).
+/// corners; for discs, similar size and darkness (perspective and light change both only
+/// gradually across a printed sheet, while clutter has its own).
 fn neighbours(feats: &[Blob], n: usize, f: usize) -> bool {
     let (a, b) = (&feats[n], &feats[f]);
     let colours = match (a.dark_axis, b.dark_axis) {
         (Some(x), Some(y)) => turned(x, y),
         _ => true,
     };
-    colours && b.area < 3.0 * a.area && a.area < 3.0 * b.area
+    let similar = |x: f64, y: f64, k: f64| x <= 0.0 || y <= 0.0 || (x < k * y && y < k * x);
+    colours && similar(a.area, b.area, 2.0) && similar(a.contrast, b.contrast, 1.6)
 }
 
 fn cross(u: Vector2<f64>, v: Vector2<f64>) -> f64 {
@@ -322,56 +324,53 @@ impl Lattice {
         best
     }
 
-    /// Drops border rows or columns that hold at most a third of the nodes of the line next
-    /// to them (stray features that continued the grid by chance), while the lattice does not
-    /// fit `cols × rows` either way round.
+    /// Where the lattice is larger than `cols × rows` (either way round): the window of that
+    /// size holding the most nodes, if what lies outside it is stray features that continued
+    /// the grid by chance (each line outside holds at most half the nodes of the line next to
+    /// it inside). A line as full as its neighbour is part of the grid: the lattice is then
+    /// returned whole, and does not fit.
     fn trimmed_to(&self, cols: usize, rows: usize) -> Lattice {
-        let mut l = self.clone();
-        let fits = |l: &Lattice| {
-            let (w, h) = l.extent();
-            (w <= cols && h <= rows) || (w <= rows && h <= cols)
-        };
-        while !fits(&l) && l.len() > 4 {
-            let (lo, hi) = l.bounds();
-            let count = |pred: &dyn Fn(Cell) -> bool| l.nodes.keys().filter(|c| pred(**c)).count();
-            let lines = [
-                (
-                    count(&|c| c.0 == lo.0),
-                    count(&|c| c.0 == lo.0 + 1),
-                    0,
-                    lo.0,
-                ),
-                (
-                    count(&|c| c.0 == hi.0),
-                    count(&|c| c.0 == hi.0 - 1),
-                    0,
-                    hi.0,
-                ),
-                (
-                    count(&|c| c.1 == lo.1),
-                    count(&|c| c.1 == lo.1 + 1),
-                    1,
-                    lo.1,
-                ),
-                (
-                    count(&|c| c.1 == hi.1),
-                    count(&|c| c.1 == hi.1 - 1),
-                    1,
-                    hi.1,
-                ),
-            ];
-            let Some(&(_, _, axis, at)) = lines
-                .iter()
-                .filter(|(n, next, ..)| 3 * n <= *next)
-                .min_by_key(|(n, ..)| *n)
-            else {
-                break;
-            };
-            l.nodes
-                .retain(|c, _| if axis == 0 { c.0 != at } else { c.1 != at });
-            l = l.map(|c| c);
+        let (w, h) = self.extent();
+        if (w <= cols && h <= rows) || (w <= rows && h <= cols) {
+            return self.clone();
         }
-        l
+        let (lo, _) = self.bounds();
+        let count = |c0: i32, r0: i32, cw: i32, rh: i32| {
+            self.nodes
+                .keys()
+                .filter(|(c, r)| *c >= c0 && *c < c0 + cw && *r >= r0 && *r < r0 + rh)
+                .count()
+        };
+        let mut best: Option<(usize, (i32, i32, i32, i32))> = None;
+        for (ww, hh) in [(cols, rows), (rows, cols)] {
+            let (ww, hh) = (ww.min(w) as i32, hh.min(h) as i32);
+            for r0 in lo.1..=lo.1 + h as i32 - hh {
+                for c0 in lo.0..=lo.0 + w as i32 - ww {
+                    let n = count(c0, r0, ww, hh);
+                    if best.is_none_or(|(m, _)| n > m) {
+                        best = Some((n, (c0, r0, ww, hh)));
+                    }
+                }
+            }
+        }
+        let Some((_, (c0, r0, ww, hh))) = best else {
+            return self.clone();
+        };
+        let (hi_c, hi_r) = (lo.0 + w as i32, lo.1 + h as i32);
+        // Every line outside the window against the window's line next to it.
+        let stray = (lo.0..c0)
+            .map(|c| (count(c, r0, 1, hh), count(c0, r0, 1, hh)))
+            .chain((c0 + ww..hi_c).map(|c| (count(c, r0, 1, hh), count(c0 + ww - 1, r0, 1, hh))))
+            .chain((lo.1..r0).map(|r| (count(c0, r, ww, 1), count(c0, r0, ww, 1))))
+            .chain((r0 + hh..hi_r).map(|r| (count(c0, r, ww, 1), count(c0, r0 + hh - 1, ww, 1))))
+            .all(|(outside, inside)| 2 * outside <= inside);
+        if !stray {
+            return self.clone();
+        }
+        let mut l = self.clone();
+        l.nodes
+            .retain(|(c, r), _| *c >= c0 && *c < c0 + ww && *r >= r0 && *r < r0 + hh);
+        l.map(|c| c)
     }
 
     /// Image directions of the lattice's +column and +row at a node (one-sided where needed).
@@ -601,6 +600,22 @@ mod tests {
         );
         // Either way round is fine.
         assert!(ls[0].place(&feats, 6, 9, Some(true)).is_ok());
+    }
+
+    #[test]
+    fn stray_features_continuing_a_row_are_trimmed_a_full_extra_line_is_not() {
+        let mut feats = warped_chessboard(9, 6);
+        // Two strays one step beyond the first column, in line with rows 0 and 1.
+        for r in 0..2 {
+            let (a, b) = (feats[r * 9].centre, feats[r * 9 + 1].centre);
+            let p = a + (a - b);
+            feats.push(blob(p.x, p.y, feats[r * 9 + 1].dark_axis));
+        }
+        let ls = lattices(&feats, 54);
+        assert_eq!(ls[0].len(), 56);
+        let p = ls[0].place(&feats, 9, 6, Some(true)).unwrap();
+        assert_eq!((p.found.len(), p.extent), (54, (9, 6)));
+        assert!(p.found.iter().all(|(_, f)| *f < 54));
     }
 
     #[test]

@@ -379,14 +379,33 @@ pub struct BoardOutcome {
 
 /// Candidate identifications of a sheet among its kind of features (discs or corners); the left
 /// sheet's `u` runs to the image's left (mirrored), the right one's to the right.
-fn sheet_candidates(features: &[Blob], layout: &[Point2<f64>], k: usize) -> Vec<Assignment> {
+fn sheet_candidates(features: &[Blob], sheet: &board::SheetLayout, k: usize) -> Vec<Assignment> {
     let orient = Orientation {
         mirrored: k == 0,
         u_along_x: Some(if k == 0 { -1 } else { 1 }),
     };
-    let mut c = candidates(features, &[], layout, orient);
+    let dark = sheet.corner_colours();
+    let mut c = candidates(features, &[], &sheet.points(), dark.as_deref(), orient);
     c.truncate(16);
     c
+}
+
+/// The features as an ideal pinhole camera would see them (distortion removed, back in pixels):
+/// a sheet's markers then fit one homography exactly, however strong the lens distortion, and
+/// identification can keep its tolerance tight. A feature that cannot be undistorted stays
+/// where it is (it will not fit).
+fn undistorted(features: &[Blob], camera: &Camera<f64>) -> Vec<Blob> {
+    let pp = camera.principal_point();
+    features
+        .iter()
+        .map(|b| {
+            let mut u = *b;
+            if let Ok(n) = camera.undistort(&b.centre) {
+                u.centre = Point2::new(camera.fx() * n.x + pp.x, camera.fy() * n.y + pp.y);
+            }
+            u
+        })
+        .collect()
 }
 
 /// Board planes from an image of the board without laser.
@@ -409,7 +428,8 @@ pub fn board_planes(img: &GrayImage, board: &BoardFile, camera: &Camera<f64>) ->
         }
     };
     let layouts = [board.left.points(), board.right.points()];
-    let [lc, rc] = [0, 1].map(|k| sheet_candidates(features(k), &layouts[k], k));
+    let ideal = [0, 1].map(|k| undistorted(features(k), camera));
+    let [lc, rc] = [0, 1].map(|k| sheet_candidates(&ideal[k], sheets[k], k));
     let names = ["left sheet", "right sheet"];
     let fit_all = |k: usize, cands: &[Assignment]| -> Vec<Result<SheetFit, CalibError>> {
         let radius = sheets[k].marker_radius(board.marker_diameter);

@@ -423,9 +423,15 @@ pub fn grid_overlay(img: &GrayImage, report: &super::ImageReport) -> RgbImage {
     let mut lines = Vec::new();
     match &report.status {
         Ok(v) => {
-            for (i, p) in &v.found {
+            for ((i, p), r) in v.found.iter().zip(&v.residuals) {
                 cv.circle((p.x, p.y), 5.0, 1.0, colour::USED);
                 cv.text(p.x + 6.0, p.y - 9.0, &i.to_string(), scale, colour::USED);
+                cv.line(
+                    (p.x, p.y),
+                    (p.x + 20.0 * r.x, p.y + 20.0 * r.y),
+                    1.5,
+                    colour::RESIDUAL,
+                );
             }
             for (i, p, e) in &v.dropped {
                 cv.circle((p.x, p.y), 7.0, 2.0, colour::DROPPED);
@@ -468,6 +474,9 @@ pub fn grid_overlay(img: &GrayImage, report: &super::ImageReport) -> RgbImage {
             }
             lines.push((format!("not used: {e}"), colour::MISSING));
         }
+    }
+    if report.status.is_ok() {
+        lines.push(("yellow: residual x20".into(), colour::RESIDUAL));
     }
     lines.push(("grey +: every feature detected".into(), colour::CLUTTER));
     cv.legend(&lines, scale);

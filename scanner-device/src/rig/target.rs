@@ -136,6 +136,25 @@ impl Pattern {
         }
     }
 
+    /// Half the printed pattern's width and height, mm (to its outermost ink).
+    pub fn half_extent(&self) -> (f64, f64) {
+        match *self {
+            Pattern::Cross { arm, dot } => ((arm + dot) / 2.0, (arm + dot) / 2.0),
+            Pattern::DotGrid {
+                cols,
+                rows,
+                pitch,
+                dot,
+            } => (
+                ((cols - 1) as f64 * pitch + dot) / 2.0,
+                ((rows - 1) as f64 * pitch + dot) / 2.0,
+            ),
+            Pattern::Chessboard { cols, rows, square } => {
+                (cols as f64 * square / 2.0, rows as f64 * square / 2.0)
+            }
+        }
+    }
+
     fn dot_diameter(&self) -> f64 {
         match *self {
             Pattern::Cross { dot, .. } | Pattern::DotGrid { dot, .. } => dot,
@@ -172,6 +191,140 @@ impl TargetPose {
     }
 }
 
+/// What surrounds the target in a shot: what a real photograph has (the paper's edge, a room
+/// behind, the hand holding the sheet). The default is nothing: the sheet fills the view.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct Surroundings {
+    /// White paper around the pattern, mm; beyond it, the room. `None`: the sheet has no edge.
+    pub margin: Option<f64>,
+    /// A wall with dark clutter behind the target.
+    pub clutter: Option<Clutter>,
+    /// A hand holding the sheet, its fingers reaching over the pattern from this point (pattern
+    /// coordinates, mm) towards the pattern's centre, 25 mm in front of the sheet.
+    pub hand: Option<[f64; 2]>,
+}
+
+/// A mid-gray wall behind the target with dark things on it: discs the size of markers, bars,
+/// rectangles and a keyboard-like block of dark keys.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Clutter {
+    /// Distance of the wall behind the target's centre, mm.
+    pub behind: f64,
+    /// Chooses the clutter.
+    pub seed: u64,
+}
+
+/// Albedo of the wall, of the dark things on it, and of skin.
+const WALL: f64 = 0.45;
+const DARK: f64 = 0.05;
+const SKIN: f64 = 0.4;
+/// Distance of the hand in front of the sheet, mm.
+const HAND_LIFT: f64 = 25.0;
+
+/// A dark thing on the clutter wall (wall coordinates, mm).
+#[derive(Debug, Clone, Copy)]
+enum Thing {
+    Disc {
+        x: f64,
+        y: f64,
+        r: f64,
+    },
+    Rect {
+        x: f64,
+        y: f64,
+        hw: f64,
+        hh: f64,
+        cos: f64,
+        sin: f64,
+    },
+}
+
+impl Thing {
+    fn covers(&self, px: f64, py: f64) -> bool {
+        match *self {
+            Thing::Disc { x, y, r } => (px - x).powi(2) + (py - y).powi(2) <= r * r,
+            Thing::Rect {
+                x,
+                y,
+                hw,
+                hh,
+                cos,
+                sin,
+            } => {
+                let (dx, dy) = (px - x, py - y);
+                (dx * cos + dy * sin).abs() <= hw && (-dx * sin + dy * cos).abs() <= hh
+            }
+        }
+    }
+}
+
+/// The clutter of a wall spanning `±span` mm.
+fn clutter_things(seed: u64, span: (f64, f64)) -> Vec<Thing> {
+    use rand::{Rng, SeedableRng};
+    let mut rng = rand::rngs::SmallRng::seed_from_u64(seed ^ 0x00C1_077E);
+    let mut things = Vec::new();
+    let at = |rng: &mut rand::rngs::SmallRng| {
+        (
+            rng.random_range(-span.0..span.0),
+            rng.random_range(-span.1..span.1),
+        )
+    };
+    for _ in 0..30 {
+        let (x, y) = at(&mut rng);
+        things.push(Thing::Disc {
+            x,
+            y,
+            r: rng.random_range(4.0..25.0),
+        });
+    }
+    for _ in 0..20 {
+        let (x, y) = at(&mut rng);
+        let a: f64 = rng.random_range(0.0..std::f64::consts::PI);
+        let long = rng.random_bool(0.5);
+        things.push(Thing::Rect {
+            x,
+            y,
+            hw: if long {
+                rng.random_range(40.0..150.0)
+            } else {
+                rng.random_range(5.0..40.0)
+            },
+            hh: rng.random_range(3.0..30.0),
+            cos: a.cos(),
+            sin: a.sin(),
+        });
+    }
+    // A keyboard: rows of dark keys with gaps.
+    let (kx, ky) = at(&mut rng);
+    for r in 0..5 {
+        for c in 0..14 {
+            things.push(Thing::Rect {
+                x: kx + c as f64 * 19.0,
+                y: ky + r as f64 * 19.0,
+                hw: 7.5,
+                hh: 7.5,
+                cos: 1.0,
+                sin: 0.0,
+            });
+        }
+    }
+    things
+}
+
+/// A hand in its own plane coordinates: x along the fingers (towards their tips), palm behind.
+fn hand_covers(x: f64, y: f64) -> bool {
+    let palm = ((x + 50.0) / 55.0).powi(2) + (y / 45.0).powi(2) <= 1.0;
+    let finger = |cy: f64, len: f64| {
+        let dy = y - cy;
+        if x < -10.0 {
+            return false;
+        }
+        let tip = (x - len).max(0.0);
+        tip * tip + dy * dy <= 8.0 * 8.0
+    };
+    palm || finger(-27.0, 45.0) || finger(-9.0, 60.0) || finger(9.0, 63.0) || finger(27.0, 52.0)
+}
+
 /// Ground truth of one feature (a dot or a chessboard corner).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct FeatureTruth {
@@ -184,6 +337,9 @@ pub struct FeatureTruth {
     /// For a dot: the centroid of its projected disc (where an unbiased detector finds it);
     /// for a corner: the same as `projected`.
     pub centroid: Point2<f64>,
+    /// Fully in view: inside the image and not hidden by the hand (nor is anything within a
+    /// dot's radius or half a square of it).
+    pub visible: bool,
 }
 
 /// A rendered calibration shot with its truth.
@@ -199,6 +355,18 @@ impl Rig {
     /// Renders a calibration shot: `pattern` at `pose`, nothing else in view (a wall of the
     /// same white behind), with `noise_seed` choosing the sensor noise.
     pub fn shot(&self, pattern: &Pattern, pose: &TargetPose, noise_seed: u64) -> Shot {
+        self.shot_in(pattern, pose, &Surroundings::default(), noise_seed)
+    }
+
+    /// Renders a calibration shot with [`Surroundings`]: the sheet's edge, a cluttered wall
+    /// behind it, a hand over it.
+    pub fn shot_in(
+        &self,
+        pattern: &Pattern,
+        pose: &TargetPose,
+        around: &Surroundings,
+        noise_seed: u64,
+    ) -> Shot {
         let (w, h) = (self.scene.width as usize, self.scene.height as usize);
         let turn = Rotation3::from_euler_angles(
             pose.turn_deg[0].to_radians(),
@@ -212,22 +380,72 @@ impl Rig {
         );
         let sheet = |p: &Point3<f64>| ((p - pose.centre).dot(&ex), (p - pose.centre).dot(&ey));
         let amb = self.scene.ambient;
+        // Where a ray meets a plane through `c` with normal `n` (distance along the unit ray).
+        let meet = |d: &Vector3<f64>, c: &Point3<f64>, n: &Vector3<f64>| {
+            let den = d.dot(n);
+            if den.abs() < 1e-9 {
+                return None;
+            }
+            let t = c.coords.dot(n) / den;
+            (t > 0.0).then_some(t)
+        };
+        let (hx, hy) = pattern.half_extent();
+        let hand = around.hand.map(|at| {
+            // Fingers point from `at` towards the pattern's centre.
+            let len = (at[0] * at[0] + at[1] * at[1]).sqrt().max(1e-9);
+            let dir = (-at[0] / len, -at[1] / len);
+            let plane = pose.centre - n * HAND_LIFT;
+            (at, dir, plane)
+        });
+        let on_hand = |d: &Vector3<f64>| -> Option<f64> {
+            let (at, dir, plane) = hand?;
+            let t = meet(d, &plane, &n)?;
+            let q = Point3::from(d * t);
+            let (x, y) = ((q - plane).dot(&ex) - at[0], (q - plane).dot(&ey) - at[1]);
+            let (fx, fy) = (x * dir.0 + y * dir.1, -x * dir.1 + y * dir.0);
+            hand_covers(fx, fy).then_some(t)
+        };
+        let wall = around.clutter.map(|c| {
+            let z = pose.centre.z + c.behind;
+            let cam = &self.scene.camera;
+            let span = (
+                0.6 * z * f64::from(self.scene.width) / cam.fx(),
+                0.6 * z * f64::from(self.scene.height) / cam.fy(),
+            );
+            (z, clutter_things(c.seed, span))
+        });
+        let albedo_along = |d: &Vector3<f64>| -> f64 {
+            if on_hand(d).is_some() {
+                return SKIN;
+            }
+            if let Some(t) = meet(d, &pose.centre, &n) {
+                let (x, y) = sheet(&Point3::from(d * t));
+                let on_sheet = around
+                    .margin
+                    .is_none_or(|m| x.abs() <= hx + m && y.abs() <= hy + m);
+                if on_sheet {
+                    return pattern.albedo(x, y);
+                }
+            }
+            match &wall {
+                Some((z, things)) if d.z > 0.0 => {
+                    let (x, y) = (d.x / d.z * z, d.y / d.z * z);
+                    if things.iter().any(|t| t.covers(x, y)) {
+                        DARK
+                    } else {
+                        WALL
+                    }
+                }
+                Some(_) => 0.0,
+                // Without a wall, the sheet has no edge unless a margin is given: then the room
+                // is dark.
+                None => 0.0,
+            }
+        };
         let coverage = |u: usize, v: usize, sub: usize| {
             let (mut sum, mut lo, mut hi) = (0.0, f64::INFINITY, 0.0f64);
             for (su, sv) in super::subpixels(u, v, sub) {
-                let mut a = 0.0;
-                if let Some(d) = self.ray_fast(su, sv) {
-                    let den = d.dot(&n);
-                    let t = if den.abs() < 1e-9 {
-                        -1.0
-                    } else {
-                        pose.centre.coords.dot(&n) / den
-                    };
-                    if t > 0.0 {
-                        let (x, y) = sheet(&Point3::from(d * t));
-                        a = pattern.albedo(x, y);
-                    }
-                }
+                let a = self.ray_fast(su, sv).map_or(0.0, |d| albedo_along(&d));
                 sum += a;
                 lo = lo.min(a);
                 hi = hi.max(a);
@@ -260,6 +478,27 @@ impl Rig {
         let place = |s: [f64; 2]| pose.centre + ex * s[0] + ey * s[1];
         let mut features = Vec::new();
         let r = pattern.dot_diameter() / 2.0;
+        let (w, h) = (f64::from(self.scene.width), f64::from(self.scene.height));
+        let clear = match *pattern {
+            // The corner refinement's window reaches about 0.35 of a square.
+            Pattern::Chessboard { square, .. } => square / 2.0,
+            _ => r,
+        };
+        // In the image and not under the hand, nor anything around it.
+        let visible = |s: [f64; 2]| {
+            let ring = (0..8).map(|i| {
+                let a = f64::from(i) / 8.0 * std::f64::consts::TAU;
+                [s[0] + clear * a.cos(), s[1] + clear * a.sin()]
+            });
+            std::iter::once(s).chain(ring).all(|q| {
+                let p = place(q);
+                let Ok(px) = cam.project(&p) else {
+                    return false;
+                };
+                let inside = px.x >= 0.5 && px.y >= 0.5 && px.x <= w - 1.5 && px.y <= h - 1.5;
+                inside && on_hand(&p.coords.normalize()).is_none()
+            })
+        };
         for s in pattern.dots() {
             let point = place(s);
             let Ok(projected) = cam.project(&point) else {
@@ -278,6 +517,7 @@ impl Rig {
                 point,
                 projected,
                 centroid,
+                visible: visible(s),
             });
         }
         for s in pattern.corners() {
@@ -288,6 +528,7 @@ impl Rig {
                     point,
                     projected,
                     centroid: projected,
+                    visible: visible(s),
                 });
             }
         }
