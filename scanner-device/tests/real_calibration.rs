@@ -296,3 +296,170 @@ fn real_corners_agree_with_cornersubpix() {
     assert!(mean(&inner) <= 0.05);
     assert!(all[all.len() / 2] <= 0.05);
 }
+
+// ---- The command line on the real photographs ----
+
+fn run(args: &[String]) -> (bool, String, String) {
+    let args: Vec<&str> = args.iter().map(String::as_str).collect();
+    scanner_tests::run(env!("CARGO_BIN_EXE_scanner-device"), &args)
+}
+
+fn real_paths() -> Vec<String> {
+    IMAGES
+        .iter()
+        .map(|n| data().join(format!("{n}.jpg")).display().to_string())
+        .collect()
+}
+
+fn intrinsics_args(count: &[&str], out: &std::path::Path, images: &[String]) -> Vec<String> {
+    let mut a: Vec<String> = ["calibrate", "intrinsics"]
+        .iter()
+        .chain(count)
+        .map(|s| s.to_string())
+        .collect();
+    a.extend(["--out".into(), out.display().to_string()]);
+    a.extend(images.iter().cloned());
+    a
+}
+
+#[test]
+fn the_command_says_for_every_real_image_what_it_used_and_draws_each() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("camera.toml");
+    let (ok, text, err) = run(&intrinsics_args(
+        &["--chessboard-corners", "9x6"],
+        &out,
+        &real_paths(),
+    ));
+    assert!(ok, "{err}");
+    for n in IMAGES {
+        let line = text
+            .lines()
+            .find(|l| l.contains(&format!("{n}.jpg")))
+            .unwrap();
+        assert!(line.contains("used: 54 features"), "{line}");
+        let overlay = dir
+            .path()
+            .join("camera-overlays")
+            .join(format!("{n}-overlay.png"));
+        assert_eq!(image::open(&overlay).unwrap().width(), 640);
+    }
+    assert!(text.contains("over 13 images"), "{text}");
+    // Squares or corners: the same board, the same camera.
+    let out2 = dir.path().join("camera2.toml");
+    let (ok, text2, err) = run(&intrinsics_args(
+        &["--chessboard-squares", "10x7"],
+        &out2,
+        &real_paths(),
+    ));
+    assert!(ok, "{err}");
+    let fx = |t: &str| {
+        t.lines()
+            .last()
+            .unwrap()
+            .split(" fy")
+            .next()
+            .unwrap()
+            .to_string()
+    };
+    assert_eq!(fx(&text), fx(&text2));
+}
+
+#[test]
+fn a_chessboard_count_that_does_not_match_the_board_is_refused_with_what_was_seen() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("camera.toml");
+    // Without saying what it counts.
+    let (ok, _, err) = run(&intrinsics_args(
+        &["--chessboard", "9x6"],
+        &out,
+        &real_paths(),
+    ));
+    assert!(!ok);
+    assert!(
+        err.contains("--chessboard-squares 9x6") && err.contains("--chessboard-corners 9x6"),
+        "{err}"
+    );
+    // The squares given as corners: every image shows fewer.
+    let (ok, _, err) = run(&intrinsics_args(
+        &["--chessboard-corners", "10x7"],
+        &out,
+        &real_paths(),
+    ));
+    assert!(!ok);
+    assert!(
+        err.contains("the images show a complete grid of 9×6 inner corners, but 10×7 were given")
+            && err.contains("a chessboard of 10×7 squares has 9×6 inner corners"),
+        "{err}"
+    );
+    // Fewer corners given than the board has: each image says what it saw; the pictures are
+    // still drawn.
+    let (ok, text, err) = run(&intrinsics_args(
+        &["--chessboard-corners", "8x5"],
+        &out,
+        &real_paths(),
+    ));
+    assert!(!ok, "{text}");
+    assert!(
+        text.contains("refused: chessboard: the image shows a grid of 9×6 inner corners, more than the 8×5 given"),
+        "{text}"
+    );
+    assert!(err.contains("camera-overlays"), "{err}");
+    assert!(
+        dir.path()
+            .join("camera-overlays/right01-overlay.png")
+            .exists()
+    );
+    assert!(!out.exists(), "no camera file from a failed calibration");
+}
+
+#[test]
+fn images_that_do_not_fit_one_camera_are_refused_and_the_rest_calibrate() {
+    let dir = tempfile::tempdir().unwrap();
+    // The same photographs squeezed to 55 % of their height: the board as another camera
+    // would see it.
+    let mut squeezed = Vec::new();
+    for (i, n) in IMAGES.iter().take(5).enumerate() {
+        let img = image::open(data().join(format!("{n}.jpg")))
+            .unwrap()
+            .to_luma8();
+        let small = image::imageops::resize(&img, 640, 264, image::imageops::FilterType::Triangle);
+        let mut canvas = image::GrayImage::from_pixel(640, 480, image::Luma([128]));
+        image::imageops::overlay(&mut canvas, &small, 0, 0);
+        let p = dir.path().join(format!("squeezed-{i}.png"));
+        canvas.save(&p).unwrap();
+        squeezed.push(p.display().to_string());
+    }
+    // A repeated image adds nothing.
+    let mut all = real_paths();
+    all.push(all[0].clone());
+    all.extend(squeezed.iter().cloned());
+    let out = dir.path().join("camera.toml");
+    let (ok, text, err) = run(&intrinsics_args(
+        &["--chessboard-corners", "9x6"],
+        &out,
+        &all,
+    ));
+    assert!(ok, "{err}\n{text}");
+    for s in &squeezed {
+        let line = text.lines().find(|l| l.contains(s.as_str())).unwrap();
+        assert!(line.contains("refused: reprojection error"), "{line}");
+    }
+    let repeated = text
+        .lines()
+        .filter(|l| l.contains("right01.jpg"))
+        .nth(1)
+        .unwrap();
+    assert!(repeated.contains("refused: the same view as"), "{repeated}");
+    assert!(text.contains("over 13 images"), "{text}");
+    // Too few good ones: an error, not a camera.
+    let mut few = real_paths()[..3].to_vec();
+    few.extend(squeezed);
+    let (ok, text, err) = run(&intrinsics_args(
+        &["--chessboard-corners", "9x6"],
+        &out,
+        &few,
+    ));
+    assert!(!ok, "{text}");
+    assert!(err.contains("do not fit one camera"), "{err}");
+}

@@ -33,6 +33,9 @@ pub const OUTLIER_MIN_PX: f64 = 0.5;
 pub const VIEW_RMS_OF_MEDIAN: f64 = 3.0;
 /// …and this many pixels.
 pub const VIEW_RMS_MIN_PX: f64 = 0.5;
+/// A calibration whose RMS error over all features exceeds this (pixels) is not one camera's:
+/// a webcam's real photographs fit within 0.2–0.5 px.
+pub const MAX_RMS_PX: f64 = 1.0;
 /// Two images whose common features lie within this RMS distance (pixels) show the same view.
 pub const SAME_VIEW_PX: f64 = 1.0;
 
@@ -264,23 +267,28 @@ pub fn intrinsics_outcome(images: &[GrayImage], target: &Target, free: Free) -> 
     }
 }
 
-/// Every image shows a complete grid of the same size, smaller than the target given: the count
-/// is wrong (a chessboard's squares given as its corners, say), not the images.
+/// Most images (three in four) show the same complete grid, smaller than the target given, and
+/// none a larger complete one: the count is wrong (a chessboard's squares given as its corners,
+/// say), not the images. (A stray feature may join a grid when the target given leaves room for
+/// it: such an image is not complete and does not count against.)
 fn count_too_large(reports: &[ImageReport], target: &Target) -> Option<CalibError> {
     let grids: Vec<&GridView> = reports.iter().filter_map(|r| r.grid.as_ref()).collect();
-    let first = grids.first()?;
-    let (c, r) = first.extent;
-    let same = |g: &&GridView| g.complete && (g.extent == (c, r) || g.extent == (r, c));
     let given = target.grid();
-    let smaller = (c * r) < given.0 * given.1;
-    if grids.len() < 2 || !smaller || !grids.iter().all(same) {
+    let key = |e: (usize, usize)| (e.0.min(e.1), e.0.max(e.1));
+    let complete: Vec<(usize, usize)> = grids
+        .iter()
+        .filter(|g| g.complete)
+        .map(|g| key(g.extent))
+        .collect();
+    let (c, r) = *complete
+        .iter()
+        .max_by_key(|e| complete.iter().filter(|f| f == e).count())?;
+    let same = complete.iter().filter(|e| **e == (c, r)).count();
+    let larger = complete.iter().any(|e| e.0 * e.1 > c * r);
+    if grids.len() < 2 || 4 * same < 3 * grids.len() || larger || c * r >= given.0 * given.1 {
         return None;
     }
-    let seen = if (c <= r) == (given.0 <= given.1) {
-        (c, r)
-    } else {
-        (r, c)
-    };
+    let seen = if given.0 <= given.1 { (c, r) } else { (r, c) };
     let hint = match target {
         Target::Chessboard { .. } => format!(
             " (a chessboard of {}×{} squares has {}×{} inner corners)",
@@ -364,7 +372,8 @@ fn solve(
         })
         .collect();
     let mut camera = closed_form(reports, &mut active, size)?;
-    for _round in 0..10 {
+    let images = active.len();
+    for _round in 0..30 {
         if active.len() < 3 {
             return Err(too_few_images(reports, active.len()));
         }
@@ -441,6 +450,33 @@ fn solve(
             }
         }
         active = kept;
+        if active.len() < before {
+            // Features dropped while a refused image still pulled the fit get another chance.
+            restore_dropped(&mut active, layout);
+        }
+        if !changed && active.len() == before && r.rms_px > MAX_RMS_PX {
+            // No single image stands out, yet the whole does not fit one camera: leave out the
+            // worst image while at most a third are gone; beyond that, refuse.
+            let refused = images - active.len();
+            if active.len() <= 3 || 3 * (refused + 1) > images {
+                return Err(CalibError::PoorCalibration {
+                    rms_px: r.rms_px,
+                    limit_px: MAX_RMS_PX,
+                });
+            }
+            let worst = errs
+                .iter()
+                .enumerate()
+                .max_by(|a, b| rms(a.1).total_cmp(&rms(b.1)))
+                .map_or(0, |(i, _)| i);
+            let a = active.remove(worst);
+            reports[a.image].status = Err(CalibError::ResidualTooHigh {
+                rms_px: rms(&errs[worst]),
+                limit_px: MAX_RMS_PX,
+            });
+            restore_dropped(&mut active, layout);
+            continue;
+        }
         if !changed && active.len() == before {
             for (a, p) in active.iter().zip(&poses) {
                 let view = a.view();
@@ -465,6 +501,17 @@ fn solve(
         }
     }
     Err(CalibError::Unstable)
+}
+
+/// Puts every dropped feature back into its image's correspondences.
+fn restore_dropped(active: &mut [Active], layout: &[Point2<f64>]) {
+    for a in active {
+        for (k, p, _) in a.dropped.drain(..) {
+            a.index.push(k);
+            a.pixels.push(p);
+            a.layout.push(layout[k]);
+        }
+    }
 }
 
 /// Zhang's closed form over the active images; when it fails, each image is left out in turn,
@@ -508,5 +555,100 @@ fn closed_form(
                 });
             }
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use scanner_core::Distortion;
+    use scanner_core::nalgebra::{Point3, Rotation3, Vector3};
+
+    fn grid() -> Vec<Point2<f64>> {
+        (0..54)
+            .map(|k| Point2::new((k % 9) as f64 * 25.0, (k / 9) as f64 * 25.0))
+            .collect()
+    }
+
+    fn view(cam: &Camera<f64>, turn: [f64; 3], at: [f64; 3]) -> Vec<Point2<f64>> {
+        let r = Rotation3::from_euler_angles(
+            turn[0].to_radians(),
+            turn[1].to_radians(),
+            turn[2].to_radians(),
+        );
+        grid()
+            .iter()
+            .map(|p| {
+                cam.project(
+                    &(Point3::from(
+                        r * Vector3::new(p.x - 100.0, p.y - 62.5, 0.0) + Vector3::from(at),
+                    )),
+                )
+                .unwrap()
+            })
+            .collect()
+    }
+
+    #[test]
+    fn a_view_that_breaks_the_closed_form_is_named_and_the_rest_calibrate() {
+        let cam = Camera::new(540.0, 540.0, 320.0, 240.0, Distortion::none()).unwrap();
+        let turns = [
+            [20.0, 10.0, 0.0],
+            [-25.0, 5.0, 10.0],
+            [5.0, -30.0, 0.0],
+            [15.0, 25.0, -10.0],
+        ];
+        let mut views: Vec<Vec<Point2<f64>>> = turns
+            .iter()
+            .map(|t| view(&cam, *t, [0.0, 0.0, 500.0]))
+            .collect();
+        // A view no camera can make: stretched across and squeezed along its columns, more at
+        // each column.
+        let bad = views[0]
+            .iter()
+            .enumerate()
+            .map(|(k, p)| {
+                let s = 1.0 + 0.08 * (k % 9) as f64;
+                Point2::new(320.0 + (p.x - 320.0) * s * s, 240.0 + (p.y - 240.0) / s)
+            })
+            .collect();
+        views.insert(2, bad);
+        let layout = grid();
+        let refs: Vec<View> = views
+            .iter()
+            .map(|p| View {
+                layout: &layout,
+                pixels: p,
+            })
+            .collect();
+        assert!(
+            initial_camera(&refs, 640, 480).is_err(),
+            "the test needs a failing start"
+        );
+        let mut reports: Vec<ImageReport> = views
+            .iter()
+            .map(|p| ImageReport {
+                grid: Some(GridView {
+                    features: Vec::new(),
+                    found: p.iter().copied().enumerate().collect(),
+                    extent: (9, 6),
+                    complete: true,
+                }),
+                status: pending(),
+            })
+            .collect();
+        let (got, rms) = solve(&mut reports, &layout, 0.0, (640, 480), Free::ALL).unwrap();
+        assert_eq!(reports[2].status, Err(CalibError::Disagrees));
+        assert!(
+            reports
+                .iter()
+                .enumerate()
+                .all(|(i, r)| i == 2 || r.status.is_ok())
+        );
+        assert!(
+            (got.fx() - 540.0).abs() < 1e-3 && rms < 1e-6,
+            "{} {rms}",
+            got.fx()
+        );
     }
 }

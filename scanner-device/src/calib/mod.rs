@@ -115,9 +115,9 @@ pub enum CalibError {
         /// What is counted ("inner corners", "dots").
         unit: &'static str,
     },
-    /// Every image shows the same complete grid, smaller than the target described.
+    /// Most images show the same complete grid, smaller than the target described.
     #[error(
-        "every image shows a complete grid of {}×{} {unit}, but {}×{} were given{hint}",
+        "the images show a complete grid of {}×{} {unit}, but {}×{} were given{hint}",
         seen.0, seen.1, given.0, given.1
     )]
     CountTooLarge {
@@ -138,7 +138,7 @@ pub enum CalibError {
     },
     /// An image's features fit the common camera far worse than the others'.
     #[error(
-        "reprojection error {rms_px:.2} px, far above the other images' (limit {limit_px:.2} px)"
+        "reprojection error {rms_px:.2} px, above the limit of {limit_px:.2} px that the other images keep"
     )]
     ResidualTooHigh {
         /// The image's RMS error.
@@ -162,11 +162,21 @@ pub enum CalibError {
         /// Why.
         source: GeomError,
     },
+    /// The images do not fit one camera.
+    #[error(
+        "intrinsics: the images do not fit one camera (RMS {rms_px:.2} px, a good calibration fits within {limit_px} px): are they all from this camera at one resolution and zoom, of one flat target of the size given?"
+    )]
+    PoorCalibration {
+        /// RMS reprojection error of the best fit.
+        rms_px: f64,
+        /// [`intrinsics::MAX_RMS_PX`].
+        limit_px: f64,
+    },
     /// The fit kept changing its set of features and images.
-    #[error("intrinsics: the fit did not settle on a set of features in 10 rounds")]
+    #[error("intrinsics: the fit did not settle on a set of features in 30 rounds")]
     Unstable,
     /// The image's grid was found but the calibration as a whole failed.
-    #[error("grid found, but the calibration failed")]
+    #[error("grid found; the calibration as a whole failed (below)")]
     NotSolved,
     /// The markers fit the layout badly (wrong board file, or a mis-identification).
     #[error(
