@@ -47,3 +47,58 @@ fn real_stripes_are_found_straight_and_the_glint_is_rejected() {
         assert!(paper.rms > o.rms);
     }
 }
+
+#[test]
+fn the_laser_is_found_by_its_colour_on_the_board_and_nowhere_else() {
+    use scanner_core::stripe::{LaserColour, Method};
+    use support::real::full_height;
+    for case in &CASES {
+        let name = format!("{} {}", case.image, case.stripe);
+        // The difference method, red: the board's rows, none where no laser falls, none far
+        // off the line (the glint's rows included).
+        let dim = full_height(case, Method::Dim, LaserColour::Red, usize::MAX);
+        println!("{name}: DIM red {dim:?}");
+        assert!(dim.dark_rows > 300, "{name}: {dim:?}");
+        // (the laser-off reference of the difference method is what tells the red turntable
+        // below the board from the stripe)
+        assert_eq!(dim.dark_valid, 0, "{name}: centres where no laser falls");
+        assert!(
+            dim.max_off.max(dim.glint_max_off) <= 3.0,
+            "{name}: a centre off the line {dim:?}"
+        );
+        assert!(
+            dim.board_valid * 100 >= dim.board_rows * 85,
+            "{name}: {dim:?}"
+        );
+        // The light-intensity method by redness (from the top down to the board's end: below it
+        // the turntable is lit as red as the laser, which no method without a reference can tell
+        // from a stripe). These photographs are nearly pure red already (green and blue near 0),
+        // and the stripe's core spills into green (up to +123 DN), which redness reads as less
+        // red: here it finds somewhat fewer rows than luma (69–71 % against 73–84 %), while
+        // where a white surface is brighter than the stripe only redness finds it
+        // (`tests/stripe.rs`). Its centres stay within 4 px outside the glint (where the camera
+        // caps red at 180 around the stripe, a plateau biases the light-intensity centre); in
+        // the glint, whose scattered light is as red as the stripe, it may take the glint.
+        let end = case.roi.y + case.roi.height;
+        let lim = full_height(case, Method::Lim, LaserColour::Red, end);
+        let luma = full_height(case, Method::Lim, LaserColour::White, end);
+        println!("{name}: LIM red {lim:?}\n{name}: LIM luma {luma:?}");
+        assert_eq!(
+            lim.dark_valid, 0,
+            "{name}: LIM centres where no laser falls"
+        );
+        assert!(
+            lim.max_off <= 4.0,
+            "{name}: a LIM centre {} px off the line",
+            lim.max_off
+        );
+        assert!(
+            lim.board_valid * 100 >= lim.board_rows * 60,
+            "{name}: {lim:?}"
+        );
+        assert_eq!(
+            luma.dark_valid, 0,
+            "{name}: LIM luma centres where no laser falls"
+        );
+    }
+}

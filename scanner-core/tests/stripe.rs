@@ -6,10 +6,10 @@ mod support;
 
 use proptest::prelude::*;
 use scanner_core::stripe::{
-    Axis, Estimator, Extractor, Frame, FrameError, Method, PixelFormat, Roi, Status, StripeConfig,
-    StripeError,
+    Axis, Estimator, Extractor, Frame, FrameError, LaserColour, Method, PixelFormat, Roi, Status,
+    StripeConfig, StripeError,
 };
-use support::stripes::{HEIGHT, WIDTH, bench, mean, percentile, synthetic};
+use support::stripes::{HEIGHT, Synthetic, WIDTH, bench, mean, percentile, synthetic};
 
 type Ex = Extractor<256>;
 
@@ -119,7 +119,11 @@ fn formats_agree() {
         .iter()
         .map(|p| p.centre)
         .collect();
-    // YUYV: Y in the even bytes, chroma anything
+    // YUYV, white laser: Y in the even bytes, chroma anything
+    let white = StripeConfig {
+        colour: LaserColour::White,
+        ..cfg
+    };
     let yuyv = |g: &[u8]| -> Vec<u8> {
         g.iter()
             .enumerate()
@@ -130,14 +134,14 @@ fn formats_agree() {
     let f = Frame::packed(&fy, WIDTH, HEIGHT, PixelFormat::Yuyv).unwrap();
     let r = Frame::packed(&ry, WIDTH, HEIGHT, PixelFormat::Yuyv).unwrap();
     let got: Vec<f32> = ex
-        .extract(&f, Some(&r), &cfg)
+        .extract(&f, Some(&r), &white)
         .unwrap()
         .points
         .iter()
         .map(|p| p.centre)
         .collect();
     assert_eq!(got, base, "YUYV reads the same luma");
-    // RGB: a red laser on gray ambient; eq. 11 (squared change) keeps the centre
+    // RGB: a red laser on gray ambient; the squared added red keeps the centre
     let rgb = |g: &[u8], laser: bool| -> Vec<u8> {
         g.iter()
             .zip(&s.reference)
@@ -161,11 +165,168 @@ fn formats_agree() {
         errs.len(),
         mean(&errs)
     );
-    // RGB LIM converts to luma and still finds it
+    // RGB LIM by redness finds it
     let res = ex
         .extract(&f, Some(&r), &StripeConfig::new(Method::Lim, Axis::Columns))
         .unwrap();
     assert!(res.valid().count() >= WIDTH * 9 / 10);
+}
+
+/// An RGB frame of `s`'s stripe in one channel on a gray ambient, and its reference; with `drop`, the reference is brighter in the
+/// other channels by 40 DN everywhere (a change of exposure or white balance between the two).
+fn coloured(s: &Synthetic, channel: usize, drop: bool) -> (Vec<u8>, Vec<u8>) {
+    let mut f = Vec::with_capacity(s.frame.len() * 3);
+    let mut r = Vec::with_capacity(s.frame.len() * 3);
+    for (&v, &a) in s.frame.iter().zip(&s.reference) {
+        let laser = v.saturating_sub(a);
+        for c in 0..3 {
+            let own = if c == channel { laser } else { 0 };
+            f.push(a.saturating_add(own));
+            r.push(if drop && c != channel {
+                a.saturating_add(40)
+            } else {
+                a
+            });
+        }
+    }
+    (f, r)
+}
+
+#[test]
+fn each_laser_colour_is_found_by_its_own_light_and_a_drop_never_makes_a_stripe() {
+    let s = synthetic(2.0, 150.0, 2.0, 13);
+    let mut ex = extractor();
+    for (channel, colour) in [LaserColour::Red, LaserColour::Green, LaserColour::Blue]
+        .into_iter()
+        .enumerate()
+    {
+        let (fr, rr) = coloured(&s, channel, true);
+        let f = Frame::packed(&fr, WIDTH, HEIGHT, PixelFormat::Rgb24).unwrap();
+        let r = Frame::packed(&rr, WIDTH, HEIGHT, PixelFormat::Rgb24).unwrap();
+        for method in [Method::Dim, Method::Lim] {
+            let cfg = StripeConfig {
+                colour,
+                ..StripeConfig::new(method, Axis::Columns)
+            };
+            let res = ex.extract(&f, Some(&r), &cfg).unwrap();
+            let errs: Vec<f64> = res
+                .points
+                .iter()
+                .zip(&s.truth)
+                .filter(|(p, _)| p.status == Status::Valid)
+                .map(|(p, t)| (f64::from(p.centre) - t).abs())
+                .collect();
+            assert!(
+                errs.len() >= WIDTH * 95 / 100 && mean(&errs) < 0.1,
+                "{colour:?} {method:?}: {} valid, mean {}",
+                errs.len(),
+                mean(&errs)
+            );
+        }
+        // The laser of another colour sees nothing in it: the drop of 40 DN in the other
+        // channels is no stripe for the difference method, and this laser's light is not theirs.
+        let other = LaserColour::ALL[(channel + 1) % 3];
+        let cfg = StripeConfig {
+            colour: other,
+            ..StripeConfig::new(Method::Dim, Axis::Columns)
+        };
+        let res = ex.extract(&f, Some(&r), &cfg).unwrap();
+        assert_eq!(res.valid().count(), 0, "{other:?} in a {colour:?} frame");
+    }
+    // A white surface brighter than the stripe (a plaster bust under a lamp): by brightness the
+    // light-intensity method takes the surface, by redness the stripe.
+    let (mut fr, mut rr) = coloured(&s, 0, false);
+    for y in 45..55 {
+        for p in fr[3 * y * WIDTH..3 * (y + 1) * WIDTH].iter_mut() {
+            *p = 235;
+        }
+        for p in rr[3 * y * WIDTH..3 * (y + 1) * WIDTH].iter_mut() {
+            *p = 235;
+        }
+    }
+    let f = Frame::packed(&fr, WIDTH, HEIGHT, PixelFormat::Rgb24).unwrap();
+    let r = Frame::packed(&rr, WIDTH, HEIGHT, PixelFormat::Rgb24).unwrap();
+    let mut count = |colour: LaserColour| {
+        let cfg = StripeConfig {
+            colour,
+            ..StripeConfig::new(Method::Lim, Axis::Columns)
+        };
+        let res = ex.extract(&f, Some(&r), &cfg).unwrap();
+        res.points
+            .iter()
+            .zip(&s.truth)
+            .filter(|(p, t)| p.status == Status::Valid && (f64::from(p.centre) - **t).abs() < 0.5)
+            .count()
+    };
+    let (red, luma) = (count(LaserColour::Red), count(LaserColour::White));
+    assert!(
+        red >= WIDTH * 95 / 100 && luma == 0,
+        "redness {red}, luma {luma}"
+    );
+    // A frame that only lost light against its reference has no stripe, whatever the colour.
+    let (fr, _) = coloured(&s, 0, false);
+    let darker: Vec<u8> = s.reference.iter().flat_map(|&a| [a / 2; 3]).collect();
+    let brighter: Vec<u8> = fr.iter().map(|&v| v.saturating_add(60)).collect();
+    let f = Frame::packed(&darker, WIDTH, HEIGHT, PixelFormat::Rgb24).unwrap();
+    let r = Frame::packed(&brighter, WIDTH, HEIGHT, PixelFormat::Rgb24).unwrap();
+    for colour in LaserColour::ALL {
+        let cfg = StripeConfig {
+            colour,
+            ..StripeConfig::new(Method::Dim, Axis::Columns)
+        };
+        let res = ex.extract(&f, Some(&r), &cfg).unwrap();
+        assert_eq!(res.valid().count(), 0, "{colour:?}: a drop made a stripe");
+    }
+}
+
+#[test]
+fn yuyv_colours_come_from_the_chroma() {
+    // The red stripe as a webcam sends it: YUYV from the RGB frame (BT.601 full range).
+    let s = synthetic(2.0, 150.0, 2.0, 17);
+    let (fr, rr) = coloured(&s, 0, false);
+    let to_yuyv = |rgb: &[u8]| -> Vec<u8> {
+        let mut out = Vec::with_capacity(rgb.len() / 3 * 2);
+        for pair in rgb.chunks_exact(6) {
+            let yuv = |p: &[u8]| {
+                let (r, g, b) = (f64::from(p[0]), f64::from(p[1]), f64::from(p[2]));
+                let y = 0.299 * r + 0.587 * g + 0.114 * b;
+                (y, (b - y) / 1.772 + 128.0, (r - y) / 1.402 + 128.0)
+            };
+            let (y0, u0, v0) = yuv(&pair[..3]);
+            let (y1, u1, v1) = yuv(&pair[3..]);
+            let q = |v: f64| v.round().clamp(0.0, 255.0) as u8;
+            out.extend([q(y0), q((u0 + u1) / 2.0), q(y1), q((v0 + v1) / 2.0)]);
+        }
+        out
+    };
+    let (fy, ry) = (to_yuyv(&fr), to_yuyv(&rr));
+    let f = Frame::packed(&fy, WIDTH, HEIGHT, PixelFormat::Yuyv).unwrap();
+    let r = Frame::packed(&ry, WIDTH, HEIGHT, PixelFormat::Yuyv).unwrap();
+    let mut ex = extractor();
+    for method in [Method::Dim, Method::Lim] {
+        let res = ex
+            .extract(&f, Some(&r), &StripeConfig::new(method, Axis::Columns))
+            .unwrap();
+        let errs: Vec<f64> = res
+            .points
+            .iter()
+            .zip(&s.truth)
+            .filter(|(p, _)| p.status == Status::Valid)
+            .map(|(p, t)| (f64::from(p.centre) - t).abs())
+            .collect();
+        assert!(
+            errs.len() >= WIDTH * 95 / 100 && mean(&errs) < 0.1,
+            "{method:?}: {} valid, mean {}",
+            errs.len(),
+            mean(&errs)
+        );
+    }
+    // A green laser sees no stripe in a red one's frame.
+    let cfg = StripeConfig {
+        colour: LaserColour::Green,
+        ..StripeConfig::new(Method::Dim, Axis::Columns)
+    };
+    assert_eq!(ex.extract(&f, Some(&r), &cfg).unwrap().valid().count(), 0);
 }
 
 #[test]

@@ -5,7 +5,7 @@ use std::path::PathBuf;
 use anyhow::{Context, Result, bail};
 use clap::Args;
 use scanner_core::pipeline::{HeadConfig, PlaneMethod};
-use scanner_core::stripe::{Axis, Method, PixelFormat, StripeConfig};
+use scanner_core::stripe::{Axis, LaserColour, Method, PixelFormat, StripeConfig};
 use scanner_core::wire::Skip;
 
 use crate::calib::file::CalibrationFile;
@@ -54,6 +54,11 @@ pub struct ScanArgs {
     /// difference image.
     #[arg(long)]
     pub lim: bool,
+    /// The laser's colour: the stripe is found by the light it adds in that colour (difference
+    /// image) or by how much more of that colour a pixel shows (light intensity); `white` goes
+    /// by brightness alone. Gray frames show no colour: there it is ignored. [default: red]
+    #[arg(long, value_enum)]
+    pub laser: Option<LaserArg>,
     /// The stripe runs vertically (the laser sweeps sideways): scan rows.
     #[arg(long)]
     pub rows: bool,
@@ -72,6 +77,30 @@ pub struct ScanArgs {
     /// No progress lines.
     #[arg(long, short)]
     pub quiet: bool,
+}
+
+/// `--laser`: the laser's colour.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum LaserArg {
+    /// A red laser (635–660 nm), the common line laser.
+    Red,
+    /// A green laser (520–532 nm).
+    Green,
+    /// A blue or violet laser (405–450 nm).
+    Blue,
+    /// By brightness alone.
+    White,
+}
+
+impl From<LaserArg> for LaserColour {
+    fn from(l: LaserArg) -> Self {
+        match l {
+            LaserArg::Red => LaserColour::Red,
+            LaserArg::Green => LaserColour::Green,
+            LaserArg::Blue => LaserColour::Blue,
+            LaserArg::White => LaserColour::White,
+        }
+    }
 }
 
 fn parse_size(s: &str) -> Result<(u32, u32)> {
@@ -232,7 +261,17 @@ pub fn scan(a: &ScanArgs) -> Result<ScanReport> {
     }
     let method = if a.lim { Method::Lim } else { Method::Dim };
     let axis = if a.rows { Axis::Rows } else { Axis::Columns };
-    let mut head = HeadConfig::new(StripeConfig::new(method, axis));
+    let colour = a.laser.map_or(LaserColour::Red, LaserColour::from);
+    if a.laser.is_some() && a.format == "gray" {
+        eprintln!(
+            "note: --laser {} has no effect on gray frames (--format gray): a gray camera sees no colour",
+            colour.name()
+        );
+    }
+    let mut head = HeadConfig::new(StripeConfig {
+        colour,
+        ..StripeConfig::new(method, axis)
+    });
     head.method = if a.method == "paper" {
         PlaneMethod::Paper
     } else {

@@ -60,6 +60,12 @@ pub struct Shape {
     /// window, samples: equal to the FWHM for a Gaussian, a little below it for a flat top, and
     /// far above it when the stripe sits on a halo of scattered light (a glint nearby).
     pub spread: f32,
+    /// Samples above half the height that lie outside the peak's half-maximum run: a second
+    /// hump in the window (a glint beside the stripe, the stripe split by an edge).
+    pub stray: usize,
+    /// The highest of those, as a fraction of the peak's raw value (0 without any): above 1, a
+    /// higher hump than the one the stripe was taken at.
+    pub stray_peak: f32,
 }
 
 /// Linear background through the means of the two samples at each end of `v(0..n)`:
@@ -175,6 +181,14 @@ impl Window<'_> {
         } else {
             0.0
         };
+        let (mut stray, mut stray_peak) = (0, 0.0f32);
+        for i in 0..n {
+            let inside = (i as f32) >= half_max.0 - 0.5 && (i as f32) <= half_max.1 + 0.5;
+            if !inside && raw(i) - bg(i) > 0.5 * height {
+                stray += 1;
+                stray_peak = stray_peak.max(raw(i) / raw(peak_index));
+            }
+        }
         Shape {
             peak_index,
             peak: raw(peak_index),
@@ -184,6 +198,8 @@ impl Window<'_> {
             fwhm: half_max.1 - half_max.0,
             clipped_run,
             spread,
+            stray,
+            stray_peak,
         }
     }
 

@@ -4,7 +4,7 @@
 //! quadratic x(y) (a straight line up to lens distortion).
 
 use scanner_core::stripe::{
-    Axis, Estimator, Extractor, Frame, Method, PixelFormat, Roi, Status, StripeConfig,
+    Axis, Estimator, Extractor, Frame, LaserColour, Method, PixelFormat, Roi, Status, StripeConfig,
 };
 
 /// One stripe of one photograph.
@@ -165,4 +165,91 @@ pub fn analyse(case: &Case, estimator: Estimator) -> Outcome {
         glint_max_off,
         statuses,
     }
+}
+
+/// One stripe's band over the whole height of the photograph.
+#[derive(Debug, Clone)]
+pub struct FullHeight {
+    /// Board rows and, of those, rows with a valid centre.
+    pub board_rows: usize,
+    pub board_valid: usize,
+    /// Largest distance of a valid centre on a board row outside the glint, and in the glint's
+    /// rows, from the line fitted to the difference method's centres outside the glint, px.
+    pub max_off: f64,
+    pub glint_max_off: f64,
+    /// Rows where no laser falls (the laser frame's red channel nowhere in the band more than
+    /// 20 DN above the reference's: the wall above the board, the dark base below) and, of
+    /// those, rows with a valid centre.
+    pub dark_rows: usize,
+    pub dark_valid: usize,
+}
+
+/// `method` with the laser `colour` on the band of `case` from the top of the photograph down to
+/// row `to` (all of it: `usize::MAX`).
+pub fn full_height(case: &Case, method: Method, colour: LaserColour, to: usize) -> FullHeight {
+    let (frame, w, h) = load(case.image);
+    let (reference, _, _) = load(&format!("{}-background", case.image));
+    let f = Frame::packed(&frame, w, h, PixelFormat::Rgb24).unwrap();
+    let r = Frame::packed(&reference, w, h, PixelFormat::Rgb24).unwrap();
+    // The line: the difference method's centres on the board outside the glint.
+    let mut ex = Box::new(Extractor::<2048>::new());
+    let board = StripeConfig {
+        roi: Some(case.roi),
+        ..StripeConfig::new(Method::Dim, Axis::Rows)
+    };
+    let in_glint = |y: usize| case.glint.is_some_and(|(a, b)| (a..b).contains(&y));
+    let pts: Vec<(f64, f64)> = ex
+        .extract(&f, Some(&r), &board)
+        .unwrap()
+        .valid()
+        .filter(|(y, _)| !in_glint(*y))
+        .map(|(y, p)| (y as f64, f64::from(p.centre)))
+        .collect();
+    let line = fit_quadratic(&pts);
+    let band = Roi {
+        x: case.roi.x,
+        y: 0,
+        width: case.roi.width,
+        height: h.min(to),
+    };
+    let cfg = StripeConfig {
+        roi: Some(band),
+        colour,
+        ..StripeConfig::new(method, Axis::Rows)
+    };
+    let res = ex.extract(&f, Some(&r), &cfg).unwrap();
+    let on_board = |y: usize| (case.roi.y..case.roi.y + case.roi.height).contains(&y);
+    let dark = |y: usize| {
+        (band.x..band.x + band.width).all(|x| {
+            let i = (y * w + x) * 3;
+            frame[i] <= reference[i].saturating_add(20)
+        })
+    };
+    let mut out = FullHeight {
+        board_rows: 0,
+        board_valid: 0,
+        max_off: 0.0,
+        glint_max_off: 0.0,
+        dark_rows: 0,
+        dark_valid: 0,
+    };
+    for (y, p) in res.points.iter().enumerate() {
+        let valid = p.status == Status::Valid;
+        if on_board(y) {
+            out.board_rows += 1;
+            if valid {
+                out.board_valid += 1;
+                let off = (f64::from(p.centre) - line(y as f64)).abs();
+                if in_glint(y) {
+                    out.glint_max_off = out.glint_max_off.max(off);
+                } else {
+                    out.max_off = out.max_off.max(off);
+                }
+            }
+        } else if dark(y) {
+            out.dark_rows += 1;
+            out.dark_valid += usize::from(valid);
+        }
+    }
+    out
 }
