@@ -6,13 +6,14 @@
 //! threshold + subpixel centre of every column, centroid estimator) beside the median time of one
 //! plain pass that sums every byte the extraction must read: the frame, the reference for DIM,
 //! and the reference rows the LIM threshold samples. Frames rotate through a set larger than the
-//! caches so both read from memory.
+//! caches so both read from memory. Colour frames (YUYV, RGB) show a red stripe on a gray
+//! ambient, read as a red laser (the default) and by brightness (`white`).
 
 use std::hint::black_box;
 use std::time::{Duration, Instant};
 
 use scanner_core::stripe::{
-    Axis, Extractor, Frame, Method, PixelFormat, SAMPLE_STEP, StripeConfig,
+    Axis, Extractor, Frame, LaserColour, Method, PixelFormat, SAMPLE_STEP, StripeConfig,
 };
 
 const SIZES: [(usize, usize); 4] = [(640, 480), (960, 720), (1280, 960), (1600, 1200)];
@@ -36,15 +37,36 @@ fn frames(w: usize, h: usize, format: PixelFormat, seed: u64) -> (Vec<Vec<u8>>, 
         for y in 0..h {
             for c in 0..w {
                 let ambient = 30 + (rnd() % 5) as u8;
+                let before = 30 + (rnd() % 5) as u8;
                 let centre = h as f64 * (0.3 + 0.4 * c as f64 / w as f64) + k as f64;
                 let u = y as f64 - centre;
                 let stripe = (160.0 * (-u * u / 4.5).exp()) as u8;
                 let i = (y * w + c) * bpp;
-                f[i] = ambient.saturating_add(stripe);
-                r[i] = 30 + (rnd() % 5) as u8;
-                if bpp == 2 {
-                    f[i + 1] = 128;
-                    r[i + 1] = 128;
+                match format {
+                    PixelFormat::Gray8 => {
+                        f[i] = ambient.saturating_add(stripe);
+                        r[i] = before;
+                    }
+                    PixelFormat::Rgb24 => {
+                        f[i..i + 3].copy_from_slice(&[
+                            ambient.saturating_add(stripe),
+                            ambient,
+                            ambient,
+                        ]);
+                        r[i..i + 3].copy_from_slice(&[before; 3]);
+                    }
+                    PixelFormat::Yuyv => {
+                        // The red stripe in BT.601: Y + 0.299 R, V + 0.5 R (U − 0.169 R).
+                        let s = f64::from(stripe);
+                        f[i] = ambient.saturating_add((0.299 * s) as u8);
+                        f[i + 1] = if c % 2 == 0 {
+                            (128.0 - 0.169 * s) as u8
+                        } else {
+                            (128.0 + 0.5 * s) as u8
+                        };
+                        r[i] = before;
+                        r[i + 1] = 128;
+                    }
                 }
             }
         }
@@ -96,16 +118,26 @@ fn time_pair(
 fn main() {
     let mut ex = Box::new(Extractor::<4096>::new());
     println!(
-        "| size | method | format | extraction | floor (sum of the bytes read) | ratio | frames/s |"
+        "| size | method | format | laser | extraction | floor (sum of the bytes read) | ratio | frames/s |"
     );
-    println!("|---|---|---|---|---|---|---|");
+    println!("|---|---|---|---|---|---|---|---|");
     for &(w, h) in &SIZES {
         let iterations = (2_000_000_000 / (w * h * 40)).clamp(40, 400);
-        for format in [PixelFormat::Gray8, PixelFormat::Yuyv] {
+        let kinds = [
+            (PixelFormat::Gray8, LaserColour::Red),
+            (PixelFormat::Yuyv, LaserColour::Red),
+            (PixelFormat::Yuyv, LaserColour::White),
+            (PixelFormat::Rgb24, LaserColour::Red),
+            (PixelFormat::Rgb24, LaserColour::White),
+        ];
+        for (format, colour) in kinds {
             let (fs, rs) = frames(w, h, format, 7);
             let row = w * format.bytes_per_pixel();
             for method in [Method::Lim, Method::Dim] {
-                let cfg = StripeConfig::new(method, Axis::Columns);
+                let cfg = StripeConfig {
+                    colour,
+                    ..StripeConfig::new(method, Axis::Columns)
+                };
                 let (t_ex, t_floor) = time_pair(
                     iterations,
                     |i| {
@@ -132,8 +164,13 @@ fn main() {
                     valid * 10 >= w * 9,
                     "the bench frames must have a stripe in most columns ({valid}/{w})"
                 );
+                let laser = if format == PixelFormat::Gray8 {
+                    "—".to_string()
+                } else {
+                    colour.name().to_string()
+                };
                 println!(
-                    "| {w}×{h} | {method:?} | {format:?} | {:.3} ms | {:.3} ms | {:.2} | {:.0} |",
+                    "| {w}×{h} | {method:?} | {format:?} | {laser} | {:.3} ms | {:.3} ms | {:.2} | {:.0} |",
                     t_ex.as_secs_f64() * 1e3,
                     t_floor.as_secs_f64() * 1e3,
                     t_ex.as_secs_f64() / t_floor.as_secs_f64(),

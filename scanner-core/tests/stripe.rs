@@ -535,7 +535,7 @@ proptest! {
     #[test]
     fn hostile_frames(w in 1usize..40, h in 1usize..40, extra in 0usize..7, fmt in 0usize..3,
                       bytes in prop::collection::vec(any::<u8>(), 0..8000), cols in any::<bool>(), lim in any::<bool>(),
-                      est in 0usize..3) {
+                      est in 0usize..3, colour in 0usize..4) {
         let format = [PixelFormat::Gray8, PixelFormat::Yuyv, PixelFormat::Rgb24][fmt];
         let w = if format == PixelFormat::Yuyv { w * 2 } else { w };
         let stride = w * format.bytes_per_pixel() + extra;
@@ -546,6 +546,7 @@ proptest! {
         let mut ex = Box::new(Extractor::<128>::new());
         let mut cfg = StripeConfig::new(if lim { Method::Lim } else { Method::Dim }, if cols { Axis::Columns } else { Axis::Rows });
         cfg.estimator = [Estimator::Paper, Estimator::Centroid, Estimator::Gaussian][est];
+        cfg.colour = LaserColour::ALL[colour];
         let res = ex.extract(&f, Some(&r), &cfg).unwrap();
         let len = if cols { h } else { w } as f32;
         for p in res.points.iter().filter(|p| p.status == Status::Valid) {

@@ -167,13 +167,21 @@ impl Window<'_> {
         let height = raw(peak_index) - bg(peak_index);
         let (mut m0, mut m1, mut m2) = (0f32, 0f32, 0f32);
         let level = 0.15 * height;
+        // Samples above half the height outside the half-maximum run: a second hump.
+        let (lo_run, hi_run) = (half_max.0 - 0.5, half_max.1 + 0.5);
+        let (mut stray, mut stray_top) = (0usize, 0u16);
         for (i, &v) in s.iter().enumerate() {
             // branch-free: samples below the level weigh nothing
-            let w = (f32::from(v) - bg(i) - level).max(0.0);
+            let above = f32::from(v) - bg(i);
+            let w = (above - level).max(0.0);
             let u = i as f32 - peak_index as f32;
             m0 += w;
             m1 += w * u;
             m2 += w * u * u;
+            let fi = i as f32;
+            let out = above > 0.5 * height && (fi < lo_run || fi > hi_run);
+            stray += usize::from(out);
+            stray_top = stray_top.max(if out { v } else { 0 });
         }
         let spread = if m0 > 0.0 {
             let mean = m1 / m0;
@@ -181,14 +189,11 @@ impl Window<'_> {
         } else {
             0.0
         };
-        let (mut stray, mut stray_peak) = (0, 0.0f32);
-        for i in 0..n {
-            let inside = (i as f32) >= half_max.0 - 0.5 && (i as f32) <= half_max.1 + 0.5;
-            if !inside && raw(i) - bg(i) > 0.5 * height {
-                stray += 1;
-                stray_peak = stray_peak.max(raw(i) / raw(peak_index));
-            }
-        }
+        let stray_peak = if stray > 0 {
+            f32::from(stray_top) / raw(peak_index).max(1.0)
+        } else {
+            0.0
+        };
         Shape {
             peak_index,
             peak: raw(peak_index),

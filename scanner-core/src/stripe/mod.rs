@@ -451,10 +451,8 @@ impl<const W: usize> Extractor<W> {
             }
         };
         match cfg.axis {
-            Axis::Columns
-                if signal::fits_byte(io.kind) && floor <= 255 && roi.width <= BYTE_PASS_WIDTH =>
-            {
-                self.track_columns_u8(&io, cfg.separation, floor as u8)
+            Axis::Columns if roi.width <= BYTE_PASS_WIDTH => {
+                self.track_columns_u8(&io, cfg.separation, floor)
             }
             Axis::Columns => self.track_columns(&io, cfg.separation, floor),
             Axis::Rows => self.track_rows(&io, cfg.separation, floor),
@@ -546,14 +544,30 @@ impl<const W: usize> Extractor<W> {
         }
     }
 
-    /// [`Self::track_columns`] for one-byte signals (gray, YUYV), a floor below 256 and at most
+    /// [`Self::track_columns`] on the pixels' one-byte magnitudes, for at most
     /// [`BYTE_PASS_WIDTH`] columns.
     ///
     /// A 3×1 sum reaches `floor` only if one of its three samples reaches `⌈floor / 3⌉`, so each
-    /// row, as it is made, marks in a 64-bit mask the blocks of 64 columns holding such a sample
-    /// (one compare per pixel, in bytes). A centre row then forms exact sums only in the blocks
-    /// its three rows mark; on a frame that is nearly all background that is a few blocks per row.
-    fn track_columns_u8(&mut self, io: &Io<'_, '_>, sep: u16, floor: u8) {
+    /// row, as it is made, marks in a 64-bit mask the blocks of 64 columns holding a magnitude
+    /// whose signal reaches that (one compare per pixel, in bytes). A centre row then forms exact
+    /// sums only in the blocks its three rows mark (through a table from magnitude to signal); on
+    /// a frame that is nearly all background that is a few blocks per row.
+    fn track_columns_u8(&mut self, io: &Io<'_, '_>, sep: u16, floor: u16) {
+        if io.kind.squared() {
+            let mut table = [0u16; 256];
+            for (m, v) in table.iter_mut().enumerate() {
+                *v = io.kind.value(m as u8);
+            }
+            self.track_bytes(io, sep, floor, |m| table[usize::from(m)]);
+        } else {
+            self.track_bytes(io, sep, floor, u16::from);
+        }
+    }
+
+    /// [`Self::track_columns_u8`] with the signal of a magnitude given by `value` (monomorphic:
+    /// the linear signals keep plain sums).
+    #[inline(always)]
+    fn track_bytes(&mut self, io: &Io<'_, '_>, sep: u16, floor: u16, value: impl Fn(u8) -> u16) {
         const BLOCK: usize = 64;
         let Roi {
             x,
@@ -562,11 +576,15 @@ impl<const W: usize> Extractor<W> {
             height,
         } = io.roi;
         self.reset(width);
-        let below = floor.div_ceil(3).saturating_sub(1);
+        let mark = io.kind.magnitude_for(floor.div_ceil(3));
+        if mark > 255 {
+            return;
+        }
+        let below = (mark as u8).saturating_sub(1);
         let mut lit = [0u64; 3];
         for r in 0..height {
             let (newest, older, oldest) = ring(&mut self.bytes, r);
-            signal::row_u8(
+            signal::magnitudes(
                 io.kind,
                 io.frame.row(y + r),
                 io.reference.row(y + r),
@@ -592,8 +610,8 @@ impl<const W: usize> Extractor<W> {
                 let b = blocks.trailing_zeros() as usize * BLOCK;
                 blocks &= blocks - 1;
                 for c in b..(b + BLOCK).min(width) {
-                    let sum = u16::from(newest[c]) + u16::from(older[c]) + u16::from(oldest[c]);
-                    if sum >= u16::from(floor) {
+                    let sum = value(newest[c]) + value(older[c]) + value(oldest[c]);
+                    if sum >= floor {
                         track(
                             sum,
                             at,
@@ -825,11 +843,9 @@ fn dim_threshold(io: &Io<'_, '_>) -> u16 {
     let step = (rows * width / NOISE_SAMPLES).clamp(1, 16);
     for r in (y..y + height).step_by(SAMPLE_STEP) {
         let (row, reference) = (io.frame.row(r), io.reference.row(r));
-        for c in (x..x + width).step_by(step) {
-            if let Some(d) = signal::signed_change(io.kind, row, reference, c) {
-                hist[(d + 255) as usize] += 1;
-            }
-        }
+        signal::signed_changes(io.kind, row, reference, x..x + width, step, |d| {
+            hist[(d + 255) as usize] += 1;
+        });
     }
     let mode = (0..hist.len()).fold(0, |m, i| if hist[i] > hist[m] { i } else { m });
     // half-normal below the mode: its median is 0.6745 σ; the mode bin is split evenly
@@ -842,13 +858,13 @@ fn dim_threshold(io: &Io<'_, '_>) -> u16 {
     let sigma = (1.4826 * quantile(&below, n, 0.5) as f32).max(0.5);
     let noise = (6.0 * sigma).max(quantile(&below, n, 0.99) as f32);
     let centre = (mode as i32 - 255).max(0) as f32;
-    let level = if signal::fits_byte(io.kind) {
+    let level = if !io.kind.squared() {
         centre + noise
     } else {
         // the squared change of the laser's channel, `Δ² / 9`
         noise * noise / 9.0
     };
-    libm::ceilf(level).clamp(3.0, 21_675.0) as u16
+    libm::ceilf(level).clamp(3.0, 7225.0) as u16
 }
 
 /// Columns sampled by the LIM threshold: every this many.

@@ -413,7 +413,7 @@ impl Lattice {
             |(c, r)| (r, -c),
         ];
         // Every fit: (colour agreement, alignment of +column with image +x, target indices).
-        let mut fits: Vec<(i64, f64, Vec<(usize, usize)>, (usize, usize), bool)> = Vec::new();
+        let mut fits: Vec<(i64, f64, Placement)> = Vec::new();
         for rot in rotations {
             let lr = l.map(rot);
             let (w, h) = lr.extent();
@@ -447,7 +447,13 @@ impl Lattice {
                         .map(|(&(c, r), &f)| ((r + oy) as usize * cols + (c + ox) as usize, f))
                         .collect();
                     found.sort_unstable();
-                    fits.push((score, align, found, (w, h), lr.len() == w * h));
+                    let placement = Placement {
+                        found,
+                        extent: (w, h),
+                        complete: lr.len() == w * h,
+                        ambiguous: false,
+                    };
+                    fits.push((score, align, placement));
                 }
             }
         }
@@ -459,13 +465,10 @@ impl Lattice {
         let cover = |f: &[(usize, usize)]| f.iter().map(|(k, _)| *k).collect::<Vec<_>>();
         let ambiguous = fits
             .iter()
-            .any(|f| f.0 == best.0 && cover(&f.2) != cover(&best.2));
-        let (_, _, found, extent, complete) = best.clone();
+            .any(|f| f.0 == best.0 && cover(&f.2.found) != cover(&best.2.found));
         Ok(Placement {
-            found,
-            extent,
-            complete,
             ambiguous,
+            ..best.2.clone()
         })
     }
 }
