@@ -5,12 +5,12 @@
 #[path = "../tests/support/mod.rs"]
 mod support;
 
-use scanner_core::stripe::Estimator;
-use support::real::{CASES, analyse};
+use scanner_core::stripe::{Estimator, LaserColour, Method};
+use support::real::{CASES, analyse, full_height};
 
 fn main() {
     println!(
-        "Real photographs (Jesus89/3DScanScience, CC BY-SA 4.0): row mode, DIM (eq. 11 on RGB), band of 70 columns per stripe, board rows only."
+        "Real photographs (Jesus89/3DScanScience, CC BY-SA 4.0): row mode, DIM with a red laser (the light added to red, squared), band of 70 columns per stripe, board rows only."
     );
     println!();
     println!(
@@ -42,6 +42,42 @@ fn main() {
                 glint.0,
                 glint.1,
                 statuses.join(", ")
+            );
+        }
+    }
+    println!();
+    println!(
+        "The same bands over the photograph's height (centroid): the board's rows, the rows where no laser falls (the laser frame's red nowhere more than 20 DN above the reference: the wall above, the dark base below), and the distance of each valid centre from the line fitted to DIM's centres outside the glint. LIM runs from the top to the board's end (below it the turntable is lit as red as the laser)."
+    );
+    println!();
+    println!(
+        "| photo | stripe | method, laser | board rows valid | worst off the line (glint rows) | rows without laser | centres there |"
+    );
+    println!("|---|---|---|---|---|---|---|");
+    for case in &CASES {
+        let end = case.roi.y + case.roi.height;
+        for (name, method, colour, to) in [
+            ("DIM, red", Method::Dim, LaserColour::Red, usize::MAX),
+            ("DIM, white", Method::Dim, LaserColour::White, usize::MAX),
+            ("LIM, red", Method::Lim, LaserColour::Red, end),
+            ("LIM, white", Method::Lim, LaserColour::White, end),
+        ] {
+            let o = full_height(case, method, colour, to);
+            let glint = if case.glint.is_some() {
+                format!(" ({:.2} px)", o.glint_max_off)
+            } else {
+                String::new()
+            };
+            println!(
+                "| {} | {} | {name} | {}/{} ({:.1} %) | {:.2} px{glint} | {} | {} |",
+                case.image,
+                case.stripe,
+                o.board_valid,
+                o.board_rows,
+                100.0 * o.board_valid as f64 / o.board_rows as f64,
+                o.max_off,
+                o.dark_rows,
+                o.dark_valid
             );
         }
     }

@@ -300,11 +300,7 @@ fn rgb_colour(
                     LaserColour::Red => excess::<0, 1, 2>(p, o),
                     LaserColour::Green => excess::<1, 0, 2>(p, o),
                     LaserColour::Blue => excess::<2, 0, 1>(p, o),
-                    LaserColour::White => {
-                        for (i, o) in o.iter_mut().enumerate() {
-                            *o = luma(&p[3 * i..3 * i + 3]);
-                        }
-                    }
+                    LaserColour::White => lumas(p, o),
                 }
             }
         }
@@ -324,9 +320,11 @@ fn rgb_colour(
                     LaserColour::Green => added::<1, 0, 2>(&d, o),
                     LaserColour::Blue => added::<2, 0, 1>(&d, o),
                     LaserColour::White => {
-                        for (i, o) in o.iter_mut().enumerate() {
-                            *o = luma(&p[3 * i..3 * i + 3])
-                                .saturating_sub(luma(&r[3 * i..3 * i + 3]));
+                        let (mut a, mut b) = ([0u8; 16], [0u8; 16]);
+                        lumas(p, &mut a);
+                        lumas(r, &mut b);
+                        for ((o, a), b) in o.iter_mut().zip(a).zip(b) {
+                            *o = a.saturating_sub(b);
                         }
                     }
                 }
@@ -350,6 +348,20 @@ fn rgb_colour(
 fn added<const K: usize, const A: usize, const B: usize>(d: &[u8; 48], out: &mut [u8]) {
     for (i, o) in out.iter_mut().enumerate().take(16) {
         *o = d[3 * i + K].saturating_add(d[3 * i + A].min(d[3 * i + B]));
+    }
+}
+
+/// The luma of 16 RGB pixels.
+#[inline(always)]
+fn lumas(p: &[u8; 48], out: &mut [u8]) {
+    for (i, o) in out.iter_mut().enumerate().take(16) {
+        let (r, g, b) = (
+            u16::from(p[3 * i]),
+            u16::from(p[3 * i + 1]),
+            u16::from(p[3 * i + 2]),
+        );
+        // 77 R + 150 G + 29 B over 256, in 16 bits: (77 R + 150 G + 29 B) ≤ 65280
+        *o = ((77 * r + 150 * g + 29 * b) >> 8) as u8;
     }
 }
 
