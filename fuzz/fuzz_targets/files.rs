@@ -4,14 +4,14 @@ use libfuzzer_sys::fuzz_target;
 
 fuzz_target!(|data: &[u8]| {
     let Ok(text) = std::str::from_utf8(data) else { return };
-    if let Ok(c) = scanner_device::calib::file::CalibrationFile::parse(text, "fuzz") {
+    if let Ok(c) = scanner_calib::file::CalibrationFile::parse(text, "fuzz") {
         let _ = c.camera();
         let _ = c.board();
     }
-    if let Ok(b) = scanner_device::calib::board::BoardFile::parse(text, "fuzz") {
+    if let Ok(b) = scanner_calib::board::BoardFile::parse(text, "fuzz") {
         let _ = b.left.points();
-        let _ = b.rig_markers();
+        let _ = scanner_rig::Markers::from(&b);
     }
     // Scenes are parsed, not built (building renders: too slow to fuzz).
-    let _ = scanner_device::rig::Scene::from_toml(text);
+    let _ = scanner_rig::Scene::from_toml(text);
 });

@@ -8,11 +8,11 @@ use std::time::Instant;
 use scanner_core::pipeline::{HeadConfig, PlaneMethod};
 use scanner_core::stripe::{Axis, Method, PixelFormat, StripeConfig};
 use scanner_core::wire::MAX_ENCODED;
-use scanner_device::head::{ScanOptions, Session};
 use scanner_device::link::Link;
-use scanner_device::rig::{Rig, Scene};
-use scanner_device::scan_cli::rig_truth;
+use scanner_device::session::{ScanOptions, Session};
+use scanner_device::source::truth_calibration;
 use scanner_device::source::{FrameSource, RigSource};
+use scanner_rig::{Rig, Scene};
 
 fn main() {
     println!(
@@ -21,7 +21,7 @@ fn main() {
     println!("|---|---|---|---|---|---|---|---|");
     let (w, h) = (1600u32, 1200u32);
     let rig = Rig::new(Scene::demo(w, h)).expect("demo scene");
-    let cal = rig_truth(&rig);
+    let cal = truth_calibration(&rig);
     let cases = [
         (PixelFormat::Gray8, Method::Dim, PlaneMethod::LeastSquares),
         (PixelFormat::Yuyv, Method::Dim, PlaneMethod::LeastSquares),

@@ -9,11 +9,11 @@ use std::time::Instant;
 use scanner_core::pipeline::HeadConfig;
 use scanner_core::stripe::{Axis, Extractor, Method, PixelFormat, StripeConfig};
 use scanner_core::wire::MAX_ENCODED;
-use scanner_device::head::{ScanOptions, Session};
 use scanner_device::link::Link;
-use scanner_device::rig::{Rig, Scene};
-use scanner_device::scan_cli::rig_truth;
+use scanner_device::session::{ScanOptions, Session};
+use scanner_device::source::truth_calibration;
 use scanner_device::source::{FrameSource, RigSource};
+use scanner_rig::{Rig, Scene};
 
 /// The paper's frames/s (LIM, DIM) at each size.
 const PAPER: [((u32, u32), (u32, u32)); 4] = [
@@ -36,7 +36,7 @@ fn main() {
     let mut ex = Box::new(Extractor::<4096>::new());
     for ((w, h), (paper_lim, paper_dim)) in PAPER {
         let rig = Rig::new(Scene::demo(w, h)).expect("rig");
-        let cal = rig_truth(&rig);
+        let cal = truth_calibration(&rig);
         let mut source = RigSource::new(rig, PixelFormat::Gray8);
         let reference = source.reference().expect("reference");
         let frames: Vec<_> = (0..60)

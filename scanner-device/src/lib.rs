@@ -1,11 +1,15 @@
-//! The scanner head: reads camera frames (V4L2, image files or the virtual rig), runs the
-//! `scanner-core` pipeline on each and sends compact point packets over a serial link.
+//! `scanner-device`: the scanner head. Reads camera frames, runs the `scanner-core` pipeline on
+//! each and sends compact point packets over a serial link.
 //!
-//! Where it sits: `camera ─► [scanner-device: sources → scanner-core per frame → link] ─► host`.
-//! Frame sources ([`source`]: V4L2 cameras via [`v4l_source`] with [`convert`], image folders, the
-//! virtual rig [`rig`]), calibration from images ([`calib`]), the scan session ([`head`]: the
-//! per-frame pipeline of `scanner-core` and the wire messages) and the link to the host
-//! ([`link`]).
+//! Where it sits: `camera ─► [scanner-device: source → session (scanner-core per frame) → link]
+//! ─► host`. Frame sources ([`source`]: V4L2 cameras, image folders, and with the `rig` feature
+//! the virtual rig), the scan session ([`session`]: the per-frame pipeline of `scanner-core` and
+//! the wire messages), the link to the host ([`link`]) and the command line ([`cli`]: scan,
+//! and the calibration and rig commands, which call `scanner-calib` and `scanner-rig`).
+//!
+//! The arrows run one way: `cli` → `session` → `source`, `link` → `scanner-core`; `cli` →
+//! `scanner-calib` (and `scanner-rig` with the feature). Nothing here is imported by the crates
+//! it uses.
 #![deny(missing_docs)]
 
 /// Prints a line to standard output. A closed stdout (piped into `head`, say) is not an error
@@ -18,154 +22,9 @@ macro_rules! outln {
     }};
 }
 
-pub mod calib;
-pub mod calib_cli;
-pub mod convert;
-pub mod head;
+pub mod cli;
 pub mod link;
-pub mod render;
-pub mod report;
-pub mod rig;
-pub mod scan_cli;
+pub mod session;
 pub mod source;
-pub mod v4l_source;
 
-use std::path::PathBuf;
-
-use clap::{Parser, Subcommand};
-
-/// Command line of the scanner head.
-#[derive(Debug, Parser)]
-#[command(
-    name = "scanner-device",
-    version,
-    about = "Scanner head: camera → points → serial link"
-)]
-pub struct Args {
-    /// Print the fixed capacities and conventions of this build and exit.
-    #[arg(long)]
-    pub info: bool,
-    /// What to do.
-    #[command(subcommand)]
-    pub command: Option<Command>,
-}
-
-/// The head's commands.
-#[derive(Debug, Subcommand)]
-pub enum Command {
-    /// Render a scene of the virtual rig to PNG files with ground truth (truth.csv, lasers.csv).
-    Render {
-        /// Scene file (TOML); the demo scene at 640×480 without one.
-        #[arg(long)]
-        scene: Option<PathBuf>,
-        /// Output folder.
-        #[arg(long, default_value = "rig-frames")]
-        out: PathBuf,
-        /// Write gray PNGs instead of RGB.
-        #[arg(long)]
-        gray: bool,
-        /// Render at most this many frames of the sweep.
-        #[arg(long)]
-        frames: Option<usize>,
-        /// No progress lines.
-        #[arg(long, short)]
-        quiet: bool,
-    },
-    /// Render calibration images of a rig scene: the board without laser, dot-grid shots and the
-    /// image-distance cross at two distances.
-    RenderCalibration {
-        /// Scene file (TOML); the demo scene at 640×480 without one.
-        #[arg(long)]
-        scene: Option<PathBuf>,
-        /// Output folder.
-        #[arg(long, default_value = "rig-calibration")]
-        out: PathBuf,
-    },
-    /// Write a board file (the paper's layout unless given one) and its printable 1:1 sheets:
-    /// left and right sheet and the image-distance cross, as SVG and PNG, with a scale ruler.
-    Board {
-        /// Board file to print; the default board without one.
-        #[arg(long)]
-        board: Option<PathBuf>,
-        /// Output folder.
-        #[arg(long, default_value = "board")]
-        out: PathBuf,
-        /// Resolution of the PNGs, dots per inch.
-        #[arg(long, default_value_t = 150.0)]
-        dpi: f64,
-    },
-    /// Calibrate from images: intrinsics, the paper's image distance, or the board planes.
-    #[command(subcommand)]
-    Calibrate(calib_cli::Calibrate),
-    /// Scan: frames from the source through the pipeline to point packets on the link.
-    Scan(scan_cli::ScanArgs),
-    /// List the V4L2 cameras with their formats and sizes.
-    Devices,
-}
-
-/// Runs the scanner head with parsed arguments.
-///
-/// # Errors
-/// Any failure of the run, with context naming what failed.
-pub fn run(args: &Args) -> anyhow::Result<()> {
-    if args.info {
-        println!(
-            "scanner-device {}: units mm, camera +z forward, +y down; markers per plane ≤ {}",
-            env!("CARGO_PKG_VERSION"),
-            scanner_core::geometry::pose::MAX_MARKERS
-        );
-        return Ok(());
-    }
-    match &args.command {
-        Some(Command::Render {
-            scene,
-            out,
-            gray,
-            frames,
-            quiet,
-        }) => {
-            let job = render::RenderJob {
-                scene: scene.clone(),
-                out: out.clone(),
-                gray: *gray,
-                frames: *frames,
-            };
-            let n = render::render(&job, |done, total| {
-                if !quiet && (done % 10 == 0 || done == total) {
-                    eprintln!("rendered {done}/{total} frames");
-                }
-            })?;
-            println!(
-                "wrote the reference, {n} frames, truth.csv and lasers.csv to {}",
-                out.display()
-            );
-        }
-        Some(Command::RenderCalibration { scene, out }) => {
-            let scene = render::load_scene(scene.as_deref())?;
-            let rig = rig::Rig::new(scene)
-                .map_err(|e| anyhow::anyhow!("building the virtual rig: {e}"))?;
-            calib_cli::render_calibration(&rig, out)?;
-            println!(
-                "wrote board.png, grid-00..11.png, cross-near.png, cross-far.png and shots.txt to {}",
-                out.display()
-            );
-        }
-        Some(Command::Board { board, out, dpi }) => {
-            if !(*dpi >= 25.0 && *dpi <= 1200.0) {
-                anyhow::bail!("--dpi must be between 25 and 1200, found {dpi}");
-            }
-            calib_cli::board_command(board.as_deref(), out, *dpi)?;
-        }
-        Some(Command::Calibrate(c)) => calib_cli::calibrate(c)?,
-        Some(Command::Scan(a)) => {
-            let report = scan_cli::scan(a)?;
-            scan_cli::print_report(&report);
-            if let Some(e) = report.ended_early {
-                anyhow::bail!("{e}");
-            }
-        }
-        Some(Command::Devices) => scan_cli::devices(),
-        None => println!("scanner-device: nothing to do yet (try --help)"),
-    }
-    Ok(())
-}
+pub use cli::{Args, Command, run};

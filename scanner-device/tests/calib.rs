@@ -4,16 +4,14 @@
 
 #![allow(clippy::needless_range_loop)] // k indexes the left/right pairs of several arrays
 
+use scanner_calib::board::BoardFile;
+use scanner_calib::detect::{DetectConfig, find_markers};
+use scanner_calib::{CalibError, DotGrid, Target, board_planes, image_distance, intrinsics};
 use scanner_core::calib::Free;
 use scanner_core::geometry::Plane;
 use scanner_core::nalgebra::{Point3, Vector3};
-use scanner_device::calib::board::BoardFile;
-use scanner_device::calib::detect::{DetectConfig, find_markers};
-use scanner_device::calib::{
-    CalibError, DotGrid, Target, board_planes, image_distance, intrinsics,
-};
-use scanner_device::rig::target::{Pattern, TargetPose};
-use scanner_device::rig::{Rig, Scene, SurfaceId};
+use scanner_rig::target::{Pattern, TargetPose};
+use scanner_rig::{Rig, Scene, SurfaceId};
 
 const W: u32 = 1280;
 const H: u32 = 960;
@@ -21,7 +19,7 @@ const H: u32 = 960;
 /// The demo scene with the default board file and sensor noise σ = 2 DN.
 fn scene(w: u32, h: u32) -> Scene {
     let mut s = Scene::demo(w, h);
-    s.board.markers = BoardFile::default().rig_markers();
+    s.board.markers = scanner_rig::Markers::from(&BoardFile::default());
     s.sensor.read_noise = 2.0;
     s.sensor.shot_noise = 0.0;
     s
@@ -53,7 +51,7 @@ fn sheet_centre(rig: &Rig, k: usize) -> Point3<f64> {
 /// Dot-grid shots for intrinsics: a 9×7 grid, 30 mm pitch, 12 mm dots, turned up to ±35° at
 /// 550–850 mm, spread over the image.
 fn grid_shots(rig: &Rig, n: usize) -> (DotGrid, Vec<image::GrayImage>) {
-    (DotGrid::RIG, DotGrid::RIG.shots(rig, n))
+    (DotGrid::RIG, rig.dot_grid_shots(&DotGrid::RIG, n))
 }
 
 #[test]
@@ -230,7 +228,7 @@ fn bad_input_names_what_was_expected_and_found() {
     // A board file that disagrees with the printed board: a 3×3 grid.
     let mut other = BoardFile::default();
     for s in [&mut other.left, &mut other.right] {
-        s.grid = Some(scanner_device::calib::board::Grid {
+        s.grid = Some(scanner_calib::board::Grid {
             cols: 3,
             rows: 3,
             u0: 66.0,
@@ -247,7 +245,7 @@ fn bad_input_names_what_was_expected_and_found() {
         "{e:?}"
     );
     // An image of another size than the calibration.
-    let e = scanner_device::calib::check_size((1280, 960), &blank).unwrap_err();
+    let e = scanner_calib::check_size((1280, 960), &blank).unwrap_err();
     assert_eq!(
         e.to_string(),
         "image is 640×480 but the camera was calibrated at 1280×960"
@@ -270,7 +268,7 @@ fn bad_input_names_what_was_expected_and_found() {
 
 #[test]
 fn chessboard_corners_are_found_where_they_project() {
-    use scanner_device::calib::corners::{CornerConfig, find_corners};
+    use scanner_calib::corners::{CornerConfig, find_corners};
     let rig = Rig::new(scene(W, H)).unwrap();
     let pattern = Pattern::Chessboard {
         cols: 10,
@@ -319,7 +317,7 @@ fn chessboard_corners_are_found_where_they_project() {
 
 #[test]
 fn a_sheet_may_carry_a_chessboard() {
-    use scanner_device::calib::board::Chessboard;
+    use scanner_calib::board::Chessboard;
     let mut board = BoardFile::default();
     board.right.grid = None;
     board.right.chessboard = Some(Chessboard {
@@ -331,7 +329,7 @@ fn a_sheet_may_carry_a_chessboard() {
     });
     board.check().unwrap();
     let mut s = scene(W, H);
-    s.board.markers = board.rig_markers();
+    s.board.markers = scanner_rig::Markers::from(&board);
     // A chessboard mostly hidden by the object is a periodic grid with its ends out of sight:
     // which square is which can then be ambiguous (see the README). The board is left clear.
     s.objects.clear();

@@ -4,9 +4,9 @@
 
 use std::path::Path;
 
-use scanner_device::calib::board::BoardFile;
-use scanner_device::calib::detect::{DetectConfig, find_markers};
-use scanner_device::calib::file::CalibrationFile;
+use scanner_calib::board::BoardFile;
+use scanner_calib::detect::{DetectConfig, find_markers};
+use scanner_calib::file::CalibrationFile;
 
 fn run(args: &[&str]) -> (bool, String, String) {
     scanner_tests::run(env!("CARGO_BIN_EXE_scanner-device"), args)
@@ -179,7 +179,7 @@ fn a_board_file_with_a_chessboard_sheet_end_to_end() {
     let d = dir.path();
     let mut board = BoardFile::default();
     board.right.grid = None;
-    board.right.chessboard = Some(scanner_device::calib::board::Chessboard {
+    board.right.chessboard = Some(scanner_calib::board::Chessboard {
         cols: 8,
         rows: 8,
         square: 30.0,
@@ -201,7 +201,7 @@ fn a_board_file_with_a_chessboard_sheet_end_to_end() {
     ]);
     assert!(ok, "{err}");
     // The true camera of the demo scene at 640×480, written as a camera file.
-    let cam = scanner_device::rig::Scene::demo(640, 480).camera;
+    let cam = scanner_rig::Scene::demo(640, 480).camera;
     CalibrationFile::from_camera(&cam, (640, 480), "the rig's camera".into(), None)
         .save(&d.join("camera.toml"))
         .unwrap();

@@ -2,7 +2,7 @@
 //! RGB3 and MJPEG to the pipeline's gray, YUYV and RGB; and the image-folder source.
 
 use scanner_core::stripe::PixelFormat;
-use scanner_device::convert::{CameraFormat, ConvertError, convert};
+use scanner_device::source::convert::{CameraFormat, ConvertError, convert};
 use scanner_device::source::{SourceOptions, open_with};
 
 /// A 6×4 test picture: a gradient with a bright pixel.
@@ -185,13 +185,13 @@ fn bad_buffers_are_named_errors() {
 #[test]
 fn a_folder_of_rendered_frames_is_a_source() {
     let dir = tempfile::tempdir().unwrap();
-    let job = scanner_device::render::RenderJob {
+    let job = scanner_device::cli::render::RenderJob {
         scene: None,
         out: dir.path().to_path_buf(),
         gray: true,
         frames: Some(5),
     };
-    scanner_device::render::render(&job, |_, _| {}).unwrap();
+    scanner_device::cli::render::render(&job, |_, _| {}).unwrap();
     let mut src = open_with(
         &format!("dir:{}", dir.path().display()),
         PixelFormat::Gray8,
@@ -200,7 +200,7 @@ fn a_folder_of_rendered_frames_is_a_source() {
     .unwrap();
     assert_eq!(src.size(), (640, 480));
     let r = src.reference().unwrap();
-    let rig_ref = scanner_device::rig::Rig::new(scanner_device::rig::Scene::demo(640, 480))
+    let rig_ref = scanner_rig::Rig::new(scanner_rig::Scene::demo(640, 480))
         .unwrap()
         .reference()
         .to_format(PixelFormat::Gray8);

@@ -4,13 +4,13 @@
 //! wall of dark clutter behind (discs the size of the dots, bars, a keyboard). Rendered by the
 //! rig with the truth of every feature.
 
+use scanner_calib::board::BoardFile;
+use scanner_calib::{DotGrid, Target, board_planes, find_grid, intrinsics_outcome};
 use scanner_core::calib::Free;
 use scanner_core::nalgebra::{Point3, Vector3};
 use scanner_core::{Camera, Distortion};
-use scanner_device::calib::board::BoardFile;
-use scanner_device::calib::{DotGrid, Target, board_planes, find_grid, intrinsics_outcome};
-use scanner_device::rig::target::{Clutter, Pattern, Shot, Surroundings, TargetPose};
-use scanner_device::rig::{Object, Rig, Scene, Shape, SurfaceId};
+use scanner_rig::target::{Clutter, Pattern, Shot, Surroundings, TargetPose};
+use scanner_rig::{Object, Rig, Scene, Shape, SurfaceId};
 
 /// A webcam: 640×480, wide lens with strong barrel distortion, bright room, sensor noise.
 fn webcam() -> Scene {
@@ -170,7 +170,7 @@ fn dot_grids_are_found_whole_and_numbered_under_a_webcams_lens_in_clutter() {
         dot: 12.0,
     };
     for i in 0..6 {
-        let shot = rig.shot_in(&grid.pattern(), &pose(i), &around(i), 10 + i as u64);
+        let shot = rig.shot_in(&Pattern::from(&grid), &pose(i), &around(i), 10 + i as u64);
         let visible = shot.features.iter().filter(|f| f.visible).count();
         let n = check(
             &format!("dot grid shot {i}"),
@@ -225,7 +225,7 @@ fn intrinsics_of_a_webcam_from_cluttered_steep_shots() {
 fn board_markers_under_a_webcams_lens_with_clutter_and_an_occluder() {
     let mut scene = webcam();
     let board = BoardFile::default();
-    scene.board.markers = board.rig_markers();
+    scene.board.markers = scanner_rig::Markers::from(&board);
     // Close, so that the outer markers lie where the lens distorts most.
     let d = 600.0;
     scene.board.distance = d;

@@ -5,11 +5,11 @@
 use scanner_core::pipeline::HeadConfig;
 use scanner_core::stripe::{Axis, Method, PixelFormat, StripeConfig};
 use scanner_core::wire::MAX_ENCODED;
-use scanner_device::head::{ScanOptions, Session};
 use scanner_device::link::Link;
-use scanner_device::rig::{Rig, Scene};
-use scanner_device::scan_cli::rig_truth;
+use scanner_device::session::{ScanOptions, Session};
+use scanner_device::source::truth_calibration;
 use scanner_device::source::{FrameSource, RigSource};
+use scanner_rig::{Rig, Scene};
 
 #[global_allocator]
 static GLOBAL: scanner_tests::Counting = scanner_tests::Counting;
@@ -22,7 +22,7 @@ fn the_steady_state_allocates_nothing() {
         (PixelFormat::Rgb24, true),
     ] {
         let rig = Rig::new(Scene::demo(640, 480)).unwrap();
-        let cal = rig_truth(&rig);
+        let cal = truth_calibration(&rig);
         let mut source = RigSource::new(rig, format);
         let reference = source.reference().unwrap();
         let frames: Vec<_> = (0..40)

@@ -14,12 +14,12 @@
 use std::collections::HashMap;
 use std::path::PathBuf;
 
+use scanner_calib::{Target, intrinsics_outcome};
 use scanner_core::calib::Free;
 use scanner_core::calib::View;
 use scanner_core::calib::bundle::{initial_camera, initial_pose, refine};
 use scanner_core::geometry::Pose;
 use scanner_core::nalgebra::Point2;
-use scanner_device::calib::{Target, intrinsics_outcome};
 
 const IMAGES: [&str; 13] = [
     "right01", "right02", "right03", "right04", "right05", "right06", "right07", "right08",
@@ -73,9 +73,8 @@ fn images() -> Vec<image::GrayImage> {
 }
 
 /// Our calibration of the real images, once for all tests.
-fn ours() -> &'static scanner_device::calib::IntrinsicsOutcome {
-    static OUT: std::sync::OnceLock<scanner_device::calib::IntrinsicsOutcome> =
-        std::sync::OnceLock::new();
+fn ours() -> &'static scanner_calib::IntrinsicsOutcome {
+    static OUT: std::sync::OnceLock<scanner_calib::IntrinsicsOutcome> = std::sync::OnceLock::new();
     OUT.get_or_init(|| intrinsics_outcome(&images(), &TARGET, Free::ALL))
 }
 

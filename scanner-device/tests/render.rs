@@ -4,7 +4,7 @@
 
 use std::process::Command;
 
-use scanner_device::rig::{Rig, Scene, SurfaceId};
+use scanner_rig::{Rig, Scene, SurfaceId};
 
 const DEMO: &str = include_str!("../scenes/demo.toml");
 

@@ -3,7 +3,7 @@
 //! the true stripe; what an object hides from the laser stays dark; the reference has no laser.
 
 use scanner_core::stripe::PixelFormat;
-use scanner_device::rig::{Rig, Scene, SurfaceId};
+use scanner_rig::{Rig, Scene, SurfaceId};
 
 /// No noise, and a laser that does not clip (clipping is its own effect, tested elsewhere).
 fn quiet(mut scene: Scene) -> Scene {
@@ -164,7 +164,7 @@ fn stripe_centres_on_the_bunny_mesh() {
 #[test]
 fn mesh_hierarchy_agrees_with_brute_force() {
     use scanner_core::nalgebra::{Point3, Vector3};
-    use scanner_device::rig::mesh::Mesh;
+    use scanner_rig::mesh::Mesh;
     let path = std::path::Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/bunny.obj"));
     let mesh = Mesh::load(path, 120.0, 20.0, Point3::new(0.0, 0.0, 500.0)).unwrap();
     assert_eq!(mesh.len(), 3674);
@@ -305,7 +305,7 @@ fn the_rig_is_a_frame_source_by_name() {
     for (name, want) in [
         ("webcam", "no frame source"),
         ("rig:12", "WIDTHxHEIGHT"),
-        ("rig:axb", "not a size"),
+        ("rig:axb", "\"axb\": expected WIDTHxHEIGHT"),
         ("rig:95x72", "even width"),
     ] {
         let err = open(name, PixelFormat::Yuyv).err().expect(name);
@@ -365,7 +365,7 @@ fn motion_blur_flicker_and_speckle_do_what_they_say() {
     let (smooth, grainy) = (
         rough(base.clone()),
         rough(Scene {
-            laser: scanner_device::rig::LaserSpec {
+            laser: scanner_rig::LaserSpec {
                 speckle: 1.0,
                 ..base.laser.clone()
             },

@@ -10,11 +10,11 @@ use serialport::SerialPort;
 use scanner_core::pipeline::HeadConfig;
 use scanner_core::stripe::{Axis, Method, PixelFormat, StripeConfig};
 use scanner_core::wire::{self, Decoder, MAX_ENCODED, Message, points};
-use scanner_device::head::{ScanOptions, run_scan};
 use scanner_device::link::Link;
-use scanner_device::rig::{Rig, Scene};
-use scanner_device::scan_cli::rig_truth;
+use scanner_device::session::{ScanOptions, run_scan};
 use scanner_device::source::RigSource;
+use scanner_device::source::truth_calibration;
+use scanner_rig::{Rig, Scene};
 
 fn options(scan_id: u32) -> ScanOptions {
     ScanOptions {
@@ -54,7 +54,7 @@ fn decode(bytes: &[u8]) -> Decoded {
 #[test]
 fn the_stream_in_a_file_decodes_to_exactly_the_heads_points() {
     let rig = Rig::new(Scene::demo(640, 480)).unwrap();
-    let cal = rig_truth(&rig);
+    let cal = truth_calibration(&rig);
     let mut source = RigSource::new(rig, PixelFormat::Gray8);
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("scan.stream");
@@ -128,7 +128,7 @@ fn a_whole_scan_crosses_a_pseudo_terminal_pair() {
         (packets, done, d.stats())
     });
     let rig = Rig::new(Scene::demo(320, 240)).unwrap();
-    let cal = rig_truth(&rig);
+    let cal = truth_calibration(&rig);
     let mut source = RigSource::new(rig, PixelFormat::Gray8);
     // The link writes through a clone; this end stays open until the reader is done (a pty
     // master reads EIO once its slave is closed, even with data pending).
@@ -166,7 +166,7 @@ impl std::io::Write for Slow {
 #[test]
 fn a_slow_link_drops_whole_frames_and_the_stream_stays_valid() {
     let rig = Rig::new(Scene::demo(320, 240)).unwrap();
-    let cal = rig_truth(&rig);
+    let cal = truth_calibration(&rig);
     // Pre-render so that the camera is faster than the link.
     let mut source = RigSource::new(rig, PixelFormat::Gray8);
     let out = std::sync::Arc::new(std::sync::Mutex::new(Vec::new()));
@@ -235,7 +235,7 @@ fn a_camera_that_fails_mid_scan_ends_with_a_final_status() {
         }
     }
     let rig = Rig::new(Scene::demo(320, 240)).unwrap();
-    let cal = rig_truth(&rig);
+    let cal = truth_calibration(&rig);
     let mut source = Failing(RigSource::new(rig, PixelFormat::Gray8), 0);
     let out = std::sync::Arc::new(std::sync::Mutex::new(Vec::new()));
     let mut link = Link::spawn(Box::new(Slow(Vec::new(), out.clone())), 64, MAX_ENCODED);
@@ -263,7 +263,7 @@ fn the_papers_construction_and_least_squares_agree_on_the_rig() {
         scanner_core::pipeline::PlaneMethod::Paper,
     ] {
         let rig = Rig::new(Scene::demo(320, 240)).unwrap();
-        let cal = rig_truth(&rig);
+        let cal = truth_calibration(&rig);
         let mut source = RigSource::new(rig, PixelFormat::Gray8);
         let mut link = Link::spawn(Box::new(std::io::sink()), 8, MAX_ENCODED);
         let mut opts = options(15);
@@ -282,7 +282,7 @@ fn the_papers_construction_and_least_squares_agree_on_the_rig() {
 /// The skip reasons of the middle frames of a scene, with a head configured by `tweak`.
 fn skips(scene: Scene, tweak: impl Fn(&mut HeadConfig)) -> Vec<Option<wire::Skip>> {
     let rig = Rig::new(scene).unwrap();
-    let cal = rig_truth(&rig);
+    let cal = truth_calibration(&rig);
     let mut source = RigSource::new(rig, PixelFormat::Gray8);
     use scanner_device::source::FrameSource;
     let reference = source.reference().unwrap();
@@ -293,7 +293,7 @@ fn skips(scene: Scene, tweak: impl Fn(&mut HeadConfig)) -> Vec<Option<wire::Skip
         .collect();
     let mut opts = options(16);
     tweak(&mut opts.head);
-    let mut session = scanner_device::head::Session::new(&cal, reference, opts).unwrap();
+    let mut session = scanner_device::session::Session::new(&cal, reference, opts).unwrap();
     let mut link = Link::spawn(Box::new(std::io::sink()), 8, MAX_ENCODED);
     let out = frames
         .iter()
@@ -357,12 +357,12 @@ fn degenerate_frames_are_skipped_and_counted_by_reason() {
 fn a_frame_of_the_wrong_size_or_format_is_skipped_not_sent() {
     use scanner_core::wire::Skip;
     let rig = Rig::new(Scene::demo(320, 240)).unwrap();
-    let cal = rig_truth(&rig);
+    let cal = truth_calibration(&rig);
     let mut source = RigSource::new(rig, PixelFormat::Gray8);
     use scanner_device::source::FrameSource;
     let reference = source.reference().unwrap();
     let mut session =
-        scanner_device::head::Session::new(&cal, reference.clone(), options(17)).unwrap();
+        scanner_device::session::Session::new(&cal, reference.clone(), options(17)).unwrap();
     let mut link = Link::spawn(Box::new(std::io::sink()), 8, MAX_ENCODED);
     let mut bad = reference.clone();
     bad.width = 160; // the buffer no longer matches
@@ -407,7 +407,7 @@ impl std::io::Write for Vanishing {
 #[test]
 fn a_serial_port_that_vanishes_stops_the_scan_with_a_clear_error() {
     let rig = Rig::new(Scene::demo(320, 240)).unwrap();
-    let cal = rig_truth(&rig);
+    let cal = truth_calibration(&rig);
     let mut source = RigSource::new(rig, PixelFormat::Gray8);
     let mut link = Link::spawn(Box::new(Vanishing(5)), 2, MAX_ENCODED);
     let e = run_scan(&mut source, &cal, options(18), &mut link, |_| {}, |_, _| {}).unwrap_err();

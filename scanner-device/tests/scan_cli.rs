@@ -5,16 +5,26 @@ fn run(args: &[&str]) -> (bool, String, String) {
     scanner_tests::run(env!("CARGO_BIN_EXE_scanner-device"), args)
 }
 
+/// The demo rig's truth at `w × h` as a calibration file in `dir` (what `render-calibration`
+/// writes as `truth-calibration.toml`); its path.
+fn truth_file(dir: &std::path::Path, w: u32, h: u32) -> String {
+    let rig = scanner_rig::Rig::new(scanner_rig::Scene::demo(w, h)).unwrap();
+    let path = dir.join(format!("truth-{w}x{h}.toml"));
+    rig.truth_calibration().save(&path).unwrap();
+    path.display().to_string()
+}
+
 #[test]
 fn a_rig_scan_into_a_file_reports_its_figures() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("scan.stream");
+    let truth = truth_file(dir.path(), 320, 240);
     let (ok, stdout, err) = run(&[
         "scan",
         "--source",
         "rig:320x240",
         "--calibration",
-        "rig-truth",
+        &truth,
         "--out",
         out.to_str().unwrap(),
         "-q",
@@ -32,19 +42,16 @@ fn a_rig_scan_into_a_file_reports_its_figures() {
 fn errors_before_the_first_frame_are_clear() {
     let dir = tempfile::tempdir().unwrap();
     let d = |n: &str| dir.path().join(n).display().to_string();
+    let truth = truth_file(dir.path(), 320, 240);
     // No calibration.
     let (ok, _, err) = run(&["scan", "--out", &d("a")]);
     assert!(!ok && err.contains("no calibration"), "{err}");
     // A calibration for another resolution.
-    let cam = scanner_device::rig::Scene::demo(1280, 960).camera;
-    let mut f = scanner_device::calib::file::CalibrationFile::from_camera(
-        &cam,
-        (1280, 960),
-        "test".into(),
-        None,
-    );
-    let rig = scanner_device::rig::Rig::new(scanner_device::rig::Scene::demo(1280, 960)).unwrap();
-    f.board = scanner_device::scan_cli::rig_truth(&rig).board;
+    let cam = scanner_rig::Scene::demo(1280, 960).camera;
+    let mut f =
+        scanner_calib::file::CalibrationFile::from_camera(&cam, (1280, 960), "test".into(), None);
+    let rig = scanner_rig::Rig::new(scanner_rig::Scene::demo(1280, 960)).unwrap();
+    f.board = rig.truth_calibration().board;
     f.save(&dir.path().join("cal.toml")).unwrap();
     let (ok, _, err) = run(&[
         "scan",
@@ -60,14 +67,9 @@ fn errors_before_the_first_frame_are_clear() {
         "{err}"
     );
     // A calibration without a board.
-    scanner_device::calib::file::CalibrationFile::from_camera(
-        &cam,
-        (1280, 960),
-        "test".into(),
-        None,
-    )
-    .save(&dir.path().join("cam.toml"))
-    .unwrap();
+    scanner_calib::file::CalibrationFile::from_camera(&cam, (1280, 960), "test".into(), None)
+        .save(&dir.path().join("cam.toml"))
+        .unwrap();
     let (ok, _, err) = run(&[
         "scan",
         "--source",
@@ -100,7 +102,7 @@ fn errors_before_the_first_frame_are_clear() {
         "--source",
         "/dev/video99",
         "--calibration",
-        "rig-truth",
+        &truth,
         "--out",
         &d("e"),
     ]);
@@ -111,7 +113,7 @@ fn errors_before_the_first_frame_are_clear() {
         "--fourcc",
         "H264",
         "--calibration",
-        "rig-truth",
+        &truth,
         "--out",
         &d("f"),
     ]);
@@ -119,7 +121,7 @@ fn errors_before_the_first_frame_are_clear() {
         !ok && err.contains("unsupported camera pixel format \"H264\""),
         "{err}"
     );
-    let (ok, _, err) = run(&["scan", "--format", "bayer", "--calibration", "rig-truth"]);
+    let (ok, _, err) = run(&["scan", "--format", "bayer", "--calibration", &truth]);
     assert!(!ok && err.contains("bayer"), "{err}");
     // An output that cannot be written.
     let (ok, _, err) = run(&[
@@ -127,7 +129,7 @@ fn errors_before_the_first_frame_are_clear() {
         "--source",
         "rig:320x240",
         "--calibration",
-        "rig-truth",
+        &truth,
         "--out",
         "/nonexistent-dir/x.stream",
     ]);
@@ -141,7 +143,7 @@ fn errors_before_the_first_frame_are_clear() {
         "--source",
         "rig:320x240",
         "--calibration",
-        "rig-truth",
+        &truth,
         "--out",
         "serial:/dev/ttyNONE@115200",
     ]);
@@ -149,7 +151,7 @@ fn errors_before_the_first_frame_are_clear() {
         !ok && err.contains("cannot open serial port /dev/ttyNONE at 115200 baud"),
         "{err}"
     );
-    // The rig's truth with another source.
-    let (ok, _, err) = run(&["scan", "--source", &d(""), "--calibration", "rig-truth"]);
-    assert!(!ok, "{err}");
+    // The rig's truth for another size than the source's.
+    let (ok, _, err) = run(&["scan", "--source", "rig:640x480", "--calibration", &truth]);
+    assert!(!ok && err.contains("is for 320×240 images"), "{err}");
 }

@@ -5,8 +5,8 @@
 use scanner_core::calib::{CrossShot, image_distance};
 use scanner_core::nalgebra::{Point2, Point3};
 use scanner_core::stripe::PixelFormat;
-use scanner_device::rig::target::{Pattern, TargetPose};
-use scanner_device::rig::{Rig, Scene};
+use scanner_rig::target::{Pattern, TargetPose};
+use scanner_rig::{Rig, Scene};
 
 fn quiet(distorted: bool) -> Rig {
     let mut s = Scene::demo(640, 480);

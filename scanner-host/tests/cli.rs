@@ -16,10 +16,10 @@ fn host() -> Command {
 fn recording(dir: &std::path::Path) -> std::path::PathBuf {
     use scanner_core::pipeline::HeadConfig;
     use scanner_core::stripe::{Axis, Method, PixelFormat, StripeConfig};
-    let mut scene = scanner_device::rig::Scene::demo(320, 240);
+    let mut scene = scanner_rig::Scene::demo(320, 240);
     scene.laser.frames = 30;
-    let rig = scanner_device::rig::Rig::new(scene).unwrap();
-    let cal = scanner_device::scan_cli::rig_truth(&rig);
+    let rig = scanner_rig::Rig::new(scene).unwrap();
+    let cal = scanner_device::source::truth_calibration(&rig);
     let mut src = scanner_device::source::RigSource::new(rig, PixelFormat::Gray8);
     let path = dir.join("rec.stream");
     let mut link = scanner_device::link::Link::spawn(
@@ -27,13 +27,13 @@ fn recording(dir: &std::path::Path) -> std::path::PathBuf {
         8,
         scanner_core::wire::MAX_ENCODED,
     );
-    let opts = scanner_device::head::ScanOptions {
+    let opts = scanner_device::session::ScanOptions {
         head: HeadConfig::new(StripeConfig::new(Method::Dim, Axis::Columns)),
         header_every: 10,
         status_every: 10,
         scan_id: 3,
     };
-    scanner_device::head::run_scan(&mut src, &cal, opts, &mut link, |_| {}, |_, _| {}).unwrap();
+    scanner_device::session::run_scan(&mut src, &cal, opts, &mut link, |_| {}, |_, _| {}).unwrap();
     link.finish().unwrap();
     path
 }
@@ -200,8 +200,8 @@ fn head_to_host_over_a_pseudo_terminal() {
     use scanner_core::pipeline::HeadConfig;
     use scanner_core::stripe::{Axis, Method, StripeConfig};
     use scanner_core::wire::MAX_ENCODED;
-    use scanner_device::head::ScanOptions;
     use scanner_device::link::Link;
+    use scanner_device::session::ScanOptions;
     use serialport::SerialPort;
     let (device_end, host_end) = serialport::TTYPort::pair().expect("a pseudo-terminal pair");
     let name = host_end.name().expect("the host end has a device name");
@@ -221,10 +221,10 @@ fn head_to_host_over_a_pseudo_terminal() {
         .spawn()
         .unwrap();
     std::thread::sleep(std::time::Duration::from_millis(300));
-    let mut scene = scanner_device::rig::Scene::demo(320, 240);
+    let mut scene = scanner_rig::Scene::demo(320, 240);
     scene.laser.frames = 40;
-    let rig = scanner_device::rig::Rig::new(scene).unwrap();
-    let cal = scanner_device::scan_cli::rig_truth(&rig);
+    let rig = scanner_rig::Rig::new(scene).unwrap();
+    let cal = scanner_device::source::truth_calibration(&rig);
     let mut source =
         scanner_device::source::RigSource::new(rig, scanner_core::stripe::PixelFormat::Gray8);
     let mut link = Link::spawn(
@@ -239,7 +239,7 @@ fn head_to_host_over_a_pseudo_terminal() {
         scan_id: 8,
     };
     let report =
-        scanner_device::head::run_scan(&mut source, &cal, opts, &mut link, |_| {}, |_, _| {})
+        scanner_device::session::run_scan(&mut source, &cal, opts, &mut link, |_| {}, |_, _| {})
             .unwrap();
     link.finish().unwrap();
     let res = host.wait_with_output().unwrap();

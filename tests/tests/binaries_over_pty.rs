@@ -24,7 +24,12 @@ fn scene(dir: &Path, frames: usize) -> PathBuf {
          [[objects]]\nshape = \"mesh\"\npath = \"bunny.obj\"\ncentre = [0.0, 25.0, 520.0]\nheight_mm = 90.0\nyaw_deg = 20.0\n"
     );
     let path = dir.join("scene.toml");
-    std::fs::write(&path, text).unwrap();
+    std::fs::write(&path, &text).unwrap();
+    // The rig's truth as the calibration file (what `render-calibration` writes).
+    let rig = scanner_rig::Rig::new(scanner_rig::Scene::from_toml_in(&text, dir).unwrap()).unwrap();
+    rig.truth_calibration()
+        .save(&dir.join("truth-calibration.toml"))
+        .unwrap();
     path
 }
 
@@ -61,7 +66,10 @@ fn device(scene: &Path, port: &str) -> Command {
         "--scene",
         scene.to_str().unwrap(),
         "--calibration",
-        "rig-truth",
+        scene
+            .with_file_name("truth-calibration.toml")
+            .to_str()
+            .unwrap(),
         "--quiet",
         "--out",
         &format!("serial:{port}@921600"),
@@ -115,10 +123,9 @@ fn a_sphere_a_box_and_a_mesh_over_a_serial_link() {
     );
     assert!(text.contains("0 bad CRC, 0 bad COBS"), "{text}");
     // Vertices against the true surfaces (sphere, box, bunny mesh, board).
-    let rig = scanner_device::rig::Rig::new(
-        scanner_device::render::load_scene(Some(&scene_path)).unwrap(),
-    )
-    .unwrap();
+    let rig =
+        scanner_rig::Rig::new(scanner_device::cli::render::load_scene(Some(&scene_path)).unwrap())
+            .unwrap();
     let (v, f) = read_obj(&out.join("scan.obj"));
     assert!(v.len() > 500, "{} vertices", v.len());
     let mut errs: Vec<f64> = v.iter().map(|p| rig.surface_distance(p)).collect();

@@ -14,12 +14,12 @@ use rand::{Rng, SeedableRng};
 use scanner_core::pipeline::HeadConfig;
 use scanner_core::stripe::{Axis, Method, PixelFormat, StripeConfig};
 use scanner_core::wire::{Decoder, MAX_ENCODED};
-use scanner_device::head::{ScanOptions, run_scan};
 use scanner_device::link::Link;
-use scanner_device::rig::{Rig, Scene};
-use scanner_device::scan_cli::rig_truth;
+use scanner_device::session::{ScanOptions, run_scan};
 use scanner_device::source::RigSource;
+use scanner_device::source::truth_calibration;
 use scanner_host::collect::{CollectOptions, Collector};
+use scanner_rig::{Rig, Scene};
 
 /// A clean recorded stream of a small rig scan, split into its frames (each with its delimiters).
 fn clean_frames() -> &'static Vec<Vec<u8>> {
@@ -28,7 +28,7 @@ fn clean_frames() -> &'static Vec<Vec<u8>> {
         let mut scene = Scene::demo(320, 240);
         scene.laser.frames = 40;
         let rig = Rig::new(scene).unwrap();
-        let cal = rig_truth(&rig);
+        let cal = truth_calibration(&rig);
         let mut src = RigSource::new(rig, PixelFormat::Gray8);
         let dir = tempfile::tempdir().unwrap();
         let path = dir.path().join("s");
@@ -348,7 +348,7 @@ fn faults_on_a_pseudo_terminal_link_between_head_and_host() {
     let mut scene = Scene::demo(320, 240);
     scene.laser.frames = 40;
     let rig = Rig::new(scene).unwrap();
-    let cal = rig_truth(&rig);
+    let cal = truth_calibration(&rig);
     let mut src = RigSource::new(rig, PixelFormat::Gray8);
     let dir = tempfile::tempdir().unwrap();
     let clean_path = dir.path().join("clean");

@@ -10,20 +10,20 @@ use scanner_core::nalgebra::{Point3, Vector3};
 use scanner_core::pipeline::HeadConfig;
 use scanner_core::stripe::{Axis, Method, PixelFormat, StripeConfig};
 use scanner_core::wire::{Decoder, MAX_ENCODED};
-use scanner_device::head::{ScanOptions, run_scan};
 use scanner_device::link::Link;
-use scanner_device::rig::{Rig, Scene};
-use scanner_device::scan_cli::rig_truth;
+use scanner_device::session::{ScanOptions, run_scan};
 use scanner_device::source::RigSource;
+use scanner_device::source::truth_calibration;
 use scanner_host::collect::{CollectOptions, Collector, Journal};
 use scanner_host::{replay_into, write_outputs};
+use scanner_rig::{Rig, Scene};
 
 /// Records the demo scan (`frames` laser frames) at `w`×`h` into `path`; returns the rig.
 fn record(w: u32, h: u32, frames: usize, colour: bool, path: &Path) -> Rig {
     let mut scene = Scene::demo(w, h);
     scene.laser.frames = frames;
     let rig = Rig::new(scene.clone()).unwrap();
-    let cal = rig_truth(&rig);
+    let cal = truth_calibration(&rig);
     let mut source = RigSource::new(
         Rig::new(scene).unwrap(),
         if colour {

@@ -6,7 +6,7 @@
 use scanner_core::geometry::{Board, LaserFitConfig, Limits, Surface, laser, triangulate};
 use scanner_core::nalgebra::Point2;
 use scanner_core::stripe::{Axis, Extractor, Frame, Method, PixelFormat, StripeConfig};
-use scanner_device::rig::{Rig, Scene, SurfaceId};
+use scanner_rig::{Rig, Scene, SurfaceId};
 
 #[test]
 fn rendered_sweep_triangulates_onto_the_truth() {

@@ -3,14 +3,14 @@
 //! writes everything `scripts/opencv-compare.py` needs to run OpenCV's `calibrateCamera` on the
 //! same images (with OpenCV's own circle-grid detector, and on our detected dots).
 //!
-//! `cargo run --release -p scanner-device --example calib_compare -- OUT_DIR [VIEWS]`
+//! `cargo run --release -p scanner-rig --example calib_compare -- OUT_DIR [VIEWS]`
 
 use std::fmt::Write as _;
 
+use scanner_calib::{DotGrid, Target, intrinsics};
 use scanner_core::calib::Free;
-use scanner_device::calib::{DotGrid, Target, intrinsics};
-use scanner_device::rig::target::{Pattern, TargetPose};
-use scanner_device::rig::{Rig, Scene};
+use scanner_rig::target::{Pattern, TargetPose};
+use scanner_rig::{Rig, Scene};
 
 fn main() -> anyhow::Result<()> {
     let mut args = std::env::args().skip(1);
@@ -22,7 +22,7 @@ fn main() -> anyhow::Result<()> {
     scene.sensor.shot_noise = 0.0;
     let rig = Rig::new(scene)?;
     let grid = DotGrid::RIG;
-    let pattern = grid.pattern();
+    let pattern = Pattern::from(&grid);
     let chess = Pattern::Chessboard {
         cols: 10,
         rows: 8,

@@ -4,9 +4,9 @@
 //!
 //! `cargo run --release -p scanner-device --example accuracy_report` prints it.
 
-use crate::calib::board::{BoardFile, Cross, Grid, SheetLayout, SheetSize};
-use crate::calib::{DotGrid, Target, board_planes, intrinsics};
-use crate::rig::{Object, Rig, Scene, Shape};
+use crate::{Object, Rig, Scene, Shape};
+use scanner_calib::board::{BoardFile, Cross, Grid, SheetLayout, SheetSize};
+use scanner_calib::{DotGrid, Target, board_planes, intrinsics};
 use scanner_core::Camera;
 use scanner_core::calib::Free;
 use scanner_core::geometry::Board;
@@ -86,7 +86,7 @@ pub fn scene(width: u32, height: u32, d: f64, frames: usize) -> (Scene, BoardFil
     let board = paper_board(s);
     let mut sc = Scene::demo(width, height);
     sc.board.distance = d;
-    sc.board.markers = board.rig_markers();
+    sc.board.markers = (&board).into();
     let sphere = |x: f64, y: f64, z: f64| Object {
         shape: Shape::Sphere {
             centre: Point3::new(x * d, y * d, z * d),
@@ -124,7 +124,7 @@ pub fn scene(width: u32, height: u32, d: f64, frames: usize) -> (Scene, BoardFil
 pub fn calibrate_camera(width: u32, height: u32) -> Camera<f64> {
     let rig = Rig::new(Scene::demo(width, height)).expect("demo rig");
     let grid = DotGrid::RIG;
-    let images = grid.shots(&rig, 12);
+    let images = rig.dot_grid_shots(&grid, 12);
     intrinsics(&images, &Target::Dots(grid), Free::ALL)
         .expect("intrinsics")
         .camera

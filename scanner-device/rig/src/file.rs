@@ -208,9 +208,10 @@ impl Scene {
                         "[board]: give `layout` (a board file) or [board.markers], not both".into(),
                     ));
                 }
-                (None, Some(path)) => crate::calib::board::BoardFile::load(&base.join(&path))
-                    .map_err(|e| RigError::Scene(format!("[board] layout: {e}")))?
-                    .rig_markers(),
+                (None, Some(path)) => Markers::from(
+                    &scanner_calib::board::BoardFile::load(&base.join(&path))
+                        .map_err(|e| RigError::Scene(format!("[board] layout: {e}")))?,
+                ),
                 (Some(m), None) => {
                     if !(m.diameter > 0.0) {
                         return Err(RigError::Scene(

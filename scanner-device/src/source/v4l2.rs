@@ -1,7 +1,7 @@
 //! V4L2 cameras through the `v4l` crate: list devices and formats, choose format, resolution
 //! and frame rate, lock exposure and white balance (the difference image needs the reference
 //! and the laser frames taken alike), memory-mapped streaming. Buffers are converted by
-//! [`crate::convert`], which is tested on recorded buffers; this file needs a camera and is
+//! [`super::convert`], which is tested on recorded buffers; this file needs a camera and is
 //! exercised only by the ignored hardware test.
 
 use scanner_core::stripe::PixelFormat;
@@ -20,7 +20,7 @@ mod imp {
     use v4l::video::Capture;
     use v4l::{Device, FourCC};
 
-    use crate::convert::{CameraFormat, convert};
+    use crate::source::convert::{CameraFormat, convert};
     use crate::source::{FrameSource, OwnedFrame, SourceError, SourceOptions, average};
 
     /// `V4L2_CID_EXPOSURE_AUTO` and its manual setting.
@@ -162,11 +162,7 @@ mod imp {
                 stride: fmt.stride as usize,
                 next: 0,
                 reference: opts.reference.clone(),
-                reference_frames: if opts.reference_frames == 0 {
-                    8
-                } else {
-                    opts.reference_frames
-                },
+                reference_frames: opts.reference_frames(),
                 locked,
             })
         }

@@ -50,6 +50,17 @@ pub enum Pattern {
     },
 }
 
+impl From<&scanner_calib::DotGrid> for Pattern {
+    fn from(g: &scanner_calib::DotGrid) -> Self {
+        Pattern::DotGrid {
+            cols: g.cols,
+            rows: g.rows,
+            pitch: g.pitch,
+            dot: g.dot,
+        }
+    }
+}
+
 impl Pattern {
     /// Dot centres on the sheet (none for a chessboard).
     pub fn dots(&self) -> Vec<[f64; 2]> {

@@ -12,7 +12,9 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result};
 
-use crate::rig::{Rgb8, Rig, Scene, SurfaceId};
+use scanner_calib::DotGrid;
+use scanner_calib::board::BoardFile;
+use scanner_rig::{Rgb8, Rig, Scene, SurfaceId};
 
 /// What to render.
 #[derive(Debug, Clone)]
@@ -114,4 +116,56 @@ pub fn render(job: &RenderJob, mut progress: impl FnMut(usize, usize)) -> Result
         fs::write(&path, text).with_context(|| format!("writing {}", path.display()))?;
     }
     Ok(total)
+}
+
+/// Renders calibration images of a rig scene: the board without laser, 12 dot-grid shots and
+/// the cross at 500 and 900 mm (tape distances in `shots.txt`), and the rig's truth as a
+/// calibration file (`truth-calibration.toml`: what a perfect calibration would give, for
+/// comparison and for tests that want the truth).
+///
+/// # Errors
+/// Unwritable output.
+pub fn render_calibration(rig: &Rig, out: &Path) -> Result<()> {
+    use scanner_core::nalgebra::Point3;
+    use scanner_rig::target::{Pattern, TargetPose};
+    std::fs::create_dir_all(out).with_context(|| format!("cannot create {}", out.display()))?;
+    let gray = |img: &Rgb8, name: &str| -> Result<()> {
+        let p = out.join(name);
+        img.to_gray_image()
+            .save(&p)
+            .with_context(|| format!("cannot write {}", p.display()))
+    };
+    gray(&rig.reference(), "board.png")?;
+    for (i, img) in rig.dot_grid_shots(&DotGrid::RIG, 12).iter().enumerate() {
+        let p = out.join(format!("grid-{i:02}.png"));
+        img.save(&p)
+            .with_context(|| format!("cannot write {}", p.display()))?;
+    }
+    let cross = BoardFile::default().cross;
+    let cp = Pattern::Cross {
+        arm: cross.arm,
+        dot: cross.dot,
+    };
+    for (name, z) in [("cross-near.png", 500.0), ("cross-far.png", 900.0)] {
+        let pose = TargetPose {
+            centre: Point3::new(0.0, 0.0, z),
+            turn_deg: [0.0; 3],
+        };
+        gray(&rig.shot(&cp, &pose, z as u64).image, name)?;
+    }
+    let truth = out.join("truth-calibration.toml");
+    rig.truth_calibration()
+        .save(&truth)
+        .with_context(|| format!("cannot write {}", truth.display()))?;
+    let txt = out.join("shots.txt");
+    std::fs::write(
+        &txt,
+        "board.png: the board without laser\n\
+         grid-NN.png: a 9x7 dot grid, 30 mm pitch, 12 mm dots\n\
+         cross-near.png: the default board's cross, lens centre 500 mm away (a tape from a mark 25 mm behind it reads 525)\n\
+         cross-far.png: the same at 900 mm (tape 925)\n\
+         truth-calibration.toml: the rig's true camera and board (not an estimate)\n",
+    )
+    .with_context(|| format!("cannot write {}", txt.display()))?;
+    Ok(())
 }

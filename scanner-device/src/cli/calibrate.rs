@@ -1,5 +1,4 @@
-//! The calibration commands: print the board, calibrate intrinsics / image distance / board, and
-//! render calibration images on the virtual rig.
+//! The calibration commands: print the board, calibrate intrinsics / image distance / board.
 
 use std::path::{Path, PathBuf};
 
@@ -9,9 +8,9 @@ use image::GrayImage;
 use scanner_core::Camera;
 use scanner_core::calib::Free;
 
-use crate::calib::board::BoardFile;
-use crate::calib::file::{CalibrationFile, write_atomic};
-use crate::calib::{
+use scanner_calib::board::BoardFile;
+use scanner_calib::file::{CalibrationFile, write_atomic};
+use scanner_calib::{
     CalibError, DotGrid, PlaneMethod, Target, board_planes, check_size, intrinsics_outcome,
     overlay, print,
 };
@@ -101,17 +100,11 @@ pub enum Calibrate {
 }
 
 fn parse_grid(s: &str) -> Result<(usize, usize), String> {
-    let (a, b) = s
-        .split_once(['x', 'X'])
-        .ok_or_else(|| format!("expected COLSxROWS like 9x7, found {s:?}"))?;
-    let p = |t: &str| {
-        t.trim()
-            .parse::<usize>()
-            .ok()
-            .filter(|&n| n >= 2)
-            .ok_or_else(|| format!("{t:?} is not a count ≥ 2"))
-    };
-    Ok((p(a)?, p(b)?))
+    let (a, b) = crate::source::parse_size(s).map_err(|e| e.to_string())?;
+    if a < 2 || b < 2 {
+        return Err(format!("{s:?}: both counts must be at least 2"));
+    }
+    Ok((a as usize, b as usize))
 }
 
 /// Reads an image file as gray.
@@ -229,7 +222,7 @@ pub fn calibrate(cmd: &Calibrate) -> Result<()> {
             let (n, f) = (load_gray(near)?, load_gray(far)?);
             check_size(n.dimensions(), &f)
                 .with_context(|| format!("{} against {}", far.display(), near.display()))?;
-            let d = crate::calib::image_distance(&b.cross, (&n, *near_mm), (&f, *far_mm))
+            let d = scanner_calib::image_distance(&b.cross, (&n, *near_mm), (&f, *far_mm))
                 .context("image distance")?;
             let (w, h) = n.dimensions();
             let cam = Camera::paper(d.d_z, w, h).context("image distance")?;
@@ -422,50 +415,5 @@ fn intrinsics_command(
         fit.rms_px,
         out.display()
     );
-    Ok(())
-}
-
-/// Renders calibration images of a rig scene: the board without laser, 12 dot-grid shots and
-/// the cross at 500 and 900 mm (tape distances in `shots.txt`).
-///
-/// # Errors
-/// Unwritable output.
-pub fn render_calibration(rig: &crate::rig::Rig, out: &Path) -> Result<()> {
-    use crate::rig::target::{Pattern, TargetPose};
-    use scanner_core::nalgebra::Point3;
-    std::fs::create_dir_all(out).with_context(|| format!("cannot create {}", out.display()))?;
-    let gray = |img: &crate::rig::Rgb8, name: &str| -> Result<()> {
-        let p = out.join(name);
-        img.to_gray_image()
-            .save(&p)
-            .with_context(|| format!("cannot write {}", p.display()))
-    };
-    gray(&rig.reference(), "board.png")?;
-    for (i, img) in DotGrid::RIG.shots(rig, 12).iter().enumerate() {
-        let p = out.join(format!("grid-{i:02}.png"));
-        img.save(&p)
-            .with_context(|| format!("cannot write {}", p.display()))?;
-    }
-    let cross = BoardFile::default().cross;
-    let cp = Pattern::Cross {
-        arm: cross.arm,
-        dot: cross.dot,
-    };
-    for (name, z) in [("cross-near.png", 500.0), ("cross-far.png", 900.0)] {
-        let pose = TargetPose {
-            centre: Point3::new(0.0, 0.0, z),
-            turn_deg: [0.0; 3],
-        };
-        gray(&rig.shot(&cp, &pose, z as u64).image, name)?;
-    }
-    let txt = out.join("shots.txt");
-    std::fs::write(
-        &txt,
-        "board.png: the board without laser\n\
-         grid-NN.png: a 9x7 dot grid, 30 mm pitch, 12 mm dots\n\
-         cross-near.png: the default board's cross, lens centre 500 mm away (a tape from a mark 25 mm behind it reads 525)\n\
-         cross-far.png: the same at 900 mm (tape 925)\n",
-    )
-    .with_context(|| format!("cannot write {}", txt.display()))?;
     Ok(())
 }

@@ -4,11 +4,11 @@
 use std::time::Instant;
 
 use anyhow::{Result, bail};
+use scanner_core::Camera;
 use scanner_core::geometry::Board;
 use scanner_core::pipeline::{Head, HeadConfig, PlaneMethod};
 use scanner_core::wire::{self, Header, Message, Points, Skip, Status};
 
-use crate::calib::file::CalibrationFile;
 use crate::link::Link;
 use crate::source::{FrameSource, OwnedFrame};
 
@@ -26,6 +26,18 @@ pub struct ScanOptions {
     pub status_every: u32,
     /// Scan id (random per scan unless given).
     pub scan_id: u32,
+}
+
+/// What the head needs of a calibration: the camera, the board, and the image size both were
+/// calibrated at.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Calibration {
+    /// Intrinsics.
+    pub camera: Camera<f64>,
+    /// Both board planes.
+    pub board: Board<f64>,
+    /// Image size, pixels.
+    pub size: (u32, u32),
 }
 
 /// How a scan went.
@@ -69,9 +81,9 @@ impl Session {
     /// A session for a calibration and the laser-off reference frame.
     ///
     /// # Errors
-    /// A calibration without a board, for another image size, or with unusable numbers.
-    pub fn new(cal: &CalibrationFile, reference: OwnedFrame, opts: ScanOptions) -> Result<Session> {
-        let (w, h) = (cal.image.width as usize, cal.image.height as usize);
+    /// A calibration for another image size, or more lines than the head handles.
+    pub fn new(cal: &Calibration, reference: OwnedFrame, opts: ScanOptions) -> Result<Session> {
+        let (w, h) = (cal.size.0 as usize, cal.size.1 as usize);
         if (reference.width, reference.height) != (w, h) {
             bail!(
                 "the calibration is for {w}×{h} images but the camera gives {}×{}: calibrate at this resolution or choose {w}×{h}",
@@ -86,12 +98,9 @@ impl Session {
         if lines > MAX_LINES {
             bail!("{lines} lines per frame: the head handles at most {MAX_LINES}");
         }
-        let camera = cal.camera()?;
-        let Some(board) = cal.board() else {
-            bail!("the calibration file has no board: run `scanner-device calibrate board` first");
-        };
-        let board: Board<f64> = board?;
-        let c = &cal.camera;
+        let (camera, board) = (cal.camera, cal.board);
+        let d = camera.distortion();
+        let pp = camera.principal_point();
         let plane = |p: &scanner_core::geometry::Plane<f64>| {
             let n = p.normal();
             [n.x as f32, n.y as f32, n.z as f32, p.offset() as f32]
@@ -101,7 +110,18 @@ impl Session {
             width: w as u16,
             height: h as u16,
             unit_um: (wire::UNIT_MM * 1000.0).round() as u16,
-            camera: [c.fx, c.fy, c.cx, c.cy, c.k1, c.k2, c.p1, c.p2, c.k3].map(|v| v as f32),
+            camera: [
+                camera.fx(),
+                camera.fy(),
+                pp.x,
+                pp.y,
+                d.k1,
+                d.k2,
+                d.p1,
+                d.p2,
+                d.k3,
+            ]
+            .map(|v| v as f32),
             board: [plane(board.left()), plane(board.right())],
             colour: opts.head.colour,
             method: match opts.head.method {
@@ -272,7 +292,7 @@ impl Session {
 /// Calibration problems, the source failing before the first frame, the link failing.
 pub fn run_scan(
     source: &mut dyn FrameSource,
-    cal: &CalibrationFile,
+    cal: &Calibration,
     opts: ScanOptions,
     link: &mut Link,
     mut progress: impl FnMut(&Status),

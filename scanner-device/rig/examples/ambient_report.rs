@@ -1,11 +1,11 @@
-//! The ambient-light report (the paper's Table 1): `cargo run --release -p scanner-device
+//! The ambient-light report (the paper's Table 1): `cargo run --release -p scanner-rig
 //! --example ambient_report`. On the virtual rig (640×480 demo scene), for a few laser powers,
 //! the largest ambient level (rig units: radiance on a white surface; the demo uses 0.45) at
 //! which the stripe is still extracted on ≥ 95 % of the object's columns (valid and within 1 px
 //! of the true stripe), for the light-intensity (LIM) and difference-image (DIM) methods.
 
 use scanner_core::stripe::{Axis, Extractor, Frame, Method, PixelFormat, StripeConfig};
-use scanner_device::rig::{Rig, Scene, SurfaceId};
+use scanner_rig::{Rig, Scene, SurfaceId};
 
 /// Fraction of object columns extracted correctly over a few frames of the sweep.
 fn success(power: f64, ambient: f64, method: Method, ex: &mut Extractor<1024>) -> f64 {

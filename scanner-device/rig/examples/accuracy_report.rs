@@ -1,4 +1,4 @@
-//! The accuracy report (the paper's Table 3): `cargo run --release -p scanner-device --example
+//! The accuracy report (the paper's Table 3): `cargo run --release -p scanner-rig --example
 //! accuracy_report [-- FRAMES]`. The paper's setup on the virtual rig at 1600×1200: camera–board
 //! distance 280, 400, 800, 1600 and 3200 mm, marker spacing 40, 60, 120, 240, 480 mm; intrinsics
 //! and board calibrated from rendered images; two spheres and a tilted plane scanned; both board
@@ -11,18 +11,16 @@ fn main() {
         .unwrap_or(80);
     let (w, h) = (1600, 1200);
     let t = std::time::Instant::now();
-    let camera = scanner_device::report::calibrate_camera(w, h);
+    let camera = scanner_rig::report::calibrate_camera(w, h);
     eprintln!(
         "intrinsics calibrated from 12 rendered dot-grid images in {:.1} s",
         t.elapsed().as_secs_f64()
     );
     let mut rows = Vec::new();
-    for (d, _) in scanner_device::report::PAPER_MEAN_MM {
+    for (d, _) in scanner_rig::report::PAPER_MEAN_MM {
         let t = std::time::Instant::now();
-        rows.extend(scanner_device::report::run_distance(
-            &camera, w, h, d, frames,
-        ));
+        rows.extend(scanner_rig::report::run_distance(&camera, w, h, d, frames));
         eprintln!("{d} mm done in {:.1} s", t.elapsed().as_secs_f64());
     }
-    print!("{}", scanner_device::report::table(&rows));
+    print!("{}", scanner_rig::report::table(&rows));
 }

@@ -49,6 +49,22 @@ pub struct Grid {
     pub dv: f64,
 }
 
+impl Chessboard {
+    /// Inner corners, row by row (along `u` first).
+    pub fn corners(&self) -> Vec<Point2<f64>> {
+        (0..self.rows.saturating_sub(1))
+            .flat_map(|r| {
+                (0..self.cols.saturating_sub(1)).map(move |c| {
+                    Point2::new(
+                        self.u0 + c as f64 * self.square,
+                        self.v0 + r as f64 * self.square,
+                    )
+                })
+            })
+            .collect()
+    }
+}
+
 /// A chessboard on a sheet: `cols × rows` squares of side `square`, its first inner corner at
 /// `(u0, v0)`; the inner corners are the sheet's markers (row by row, along `u` first).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -173,12 +189,8 @@ impl Default for BoardFile {
 impl SheetLayout {
     /// Marker centres in order: listed ones as listed, a grid row by row (along `u` first).
     pub fn points(&self) -> Vec<Point2<f64>> {
-        if let Some(c) = self.rig_chess() {
-            return c
-                .corners()
-                .iter()
-                .map(|p| Point2::new(p[0], p[1]))
-                .collect();
+        if let Some(c) = self.chessboard {
+            return c.corners();
         }
         if let Some(m) = &self.markers {
             return m.iter().map(|p| Point2::new(p[0], p[1])).collect();
@@ -195,7 +207,7 @@ impl SheetLayout {
     }
 
     /// For a chessboard sheet: per marker (inner corner, in [`Self::points`] order), whether its
-    /// (+u, +v) square is dark, as [`crate::calib::print`] prints it (the first square is dark).
+    /// (+u, +v) square is dark, as [`crate::print`] prints it (the first square is dark).
     pub fn corner_colours(&self) -> Option<Vec<bool>> {
         let c = self.chessboard?;
         let per_row = c.cols.saturating_sub(1);
@@ -204,17 +216,6 @@ impl SheetLayout {
                 .map(|k| (k % per_row + k / per_row) % 2 == 0)
                 .collect(),
         )
-    }
-
-    /// The rig's chessboard for this sheet, if it carries one.
-    pub fn rig_chess(&self) -> Option<crate::rig::Chess> {
-        self.chessboard.map(|c| crate::rig::Chess {
-            cols: c.cols,
-            rows: c.rows,
-            square: c.square,
-            u0: c.u0,
-            v0: c.v0,
-        })
     }
 
     /// Radius of this sheet's markers as the calibration models them: the discs' radius, or 0
@@ -371,24 +372,5 @@ impl BoardFile {
             }
         }
         Ok(())
-    }
-
-    /// The rig's markers for this board (for rendering it).
-    pub fn rig_markers(&self) -> crate::rig::Markers {
-        let pts = |s: &SheetLayout| s.points().iter().map(|p| [p.x, p.y]).collect();
-        let discs = |s: &SheetLayout| {
-            if s.chessboard.is_some() {
-                Vec::new()
-            } else {
-                pts(s)
-            }
-        };
-        crate::rig::Markers {
-            left: discs(&self.left),
-            right: discs(&self.right),
-            diameter: self.marker_diameter,
-            albedo: [0.06, 0.06, 0.06],
-            chess: [self.left.rig_chess(), self.right.rig_chess()],
-        }
     }
 }

@@ -1,11 +1,18 @@
+//! `scanner-calib`: calibration from images, once, before a scan.
+//!
+//! Where it sits: `images of the board and a target ─► [scanner-calib] ─► calibration file ─►
+//! the head (scanner-device)`. It depends on `scanner-core` alone (the maths: Zhang, poses,
+//! planes, eq. 1–9); this crate is the image side (std + `image`).
+//!
 //! Calibration from images: the printable board ([`board`], [`print`](mod@print)), marker detection
 //! ([`detect`]) and identification ([`identify`](mod@identify)), and the three procedures —
 //! - [`image_distance`]: the paper's two-position procedure on two images of the cross pattern;
-//! - [`intrinsics`]: full intrinsics from several images of a dot grid (Zhang's method, refined);
+//! - [`intrinsics()`]: full intrinsics from several images of a dot grid (Zhang's method, refined);
 //! - [`board_planes`]: both board planes from an image of the board without laser, by the layout
 //!   pose (default) and, where the layout is the paper's, by the paper's three-point lines.
 //!
 //! The results go into one calibration file ([`file`](mod@file)) with an annotated picture ([`overlay`]).
+#![deny(missing_docs)]
 
 pub mod board;
 pub mod corners;
@@ -624,35 +631,6 @@ impl DotGrid {
         pitch: 30.0,
         dot: 12.0,
     };
-
-    /// The rig pattern of this grid.
-    pub fn pattern(&self) -> crate::rig::target::Pattern {
-        crate::rig::target::Pattern::DotGrid {
-            cols: self.cols,
-            rows: self.rows,
-            pitch: self.pitch,
-            dot: self.dot,
-        }
-    }
-
-    /// `n` rendered shots of this grid in front of the rig's camera ([`TargetPose::sweep`]
-    /// poses), gray.
-    ///
-    /// [`TargetPose::sweep`]: crate::rig::target::TargetPose::sweep
-    pub fn shots(&self, rig: &crate::rig::Rig, n: usize) -> Vec<GrayImage> {
-        let pattern = self.pattern();
-        (0..n)
-            .map(|i| {
-                rig.shot(
-                    &pattern,
-                    &crate::rig::target::TargetPose::sweep(i, n),
-                    i as u64,
-                )
-                .image
-                .to_gray_image()
-            })
-            .collect()
-    }
 
     /// Dot centres, row by row.
     pub fn points(&self) -> Vec<Point2<f64>> {

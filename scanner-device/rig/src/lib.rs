@@ -1,4 +1,9 @@
-//! The virtual rig: what the scanner head's camera would see, with ground truth.
+//! `scanner-rig`: the virtual rig — what the scanner head's camera would see, with ground truth.
+//!
+//! Where it sits: beside the data path, in place of the camera: `[scanner-rig] ─► frames ─► the
+//! head`. It depends on `scanner-core` and on `scanner-calib` for the board file (what is
+//! printed on the board); nothing but tests, benches, examples and the head's `rig` feature
+//! depends on it. The reports against the paper's tables are here too ([`report`]).
 //!
 //! A [`Scene`] describes the camera, the two-plane board, objects in front of it, the hand-held
 //! laser's sweep, ambient light and the sensor. A [`Rig`] built from it casts one ray per pixel
@@ -25,14 +30,17 @@
 //! Objects are analytic shapes or triangle meshes from OBJ files ([`mesh`]). Calibration shots —
 //! the paper's cross pattern and planar targets at any pose — are in [`target`].
 //!
-//! The board's markers come from a board file ([`crate::calib::board`]): discs or a chessboard
+//! The board's markers come from a board file ([`scanner_calib::board`]): discs or a chessboard
 //! per sheet.
 //!
 //! Scenes can be read from TOML ([`Scene::from_toml`]); `scanner-device render` writes a scene's
 //! frames as PNG files with their ground truth.
 
+#![deny(missing_docs)]
+
 mod file;
 pub mod mesh;
+pub mod report;
 pub mod surface;
 pub mod target;
 
@@ -1291,5 +1299,89 @@ fn surface_index(s: SurfaceId) -> u16 {
         SurfaceId::Left => 0,
         SurfaceId::Right => 1,
         SurfaceId::Object(n) => 2 + n,
+    }
+}
+
+impl From<&scanner_calib::board::Chessboard> for Chess {
+    fn from(c: &scanner_calib::board::Chessboard) -> Self {
+        Chess {
+            cols: c.cols,
+            rows: c.rows,
+            square: c.square,
+            u0: c.u0,
+            v0: c.v0,
+        }
+    }
+}
+
+impl From<&scanner_calib::board::BoardFile> for Markers {
+    /// The markers a board file prints (for rendering it).
+    fn from(b: &scanner_calib::board::BoardFile) -> Self {
+        let discs = |s: &scanner_calib::board::SheetLayout| {
+            if s.chessboard.is_some() {
+                Vec::new()
+            } else {
+                s.points().iter().map(|p| [p.x, p.y]).collect()
+            }
+        };
+        Markers {
+            left: discs(&b.left),
+            right: discs(&b.right),
+            diameter: b.marker_diameter,
+            albedo: [0.06, 0.06, 0.06],
+            chess: [
+                b.left.chessboard.as_ref().map(Chess::from),
+                b.right.chessboard.as_ref().map(Chess::from),
+            ],
+        }
+    }
+}
+
+impl Rig {
+    /// The rig's true camera and board as a calibration file (what a perfect calibration
+    /// would give; for tests and benches that want the truth, not an estimate).
+    ///
+    /// # Panics
+    /// Never for a rig built from a valid scene (its board's planes meet).
+    pub fn truth_calibration(&self) -> scanner_calib::file::CalibrationFile {
+        use scanner_calib::file::{BoardSection, CalibrationFile, SheetSection};
+        let s = self.scene();
+        let mut f = CalibrationFile::from_camera(
+            &s.camera,
+            (s.width, s.height),
+            "the virtual rig's true camera".into(),
+            None,
+        );
+        let [l, r] = self.board_planes();
+        let sheet = |p: &Plane<f64>| SheetSection {
+            normal: (*p.normal()).into(),
+            offset: p.offset(),
+            rms_px: 0.0,
+            markers: Vec::new(),
+        };
+        let board = scanner_core::geometry::Board::new(l, r).expect("the rig's board is valid");
+        f.board = Some(BoardSection {
+            method: "rig-truth".into(),
+            angle_deg: board.angle().to_degrees(),
+            crease_point: board.crease().point().coords.into(),
+            crease_direction: (*board.crease().direction()).into(),
+            left: sheet(&l),
+            right: sheet(&r),
+            paper: None,
+        });
+        f
+    }
+
+    /// `n` rendered shots of a dot grid in front of the rig's camera
+    /// ([`target::TargetPose::sweep`] poses), gray.
+    pub fn dot_grid_shots(&self, grid: &scanner_calib::DotGrid, n: usize) -> Vec<image::GrayImage> {
+        let pattern = target::Pattern::from(grid);
+        (0..n)
+            .map(|i| {
+                self.shot(&pattern, &target::TargetPose::sweep(i, n), i as u64)
+                    .image
+                    .to_gray_image()
+            })
+            .collect()
     }
 }

@@ -2,11 +2,11 @@
 //! frame, two laser frames of the demo scene and a calibration shot (a tilted chessboard), side
 //! by side, 640×480 each.
 //!
-//! `cargo run --release -p scanner-device --example contact_sheet [out.png]`
+//! `cargo run --release -p scanner-rig --example contact_sheet [out.png]`
 
 use scanner_core::nalgebra::Point3;
-use scanner_device::rig::target::{Pattern, TargetPose};
-use scanner_device::rig::{Rig, Scene};
+use scanner_rig::target::{Pattern, TargetPose};
+use scanner_rig::{Rig, Scene};
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let out = std::env::args()

@@ -1,13 +1,13 @@
 //! Virtual rig speed: one-off set-up and per-frame rendering of the demo scene.
 //!
-//! `cargo bench -p scanner-device --bench rig` (one core; prints a Markdown table). Targets
+//! `cargo bench -p scanner-rig --bench rig` (one core; prints a Markdown table). Targets
 //! (issue 4): a 640×480 frame in ≤ 20 ms, a 1600×1200 frame in ≤ 150 ms.
 
 use std::hint::black_box;
 use std::time::Instant;
 
 use scanner_core::stripe::PixelFormat;
-use scanner_device::rig::{Rig, Scene};
+use scanner_rig::{Rig, Scene};
 
 fn main() {
     println!("| size | set-up (once) | laser frame, median | reference | target |");

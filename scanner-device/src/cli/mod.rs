@@ -1,0 +1,150 @@
+//! The command line of the scanner head: arguments, then a validated plan, then the run.
+
+pub mod calibrate;
+#[cfg(feature = "rig")]
+pub mod render;
+pub mod scan;
+
+use std::path::PathBuf;
+
+use clap::{Parser, Subcommand};
+
+/// Command line of the scanner head.
+#[derive(Debug, Parser)]
+#[command(
+    name = "scanner-device",
+    version,
+    about = "Scanner head: camera → points → serial link"
+)]
+pub struct Args {
+    /// Print the fixed capacities and conventions of this build and exit.
+    #[arg(long)]
+    pub info: bool,
+    /// What to do.
+    #[command(subcommand)]
+    pub command: Option<Command>,
+}
+
+/// The head's commands.
+#[derive(Debug, Subcommand)]
+pub enum Command {
+    #[cfg(feature = "rig")]
+    /// Render a scene of the virtual rig to PNG files with ground truth (truth.csv, lasers.csv).
+    Render {
+        /// Scene file (TOML); the demo scene at 640×480 without one.
+        #[arg(long)]
+        scene: Option<PathBuf>,
+        /// Output folder.
+        #[arg(long, default_value = "rig-frames")]
+        out: PathBuf,
+        /// Write gray PNGs instead of RGB.
+        #[arg(long)]
+        gray: bool,
+        /// Render at most this many frames of the sweep.
+        #[arg(long)]
+        frames: Option<usize>,
+        /// No progress lines.
+        #[arg(long, short)]
+        quiet: bool,
+    },
+    #[cfg(feature = "rig")]
+    /// Render calibration images of a rig scene: the board without laser, dot-grid shots and the
+    /// image-distance cross at two distances.
+    RenderCalibration {
+        /// Scene file (TOML); the demo scene at 640×480 without one.
+        #[arg(long)]
+        scene: Option<PathBuf>,
+        /// Output folder.
+        #[arg(long, default_value = "rig-calibration")]
+        out: PathBuf,
+    },
+    /// Write a board file (the paper's layout unless given one) and its printable 1:1 sheets:
+    /// left and right sheet and the image-distance cross, as SVG and PNG, with a scale ruler.
+    Board {
+        /// Board file to print; the default board without one.
+        #[arg(long)]
+        board: Option<PathBuf>,
+        /// Output folder.
+        #[arg(long, default_value = "board")]
+        out: PathBuf,
+        /// Resolution of the PNGs, dots per inch.
+        #[arg(long, default_value_t = 150.0)]
+        dpi: f64,
+    },
+    /// Calibrate from images: intrinsics, the paper's image distance, or the board planes.
+    #[command(subcommand)]
+    Calibrate(calibrate::Calibrate),
+    /// Scan: frames from the source through the pipeline to point packets on the link.
+    Scan(scan::ScanArgs),
+    /// List the V4L2 cameras with their formats and sizes.
+    Devices,
+}
+
+/// Runs the scanner head with parsed arguments.
+///
+/// # Errors
+/// Any failure of the run, with context naming what failed.
+pub fn run(args: &Args) -> anyhow::Result<()> {
+    if args.info {
+        crate::outln!(
+            "scanner-device {}: units mm, camera +z forward, +y down; markers per plane ≤ {}",
+            env!("CARGO_PKG_VERSION"),
+            scanner_core::geometry::pose::MAX_MARKERS
+        );
+        return Ok(());
+    }
+    match &args.command {
+        #[cfg(feature = "rig")]
+        Some(Command::Render {
+            scene,
+            out,
+            gray,
+            frames,
+            quiet,
+        }) => {
+            let job = render::RenderJob {
+                scene: scene.clone(),
+                out: out.clone(),
+                gray: *gray,
+                frames: *frames,
+            };
+            let n = render::render(&job, |done, total| {
+                if !quiet && (done % 10 == 0 || done == total) {
+                    eprintln!("rendered {done}/{total} frames");
+                }
+            })?;
+            crate::outln!(
+                "wrote the reference, {n} frames, truth.csv and lasers.csv to {}",
+                out.display()
+            );
+        }
+        #[cfg(feature = "rig")]
+        Some(Command::RenderCalibration { scene, out }) => {
+            let scene = render::load_scene(scene.as_deref())?;
+            let rig = scanner_rig::Rig::new(scene)
+                .map_err(|e| anyhow::anyhow!("building the virtual rig: {e}"))?;
+            render::render_calibration(&rig, out)?;
+            crate::outln!(
+                "wrote board.png, grid-00..11.png, cross-near.png, cross-far.png, shots.txt and truth-calibration.toml to {}",
+                out.display()
+            );
+        }
+        Some(Command::Board { board, out, dpi }) => {
+            if !(*dpi >= 25.0 && *dpi <= 1200.0) {
+                anyhow::bail!("--dpi must be between 25 and 1200, found {dpi}");
+            }
+            calibrate::board_command(board.as_deref(), out, *dpi)?;
+        }
+        Some(Command::Calibrate(c)) => calibrate::calibrate(c)?,
+        Some(Command::Scan(a)) => {
+            let report = scan::scan(a)?;
+            scan::print_report(&report);
+            if let Some(e) = report.ended_early {
+                anyhow::bail!("{e}");
+            }
+        }
+        Some(Command::Devices) => scan::devices(),
+        None => crate::outln!("scanner-device: nothing to do yet (try --help)"),
+    }
+    Ok(())
+}

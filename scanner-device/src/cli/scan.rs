@@ -1,0 +1,376 @@
+//! `scanner-device scan` and `scanner-device devices`: arguments, then a validated plan (the
+//! source opened, the calibration read and checked against it, the link opened), then the run.
+
+use std::path::PathBuf;
+
+use anyhow::{Context, Result, bail};
+use clap::Args;
+use scanner_calib::file::CalibrationFile;
+use scanner_core::pipeline::{HeadConfig, PlaneMethod};
+use scanner_core::stripe::{Axis, LaserColour, Method, PixelFormat, StripeConfig};
+use scanner_core::wire::Skip;
+
+use crate::link::{Link, Target};
+use crate::session::{Calibration, ScanOptions, ScanReport, run_scan};
+use crate::source::convert::CameraFormat;
+use crate::source::{FrameSource, SourceOptions, open_with};
+
+/// Options of `scan`.
+#[derive(Debug, Args)]
+pub struct ScanArgs {
+    /// Frame source: `rig`, `rig:WIDTHxHEIGHT`, `dir:FOLDER` (or a folder), `/dev/videoN`.
+    #[arg(long, default_value = "rig")]
+    pub source: String,
+    /// With the virtual rig: this scene file instead of the demo scene.
+    #[arg(long)]
+    pub scene: Option<PathBuf>,
+    /// Pixel format the pipeline reads.
+    #[arg(long, value_enum, default_value_t = FormatArg::Gray)]
+    pub format: FormatArg,
+    /// Camera resolution, WIDTHxHEIGHT.
+    #[arg(long)]
+    pub size: Option<String>,
+    /// Camera frame rate.
+    #[arg(long)]
+    pub fps: Option<u32>,
+    /// Camera pixel format FourCC (YUYV, GREY, RGB3, MJPG).
+    #[arg(long)]
+    pub fourcc: Option<String>,
+    /// Reference (laser-off) frame from this image.
+    #[arg(long)]
+    pub reference: Option<PathBuf>,
+    /// Otherwise average this many first frames, laser off.
+    #[arg(long, default_value_t = crate::source::REFERENCE_FRAMES)]
+    pub reference_frames: usize,
+    /// Calibration file (`calibrate board`; the virtual rig's truth is
+    /// `render-calibration`'s `truth-calibration.toml`).
+    #[arg(long)]
+    pub calibration: Option<PathBuf>,
+    /// Where the stream goes: `serial:/dev/ttyUSB0@921600`, `file:PATH` (or a path), `-`.
+    #[arg(long, default_value = "scan.stream")]
+    pub out: String,
+    /// How the laser plane is found.
+    #[arg(long, value_enum, default_value_t = PlaneArg::Lsq)]
+    pub method: PlaneArg,
+    /// The light-intensity method (no reference needed for the stripe) instead of the
+    /// difference image.
+    #[arg(long)]
+    pub lim: bool,
+    /// The laser's colour: the stripe is found by the light it adds in that colour (difference
+    /// image) or by how much more of that colour a pixel shows (light intensity); `white` goes
+    /// by brightness alone. Gray frames show no colour: there it is ignored. [default: red]
+    #[arg(long, value_enum)]
+    pub laser: Option<LaserArg>,
+    /// The stripe runs vertically (the laser sweeps sideways): scan rows.
+    #[arg(long)]
+    pub rows: bool,
+    /// Send the stripe's board points too.
+    #[arg(long)]
+    pub keep_board: bool,
+    /// Colour each point from the reference frame.
+    #[arg(long)]
+    pub colour: bool,
+    /// Buffers between the camera and the link (frames dropped beyond).
+    #[arg(long, default_value_t = 8)]
+    pub link_depth: usize,
+    /// Scan id (random without).
+    #[arg(long)]
+    pub scan_id: Option<u32>,
+    /// No progress lines.
+    #[arg(long, short)]
+    pub quiet: bool,
+}
+
+/// `--format`: what the pipeline reads.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum FormatArg {
+    /// 8-bit gray.
+    Gray,
+    /// YUYV 4:2:2, read in place.
+    Yuyv,
+    /// 24-bit RGB.
+    Rgb,
+}
+
+impl From<FormatArg> for PixelFormat {
+    fn from(f: FormatArg) -> Self {
+        match f {
+            FormatArg::Gray => PixelFormat::Gray8,
+            FormatArg::Yuyv => PixelFormat::Yuyv,
+            FormatArg::Rgb => PixelFormat::Rgb24,
+        }
+    }
+}
+
+/// `--method`: how the laser plane is found.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum PlaneArg {
+    /// Least squares over all the stripe's board points (default).
+    Lsq,
+    /// The paper's construction: the lines MN and QR, their crossings S and T.
+    Paper,
+}
+
+/// `--laser`: the laser's colour.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum LaserArg {
+    /// A red laser (635–660 nm), the common line laser.
+    Red,
+    /// A green laser (520–532 nm).
+    Green,
+    /// A blue or violet laser (405–450 nm).
+    Blue,
+    /// By brightness alone.
+    White,
+}
+
+impl From<LaserArg> for LaserColour {
+    fn from(l: LaserArg) -> Self {
+        match l {
+            LaserArg::Red => LaserColour::Red,
+            LaserArg::Green => LaserColour::Green,
+            LaserArg::Blue => LaserColour::Blue,
+            LaserArg::White => LaserColour::White,
+        }
+    }
+}
+
+/// A scan, validated and with its resources open: what [`run`] runs.
+pub struct ScanPlan {
+    source: Box<dyn FrameSource>,
+    calibration: Calibration,
+    options: ScanOptions,
+    link: Link,
+    quiet: bool,
+}
+
+/// Link speeds for the README's table, bytes per second.
+pub const LINKS: [(&str, f64); 3] = [
+    ("115200 baud UART", 11_520.0),
+    ("921600 baud UART", 92_160.0),
+    ("USB CDC", 1_000_000.0),
+];
+
+/// Prints the end-of-scan summary.
+pub fn print_report(r: &ScanReport) {
+    let s = &r.status;
+    crate::outln!(
+        "scan {:08x}: {} frames, {} point packets, {} points, {} bytes in {:.2} s ({:.1} frames/s){}",
+        s.scan_id,
+        s.frames,
+        s.packets,
+        s.points,
+        r.bytes,
+        r.seconds,
+        f64::from(s.frames) / r.seconds.max(1e-9),
+        r.ended_early
+            .as_ref()
+            .map(|e| format!("; ended early: {e}"))
+            .unwrap_or_default()
+    );
+    let bpp = r.bytes_per_point();
+    crate::outln!("{bpp:.2} bytes per point on the link (framing and headers included)");
+    for (name, bps) in LINKS {
+        crate::outln!("  {name}: {:.0} points/s", bps / bpp);
+    }
+    for reason in Skip::ALL {
+        let n = s.skipped[reason as usize];
+        if n > 0 {
+            crate::outln!("  skipped {n} frames: {}", reason.name());
+        }
+    }
+}
+
+/// Runs `scan`: [`plan`], then [`run`].
+///
+/// # Errors
+/// Every failure, named.
+pub fn scan(a: &ScanArgs) -> Result<ScanReport> {
+    run(plan(a)?)
+}
+
+/// Checks the arguments and opens what the scan needs: the frame source, the calibration (read
+/// and checked against the source's size), the link.
+///
+/// # Errors
+/// A bad option, an unreadable or unsuitable calibration, a source or link that cannot open.
+pub fn plan(a: &ScanArgs) -> Result<ScanPlan> {
+    let format = PixelFormat::from(a.format);
+    if let Some(f) = &a.fourcc {
+        let b = f.as_bytes();
+        if b.len() != 4 || CameraFormat::from_fourcc([b[0], b[1], b[2], b[3]]).is_none() {
+            bail!(
+                "unsupported camera pixel format {f:?}: this head reads YUYV, GREY, RGB3 and MJPG"
+            );
+        }
+    }
+    let Some(cal_path) = &a.calibration else {
+        bail!(
+            "no calibration: give --calibration FILE (from `scanner-device calibrate board`; for the virtual rig, `render-calibration` writes truth-calibration.toml)"
+        );
+    };
+    let opts = SourceOptions {
+        size: a
+            .size
+            .as_deref()
+            .map(|s| crate::source::parse_size(s).with_context(|| format!("--size {s:?}")))
+            .transpose()?,
+        fps: a.fps,
+        fourcc: a.fourcc.clone(),
+        reference: a.reference.clone(),
+        reference_frames: a.reference_frames,
+    };
+    let source = open_source(a, format, &opts)?;
+    let calibration = read_calibration(cal_path, source.as_ref(), &a.source)?;
+    let options = ScanOptions {
+        head: head_config(a),
+        header_every: 30,
+        status_every: 30,
+        scan_id: a.scan_id.unwrap_or_else(rand::random),
+    };
+    let target: Target = a
+        .out
+        .parse()
+        .map_err(|e: String| anyhow::anyhow!("--out: {e}"))?;
+    let link = Link::spawn(
+        target.open()?,
+        a.link_depth,
+        scanner_core::wire::MAX_ENCODED,
+    );
+    Ok(ScanPlan {
+        source,
+        calibration,
+        options,
+        link,
+        quiet: a.quiet,
+    })
+}
+
+/// The frame source: the rig with a scene file, or one opened by name.
+fn open_source(
+    a: &ScanArgs,
+    format: PixelFormat,
+    opts: &SourceOptions,
+) -> Result<Box<dyn FrameSource>> {
+    if let Some(path) = &a.scene {
+        #[cfg(feature = "rig")]
+        {
+            if !a.source.starts_with("rig") {
+                bail!("--scene works with the virtual rig only (--source rig)");
+            }
+            let scene = super::render::load_scene(Some(path))?;
+            let rig = scanner_rig::Rig::new(scene)
+                .map_err(|e| anyhow::anyhow!("building the virtual rig: {e}"))?;
+            return Ok(Box::new(crate::source::RigSource::new(rig, format)));
+        }
+        #[cfg(not(feature = "rig"))]
+        bail!(
+            "--scene {}: this build has no virtual rig (the `rig` feature)",
+            path.display()
+        );
+    }
+    open_with(&a.source, format, opts)
+        .with_context(|| format!("opening the frame source {:?}", a.source))
+}
+
+/// The calibration file's camera and board, checked against the source's frame size.
+fn read_calibration(
+    path: &std::path::Path,
+    source: &dyn FrameSource,
+    source_name: &str,
+) -> Result<Calibration> {
+    let file = CalibrationFile::load(path)?;
+    let (w, h) = source.size();
+    if (w as u32, h as u32) != (file.image.width, file.image.height) {
+        bail!(
+            "calibration {} is for {}×{} images but {source_name} gives {w}×{h}",
+            path.display(),
+            file.image.width,
+            file.image.height,
+        );
+    }
+    let camera = file
+        .camera()
+        .with_context(|| format!("camera in {}", path.display()))?;
+    let Some(board) = file.board() else {
+        bail!(
+            "{} has no board: run `scanner-device calibrate board` first",
+            path.display()
+        );
+    };
+    let board = board.with_context(|| format!("board in {}", path.display()))?;
+    Ok(Calibration {
+        camera,
+        board,
+        size: (file.image.width, file.image.height),
+    })
+}
+
+/// The pipeline's settings from the options.
+fn head_config(a: &ScanArgs) -> HeadConfig {
+    let method = if a.lim { Method::Lim } else { Method::Dim };
+    let axis = if a.rows { Axis::Rows } else { Axis::Columns };
+    let colour = a.laser.map_or(LaserColour::Red, LaserColour::from);
+    if a.laser.is_some() && a.format == FormatArg::Gray {
+        eprintln!(
+            "note: --laser {} has no effect on gray frames (--format gray): a gray camera sees no colour",
+            colour.name()
+        );
+    }
+    let mut head = HeadConfig::new(StripeConfig {
+        colour,
+        ..StripeConfig::new(method, axis)
+    });
+    head.method = match a.method {
+        PlaneArg::Lsq => PlaneMethod::LeastSquares,
+        PlaneArg::Paper => PlaneMethod::Paper,
+    };
+    head.keep_board = a.keep_board;
+    head.colour = a.colour;
+    head
+}
+
+/// Runs a planned scan to its end, with progress lines unless quiet.
+///
+/// # Errors
+/// The source failing before the first frame, the link failing.
+pub fn run(plan: ScanPlan) -> Result<ScanReport> {
+    let ScanPlan {
+        mut source,
+        calibration,
+        options,
+        mut link,
+        quiet,
+    } = plan;
+    if !quiet {
+        eprintln!("source: {}", source.describe());
+    }
+    let report = run_scan(
+        source.as_mut(),
+        &calibration,
+        options,
+        &mut link,
+        |s| {
+            if !quiet && s.frames % 30 == 0 {
+                eprintln!(
+                    "frames {}, packets {}, points {}",
+                    s.frames, s.packets, s.points
+                );
+            }
+        },
+        |_, _| {},
+    )?;
+    link.finish()?;
+    Ok(report)
+}
+
+/// Runs `devices`.
+pub fn devices() {
+    let list = crate::source::v4l2::list();
+    if list.is_empty() {
+        crate::outln!("no V4L2 cameras found (or this build has no V4L2 support)");
+    }
+    for l in list {
+        crate::outln!("{l}");
+    }
+}

@@ -1,0 +1,156 @@
+//! Image files as frames: one file, or a folder of them in name order.
+
+use scanner_core::stripe::PixelFormat;
+
+use super::{FrameSource, OwnedFrame, SourceError, SourceOptions, average};
+
+/// Reads an image file as a frame in `format`.
+///
+/// # Errors
+/// [`SourceError::Io`] naming the file.
+pub fn load_frame(
+    path: &std::path::Path,
+    format: PixelFormat,
+    index: u64,
+) -> Result<OwnedFrame, SourceError> {
+    let img = image::open(path).map_err(|e| SourceError::Io(format!("{}: {e}", path.display())))?;
+    let rgb = img.to_rgb8();
+    let (w, h) = (rgb.width() as usize, rgb.height() as usize);
+    let mut data = Vec::new();
+    crate::source::convert::convert(
+        crate::source::convert::CameraFormat::Rgb3,
+        rgb.as_raw(),
+        w,
+        h,
+        3 * w,
+        format,
+        &mut data,
+    )
+    .map_err(|e| SourceError::Io(format!("{}: {e}", path.display())))?;
+    Ok(OwnedFrame {
+        data,
+        width: w,
+        height: h,
+        format,
+        index,
+    })
+}
+
+/// The images of a folder in name order (PNG and JPEG); `reference.*` is the reference frame.
+#[derive(Debug)]
+pub struct ImageDir {
+    dir: std::path::PathBuf,
+    files: Vec<std::path::PathBuf>,
+    reference: Option<std::path::PathBuf>,
+    format: PixelFormat,
+    size: (usize, usize),
+    next: usize,
+    reference_frames: usize,
+}
+
+impl ImageDir {
+    /// Lists a folder.
+    ///
+    /// # Errors
+    /// [`SourceError::Io`] for an unreadable folder, one without images, or an unreadable first
+    /// image.
+    pub fn open(
+        dir: &std::path::Path,
+        format: PixelFormat,
+        opts: &SourceOptions,
+    ) -> Result<ImageDir, SourceError> {
+        let io = |e: std::io::Error| SourceError::Io(format!("{}: {e}", dir.display()));
+        let mut files = Vec::new();
+        let mut reference = opts.reference.clone();
+        for entry in std::fs::read_dir(dir).map_err(io)? {
+            let path = entry.map_err(io)?.path();
+            let ext = path
+                .extension()
+                .and_then(|e| e.to_str())
+                .map(str::to_ascii_lowercase);
+            if !matches!(ext.as_deref(), Some("png" | "jpg" | "jpeg")) {
+                continue;
+            }
+            if path.file_stem().and_then(|s| s.to_str()) == Some("reference") {
+                reference.get_or_insert(path);
+                continue;
+            }
+            files.push(path);
+        }
+        files.sort();
+        let first = files
+            .first()
+            .ok_or_else(|| SourceError::Io(format!("{}: no PNG or JPEG images", dir.display())))?;
+        let f = load_frame(first, format, 0)?;
+        Ok(ImageDir {
+            dir: dir.to_path_buf(),
+            files,
+            reference,
+            format,
+            size: (f.width, f.height),
+            next: 0,
+            reference_frames: opts.reference_frames(),
+        })
+    }
+}
+
+impl FrameSource for ImageDir {
+    fn describe(&self) -> String {
+        format!(
+            "{} images in {} ({}×{})",
+            self.files.len(),
+            self.dir.display(),
+            self.size.0,
+            self.size.1
+        )
+    }
+
+    fn format(&self) -> PixelFormat {
+        self.format
+    }
+
+    fn size(&self) -> (usize, usize) {
+        self.size
+    }
+
+    fn reference(&mut self) -> Result<OwnedFrame, SourceError> {
+        let r = match &self.reference {
+            Some(p) => load_frame(p, self.format, u64::MAX)?,
+            None => {
+                let n = self.reference_frames.min(self.files.len());
+                let frames = self.files[..n]
+                    .iter()
+                    .map(|p| load_frame(p, self.format, u64::MAX))
+                    .collect::<Result<Vec<_>, _>>()?;
+                self.next = n;
+                average(&frames)?
+            }
+        };
+        if (r.width, r.height) != self.size {
+            return Err(SourceError::Io(format!(
+                "the reference is {}×{}, the images {}×{}",
+                r.width, r.height, self.size.0, self.size.1
+            )));
+        }
+        Ok(r)
+    }
+
+    fn next_frame(&mut self) -> Result<Option<OwnedFrame>, SourceError> {
+        let Some(path) = self.files.get(self.next) else {
+            return Ok(None);
+        };
+        let f = load_frame(path, self.format, self.next as u64)?;
+        if (f.width, f.height) != self.size {
+            return Err(SourceError::Io(format!(
+                "{} is {}×{}, the first image {}×{}",
+                path.display(),
+                f.width,
+                f.height,
+                self.size.0,
+                self.size.1
+            )));
+        }
+        self.next += 1;
+        Ok(Some(f))
+    }
+}

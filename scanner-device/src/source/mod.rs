@@ -1,0 +1,242 @@
+//! Frame sources: where the head's frames come from. The per-frame pipeline sees only the
+//! [`FrameSource`] trait, so it runs the same on a V4L2 camera, image files or the virtual rig.
+//!
+//! Sources are opened by name, like a camera:
+//! - `rig` or `rig:WIDTHxHEIGHT`: the virtual rig's demo scene (default 640×480);
+//! - `dir:PATH` (or the path of a folder): the folder's PNG/JPEG images in name order;
+//! - `/dev/videoN` (or `v4l:/dev/videoN`): a V4L2 camera ([`v4l2`], Linux, the `v4l` feature).
+//!
+//! The reference frame (laser off) is, in this order: the file given with `--reference`; for a
+//! folder, its `reference.png` / `reference.jpg` if present; otherwise the average of the first
+//! `reference_frames` frames (default 8), which must be taken with the laser off.
+
+pub mod convert;
+mod images;
+#[cfg(feature = "rig")]
+mod rig;
+pub mod v4l2;
+
+use scanner_core::stripe::{Frame, FrameError, PixelFormat};
+
+pub use images::{ImageDir, load_frame};
+#[cfg(feature = "rig")]
+pub use rig::{RigSource, truth_calibration};
+
+/// A frame owned by the caller, rows packed.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct OwnedFrame {
+    /// Pixel bytes.
+    pub data: Vec<u8>,
+    /// Width, pixels.
+    pub width: usize,
+    /// Height, pixels.
+    pub height: usize,
+    /// Pixel format.
+    pub format: PixelFormat,
+    /// Index in the stream (the reference is `u64::MAX`).
+    pub index: u64,
+}
+
+impl OwnedFrame {
+    /// A borrowed view for the extractor.
+    ///
+    /// # Errors
+    /// [`FrameError`] if the buffer does not match the size (a broken source).
+    pub fn view(&self) -> Result<Frame<'_>, FrameError> {
+        Frame::packed(&self.data, self.width, self.height, self.format)
+    }
+}
+
+/// Why a source could not be opened or gave no frame.
+#[derive(Debug)]
+#[non_exhaustive]
+pub enum SourceError {
+    /// No source of that name; the text lists the names there are.
+    Unknown(String),
+    /// The name's parameters are malformed.
+    BadSpec(String),
+    /// The virtual rig failed.
+    #[cfg(feature = "rig")]
+    Rig(scanner_rig::RigError),
+    /// An image file or folder could not be read.
+    Io(String),
+    /// The camera failed or delivered a bad buffer.
+    Camera(String),
+}
+
+impl std::fmt::Display for SourceError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Self::Unknown(name) => write!(
+                f,
+                "no frame source named {name:?} (known: rig, rig:WIDTHxHEIGHT, dir:FOLDER, /dev/videoN)"
+            ),
+            Self::BadSpec(what) => write!(f, "bad frame source: {what}"),
+            #[cfg(feature = "rig")]
+            Self::Rig(e) => write!(f, "virtual rig: {e}"),
+            Self::Io(e) => write!(f, "image source: {e}"),
+            Self::Camera(e) => write!(f, "camera: {e}"),
+        }
+    }
+}
+
+impl std::error::Error for SourceError {}
+
+#[cfg(feature = "rig")]
+impl From<scanner_rig::RigError> for SourceError {
+    fn from(e: scanner_rig::RigError) -> Self {
+        Self::Rig(e)
+    }
+}
+
+/// Where frames come from.
+pub trait FrameSource {
+    /// A short description for logs and the session header.
+    fn describe(&self) -> String;
+    /// Pixel format of the frames.
+    fn format(&self) -> PixelFormat;
+    /// Frame size, pixels.
+    fn size(&self) -> (usize, usize);
+    /// The laser-off reference frame.
+    ///
+    /// # Errors
+    /// The source's failure, named.
+    fn reference(&mut self) -> Result<OwnedFrame, SourceError>;
+    /// The next laser frame, or `None` when the stream has ended.
+    ///
+    /// # Errors
+    /// The source's failure, named.
+    fn next_frame(&mut self) -> Result<Option<OwnedFrame>, SourceError>;
+}
+
+/// Laser-off frames averaged into the reference when no reference image is given.
+pub const REFERENCE_FRAMES: usize = 8;
+
+/// Largest width or height the head takes, pixels (the wire's `u16`).
+pub const MAX_SIDE: u32 = 65_535;
+
+/// A `WIDTHxHEIGHT` (or `COLSxROWS`) that is not one.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("{text:?}: expected WIDTHxHEIGHT with both between 1 and {MAX_SIDE}, like 640x480")]
+pub struct SizeError {
+    /// What was given.
+    pub text: String,
+}
+
+/// Parses `WIDTHxHEIGHT` (`x` or `X`), both between 1 and [`MAX_SIDE`]: the one parser of sizes
+/// and counts given on the command line or in a source name.
+///
+/// # Errors
+/// [`SizeError`] naming the text.
+pub fn parse_size(s: &str) -> Result<(u32, u32), SizeError> {
+    let err = || SizeError {
+        text: s.chars().take(40).collect(),
+    };
+    let (w, h) = s.split_once(['x', 'X']).ok_or_else(err)?;
+    let side = |t: &str| {
+        t.trim()
+            .parse::<u32>()
+            .ok()
+            .filter(|&v| (1..=MAX_SIDE).contains(&v))
+            .ok_or_else(err)
+    };
+    Ok((side(w)?, side(h)?))
+}
+
+/// How a source is opened (beyond its name and the pixel format).
+#[derive(Debug, Clone, PartialEq, Eq, Default)]
+pub struct SourceOptions {
+    /// Requested resolution (cameras).
+    pub size: Option<(u32, u32)>,
+    /// Requested frame rate (cameras).
+    pub fps: Option<u32>,
+    /// Requested camera format FourCC (`YUYV`, `GREY`, `RGB3`, `MJPG`); the camera's own choice
+    /// among these otherwise.
+    pub fourcc: Option<String>,
+    /// Reference frame from this image file.
+    pub reference: Option<std::path::PathBuf>,
+    /// Otherwise average this many first frames (laser off) into the reference (0: the
+    /// default, [`REFERENCE_FRAMES`]).
+    pub reference_frames: usize,
+}
+
+impl SourceOptions {
+    /// Frames averaged into the reference.
+    pub fn reference_frames(&self) -> usize {
+        if self.reference_frames == 0 {
+            REFERENCE_FRAMES
+        } else {
+            self.reference_frames
+        }
+    }
+}
+
+/// Averages frames of one shape into one.
+///
+/// # Errors
+/// [`SourceError::Camera`] when the frames differ in shape or there are none.
+pub fn average(frames: &[OwnedFrame]) -> Result<OwnedFrame, SourceError> {
+    let first = frames
+        .first()
+        .ok_or_else(|| SourceError::Camera("no frames to average into a reference".into()))?;
+    if frames.iter().any(|f| {
+        (f.width, f.height, f.format) != (first.width, first.height, first.format)
+            || f.data.len() != first.data.len()
+    }) {
+        return Err(SourceError::Camera(
+            "reference frames differ in size or format".into(),
+        ));
+    }
+    let n = frames.len() as u32;
+    let data = (0..first.data.len())
+        .map(|i| ((frames.iter().map(|f| u32::from(f.data[i])).sum::<u32>() + n / 2) / n) as u8)
+        .collect();
+    Ok(OwnedFrame {
+        data,
+        index: u64::MAX,
+        ..first.clone()
+    })
+}
+
+/// Opens a frame source by name (see the module docs), delivering `format`.
+///
+/// # Errors
+/// [`SourceError::Unknown`] for an unknown name, [`SourceError::BadSpec`] for malformed
+/// parameters, or the source's own failure.
+pub fn open(name: &str, format: PixelFormat) -> Result<Box<dyn FrameSource>, SourceError> {
+    open_with(name, format, &SourceOptions::default())
+}
+
+/// [`open`] with options.
+///
+/// # Errors
+/// As [`open`].
+pub fn open_with(
+    name: &str,
+    format: PixelFormat,
+    opts: &SourceOptions,
+) -> Result<Box<dyn FrameSource>, SourceError> {
+    if name.starts_with("/dev/video") || name.starts_with("v4l:") {
+        let path = name.strip_prefix("v4l:").unwrap_or(name);
+        return v4l2::open(path, format, opts);
+    }
+    if let Some(dir) = name.strip_prefix("dir:") {
+        return Ok(Box::new(ImageDir::open(
+            std::path::Path::new(dir),
+            format,
+            opts,
+        )?));
+    }
+    if std::path::Path::new(name).is_dir() {
+        return Ok(Box::new(ImageDir::open(
+            std::path::Path::new(name),
+            format,
+            opts,
+        )?));
+    }
+    match name.split_once(':').unwrap_or((name, "")) {
+        #[cfg(feature = "rig")]
+        ("rig", params) => rig::open(name, params, format),
+        _ => Err(SourceError::Unknown(name.to_string())),
+    }
+}
