@@ -3,7 +3,8 @@
 
 use proptest::prelude::*;
 use scanner_core::wire::{
-    Decoder, Header, MAX_ENCODED, MAX_FRAME, Message, Points, Status, WireError, encode, points,
+    CameraBlock, Decoder, EndReason, Header, MAX_ENCODED, MAX_FRAME, Message, PlaneBlock,
+    PlaneMethod, Points, Status, WireError, encode, points,
 };
 
 fn header() -> Header {
@@ -12,10 +13,29 @@ fn header() -> Header {
         width: 1600,
         height: 1200,
         unit_um: 10,
-        camera: [1400.0, 1400.5, 799.5, 599.5, -0.06, 0.02, 0.0, 0.0, 0.0],
-        board: [[0.7, 0.0, -0.7, 565.0], [-0.7, 0.0, -0.7, 565.0]],
+        camera: CameraBlock {
+            fx: 1400.0,
+            fy: 1400.5,
+            cx: 799.5,
+            cy: 599.5,
+            k1: -0.06,
+            k2: 0.02,
+            p1: 0.0,
+            p2: 0.0,
+            k3: 0.0,
+        },
+        board: [
+            PlaneBlock {
+                normal: [0.7, 0.0, -0.7],
+                offset: 565.0,
+            },
+            PlaneBlock {
+                normal: [-0.7, 0.0, -0.7],
+                offset: 565.0,
+            },
+        ],
         colour: true,
-        method: 0,
+        method: PlaneMethod::LeastSquares,
     }
 }
 
@@ -82,7 +102,7 @@ fn every_message_round_trips_and_points_average_few_bytes() {
             skipped: [1, 2, 0, 0, 0, 2],
             fps_milli: 29970,
             done: true,
-            ended: 0,
+            ended: EndReason::Completed,
         }),
     ];
     let mut stream = Vec::new();
@@ -198,4 +218,72 @@ proptest! {
     fn point_decoding_never_panics(bytes in proptest::collection::vec(any::<u8>(), 0..200), count in 0usize..100) {
         let _ = points::decode(&bytes, count, |_| {});
     }
+}
+
+fn hex(bytes: &[u8]) -> String {
+    bytes
+        .iter()
+        .map(|b| format!("{b:02x}"))
+        .collect::<Vec<_>>()
+        .join(" ")
+}
+
+/// The golden frame of `docs/wire.md`: this header, byte for byte. A change of these bytes is a
+/// change of the format (see the document's rule for `VERSION`).
+#[test]
+fn the_golden_header_frame_of_the_spec_is_what_the_encoder_writes() {
+    let bytes = frame_bytes(&Message::Header(header()));
+    let golden =
+        std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/../docs/wire.md")).unwrap();
+    let start = golden.find("<!-- golden:begin -->").expect("golden block") + 21;
+    let end = golden.find("<!-- golden:end -->").expect("golden block");
+    let want: String = golden[start..end]
+        .lines()
+        .filter(|l| !l.starts_with("```"))
+        .collect::<Vec<_>>()
+        .join(" ")
+        .split_whitespace()
+        .collect::<Vec<_>>()
+        .join(" ");
+    assert_eq!(
+        hex(&bytes),
+        want,
+        "\nthe encoder now writes:\n{}",
+        hex(&bytes)
+    );
+    let mut d = Decoder::<MAX_ENCODED>::new();
+    let mut got = None;
+    d.feed(&bytes, |m| got = Some(m.map(|m| format!("{m:?}"))));
+    assert_eq!(
+        got.unwrap().unwrap(),
+        format!("{:?}", Message::Header(header()))
+    );
+}
+
+/// The validated layer: enum fields take only their values, the camera block and the planes
+/// become checked core types.
+#[test]
+fn wire_enums_and_blocks_are_checked_at_the_parse() {
+    // The method byte of a header frame set to 7: the frame is refused, not misread.
+    let mut scratch = vec![0u8; MAX_FRAME];
+    let mut payload = vec![0u8; MAX_FRAME];
+    let n = postcard::to_slice(&Message::Header(header()), &mut payload)
+        .unwrap()
+        .len();
+    // The header ends with the colour flag and the method byte.
+    payload[n - 1] = 7;
+    let _ = &mut scratch;
+    assert!(postcard::from_bytes::<Message>(&payload[..n]).is_err());
+    // Round trips of the blocks, and refusals of what no camera or plane is.
+    let h = header();
+    let cam = h.camera().unwrap();
+    assert_eq!(CameraBlock::from(&cam), h.camera);
+    assert!(h.board().is_ok());
+    let mut bad = h;
+    bad.camera.fx = -1.0;
+    assert!(bad.camera().is_err());
+    bad.board[0].normal = [0.0; 3];
+    assert!(bad.board().is_err());
+    assert_eq!(EndReason::try_from(2u8), Ok(EndReason::Stopped));
+    assert!(EndReason::try_from(3u8).is_err());
 }

@@ -6,7 +6,7 @@ use std::time::Instant;
 use anyhow::{Result, bail};
 use scanner_core::Camera;
 use scanner_core::geometry::Board;
-use scanner_core::pipeline::{Head, HeadConfig, PlaneMethod};
+use scanner_core::pipeline::{Head, HeadConfig};
 use scanner_core::wire::{self, Header, Message, Points, Skip, Status};
 
 use crate::link::Link;
@@ -99,36 +99,17 @@ impl Session {
             bail!("{lines} lines per frame: the head handles at most {MAX_LINES}");
         }
         let (camera, board) = (cal.camera, cal.board);
-        let d = camera.distortion();
-        let pp = camera.principal_point();
-        let plane = |p: &scanner_core::geometry::Plane<f64>| {
-            let n = p.normal();
-            [n.x as f32, n.y as f32, n.z as f32, p.offset() as f32]
+        let (Ok(w16), Ok(h16)) = (u16::try_from(w), u16::try_from(h)) else {
+            bail!("{w}×{h} images: the wire carries sizes up to 65535");
         };
-        let header = Header {
-            scan_id: opts.scan_id,
-            width: w as u16,
-            height: h as u16,
-            unit_um: (wire::UNIT_MM * 1000.0).round() as u16,
-            camera: [
-                camera.fx(),
-                camera.fy(),
-                pp.x,
-                pp.y,
-                d.k1,
-                d.k2,
-                d.p1,
-                d.p2,
-                d.k3,
-            ]
-            .map(|v| v as f32),
-            board: [plane(board.left()), plane(board.right())],
-            colour: opts.head.colour,
-            method: match opts.head.method {
-                PlaneMethod::LeastSquares => 0,
-                PlaneMethod::Paper => 1,
-            },
-        };
+        let header = Header::new(
+            opts.scan_id,
+            (w16, h16),
+            &camera,
+            &board,
+            opts.head.colour,
+            opts.head.method.into(),
+        );
         Ok(Session {
             head: Box::new(Head::new(camera.cast(), board.cast(), opts.head)),
             reference,
@@ -270,7 +251,9 @@ impl Session {
     pub fn finish(mut self, link: &mut Link, ended_early: Option<String>) -> Result<ScanReport> {
         let mut s = self.status();
         s.done = true;
-        s.ended = u8::from(ended_early.is_some());
+        if ended_early.is_some() {
+            s.ended = wire::EndReason::CameraLost;
+        }
         let before = self.status.bytes;
         self.send(link, &Message::Status(s), true)?;
         let bytes = self.status.bytes;

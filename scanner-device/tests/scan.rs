@@ -81,7 +81,7 @@ fn the_stream_in_a_file_decodes_to_exactly_the_heads_points() {
     assert_eq!(stats.rejected(), 0);
     assert_eq!(theirs, mine, "decoded points differ from the head's");
     let status = last.expect("a final status");
-    assert!(status.done && status.ended == 0);
+    assert!(status.done && status.ended == scanner_core::wire::EndReason::Completed);
     assert_eq!(u64::from(status.packets), mine.len() as u64);
     assert_eq!(
         status.points,
@@ -252,7 +252,9 @@ fn a_camera_that_fails_mid_scan_ends_with_a_final_status() {
     let (_, _, last, stats) = decode(&out.lock().unwrap());
     assert_eq!(stats.rejected(), 0);
     let last = last.expect("a final status");
-    assert!(last.done && last.ended == 1 && last.frames == 5);
+    assert!(
+        last.done && last.ended == scanner_core::wire::EndReason::CameraLost && last.frames == 5
+    );
 }
 
 #[test]

@@ -13,16 +13,34 @@ use scanner_host::grid::{Cell, Grid};
 
 /// A synthetic stream: `frames` packets of 1600 stripe points over a sphere-like bump.
 fn stream(frames: u32) -> Vec<u8> {
-    let header = wire::Header {
-        scan_id: 1,
-        width: 1600,
-        height: 1200,
-        unit_um: 10,
-        camera: [1400.0, 1400.0, 799.5, 599.5, -0.06, 0.02, 0.0, 0.0, 0.0],
-        board: [[0.707, 0.0, -0.707, 565.7], [-0.707, 0.0, -0.707, 565.7]],
-        colour: false,
-        method: 0,
+    let camera = scanner_core::Camera::new(
+        1400.0,
+        1400.0,
+        799.5,
+        599.5,
+        scanner_core::Distortion {
+            k1: -0.06,
+            k2: 0.02,
+            ..scanner_core::Distortion::none()
+        },
+    )
+    .unwrap();
+    let plane = |x: f64| {
+        scanner_core::geometry::Plane::new(
+            scanner_core::nalgebra::Vector3::new(x, 0.0, -0.707),
+            565.7,
+        )
+        .unwrap()
     };
+    let board = scanner_core::geometry::Board::new(plane(0.707), plane(-0.707)).unwrap();
+    let header = wire::Header::new(
+        1,
+        (1600, 1200),
+        &camera,
+        &board,
+        false,
+        wire::PlaneMethod::LeastSquares,
+    );
     let mut scratch = vec![0u8; wire::MAX_FRAME];
     let mut out = vec![0u8; MAX_ENCODED];
     let mut s = Vec::new();

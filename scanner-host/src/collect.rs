@@ -8,11 +8,11 @@ use std::path::Path;
 use std::time::Instant;
 
 use anyhow::{Context, Result};
+use scanner_core::Camera;
 use scanner_core::nalgebra::Point3;
 use scanner_core::wire::{
     self, DecodeStats, Decoder, Header, MAX_ENCODED, Message, SKIP_REASONS, Status, points,
 };
-use scanner_core::{Camera, Distortion};
 
 use crate::grid::{Cell, Grid};
 
@@ -281,26 +281,15 @@ impl Collector {
     }
 
     fn start(&mut self, h: &Header) -> Result<()> {
-        let c = h.camera.map(f64::from);
-        let camera = Camera::new(
-            c[0],
-            c[1],
-            c[2],
-            c[3],
-            Distortion {
-                k1: c[4],
-                k2: c[5],
-                p1: c[6],
-                p2: c[7],
-                k3: c[8],
-            },
-        )
-        .map_err(|e| anyhow::anyhow!("the header's camera is unusable: {e}"))?;
+        let camera: Camera<f64> = h
+            .camera()
+            .map_err(|e| anyhow::anyhow!("the header's camera is unusable: {e}"))?
+            .cast();
         // Millimetre grids span the view out to the board's crease distance (or 2 m).
         let depth = h
             .board
             .iter()
-            .map(|b| f64::from(b[3]).abs())
+            .map(|b| f64::from(b.offset).abs())
             .fold(0.0, f64::max)
             .max(200.0)
             * 1.5;

@@ -175,7 +175,7 @@ pub fn write_outputs(c: &Collector, dir: &Path, min_count: u32) -> Result<Summar
         min_count,
         ..MeshOptions::default()
     };
-    let m = mesh::build(grid, f64::from(header.camera[0]), &opts, c.colour());
+    let m = mesh::build(grid, f64::from(header.camera.fx), &opts, c.colour());
     export::write_atomic(&dir.join("scan.obj"), export::obj(&m).as_bytes())?;
     export::write_atomic(&dir.join("scan.ply"), &export::ply(&m))?;
     export::write_atomic(&dir.join("scan.stl"), &export::stl(&m))?;

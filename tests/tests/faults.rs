@@ -82,7 +82,7 @@ fn mesh_of(bytes: &[u8]) -> (String, scanner_host::collect::Counts) {
     let grid = c.grid().expect("a header arrived");
     let m = scanner_host::mesh::build(
         grid,
-        f64::from(c.header().unwrap().camera[0]),
+        f64::from(c.header().unwrap().camera.fx),
         &Default::default(),
         false,
     );

@@ -18,7 +18,11 @@ pub mod points;
 
 use core::fmt;
 
+use nalgebra::Vector3;
 use serde::{Deserialize, Serialize};
+
+use crate::geometry::{Board, Plane};
+use crate::{Camera, Distortion, GeomError, Real};
 
 /// Protocol version, the first byte of every frame.
 pub const VERSION: u8 = 1;
@@ -75,6 +79,153 @@ impl Skip {
     }
 }
 
+/// How the head finds each frame's laser plane (the header says it).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(into = "u8", try_from = "u8")]
+#[repr(u8)]
+pub enum PlaneMethod {
+    /// Least squares over all of the stripe's board points.
+    LeastSquares = 0,
+    /// The paper's construction (lines MN and QR, crossings S and T).
+    Paper = 1,
+}
+
+/// Why a scan ended (the last status says it).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(into = "u8", try_from = "u8")]
+#[repr(u8)]
+pub enum EndReason {
+    /// It has not ended, or it ran to its end.
+    #[default]
+    Completed = 0,
+    /// The camera failed or vanished mid-scan.
+    CameraLost = 1,
+    /// The operator stopped it (Ctrl-C, a signal, a frame or time limit).
+    Stopped = 2,
+}
+
+/// A `u8` that names no variant of a wire enum.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct BadEnum(pub u8);
+
+impl fmt::Display for BadEnum {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "{} names no value of this field", self.0)
+    }
+}
+
+macro_rules! wire_enum {
+    ($t:ty, $($v:ident = $n:literal),+) => {
+        impl From<$t> for u8 {
+            fn from(v: $t) -> u8 {
+                v as u8
+            }
+        }
+        impl TryFrom<u8> for $t {
+            type Error = BadEnum;
+            fn try_from(n: u8) -> Result<Self, BadEnum> {
+                match n {
+                    $($n => Ok(<$t>::$v),)+
+                    _ => Err(BadEnum(n)),
+                }
+            }
+        }
+    };
+}
+wire_enum!(PlaneMethod, LeastSquares = 0, Paper = 1);
+wire_enum!(EndReason, Completed = 0, CameraLost = 1, Stopped = 2);
+
+/// The camera on the wire: its nine intrinsics as `f32`, in this order (the same bytes as
+/// `[f32; 9]`).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct CameraBlock {
+    /// Focal length along x, pixels.
+    pub fx: f32,
+    /// Focal length along y, pixels.
+    pub fy: f32,
+    /// Principal point x, pixels.
+    pub cx: f32,
+    /// Principal point y, pixels.
+    pub cy: f32,
+    /// Radial distortion k1.
+    pub k1: f32,
+    /// Radial distortion k2.
+    pub k2: f32,
+    /// Tangential distortion p1.
+    pub p1: f32,
+    /// Tangential distortion p2.
+    pub p2: f32,
+    /// Radial distortion k3.
+    pub k3: f32,
+}
+
+impl<T: Real> From<&Camera<T>> for CameraBlock {
+    fn from(c: &Camera<T>) -> Self {
+        let c: Camera<f32> = c.cast();
+        let (d, pp) = (c.distortion(), c.principal_point());
+        CameraBlock {
+            fx: c.fx(),
+            fy: c.fy(),
+            cx: pp.x,
+            cy: pp.y,
+            k1: d.k1,
+            k2: d.k2,
+            p1: d.p1,
+            p2: d.p2,
+            k3: d.k3,
+        }
+    }
+}
+
+impl TryFrom<CameraBlock> for Camera<f32> {
+    type Error = GeomError;
+    /// The camera, checked as [`Camera::new`] checks it.
+    fn try_from(b: CameraBlock) -> Result<Self, GeomError> {
+        Camera::new(
+            b.fx,
+            b.fy,
+            b.cx,
+            b.cy,
+            Distortion {
+                k1: b.k1,
+                k2: b.k2,
+                p1: b.p1,
+                p2: b.p2,
+                k3: b.k3,
+            },
+        )
+    }
+}
+
+/// A board plane on the wire: unit normal and offset (mm), `n · x + d = 0`.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct PlaneBlock {
+    /// Unit normal, toward the camera.
+    pub normal: [f32; 3],
+    /// Offset, mm.
+    pub offset: f32,
+}
+
+impl<T: Real> From<&Plane<T>> for PlaneBlock {
+    fn from(p: &Plane<T>) -> Self {
+        let n = p.normal();
+        PlaneBlock {
+            normal: [n.x, n.y, n.z].map(|v| v.to_f64() as f32),
+            offset: p.offset().to_f64() as f32,
+        }
+    }
+}
+
+impl TryFrom<PlaneBlock> for Plane<f32> {
+    type Error = GeomError;
+    fn try_from(b: PlaneBlock) -> Result<Self, GeomError> {
+        Plane::new(
+            Vector3::new(b.normal[0], b.normal[1], b.normal[2]),
+            b.offset,
+        )
+    }
+}
+
 /// The session header.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct Header {
@@ -86,14 +237,68 @@ pub struct Header {
     pub height: u16,
     /// Length of one wire unit, micrometres (10: 0.01 mm).
     pub unit_um: u16,
-    /// Camera intrinsics `fx, fy, cx, cy, k1, k2, p1, p2, k3`.
-    pub camera: [f32; 9],
-    /// Board planes `[nx, ny, nz, d]` (mm), left and right.
-    pub board: [[f32; 4]; 2],
+    /// Camera intrinsics.
+    pub camera: CameraBlock,
+    /// Board planes, left and right.
+    pub board: [PlaneBlock; 2],
     /// Whether points carry colour.
     pub colour: bool,
-    /// Laser-plane method: 0 least squares, 1 the paper's construction.
-    pub method: u8,
+    /// How the laser plane is found.
+    pub method: PlaneMethod,
+}
+
+impl From<crate::pipeline::PlaneMethod> for PlaneMethod {
+    fn from(m: crate::pipeline::PlaneMethod) -> Self {
+        match m {
+            crate::pipeline::PlaneMethod::LeastSquares => PlaneMethod::LeastSquares,
+            crate::pipeline::PlaneMethod::Paper => PlaneMethod::Paper,
+        }
+    }
+}
+
+impl Header {
+    /// The header of a scan: its id, the image size, the calibration, whether points carry
+    /// colour and how the laser plane is found; units of [`UNIT_MM`].
+    pub fn new<T: Real>(
+        scan_id: u32,
+        (width, height): (u16, u16),
+        camera: &Camera<T>,
+        board: &Board<T>,
+        colour: bool,
+        method: PlaneMethod,
+    ) -> Header {
+        Header {
+            scan_id,
+            width,
+            height,
+            unit_um: (UNIT_MM * 1000.0) as u16,
+            camera: camera.into(),
+            board: [board.left().into(), board.right().into()],
+            colour,
+            method,
+        }
+    }
+
+    /// The camera, checked.
+    ///
+    /// # Errors
+    /// [`GeomError`] for intrinsics no camera has (a head sending garbage).
+    pub fn camera(&self) -> Result<Camera<f32>, GeomError> {
+        self.camera.try_into()
+    }
+
+    /// The board, checked.
+    ///
+    /// # Errors
+    /// [`GeomError`] for planes that are not planes or do not meet.
+    pub fn board(&self) -> Result<Board<f32>, GeomError> {
+        Board::new(self.board[0].try_into()?, self.board[1].try_into()?)
+    }
+
+    /// Length of one wire unit, mm.
+    pub fn unit_mm(&self) -> f32 {
+        f32::from(self.unit_um) / 1000.0
+    }
 }
 
 /// One frame's points.
@@ -136,8 +341,8 @@ pub struct Status {
     pub fps_milli: u32,
     /// `true` in the last status of a scan.
     pub done: bool,
-    /// Why the scan ended early (0: it did not; 1: camera lost; 2: stopped).
-    pub ended: u8,
+    /// Why the scan ended (in the last status; [`EndReason::Completed`] before).
+    pub ended: EndReason,
 }
 
 /// A message.
