@@ -31,6 +31,7 @@
 
 pub mod calib;
 pub mod camera;
+pub mod colour;
 mod error;
 pub mod geometry;
 pub mod pipeline;

@@ -255,17 +255,9 @@ pub fn colour_at(frame: &Frame<'_>, at: &Point2<f32>) -> [u8; 3] {
         PixelFormat::Gray8 => [row[x]; 3],
         PixelFormat::Rgb24 => [row[3 * x], row[3 * x + 1], row[3 * x + 2]],
         PixelFormat::Yuyv => {
-            // Y of this pixel, U and V of its pair (BT.601, full range).
+            // Y of this pixel, U and V of its pair.
             let pair = (x / 2) * 4;
-            let yy = f32::from(row[2 * x]);
-            let u = f32::from(row[pair + 1]) - 128.0;
-            let v = f32::from(row[pair + 3]) - 128.0;
-            let c = |f: f32| f.clamp(0.0, 255.0) as u8;
-            [
-                c(yy + 1.402 * v),
-                c(yy - 0.344_136 * u - 0.714_136 * v),
-                c(yy + 1.772 * u),
-            ]
+            crate::colour::yuv_to_rgb(row[2 * x], row[pair + 1], row[pair + 3])
         }
     }
 }

@@ -75,7 +75,7 @@ pub(crate) struct Kind {
 
 #[inline]
 fn luma(p: &[u8]) -> u8 {
-    ((77 * u32::from(p[0]) + 150 * u32::from(p[1]) + 29 * u32::from(p[2])) >> 8) as u8
+    crate::colour::luma([p[0], p[1], p[2]])
 }
 
 /// Index of the laser's channel and of the other two (white: none).
@@ -360,8 +360,8 @@ fn lumas(p: &[u8; 48], out: &mut [u8]) {
             u16::from(p[3 * i + 1]),
             u16::from(p[3 * i + 2]),
         );
-        // 77 R + 150 G + 29 B over 256, in 16 bits: (77 R + 150 G + 29 B) ≤ 65280
-        *o = ((77 * r + 150 * g + 29 * b) >> 8) as u8;
+        // `colour::luma` in 16 bits (77 R + 150 G + 29 B + 128 ≤ 65408), for the vector unit.
+        *o = ((77 * r + 150 * g + 29 * b + 128) >> 8) as u8;
     }
 }
 

@@ -44,37 +44,13 @@ impl Default for CornerConfig {
     }
 }
 
-/// One pass of a 1-D kernel along rows (`along_x`) or columns, edges clamped.
-fn blur_pass(src: &[f64], w: usize, h: usize, k: &[f64], along_x: bool) -> Vec<f64> {
-    let r = (k.len() / 2) as i64;
-    let ks: f64 = k.iter().sum();
-    let mut out = vec![0.0; w * h];
-    for y in 0..h {
-        for x in 0..w {
-            let mut s = 0.0;
-            for (i, kv) in k.iter().enumerate() {
-                let d = i as i64 - r;
-                let idx = if along_x {
-                    y * w + (x as i64 + d).clamp(0, w as i64 - 1) as usize
-                } else {
-                    (y as i64 + d).clamp(0, h as i64 - 1) as usize * w + x
-                };
-                s += kv * src[idx];
-            }
-            out[y * w + x] = s / ks;
-        }
-    }
-    out
-}
-
 fn gaussian_blur(img: &GrayImage, sigma: f64) -> Vec<f64> {
     let (w, h) = (img.width() as usize, img.height() as usize);
-    let r = (3.0 * sigma).ceil() as i64;
-    let k: Vec<f64> = (-r..=r)
-        .map(|i| (-(i * i) as f64 / (2.0 * sigma * sigma)).exp())
-        .collect();
-    let src: Vec<f64> = img.as_raw().iter().map(|&v| f64::from(v)).collect();
-    blur_pass(&blur_pass(&src, w, h, &k, true), w, h, &k, false)
+    let src: Vec<[f64; 1]> = img.as_raw().iter().map(|&v| [f64::from(v)]).collect();
+    crate::blur::blur(&src, w, h, &crate::blur::gaussian_kernel(sigma))
+        .into_iter()
+        .map(|[v]| v)
+        .collect()
 }
 
 /// Bilinear sample of a float image.

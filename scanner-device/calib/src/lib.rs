@@ -14,6 +14,7 @@
 //! The results go into one calibration file ([`file`](mod@file)) with an annotated picture ([`overlay`]).
 #![deny(missing_docs)]
 
+pub mod blur;
 pub mod board;
 pub mod corners;
 pub mod detect;

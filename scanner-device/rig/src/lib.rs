@@ -513,29 +513,19 @@ impl Rgb8 {
     /// The frame in another pixel format, rows packed: gray is the luma, YUYV carries the luma
     /// of each pixel and the chroma of each pair.
     pub fn to_format(&self, format: PixelFormat) -> Vec<u8> {
-        let luma = |p: &[u8]| -> f64 {
-            0.299 * f64::from(p[0]) + 0.587 * f64::from(p[1]) + 0.114 * f64::from(p[2])
-        };
+        use scanner_core::colour::{luma, rgb_pair_to_yuyv};
         match format {
             PixelFormat::Rgb24 => self.data.clone(),
             PixelFormat::Gray8 => self
                 .data
                 .chunks_exact(3)
-                .map(|p| luma(p).round() as u8)
+                .map(|p| luma([p[0], p[1], p[2]]))
                 .collect(),
-            PixelFormat::Yuyv => {
-                let mut out = Vec::with_capacity(self.width * self.height * 2);
-                for pair in self.data.chunks_exact(6) {
-                    let (a, b) = (&pair[..3], &pair[3..]);
-                    let (ya, yb) = (luma(a), luma(b));
-                    let avg = |i: usize| (f64::from(a[i]) + f64::from(b[i])) / 2.0;
-                    let y = (ya + yb) / 2.0;
-                    let u = (128.0 + 0.564 * (avg(2) - y)).round().clamp(0.0, 255.0) as u8;
-                    let v = (128.0 + 0.713 * (avg(0) - y)).round().clamp(0.0, 255.0) as u8;
-                    out.extend_from_slice(&[ya.round() as u8, u, yb.round() as u8, v]);
-                }
-                out
-            }
+            PixelFormat::Yuyv => self
+                .data
+                .chunks_exact(6)
+                .flat_map(|p| rgb_pair_to_yuyv([p[0], p[1], p[2]], [p[3], p[4], p[5]]))
+                .collect(),
         }
     }
 }
@@ -555,50 +545,7 @@ pub struct Rig {
     kernel: Vec<f64>,
 }
 
-/// A normalised Gaussian kernel of standard deviation `sigma` (pixels), radius ⌈3σ⌉.
-fn gaussian_kernel(sigma: f64) -> Vec<f64> {
-    if !(sigma > 0.0) {
-        return vec![1.0];
-    }
-    let r = (3.0 * sigma).ceil() as i64;
-    let k: Vec<f64> = (-r..=r)
-        .map(|i| (-(i * i) as f64 / (2.0 * sigma * sigma)).exp())
-        .collect();
-    let sum: f64 = k.iter().sum();
-    k.into_iter().map(|v| v / sum).collect()
-}
-
-/// Separable blur of an RGB image with a normalised kernel, clamping at the borders.
-fn blur(img: &[[f64; 3]], w: usize, h: usize, kernel: &[f64]) -> Vec<[f64; 3]> {
-    let r = kernel.len() / 2;
-    let mut tmp = vec![[0.0; 3]; w * h];
-    for v in 0..h {
-        for u in 0..w {
-            let mut acc = [0.0; 3];
-            for (j, k) in kernel.iter().enumerate() {
-                let uu = (u + j).saturating_sub(r).min(w - 1);
-                for c in 0..3 {
-                    acc[c] += k * img[v * w + uu][c];
-                }
-            }
-            tmp[v * w + u] = acc;
-        }
-    }
-    let mut out = vec![[0.0; 3]; w * h];
-    for v in 0..h {
-        for u in 0..w {
-            let mut acc = [0.0; 3];
-            for (j, k) in kernel.iter().enumerate() {
-                let vv = (v + j).saturating_sub(r).min(h - 1);
-                for c in 0..3 {
-                    acc[c] += k * tmp[vv * w + u][c];
-                }
-            }
-            out[v * w + u] = acc;
-        }
-    }
-    out
-}
+use scanner_calib::blur::{blur, gaussian_kernel};
 
 /// Largest footprint of a pixel across the light plane the renderer expects, mm: beyond
 /// `5σ +` this from the plane a pixel is not examined further.

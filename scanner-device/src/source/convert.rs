@@ -5,6 +5,7 @@
 //! (24-bit RGB), `MJPG` (motion JPEG: each buffer a JPEG image). Buffers may have padded rows
 //! (`stride` ≥ the packed row).
 
+use scanner_core::colour::{luma, rgb_pair_to_yuyv, yuv_to_rgb};
 use scanner_core::stripe::PixelFormat;
 
 /// A camera's pixel format.
@@ -81,10 +82,6 @@ pub enum ConvertError {
     OddWidth(usize),
 }
 
-fn luma(r: u8, g: u8, b: u8) -> u8 {
-    (0.299 * f32::from(r) + 0.587 * f32::from(g) + 0.114 * f32::from(b)).round() as u8
-}
-
 /// Converts one camera buffer to `want` into `out` (resized to fit, rows packed).
 ///
 /// # Errors
@@ -155,34 +152,17 @@ pub fn convert(
                 row.iter().for_each(|&v| out.extend([v, 128]))
             }
             (CameraFormat::Rgb3, PixelFormat::Gray8) => {
-                out.extend(row.chunks_exact(3).map(|p| luma(p[0], p[1], p[2])));
+                out.extend(row.chunks_exact(3).map(|p| luma([p[0], p[1], p[2]])));
             }
             (CameraFormat::Rgb3, PixelFormat::Yuyv) => {
-                for pair in row.chunks_exact(6) {
-                    let y0 = luma(pair[0], pair[1], pair[2]);
-                    let y1 = luma(pair[3], pair[4], pair[5]);
-                    let (r, g, b) = (
-                        (f32::from(pair[0]) + f32::from(pair[3])) / 2.0,
-                        (f32::from(pair[1]) + f32::from(pair[4])) / 2.0,
-                        (f32::from(pair[2]) + f32::from(pair[5])) / 2.0,
-                    );
-                    let yy = 0.299 * r + 0.587 * g + 0.114 * b;
-                    let u = ((b - yy) * 0.564 + 128.0).round().clamp(0.0, 255.0) as u8;
-                    let v = ((r - yy) * 0.713 + 128.0).round().clamp(0.0, 255.0) as u8;
-                    out.extend([y0, u, y1, v]);
+                for p in row.chunks_exact(6) {
+                    out.extend(rgb_pair_to_yuyv([p[0], p[1], p[2]], [p[3], p[4], p[5]]));
                 }
             }
             (CameraFormat::Yuyv, PixelFormat::Rgb24) => {
                 for q in row.chunks_exact(4) {
-                    let (u, v) = (f32::from(q[1]) - 128.0, f32::from(q[3]) - 128.0);
-                    for yy in [f32::from(q[0]), f32::from(q[2])] {
-                        let c = |f: f32| f.round().clamp(0.0, 255.0) as u8;
-                        out.extend([
-                            c(yy + 1.402 * v),
-                            c(yy - 0.344_136 * u - 0.714_136 * v),
-                            c(yy + 1.772 * u),
-                        ]);
-                    }
+                    out.extend(yuv_to_rgb(q[0], q[1], q[3]));
+                    out.extend(yuv_to_rgb(q[2], q[1], q[3]));
                 }
             }
             (CameraFormat::Mjpeg, _) => return Err(ConvertError::Jpeg("not decoded".into())),
