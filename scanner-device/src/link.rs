@@ -91,9 +91,14 @@ pub struct LinkStats {
     pub dropped: u64,
 }
 
-/// A writer thread fed through a bounded pool of buffers.
+/// A filled buffer and how many of its bytes to write.
+type Filled = (Vec<u8>, usize);
+
+/// A writer thread fed through a bounded pool of buffers. Buffers keep their full length: a
+/// message is encoded into the front of one and sent with its length, so nothing is cleared or
+/// zeroed per packet.
 pub struct Link {
-    tx: Option<SyncSender<Vec<u8>>>,
+    tx: Option<SyncSender<Filled>>,
     back: Receiver<Vec<u8>>,
     free: Vec<Vec<u8>>,
     thread: Option<JoinHandle<std::io::Result<u64>>>,
@@ -104,14 +109,14 @@ impl Link {
     /// Starts the writer on `out` with `depth` buffers of `capacity` bytes (allocated now, once).
     pub fn spawn(mut out: Box<dyn Write + Send>, depth: usize, capacity: usize) -> Link {
         let depth = depth.max(1);
-        let (tx, rx) = sync_channel::<Vec<u8>>(depth);
+        let (tx, rx) = sync_channel::<Filled>(depth);
         let (back_tx, back) = sync_channel::<Vec<u8>>(depth);
         let thread = std::thread::spawn(move || -> std::io::Result<u64> {
             let mut bytes = 0u64;
-            while let Ok(buf) = rx.recv() {
-                out.write_all(&buf)?;
+            while let Ok((buf, len)) = rx.recv() {
+                out.write_all(&buf[..len.min(buf.len())])?;
                 out.flush()?;
-                bytes += buf.len() as u64;
+                bytes += len as u64;
                 // The pool is as large as the channel: this never blocks for long.
                 if back_tx.send(buf).is_err() {
                     break;
@@ -123,7 +128,7 @@ impl Link {
         Link {
             tx: Some(tx),
             back,
-            free: (0..depth).map(|_| Vec::with_capacity(capacity)).collect(),
+            free: (0..depth).map(|_| vec![0; capacity]).collect(),
             thread: Some(thread),
             stats: LinkStats::default(),
         }
@@ -135,13 +140,11 @@ impl Link {
         }
     }
 
-    /// A free buffer (cleared), or `None` when every buffer is waiting for the link.
+    /// A free buffer (its full length, old contents), or `None` when every buffer is waiting
+    /// for the link.
     pub fn buffer(&mut self) -> Option<Vec<u8>> {
         self.reclaim();
-        self.free.pop().map(|mut b| {
-            b.clear();
-            b
-        })
+        self.free.pop()
     }
 
     /// Counts a frame dropped for want of a buffer.
@@ -149,23 +152,22 @@ impl Link {
         self.stats.dropped += 1;
     }
 
-    /// Queues a filled buffer.
+    /// Queues the first `len` bytes of a buffer.
     ///
     /// # Errors
     /// The writer has stopped (the link failed): the error says why.
-    pub fn send(&mut self, buf: Vec<u8>) -> Result<()> {
-        let len = buf.len() as u64;
+    pub fn send(&mut self, buf: Vec<u8>, len: usize) -> Result<()> {
         let tx = self
             .tx
             .as_ref()
             .ok_or_else(|| anyhow!("link already closed"))?;
-        match tx.try_send(buf) {
+        match tx.try_send((buf, len)) {
             Ok(()) => {
                 self.stats.frames += 1;
-                self.stats.bytes += len;
+                self.stats.bytes += len as u64;
                 Ok(())
             }
-            Err(TrySendError::Full(b)) => {
+            Err(TrySendError::Full((b, _))) => {
                 // Cannot happen with the pool as large as the channel; keep the buffer.
                 self.free.push(b);
                 self.stats.dropped += 1;
@@ -184,10 +186,7 @@ impl Link {
             return Ok(b);
         }
         match self.back.recv() {
-            Ok(mut b) => {
-                b.clear();
-                Ok(b)
-            }
+            Ok(b) => Ok(b),
             Err(_) => Err(self.failure()),
         }
     }

@@ -144,23 +144,14 @@ impl Session {
         s
     }
 
-    /// Encodes `msg` into a link buffer (`None`: the link is busy and the message is dropped).
+    /// Encodes `msg` into a link buffer and queues it (`false`: the link is busy and the message
+    /// is dropped).
     fn send(&mut self, link: &mut Link, msg: &Message, must: bool) -> Result<bool> {
-        let buf = if must {
-            Some(link.buffer_blocking()?)
-        } else {
-            link.buffer()
-        };
-        let Some(mut buf) = buf else {
-            return Ok(false);
-        };
-        buf.resize(buf.capacity().max(wire::MAX_ENCODED), 0);
-        let n = wire::encode(msg, &mut self.scratch, &mut buf)
-            .map_err(|e| anyhow::anyhow!("encoding a message: {e}"))?;
-        buf.truncate(n);
-        self.status.bytes += n as u64;
-        link.send(buf)?;
-        Ok(true)
+        let sent = encode_to_link(link, &mut self.scratch, msg, must)?;
+        if let Some(n) = sent {
+            self.status.bytes += n as u64;
+        }
+        Ok(sent.is_some())
     }
 
     /// Sends the session header (dropped if the link is busy: it repeats).
@@ -207,21 +198,15 @@ impl Session {
                     let count = out.points.len() as u64;
                     on_points(number, out.points);
                     // The head's buffers are borrowed by `msg`: encode before they change.
-                    let buf = link.buffer();
-                    match buf {
+                    match encode_to_link(link, &mut self.scratch, &msg, false)? {
                         None => {
                             link.count_drop();
                             Some(Skip::LinkFull)
                         }
-                        Some(mut buf) => {
-                            buf.resize(buf.capacity().max(wire::MAX_ENCODED), 0);
-                            let len = wire::encode(&msg, &mut self.scratch, &mut buf)
-                                .map_err(|e| anyhow::anyhow!("encoding a packet: {e}"))?;
-                            buf.truncate(len);
+                        Some(len) => {
                             self.status.bytes += len as u64;
                             self.status.packets += 1;
                             self.status.points += count;
-                            link.send(buf)?;
                             None
                         }
                     }
@@ -266,6 +251,28 @@ impl Session {
             ended_early,
         })
     }
+}
+
+/// Encodes `msg` into a free link buffer (waiting for one if `must`) and queues it; its length,
+/// or `None` when every buffer is busy. The one place messages become link bytes.
+fn encode_to_link(
+    link: &mut Link,
+    scratch: &mut [u8],
+    msg: &Message,
+    must: bool,
+) -> Result<Option<usize>> {
+    let buf = if must {
+        Some(link.buffer_blocking()?)
+    } else {
+        link.buffer()
+    };
+    let Some(mut buf) = buf else {
+        return Ok(None);
+    };
+    let n = wire::encode(msg, scratch, &mut buf)
+        .map_err(|e| anyhow::anyhow!("encoding a message: {e}"))?;
+    link.send(buf, n)?;
+    Ok(Some(n))
 }
 
 /// Runs a whole scan: reference, header, every frame, final status. A source that fails
