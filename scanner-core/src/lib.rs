@@ -32,6 +32,7 @@
 pub mod calib;
 pub mod camera;
 pub mod colour;
+pub mod config;
 mod error;
 pub mod geometry;
 pub mod pipeline;

@@ -6,10 +6,11 @@
 //! allocates nothing. A frame whose laser plane cannot be trusted is skipped with a
 //! [`Skip`] reason.
 
+use heapless::Vec;
 use nalgebra::{Point2, Point3, Vector3};
 
-use crate::geometry::{Board, LaserFitConfig, Limits, Surface, laser};
-use crate::stripe::{Axis, Extractor, Frame, PixelFormat, StripeConfig, StripeError};
+use crate::geometry::{Board, LaserFitConfig, LaserPlane, Limits, Plane, Surface, laser};
+use crate::stripe::{Axis, Extraction, Extractor, Frame, PixelFormat, StripeConfig, StripeError};
 use crate::wire::{Skip, points::quantise};
 use crate::{Camera, GeomError};
 
@@ -83,19 +84,27 @@ pub struct FrameOutput<'a> {
     pub stripe_lines: usize,
 }
 
-/// The per-frame pipeline with its buffers for up to `W` lines.
+/// The per-frame pipeline with its buffers for up to `W` lines (fixed-capacity `heapless`
+/// vectors, filled afresh each frame: at most one entry per line, so a push cannot fail).
 pub struct Head<const W: usize> {
     extractor: Extractor<W>,
     camera: Camera<f32>,
     board: Board<f32>,
     cfg: HeadConfig,
-    pixels: [Point2<f32>; W],
-    rays: [Vector3<f32>; W],
-    left: [Point3<f32>; W],
-    right: [Point3<f32>; W],
-    out: [[i32; 3]; W],
-    rgb: [[u8; 3]; W],
-    tri: [Option<Point3<f32>>; W],
+    /// The valid lines' stripe pixels, their rays, and each ray's point on the laser plane.
+    stripe: Vec<StripePixel, W>,
+    left: Vec<Point3<f32>, W>,
+    right: Vec<Point3<f32>, W>,
+    out: Vec<[i32; 3], W>,
+    rgb: Vec<[u8; 3], W>,
+}
+
+/// A valid stripe pixel, its ray, and (once the plane is known) its 3-D point.
+#[derive(Debug, Clone, Copy)]
+struct StripePixel {
+    px: Point2<f32>,
+    ray: Vector3<f32>,
+    point: Option<Point3<f32>>,
 }
 
 impl<const W: usize> Head<W> {
@@ -106,13 +115,11 @@ impl<const W: usize> Head<W> {
             camera,
             board,
             cfg,
-            pixels: [Point2::origin(); W],
-            rays: [Vector3::zeros(); W],
-            left: [Point3::origin(); W],
-            right: [Point3::origin(); W],
-            out: [[0; 3]; W],
-            rgb: [[0; 3]; W],
-            tri: [None; W],
+            stripe: Vec::new(),
+            left: Vec::new(),
+            right: Vec::new(),
+            out: Vec::new(),
+            rgb: Vec::new(),
         }
     }
 
@@ -121,8 +128,8 @@ impl<const W: usize> Head<W> {
         &self.cfg
     }
 
-    /// Runs one frame. `reference` is the laser-off frame (required for the difference method,
-    /// and for colour).
+    /// Runs one frame: the stripe, its board points, the laser plane, the object points.
+    /// `reference` is the laser-off frame (required for the difference method, and for colour).
     ///
     /// # Errors
     /// The [`Skip`] reason when the frame gives no points.
@@ -137,112 +144,163 @@ impl<const W: usize> Head<W> {
             // A frame of the wrong shape, or a configuration the head was built with wrongly:
             // either way this frame cannot be used.
             .map_err(|_: StripeError| Skip::BadFrame)?;
-        // Rays of the valid lines, and the board points among them.
-        let (mut n, mut nl, mut nr) = (0, 0, 0);
-        for (line, p) in ex.valid() {
-            let px = match self.cfg.stripe.axis {
-                Axis::Columns => Point2::new(line as f32, p.centre),
-                Axis::Rows => Point2::new(p.centre, line as f32),
-            };
-            let Ok(ray) = self.camera.pixel_to_ray(&px) else {
-                continue;
-            };
-            self.pixels[n] = px;
-            self.rays[n] = ray;
-            n += 1;
-            if let Ok((q, s)) = self.board.intersect_ray(&ray, self.cfg.limits.min_sin) {
-                if q.coords.norm() > self.cfg.limits.max_range {
-                    continue;
-                }
-                match s {
-                    Surface::Left => {
-                        self.left[nl] = q;
-                        nl += 1;
-                    }
-                    Surface::Right => {
-                        self.right[nr] = q;
-                        nr += 1;
-                    }
-                    Surface::Object => {}
-                }
-            }
-        }
-        let (left, right) = (&self.left[..nl], &self.right[..nr]);
-        let fit = match self.cfg.method {
-            PlaneMethod::LeastSquares => laser::least_squares(left, right, &self.cfg.laser),
-            PlaneMethod::Paper => laser::paper(&self.board, left, right, &self.cfg.laser),
-        }
-        .map_err(|e| match e {
-            GeomError::OnePlaneOnly => Skip::OnePlaneOnly,
-            GeomError::TooFewPoints { .. } => {
-                if nl == 0 || nr == 0 {
-                    if nl + nr >= self.cfg.laser.min_points_per_side {
-                        Skip::OnePlaneOnly
-                    } else {
-                        Skip::NoStripe
-                    }
-                } else {
-                    Skip::NoStripe
-                }
-            }
-            GeomError::PlaneThroughCamera => Skip::PlaneThroughCamera,
-            _ => Skip::PoorPlane,
-        })?;
-        if !(fit.quality.rms <= self.cfg.max_plane_rms) {
-            return Err(Skip::PoorPlane);
-        }
+        board_points(
+            &ex,
+            &self.camera,
+            &self.board,
+            &self.cfg,
+            (&mut self.stripe, &mut self.left, &mut self.right),
+        );
+        let fit = laser_plane(&self.board, &self.cfg, &self.left, &self.right)?;
         let plane = fit.plane;
-        let limits = self.cfg.limits;
-        for i in 0..n {
-            self.tri[i] = plane
-                .intersect_ray(&self.rays[i], limits.min_sin)
-                .ok()
-                .filter(|p| p.coords.norm() <= limits.max_range);
-        }
-        let line_of = |px: &Point2<f32>| match self.cfg.stripe.axis {
+        triangulate(&plane, &self.cfg.limits, &mut self.stripe);
+        self.keep(reference);
+        let nv = plane.normal();
+        Ok(FrameOutput {
+            points: &self.out,
+            rgb: if self.cfg.colour { &self.rgb } else { &[] },
+            plane: [nv.x, nv.y, nv.z, plane.offset()],
+            plane_rms: fit.quality.rms,
+            stripe_lines: self.stripe.len(),
+        })
+    }
+
+    /// The object points worth sending: continuous with a neighbouring line's (no flying
+    /// pixels), off the board (unless board points are kept), quantised; with their colour.
+    fn keep(&mut self, reference: Option<&Frame<'_>>) {
+        self.out.clear();
+        self.rgb.clear();
+        let (cfg, stripe) = (&self.cfg, &self.stripe);
+        let line_of = |px: &Point2<f32>| match cfg.stripe.axis {
             Axis::Columns => px.x,
             Axis::Rows => px.y,
         };
         let fx = self.camera.fx();
-        let mut m = 0;
-        for i in 0..n {
-            let Some(p) = self.tri[i] else {
+        let n = stripe.len();
+        for (i, s) in stripe.iter().enumerate() {
+            let Some(p) = s.point else {
                 continue;
             };
-            if self.cfg.continuity > 0.0 {
+            if cfg.continuity > 0.0 {
                 let footprint = p.coords.norm() / fx;
                 let near = |j: usize| -> bool {
-                    let dl = libm::fabsf(line_of(&self.pixels[j]) - line_of(&self.pixels[i]));
-                    self.tri[j].is_some_and(|q| {
-                        dl <= 2.0 && (q - p).norm() <= self.cfg.continuity * footprint * dl + 1.0
+                    let dl = libm::fabsf(line_of(&stripe[j].px) - line_of(&s.px));
+                    stripe[j].point.is_some_and(|q| {
+                        dl <= 2.0 && (q - p).norm() <= cfg.continuity * footprint * dl + 1.0
                     })
                 };
                 if !((i > 0 && near(i - 1)) || (i + 1 < n && near(i + 1))) {
                     continue;
                 }
             }
-            match self.board.locate(&p, limits.board_tol) {
+            match self.board.locate(&p, cfg.limits.board_tol) {
                 Ok(Surface::Object) => {}
-                Ok(_) if self.cfg.keep_board => {}
+                Ok(_) if cfg.keep_board => {}
                 _ => continue,
             }
             let (Some(x), Some(y), Some(z)) = (quantise(p.x), quantise(p.y), quantise(p.z)) else {
                 continue;
             };
-            self.out[m] = [x, y, z];
-            if self.cfg.colour {
-                self.rgb[m] = reference.map_or([0; 3], |r| colour_at(r, &self.pixels[i]));
+            // At most one point per line: W is enough.
+            if self.out.push([x, y, z]).is_err() {
+                break;
             }
-            m += 1;
+            if cfg.colour {
+                let c = reference.map_or([0; 3], |r| colour_at(r, &s.px));
+                let _ = self.rgb.push(c);
+            }
         }
-        let nv = plane.normal();
-        Ok(FrameOutput {
-            points: &self.out[..m],
-            rgb: if self.cfg.colour { &self.rgb[..m] } else { &[] },
-            plane: [nv.x, nv.y, nv.z, plane.offset()],
-            plane_rms: fit.quality.rms,
-            stripe_lines: n,
-        })
+    }
+}
+
+/// The valid lines' pixels and rays into `stripe`, and the rays' points on the two board planes
+/// into `left` and `right` (within range).
+fn board_points<const W: usize>(
+    ex: &Extraction<'_>,
+    camera: &Camera<f32>,
+    board: &Board<f32>,
+    cfg: &HeadConfig,
+    (stripe, left, right): (
+        &mut Vec<StripePixel, W>,
+        &mut Vec<Point3<f32>, W>,
+        &mut Vec<Point3<f32>, W>,
+    ),
+) {
+    stripe.clear();
+    left.clear();
+    right.clear();
+    for (line, p) in ex.valid() {
+        let px = match cfg.stripe.axis {
+            Axis::Columns => Point2::new(line as f32, p.centre),
+            Axis::Rows => Point2::new(p.centre, line as f32),
+        };
+        let Ok(ray) = camera.pixel_to_ray(&px) else {
+            continue;
+        };
+        // One entry per line of at most W: the pushes cannot fail.
+        if stripe
+            .push(StripePixel {
+                px,
+                ray,
+                point: None,
+            })
+            .is_err()
+        {
+            break;
+        }
+        if let Ok((q, s)) = board.intersect_ray(&ray, cfg.limits.min_sin) {
+            if q.coords.norm() > cfg.limits.max_range {
+                continue;
+            }
+            let _ = match s {
+                Surface::Left => left.push(q),
+                Surface::Right => right.push(q),
+                Surface::Object => Ok(()),
+            };
+        }
+    }
+}
+
+/// The laser plane from the board points, checked; the reason to skip the frame otherwise.
+fn laser_plane(
+    board: &Board<f32>,
+    cfg: &HeadConfig,
+    left: &[Point3<f32>],
+    right: &[Point3<f32>],
+) -> Result<LaserPlane<f32>, Skip> {
+    let (nl, nr) = (left.len(), right.len());
+    let fit = match cfg.method {
+        PlaneMethod::LeastSquares => laser::least_squares(left, right, &cfg.laser),
+        PlaneMethod::Paper => laser::paper(board, left, right, &cfg.laser),
+    }
+    .map_err(|e| match e {
+        GeomError::OnePlaneOnly => Skip::OnePlaneOnly,
+        GeomError::TooFewPoints { .. }
+            if (nl == 0 || nr == 0) && nl + nr >= cfg.laser.min_points_per_side =>
+        {
+            Skip::OnePlaneOnly
+        }
+        GeomError::TooFewPoints { .. } => Skip::NoStripe,
+        GeomError::PlaneThroughCamera => Skip::PlaneThroughCamera,
+        _ => Skip::PoorPlane,
+    })?;
+    if !(fit.quality.rms <= cfg.max_plane_rms) {
+        return Err(Skip::PoorPlane);
+    }
+    Ok(fit)
+}
+
+/// Each stripe ray's point on the laser plane (within range).
+fn triangulate<const W: usize>(
+    plane: &Plane<f32>,
+    limits: &Limits<f32>,
+    stripe: &mut Vec<StripePixel, W>,
+) {
+    for s in stripe.iter_mut() {
+        s.point = plane
+            .intersect_ray(&s.ray, limits.min_sin)
+            .ok()
+            .filter(|p| p.coords.norm() <= limits.max_range);
     }
 }
 

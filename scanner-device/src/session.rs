@@ -13,7 +13,7 @@ use crate::link::Link;
 use crate::source::{FrameSource, OwnedFrame};
 
 /// Most lines (columns or rows) per frame the head handles.
-pub const MAX_LINES: usize = 4096;
+pub const MAX_LINES: usize = scanner_core::config::MAX_LINES;
 
 /// Settings of a scan.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -120,7 +120,7 @@ impl Session {
             },
             opts,
             scratch: vec![0; wire::MAX_FRAME],
-            xyz: vec![0; 15 * MAX_LINES],
+            xyz: vec![0; scanner_core::config::MAX_XYZ_BYTES_PER_POINT * MAX_LINES],
             started: Instant::now(),
             frames_since_header: 0,
             frames_since_status: 0,

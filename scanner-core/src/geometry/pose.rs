@@ -27,7 +27,7 @@ use crate::{Camera, GeomError};
 /// Fewest markers a layout pose accepts (a homography has 8 degrees of freedom).
 pub const MIN_MARKERS: usize = 4;
 /// Most markers one plane may carry (fixed memory: the undistorted markers live on the stack).
-pub const MAX_MARKERS: usize = 256;
+pub const MAX_MARKERS: usize = crate::config::MAX_MARKERS;
 /// Largest number of Levenberg–Marquardt iterations.
 pub const MAX_ITERATIONS: usize = 100;
 

@@ -28,8 +28,8 @@ use crate::{Camera, Distortion, GeomError, Real};
 pub const VERSION: u8 = 1;
 /// Size of one wire unit of length, mm (0.01 mm).
 pub const UNIT_MM: f32 = 0.01;
-/// Largest frame before COBS, bytes (a 4096-column frame with colour fits).
-pub const MAX_FRAME: usize = 4096 * 18 + 256;
+/// Largest frame before COBS, bytes ([`crate::config::MAX_FRAME`]).
+pub const MAX_FRAME: usize = crate::config::MAX_FRAME;
 /// Largest encoded frame including COBS overhead and both delimiters.
 pub const MAX_ENCODED: usize = cobs::max_encoding_length(MAX_FRAME) + 2;
 /// Number of reasons a frame can be skipped.
