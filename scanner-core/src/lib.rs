@@ -35,6 +35,7 @@ pub mod colour;
 pub mod config;
 mod error;
 pub mod geometry;
+pub mod link_spec;
 pub mod pipeline;
 mod real;
 pub mod stripe;

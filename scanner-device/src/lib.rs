@@ -22,6 +22,19 @@ macro_rules! outln {
     }};
 }
 
+/// An error and its sources as one line, `outer: inner: innermost` (for summaries and messages
+/// that go on as text, where `{e:#}` of `anyhow` is not at hand).
+pub fn error_chain(e: &dyn std::error::Error) -> String {
+    let mut text = e.to_string();
+    let mut next = e.source();
+    while let Some(s) = next {
+        text.push_str(": ");
+        text.push_str(&s.to_string());
+        next = s.source();
+    }
+    text
+}
+
 pub mod cli;
 pub mod link;
 pub mod session;

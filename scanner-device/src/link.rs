@@ -8,7 +8,53 @@ use std::sync::mpsc::{Receiver, SyncSender, TrySendError, sync_channel};
 use std::thread::JoinHandle;
 use std::time::Duration;
 
-use anyhow::{Context, Result, anyhow, bail};
+use scanner_core::link_spec::{SerialSpec, SpecError};
+
+/// Why the link could not be opened or stopped working.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum LinkError {
+    /// `--out` names nothing a stream can go to.
+    #[error("{text:?}: {why}")]
+    BadTarget {
+        /// What was given.
+        text: String,
+        /// What is wrong with it.
+        why: SpecError,
+    },
+    /// An empty output path.
+    #[error("empty output path (give a file, serial:PATH@BAUD or -)")]
+    EmptyPath,
+    /// The output file cannot be created.
+    #[error("cannot write the stream to {}", path.display())]
+    File {
+        /// The file.
+        path: std::path::PathBuf,
+        /// Why.
+        #[source]
+        source: std::io::Error,
+    },
+    /// The serial port cannot be opened.
+    #[error("cannot open serial port {path} at {baud} baud")]
+    Serial {
+        /// The port.
+        path: String,
+        /// Its rate.
+        baud: u32,
+        /// Why.
+        #[source]
+        source: serialport::Error,
+    },
+    /// The writer stopped: the port vanished, the disk filled, the reader went away.
+    #[error("the link failed")]
+    Failed(#[source] std::io::Error),
+    /// The writer thread panicked.
+    #[error("the link's writer panicked")]
+    Panicked,
+    /// The link was already closed.
+    #[error("the link closed")]
+    Closed,
+}
 
 /// Where the stream goes, parsed from `serial:PATH[@BAUD]`, `file:PATH` (or a path) and `-`.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -27,32 +73,30 @@ pub enum Target {
 }
 
 impl std::str::FromStr for Target {
-    type Err = String;
+    type Err = LinkError;
 
     fn from_str(s: &str) -> Result<Self, Self::Err> {
         if s == "-" {
             return Ok(Target::Stdout);
         }
-        if let Some(rest) = s.strip_prefix("serial:") {
-            let (path, baud) = match rest.split_once('@') {
-                Some((p, b)) => (
-                    p,
-                    b.parse::<u32>()
-                        .map_err(|_| format!("{s:?}: {b:?} is not a baud rate"))?,
-                ),
-                None => (rest, 921_600),
-            };
-            if path.is_empty() {
-                return Err(format!("{s:?}: no serial device path"));
+        match SerialSpec::parse(s) {
+            Ok(Some(spec)) => {
+                return Ok(Target::Serial {
+                    path: spec.path.to_string(),
+                    baud: spec.baud,
+                });
             }
-            return Ok(Target::Serial {
-                path: path.to_string(),
-                baud,
-            });
+            Ok(None) => {}
+            Err(why) => {
+                return Err(LinkError::BadTarget {
+                    text: s.chars().take(80).collect(),
+                    why,
+                });
+            }
         }
         let path = s.strip_prefix("file:").unwrap_or(s);
         if path.is_empty() {
-            return Err("empty output path".into());
+            return Err(LinkError::EmptyPath);
         }
         Ok(Target::File(path.into()))
     }
@@ -62,19 +106,25 @@ impl Target {
     /// Opens the target for writing.
     ///
     /// # Errors
-    /// Names the device or file and why it cannot be opened.
-    pub fn open(&self) -> Result<Box<dyn Write + Send>> {
+    /// [`LinkError::File`] or [`LinkError::Serial`], naming the file or port.
+    pub fn open(&self) -> Result<Box<dyn Write + Send>, LinkError> {
         Ok(match self {
             Target::Stdout => Box::new(std::io::stdout()),
-            Target::File(p) => Box::new(
-                std::fs::File::create(p)
-                    .with_context(|| format!("cannot write the stream to {}", p.display()))?,
-            ),
+            Target::File(p) => {
+                Box::new(std::fs::File::create(p).map_err(|source| LinkError::File {
+                    path: p.clone(),
+                    source,
+                })?)
+            }
             Target::Serial { path, baud } => Box::new(
                 serialport::new(path, *baud)
                     .timeout(Duration::from_secs(2))
                     .open_native()
-                    .with_context(|| format!("cannot open serial port {path} at {baud} baud"))?,
+                    .map_err(|source| LinkError::Serial {
+                        path: path.clone(),
+                        baud: *baud,
+                        source,
+                    })?,
             ),
         })
     }
@@ -156,11 +206,8 @@ impl Link {
     ///
     /// # Errors
     /// The writer has stopped (the link failed): the error says why.
-    pub fn send(&mut self, buf: Vec<u8>, len: usize) -> Result<()> {
-        let tx = self
-            .tx
-            .as_ref()
-            .ok_or_else(|| anyhow!("link already closed"))?;
+    pub fn send(&mut self, buf: Vec<u8>, len: usize) -> Result<(), LinkError> {
+        let tx = self.tx.as_ref().ok_or(LinkError::Closed)?;
         match tx.try_send((buf, len)) {
             Ok(()) => {
                 self.stats.frames += 1;
@@ -181,7 +228,7 @@ impl Link {
     ///
     /// # Errors
     /// The writer has stopped.
-    pub fn buffer_blocking(&mut self) -> Result<Vec<u8>> {
+    pub fn buffer_blocking(&mut self) -> Result<Vec<u8>, LinkError> {
         if let Some(b) = self.buffer() {
             return Ok(b);
         }
@@ -191,12 +238,12 @@ impl Link {
         }
     }
 
-    fn failure(&mut self) -> anyhow::Error {
+    fn failure(&mut self) -> LinkError {
         self.tx = None;
         match self.thread.take().map(JoinHandle::join) {
-            Some(Ok(Err(e))) => anyhow!("the link failed: {e}"),
-            Some(Err(_)) => anyhow!("the link's writer panicked"),
-            _ => anyhow!("the link closed"),
+            Some(Ok(Err(e))) => LinkError::Failed(e),
+            Some(Err(_)) => LinkError::Panicked,
+            _ => LinkError::Closed,
         }
     }
 
@@ -209,12 +256,12 @@ impl Link {
     ///
     /// # Errors
     /// The link failed.
-    pub fn finish(mut self) -> Result<LinkStats> {
+    pub fn finish(mut self) -> Result<LinkStats, LinkError> {
         self.tx = None;
         match self.thread.take().map(JoinHandle::join) {
             Some(Ok(Ok(_))) | None => Ok(self.stats),
-            Some(Ok(Err(e))) => bail!("the link failed: {e}"),
-            Some(Err(_)) => bail!("the link's writer panicked"),
+            Some(Ok(Err(e))) => Err(LinkError::Failed(e)),
+            Some(Err(_)) => Err(LinkError::Panicked),
         }
     }
 }

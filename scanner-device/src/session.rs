@@ -3,7 +3,7 @@
 
 use std::time::Instant;
 
-use anyhow::{Result, bail};
+use crate::source::SourceError;
 use scanner_core::Camera;
 use scanner_core::geometry::Board;
 use scanner_core::pipeline::{Head, HeadConfig};
@@ -27,6 +27,43 @@ pub struct ScanOptions {
     /// Scan id (random per scan unless given).
     pub scan_id: u32,
 }
+
+/// Why a scan could not start or go on.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum SessionError {
+    /// The camera's frames are not the size the calibration was made at.
+    #[error(
+        "the calibration is for {}×{} images but the camera gives {}×{}: calibrate at this resolution or choose {}×{}",
+        calibrated.0, calibrated.1, camera.0, camera.1, calibrated.0, calibrated.1
+    )]
+    SizeMismatch {
+        /// The calibration's size.
+        calibrated: (usize, usize),
+        /// The camera's.
+        camera: (usize, usize),
+    },
+    /// More lines per frame than the head's buffers hold.
+    #[error("{lines} lines per frame: the head handles at most {MAX_LINES}")]
+    TooManyLines {
+        /// Lines asked for.
+        lines: usize,
+    },
+    /// A side longer than the wire's `u16`.
+    #[error("{0}×{1} images: the wire carries sizes up to 65535")]
+    TooLarge(usize, usize),
+    /// The reference frame could not be read.
+    #[error("the laser-off reference frame")]
+    Reference(#[source] SourceError),
+    /// A message did not fit its buffer (a bug: the buffers are sized for the largest).
+    #[error("encoding a message")]
+    Encode(#[source] wire::WireError),
+    /// The link failed.
+    #[error(transparent)]
+    Link(#[from] crate::link::LinkError),
+}
+
+type Result<T, E = SessionError> = std::result::Result<T, E>;
 
 /// What the head needs of a calibration: the camera, the board, and the image size both were
 /// calibrated at.
@@ -85,22 +122,21 @@ impl Session {
     pub fn new(cal: &Calibration, reference: OwnedFrame, opts: ScanOptions) -> Result<Session> {
         let (w, h) = (cal.size.0 as usize, cal.size.1 as usize);
         if (reference.width, reference.height) != (w, h) {
-            bail!(
-                "the calibration is for {w}×{h} images but the camera gives {}×{}: calibrate at this resolution or choose {w}×{h}",
-                reference.width,
-                reference.height
-            );
+            return Err(SessionError::SizeMismatch {
+                calibrated: (w, h),
+                camera: (reference.width, reference.height),
+            });
         }
         let lines = match opts.head.stripe.axis {
             scanner_core::stripe::Axis::Columns => w,
             scanner_core::stripe::Axis::Rows => h,
         };
         if lines > MAX_LINES {
-            bail!("{lines} lines per frame: the head handles at most {MAX_LINES}");
+            return Err(SessionError::TooManyLines { lines });
         }
         let (camera, board) = (cal.camera, cal.board);
         let (Ok(w16), Ok(h16)) = (u16::try_from(w), u16::try_from(h)) else {
-            bail!("{w}×{h} images: the wire carries sizes up to 65535");
+            return Err(SessionError::TooLarge(w, h));
         };
         let header = Header::new(
             opts.scan_id,
@@ -185,7 +221,7 @@ impl Session {
             (Ok(f), Ok(r)) => match self.head.process(&f, Some(&r)) {
                 Ok(out) => {
                     let n = scanner_core::wire::points::encode(out.points, &mut self.xyz)
-                        .map_err(|e| anyhow::anyhow!("encoding points: {e}"))?;
+                        .map_err(SessionError::Encode)?;
                     let msg = Message::Points(Points {
                         scan_id: self.opts.scan_id,
                         frame: number,
@@ -269,8 +305,7 @@ fn encode_to_link(
     let Some(mut buf) = buf else {
         return Ok(None);
     };
-    let n = wire::encode(msg, scratch, &mut buf)
-        .map_err(|e| anyhow::anyhow!("encoding a message: {e}"))?;
+    let n = wire::encode(msg, scratch, &mut buf).map_err(SessionError::Encode)?;
     link.send(buf, n)?;
     Ok(Some(n))
 }
@@ -288,7 +323,7 @@ pub fn run_scan(
     mut progress: impl FnMut(&Status),
     mut on_points: impl FnMut(u32, &[[i32; 3]]),
 ) -> Result<ScanReport> {
-    let reference = source.reference()?;
+    let reference = source.reference().map_err(SessionError::Reference)?;
     let mut session = Session::new(cal, reference, opts)?;
     session.send_header(link)?;
     let ended = loop {
@@ -298,7 +333,7 @@ pub fn run_scan(
                 progress(&session.status());
             }
             Ok(None) => break None,
-            Err(e) => break Some(format!("the camera stopped: {e}")),
+            Err(e) => break Some(crate::error_chain(&e)),
         }
     };
     session.finish(link, ended)

@@ -186,7 +186,7 @@ fn a_board_file_with_a_chessboard_sheet_end_to_end() {
         u0: 60.0,
         v0: -90.0,
     });
-    std::fs::write(d.join("board.toml"), board.to_toml()).unwrap();
+    std::fs::write(d.join("board.toml"), board.to_toml().unwrap()).unwrap();
     std::fs::write(
         d.join("scene.toml"),
         "objects = []\n[board]\nlayout = \"board.toml\"\n",

@@ -197,7 +197,7 @@ fn mesh_hierarchy_agrees_with_brute_force() {
         Point3::origin(),
     )
     .unwrap_err();
-    assert!(err.contains("/no/such.obj"), "{err}");
+    assert!(err.to_string().contains("/no/such.obj"), "{err}");
 }
 #[test]
 fn shadows_stay_dark_and_the_reference_has_no_laser() {

@@ -227,9 +227,11 @@ fn a_camera_that_fails_mid_scan_ends_with_a_final_status() {
         {
             self.1 += 1;
             if self.1 > 5 {
-                return Err(scanner_device::source::SourceError::Camera(
-                    "/dev/video0: the camera stopped: No such device".into(),
-                ));
+                return Err(scanner_device::source::SourceError::Camera {
+                    device: "/dev/video0".into(),
+                    what: "the camera stopped".into(),
+                    source: Some(std::io::Error::from_raw_os_error(19)),
+                });
             }
             self.0.next_frame()
         }
@@ -414,8 +416,7 @@ fn a_serial_port_that_vanishes_stops_the_scan_with_a_clear_error() {
     let mut link = Link::spawn(Box::new(Vanishing(5)), 2, MAX_ENCODED);
     let e = run_scan(&mut source, &cal, options(18), &mut link, |_| {}, |_, _| {}).unwrap_err();
     assert!(
-        e.to_string()
-            .contains("the link failed: /dev/ttyACM0 was unplugged"),
+        scanner_device::error_chain(&e).contains("the link failed: /dev/ttyACM0 was unplugged"),
         "{e}"
     );
 }

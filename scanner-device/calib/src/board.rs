@@ -135,16 +135,29 @@ pub struct BoardFile {
 }
 
 /// Why a board file is unusable.
-#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[derive(Debug, thiserror::Error)]
 pub enum BoardError {
-    /// Not readable or not TOML of this shape.
-    #[error("board file {path}: {why}")]
+    /// Not readable.
+    #[error("board file {path}")]
     Read {
         /// The file.
         path: String,
         /// What went wrong.
-        why: String,
+        #[source]
+        source: std::io::Error,
     },
+    /// Not TOML of this shape.
+    #[error("board file {path}")]
+    Toml {
+        /// The file.
+        path: String,
+        /// What is wrong.
+        #[source]
+        source: toml::de::Error,
+    },
+    /// Cannot be written as TOML.
+    #[error("board file: cannot be written as TOML")]
+    Serialize(#[source] toml::ser::Error),
     /// Readable, but the numbers do not describe a usable board.
     #[error("board file: {0}")]
     Invalid(String),
@@ -251,9 +264,9 @@ impl BoardFile {
     /// # Errors
     /// [`BoardError`] naming the file and what is wrong.
     pub fn load(path: &Path) -> Result<BoardFile, BoardError> {
-        let text = std::fs::read_to_string(path).map_err(|e| BoardError::Read {
+        let text = std::fs::read_to_string(path).map_err(|source| BoardError::Read {
             path: path.display().to_string(),
-            why: e.to_string(),
+            source,
         })?;
         Self::parse(&text, &path.display().to_string())
     }
@@ -263,22 +276,25 @@ impl BoardFile {
     /// # Errors
     /// [`BoardError`] naming the file and what is wrong.
     pub fn parse(text: &str, name: &str) -> Result<BoardFile, BoardError> {
-        let b: BoardFile = toml::from_str(text).map_err(|e| BoardError::Read {
+        let b: BoardFile = toml::from_str(text).map_err(|source| BoardError::Toml {
             path: name.to_string(),
-            why: e.to_string(),
+            source,
         })?;
         b.check()?;
         Ok(b)
     }
 
     /// The file's text (TOML).
-    pub fn to_toml(&self) -> String {
-        let body = toml::to_string(self).unwrap_or_default();
-        format!(
+    ///
+    /// # Errors
+    /// [`BoardError::Serialize`] for a value TOML cannot hold.
+    pub fn to_toml(&self) -> Result<String, BoardError> {
+        let body = toml::to_string(self).map_err(BoardError::Serialize)?;
+        Ok(format!(
             "# Calibration board for scanner-device (lengths in mm). Sheet coordinates: u from the\n\
              # crease outward, v along the crease (down), v = 0 at the same height on both sheets.\n\
              # Each sheet: `markers = [[u, v], ...]` or `grid = {{ cols, rows, u0, v0, du, dv }}`.\n{body}"
-        )
+        ))
     }
 
     /// Checks that the numbers describe a usable board.

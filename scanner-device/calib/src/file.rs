@@ -181,15 +181,34 @@ pub struct CalibrationFile {
 }
 
 /// Why a calibration file is unusable.
-#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[derive(Debug, thiserror::Error)]
 pub enum FileError {
-    /// Not readable, not TOML of this shape, or not writable.
-    #[error("calibration file {path}: {why}")]
+    /// Not readable, or not writable.
+    #[error("calibration file {path}")]
     Io {
         /// The file.
         path: String,
         /// What went wrong.
-        why: String,
+        #[source]
+        source: std::io::Error,
+    },
+    /// Not TOML of this shape.
+    #[error("calibration file {path}")]
+    Toml {
+        /// The file.
+        path: String,
+        /// What is wrong.
+        #[source]
+        source: toml::de::Error,
+    },
+    /// Cannot be written as TOML (a value TOML cannot hold).
+    #[error("calibration file {path}: cannot be written as TOML")]
+    Serialize {
+        /// The file.
+        path: String,
+        /// Why.
+        #[source]
+        source: toml::ser::Error,
     },
     /// Readable, but the numbers are unusable.
     #[error("calibration file {path}: {why}")]
@@ -393,9 +412,9 @@ impl CalibrationFile {
     /// # Errors
     /// [`FileError`] naming the file and the problem.
     pub fn load(path: &Path) -> Result<Self, FileError> {
-        let text = std::fs::read_to_string(path).map_err(|e| FileError::Io {
+        let text = std::fs::read_to_string(path).map_err(|source| FileError::Io {
             path: path.display().to_string(),
-            why: e.to_string(),
+            source,
         })?;
         Self::parse(&text, &path.display().to_string())
     }
@@ -405,9 +424,9 @@ impl CalibrationFile {
     /// # Errors
     /// [`FileError`] naming the file and the problem.
     pub fn parse(text: &str, name: &str) -> Result<Self, FileError> {
-        let f: CalibrationFile = toml::from_str(text).map_err(|e| FileError::Io {
+        let f: CalibrationFile = toml::from_str(text).map_err(|source| FileError::Toml {
             path: name.to_string(),
-            why: e.to_string(),
+            source,
         })?;
         let invalid = |why: String| FileError::Invalid {
             path: name.to_string(),
@@ -432,15 +451,15 @@ impl CalibrationFile {
     /// Writes the file atomically (a temporary file beside it, then a rename).
     ///
     /// # Errors
-    /// [`FileError::Io`].
+    /// [`FileError::Serialize`] or [`FileError::Io`].
     pub fn save(&self, path: &Path) -> Result<(), FileError> {
-        let text = toml::to_string(self).map_err(|e| FileError::Io {
+        let text = toml::to_string(self).map_err(|source| FileError::Serialize {
             path: path.display().to_string(),
-            why: e.to_string(),
+            source,
         })?;
-        write_atomic(path, text.as_bytes()).map_err(|e| FileError::Io {
+        write_atomic(path, text.as_bytes()).map_err(|source| FileError::Io {
             path: path.display().to_string(),
-            why: e.to_string(),
+            source,
         })
     }
 }

@@ -298,7 +298,10 @@ fn object(i: usize, o: ObjectFile, base: &std::path::Path) -> Result<Object, Rig
                 yaw_deg,
                 Point3::from(centre),
             )
-            .map_err(|e| RigError::Scene(format!("objects[{i}]: {e}")))?;
+            .map_err(|e| RigError::Mesh {
+                object: i,
+                source: e,
+            })?;
             Object {
                 shape: Shape::Mesh(std::sync::Arc::new(mesh)),
                 albedo: albedo.unwrap_or(GREY),

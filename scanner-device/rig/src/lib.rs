@@ -354,14 +354,25 @@ impl Scene {
 }
 
 /// Why a rig could not be built or a frame rendered.
-#[derive(Debug, Clone, PartialEq)]
-#[non_exhaustive]
+#[derive(Debug, thiserror::Error)]
 pub enum RigError {
     /// A scene value is out of range; the text names it.
+    #[error("bad scene: {0}")]
     Scene(String),
+    /// An object's mesh file cannot be used.
+    #[error("bad scene: objects[{object}]")]
+    Mesh {
+        /// Index of the object.
+        object: usize,
+        /// Why.
+        #[source]
+        source: mesh::MeshError,
+    },
     /// Geometry failed (degenerate board).
-    Geometry(GeomError),
+    #[error("scene geometry")]
+    Geometry(#[source] GeomError),
     /// Frame index past the sweep.
+    #[error("frame {index} asked for, the sweep has {frames}")]
     NoSuchFrame {
         /// Asked for.
         index: usize,
@@ -369,20 +380,6 @@ pub enum RigError {
         frames: usize,
     },
 }
-
-impl std::fmt::Display for RigError {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        match self {
-            Self::Scene(what) => write!(f, "bad scene: {what}"),
-            Self::Geometry(e) => write!(f, "scene geometry: {e}"),
-            Self::NoSuchFrame { index, frames } => {
-                write!(f, "frame {index} asked for, the sweep has {frames}")
-            }
-        }
-    }
-}
-
-impl std::error::Error for RigError {}
 
 /// The board as the rig needs it: planes and half directions.
 #[derive(Debug, Clone)]

@@ -27,6 +27,28 @@ struct Node {
 /// Triangles a leaf holds at most.
 const LEAF: usize = 4;
 
+/// Why a mesh file cannot be used.
+#[derive(Debug, thiserror::Error)]
+pub enum MeshError {
+    /// Not readable as OBJ.
+    #[error("{}", path.display())]
+    Obj {
+        /// The file.
+        path: std::path::PathBuf,
+        /// Why.
+        #[source]
+        source: tobj::LoadError,
+    },
+    /// Readable, but not a mesh that can be placed (the text says why).
+    #[error("{}: {why}", path.display())]
+    Unusable {
+        /// The file.
+        path: std::path::PathBuf,
+        /// What is wrong.
+        why: &'static str,
+    },
+}
+
 impl Mesh {
     /// Loads an OBJ file and places it: scaled so that its height (extent along its own y) is
     /// `height_mm`, turned upright for the camera (+y down), turned by `yaw_deg` about the
@@ -39,7 +61,7 @@ impl Mesh {
         height_mm: f64,
         yaw_deg: f64,
         centre: Point3<f64>,
-    ) -> Result<Mesh, String> {
+    ) -> Result<Mesh, MeshError> {
         Ok(Mesh::new(Self::triangles_of(
             path, height_mm, yaw_deg, centre,
         )?))
@@ -54,9 +76,16 @@ impl Mesh {
         height_mm: f64,
         yaw_deg: f64,
         centre: Point3<f64>,
-    ) -> Result<Vec<[Point3<f64>; 3]>, String> {
-        let (models, _) = tobj::load_obj(path, &tobj::GPU_LOAD_OPTIONS)
-            .map_err(|e| format!("{}: {e}", path.display()))?;
+    ) -> Result<Vec<[Point3<f64>; 3]>, MeshError> {
+        let unusable = |why| MeshError::Unusable {
+            path: path.to_path_buf(),
+            why,
+        };
+        let (models, _) =
+            tobj::load_obj(path, &tobj::GPU_LOAD_OPTIONS).map_err(|source| MeshError::Obj {
+                path: path.to_path_buf(),
+                source,
+            })?;
         let mut tris = Vec::new();
         for m in &models {
             let p = &m.mesh.positions;
@@ -70,24 +99,21 @@ impl Mesh {
             };
             for f in m.mesh.indices.chunks_exact(3) {
                 let (Some(a), Some(b), Some(c)) = (v(f[0]), v(f[1]), v(f[2])) else {
-                    return Err(format!(
-                        "{}: a face refers to a missing vertex",
-                        path.display()
-                    ));
+                    return Err(unusable("a face refers to a missing vertex"));
                 };
                 tris.push([a, b, c]);
             }
         }
         if tris.is_empty() {
-            return Err(format!("{}: no triangles", path.display()));
+            return Err(unusable("no triangles"));
         }
         let (lo, hi) = bounds(tris.iter().flatten());
         let height = hi.y - lo.y;
         if !(height > 0.0) {
-            return Err(format!("{}: the mesh has no height", path.display()));
+            return Err(unusable("the mesh has no height"));
         }
         if !(height_mm > 0.0) {
-            return Err(format!("{}: height_mm must be positive", path.display()));
+            return Err(unusable("height_mm must be positive"));
         }
         let mid = (lo + hi) / 2.0;
         let scale = height_mm / height;

@@ -141,7 +141,7 @@ pub fn board_command(board: Option<&Path>, out: &Path, dpi: f64) -> Result<()> {
     let b = load_board(board)?;
     std::fs::create_dir_all(out).with_context(|| format!("cannot create {}", out.display()))?;
     let bf = out.join("board.toml");
-    write_atomic(&bf, b.to_toml().as_bytes())
+    write_atomic(&bf, b.to_toml()?.as_bytes())
         .with_context(|| format!("cannot write {}", bf.display()))?;
     for (stem, sheet) in print::sheets(&b) {
         let svg = out.join(format!("{stem}.svg"));

@@ -197,12 +197,7 @@ pub fn scan(a: &ScanArgs) -> Result<ScanReport> {
 pub fn plan(a: &ScanArgs) -> Result<ScanPlan> {
     let format = PixelFormat::from(a.format);
     if let Some(f) = &a.fourcc {
-        let b = f.as_bytes();
-        if b.len() != 4 || CameraFormat::from_fourcc([b[0], b[1], b[2], b[3]]).is_none() {
-            bail!(
-                "unsupported camera pixel format {f:?}: this head reads YUYV, GREY, RGB3 and MJPG"
-            );
-        }
+        CameraFormat::parse(f)?;
     }
     let Some(cal_path) = &a.calibration else {
         bail!(
@@ -228,10 +223,7 @@ pub fn plan(a: &ScanArgs) -> Result<ScanPlan> {
         status_every: 30,
         scan_id: a.scan_id.unwrap_or_else(rand::random),
     };
-    let target: Target = a
-        .out
-        .parse()
-        .map_err(|e: String| anyhow::anyhow!("--out: {e}"))?;
+    let target: Target = a.out.parse().context("--out")?;
     let link = Link::spawn(
         target.open()?,
         a.link_depth,

@@ -21,6 +21,11 @@ pub enum CameraFormat {
     Mjpeg,
 }
 
+/// A camera pixel format this head does not read.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("unsupported camera pixel format {0:?}: this head reads YUYV, GREY, RGB3 and MJPG")]
+pub struct UnsupportedFormat(pub String);
+
 impl CameraFormat {
     /// From a FourCC code.
     pub fn from_fourcc(code: [u8; 4]) -> Option<CameraFormat> {
@@ -31,6 +36,18 @@ impl CameraFormat {
             b"MJPG" => Some(CameraFormat::Mjpeg),
             _ => None,
         }
+    }
+
+    /// From a FourCC given as text (`--fourcc YUYV`): the one check of a user's format name.
+    ///
+    /// # Errors
+    /// [`UnsupportedFormat`] naming what was given and what this head reads.
+    pub fn parse(s: &str) -> Result<CameraFormat, UnsupportedFormat> {
+        let b = s.as_bytes();
+        (b.len() == 4)
+            .then(|| CameraFormat::from_fourcc([b[0], b[1], b[2], b[3]]))
+            .flatten()
+            .ok_or_else(|| UnsupportedFormat(s.chars().take(16).collect()))
     }
 
     /// The FourCC code.

@@ -7,13 +7,16 @@ use super::{FrameSource, OwnedFrame, SourceError, SourceOptions, average};
 /// Reads an image file as a frame in `format`.
 ///
 /// # Errors
-/// [`SourceError::Io`] naming the file.
+/// [`SourceError::Image`] or [`SourceError::Convert`] naming the file.
 pub fn load_frame(
     path: &std::path::Path,
     format: PixelFormat,
     index: u64,
 ) -> Result<OwnedFrame, SourceError> {
-    let img = image::open(path).map_err(|e| SourceError::Io(format!("{}: {e}", path.display())))?;
+    let img = image::open(path).map_err(|source| SourceError::Image {
+        path: path.to_path_buf(),
+        source,
+    })?;
     let rgb = img.to_rgb8();
     let (w, h) = (rgb.width() as usize, rgb.height() as usize);
     let mut data = Vec::new();
@@ -26,7 +29,10 @@ pub fn load_frame(
         format,
         &mut data,
     )
-    .map_err(|e| SourceError::Io(format!("{}: {e}", path.display())))?;
+    .map_err(|source| SourceError::Convert {
+        what: path.display().to_string(),
+        source,
+    })?;
     Ok(OwnedFrame {
         data,
         width: w,
@@ -52,14 +58,18 @@ impl ImageDir {
     /// Lists a folder.
     ///
     /// # Errors
-    /// [`SourceError::Io`] for an unreadable folder, one without images, or an unreadable first
+    /// [`SourceError::Folder`] for an unreadable folder, [`SourceError::Images`] for one without
+    /// images, or the first image's error for an unreadable first
     /// image.
     pub fn open(
         dir: &std::path::Path,
         format: PixelFormat,
         opts: &SourceOptions,
     ) -> Result<ImageDir, SourceError> {
-        let io = |e: std::io::Error| SourceError::Io(format!("{}: {e}", dir.display()));
+        let io = |source: std::io::Error| SourceError::Folder {
+            path: dir.to_path_buf(),
+            source,
+        };
         let mut files = Vec::new();
         let mut reference = opts.reference.clone();
         for entry in std::fs::read_dir(dir).map_err(io)? {
@@ -78,9 +88,9 @@ impl ImageDir {
             files.push(path);
         }
         files.sort();
-        let first = files
-            .first()
-            .ok_or_else(|| SourceError::Io(format!("{}: no PNG or JPEG images", dir.display())))?;
+        let first = files.first().ok_or_else(|| {
+            SourceError::Images(format!("{}: no PNG or JPEG images", dir.display()))
+        })?;
         let f = load_frame(first, format, 0)?;
         Ok(ImageDir {
             dir: dir.to_path_buf(),
@@ -127,7 +137,7 @@ impl FrameSource for ImageDir {
             }
         };
         if (r.width, r.height) != self.size {
-            return Err(SourceError::Io(format!(
+            return Err(SourceError::Images(format!(
                 "the reference is {}×{}, the images {}×{}",
                 r.width, r.height, self.size.0, self.size.1
             )));
@@ -141,7 +151,7 @@ impl FrameSource for ImageDir {
         };
         let f = load_frame(path, self.format, self.next as u64)?;
         if (f.width, f.height) != self.size {
-            return Err(SourceError::Io(format!(
+            return Err(SourceError::Images(format!(
                 "{} is {}×{}, the first image {}×{}",
                 path.display(),
                 f.width,

@@ -48,39 +48,64 @@ impl OwnedFrame {
 }
 
 /// Why a source could not be opened or gave no frame.
-#[derive(Debug)]
+#[derive(Debug, thiserror::Error)]
 #[non_exhaustive]
 pub enum SourceError {
-    /// No source of that name; the text lists the names there are.
+    /// No source of that name.
+    #[error("no frame source named {0:?} (known: rig, rig:WIDTHxHEIGHT, dir:FOLDER, /dev/videoN)")]
     Unknown(String),
-    /// The name's parameters are malformed.
+    /// The name's parameters are malformed (the text says how).
+    #[error("bad frame source: {0}")]
     BadSpec(String),
     /// The virtual rig failed.
     #[cfg(feature = "rig")]
-    Rig(scanner_rig::RigError),
-    /// An image file or folder could not be read.
-    Io(String),
+    #[error("virtual rig")]
+    Rig(#[source] scanner_rig::RigError),
+    /// An image file could not be read or decoded.
+    #[error("image {}", path.display())]
+    Image {
+        /// The file.
+        path: std::path::PathBuf,
+        /// Why.
+        #[source]
+        source: image::ImageError,
+    },
+    /// A folder could not be listed.
+    #[error("image folder {}", path.display())]
+    Folder {
+        /// The folder.
+        path: std::path::PathBuf,
+        /// Why.
+        #[source]
+        source: std::io::Error,
+    },
+    /// Images that do not make a scan (none, of different sizes, a reference of another size).
+    #[error("{0}")]
+    Images(String),
+    /// A buffer could not be converted to the pipeline's format.
+    #[error("{what}")]
+    Convert {
+        /// Which frame.
+        what: String,
+        /// Why.
+        #[source]
+        source: convert::ConvertError,
+    },
     /// The camera failed or delivered a bad buffer.
-    Camera(String),
+    #[error("camera {device}: {what}")]
+    Camera {
+        /// The device.
+        device: String,
+        /// What failed.
+        what: String,
+        /// The driver's error, if any.
+        #[source]
+        source: Option<std::io::Error>,
+    },
+    /// Reference frames that cannot be averaged.
+    #[error("reference frames: {0}")]
+    Reference(&'static str),
 }
-
-impl std::fmt::Display for SourceError {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        match self {
-            Self::Unknown(name) => write!(
-                f,
-                "no frame source named {name:?} (known: rig, rig:WIDTHxHEIGHT, dir:FOLDER, /dev/videoN)"
-            ),
-            Self::BadSpec(what) => write!(f, "bad frame source: {what}"),
-            #[cfg(feature = "rig")]
-            Self::Rig(e) => write!(f, "virtual rig: {e}"),
-            Self::Io(e) => write!(f, "image source: {e}"),
-            Self::Camera(e) => write!(f, "camera: {e}"),
-        }
-    }
-}
-
-impl std::error::Error for SourceError {}
 
 #[cfg(feature = "rig")]
 impl From<scanner_rig::RigError> for SourceError {
@@ -174,18 +199,16 @@ impl SourceOptions {
 /// Averages frames of one shape into one.
 ///
 /// # Errors
-/// [`SourceError::Camera`] when the frames differ in shape or there are none.
+/// [`SourceError::Reference`] when the frames differ in shape or there are none.
 pub fn average(frames: &[OwnedFrame]) -> Result<OwnedFrame, SourceError> {
-    let first = frames
-        .first()
-        .ok_or_else(|| SourceError::Camera("no frames to average into a reference".into()))?;
+    let first = frames.first().ok_or(SourceError::Reference(
+        "no frames to average into a reference",
+    ))?;
     if frames.iter().any(|f| {
         (f.width, f.height, f.format) != (first.width, first.height, first.format)
             || f.data.len() != first.data.len()
     }) {
-        return Err(SourceError::Camera(
-            "reference frames differ in size or format".into(),
-        ));
+        return Err(SourceError::Reference("they differ in size or format"));
     }
     let n = frames.len() as u32;
     let data = (0..first.data.len())

@@ -29,8 +29,20 @@ mod imp {
     /// `V4L2_CID_AUTO_WHITE_BALANCE`.
     const CID_AUTO_WHITE_BALANCE: u32 = 0x0098_090c;
 
-    fn cam(path: &str, what: &str, e: impl std::fmt::Display) -> SourceError {
-        SourceError::Camera(format!("{path}: {what}: {e}"))
+    fn cam(path: &str, what: &str, e: std::io::Error) -> SourceError {
+        SourceError::Camera {
+            device: path.to_string(),
+            what: what.to_string(),
+            source: Some(e),
+        }
+    }
+
+    fn refused(path: &str, what: String) -> SourceError {
+        SourceError::Camera {
+            device: path.to_string(),
+            what,
+            source: None,
+        }
     }
 
     /// A streaming V4L2 camera.
@@ -67,16 +79,11 @@ mod imp {
                 .map(|d| d.fourcc.repr)
                 .collect();
             let wanted: Option<[u8; 4]> = match &opts.fourcc {
-                Some(s) => {
-                    let b = s.as_bytes();
-                    if b.len() != 4 || CameraFormat::from_fourcc([b[0], b[1], b[2], b[3]]).is_none()
-                    {
-                        return Err(SourceError::BadSpec(format!(
-                            "pixel format {s:?}: this head reads YUYV, GREY, RGB3 and MJPG"
-                        )));
-                    }
-                    Some([b[0], b[1], b[2], b[3]])
-                }
+                Some(s) => Some(
+                    CameraFormat::parse(s)
+                        .map_err(|e| SourceError::BadSpec(e.to_string()))?
+                        .fourcc(),
+                ),
                 None => [*b"YUYV", *b"GREY", *b"RGB3", *b"MJPG"]
                     .into_iter()
                     .find(|c| offered.contains(c)),
@@ -86,16 +93,19 @@ mod imp {
                     .iter()
                     .map(|c| String::from_utf8_lossy(c).into_owned())
                     .collect();
-                return Err(SourceError::Camera(format!(
-                    "{path}: offers {} but none this head reads (YUYV, GREY, RGB3, MJPG)",
-                    list.join(", ")
-                )));
+                return Err(refused(
+                    path,
+                    format!(
+                        "offers {} but none this head reads (YUYV, GREY, RGB3, MJPG)",
+                        list.join(", ")
+                    ),
+                ));
             };
             if !offered.contains(&code) {
-                return Err(SourceError::Camera(format!(
-                    "{path}: does not offer {}",
-                    String::from_utf8_lossy(&code)
-                )));
+                return Err(refused(
+                    path,
+                    format!("does not offer {}", String::from_utf8_lossy(&code)),
+                ));
             }
             fmt.fourcc = FourCC::new(&code);
             if let Some((w, h)) = opts.size {
@@ -110,14 +120,17 @@ mod imp {
                     .size
                     .is_some_and(|(w, h)| (fmt.width, fmt.height) != (w, h))
             {
-                return Err(SourceError::Camera(format!(
-                    "{path}: asked for {} {:?}, the camera chose {} {}×{}",
-                    String::from_utf8_lossy(&code),
-                    opts.size,
-                    String::from_utf8_lossy(&fmt.fourcc.repr),
-                    fmt.width,
-                    fmt.height
-                )));
+                return Err(refused(
+                    path,
+                    format!(
+                        "asked for {} {:?}, the camera chose {} {}×{}",
+                        String::from_utf8_lossy(&code),
+                        opts.size,
+                        String::from_utf8_lossy(&fmt.fourcc.repr),
+                        fmt.width,
+                        fmt.height
+                    ),
+                ));
             }
             if let Some(fps) = opts.fps {
                 dev.set_params(&v4l::video::capture::Parameters::with_fps(fps))
@@ -172,7 +185,7 @@ mod imp {
             let (buf, meta) = CaptureStream::next(&mut self.stream)
                 .map_err(|e| cam(&self.path, "the camera stopped", e))?;
             if t0.elapsed() > Duration::from_secs(5) {
-                return Err(cam(&self.path, "no frame", "more than 5 s"));
+                return Err(refused(&self.path, "no frame for more than 5 s".into()));
             }
             let used = (meta.bytesused as usize).min(buf.len());
             let mut data = Vec::new();
@@ -185,7 +198,10 @@ mod imp {
                 self.format,
                 &mut data,
             )
-            .map_err(|e| cam(&self.path, "bad buffer", e))?;
+            .map_err(|source| SourceError::Convert {
+                what: format!("camera {}: a bad buffer", self.path),
+                source,
+            })?;
             Ok(OwnedFrame {
                 data,
                 width: self.size.0,
@@ -283,9 +299,11 @@ pub fn open(
     #[cfg(not(feature = "v4l"))]
     {
         let _ = (format, opts);
-        Err(SourceError::Camera(format!(
-            "{path}: this build has no V4L2 support (built without the `v4l` feature)"
-        )))
+        Err(SourceError::Camera {
+            device: path.to_string(),
+            what: "this build has no V4L2 support (built without the `v4l` feature)".into(),
+            source: None,
+        })
     }
 }
 
