@@ -1,20 +1,33 @@
 //! From bytes to the grid: the streaming decoder (any chunks, resynchronising, counting every
-//! rejection), the journal (every accepted frame appended and flushed as it arrives, so that a
-//! crash, a pulled cable or Ctrl-C loses nothing already received), and the grid.
+//! rejection), the journal ([`crate::journal`]: every accepted frame appended and flushed as it
+//! arrives), and the grid.
 
 use std::collections::{BTreeMap, BTreeSet, VecDeque};
-use std::io::Write;
-use std::path::Path;
-use std::time::Instant;
 
-use anyhow::{Context, Result};
-use scanner_core::Camera;
 use scanner_core::nalgebra::Point3;
 use scanner_core::wire::{
-    self, DecodeStats, Decoder, Header, MAX_ENCODED, Message, SKIP_REASONS, Status, points,
+    DecodeStats, Decoder, Header, MAX_ENCODED, Message, SKIP_REASONS, Status, points,
 };
+use scanner_core::{Camera, GeomError};
 
-use crate::grid::{Cell, Grid};
+use crate::grid::{Cell, Grid, GridError};
+pub use crate::journal::{Journal, JournalError};
+
+/// Why the collection cannot go on.
+#[derive(Debug, thiserror::Error)]
+pub enum CollectError {
+    /// The journal could not be written (nothing received is dropped from memory).
+    #[error(transparent)]
+    Journal(#[from] JournalError),
+    /// The header's camera is not a camera.
+    #[error("the header's camera is unusable")]
+    Camera(#[source] GeomError),
+    /// The grid cannot be built for the header.
+    #[error(transparent)]
+    Grid(#[from] GridError),
+}
+
+type Result<T, E = CollectError> = std::result::Result<T, E>;
 
 /// Settings of the collection.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -78,78 +91,28 @@ impl Counts {
     }
 }
 
-/// The session's journal: accepted frames, re-encoded exactly, appended and flushed one by one
-/// (and synced to disk at most once a second).
-pub struct Journal {
-    file: std::fs::File,
-    scratch: Vec<u8>,
-    out: Vec<u8>,
-    last_sync: Instant,
-}
-
-impl Journal {
-    /// Creates (or appends to) a journal file.
-    ///
-    /// # Errors
-    /// Names the file.
-    pub fn open(path: &Path) -> Result<Journal> {
-        let file = std::fs::OpenOptions::new()
-            .create(true)
-            .append(true)
-            .open(path)
-            .with_context(|| format!("cannot open the journal {}", path.display()))?;
-        Ok(Journal {
-            file,
-            scratch: vec![0; wire::MAX_FRAME],
-            out: vec![0; MAX_ENCODED],
-            last_sync: Instant::now(),
-        })
-    }
-
-    /// Appends one message.
-    ///
-    /// # Errors
-    /// The write failed.
-    pub fn append(&mut self, msg: &Message) -> Result<()> {
-        let n = wire::encode(msg, &mut self.scratch, &mut self.out)
-            .map_err(|e| anyhow::anyhow!("journal: {e}"))?;
-        self.file
-            .write_all(&self.out[..n])
-            .context("writing the journal")?;
-        self.file.flush().context("writing the journal")?;
-        if self.last_sync.elapsed().as_secs_f64() >= 1.0 {
-            self.file.sync_data().context("syncing the journal")?;
-            self.last_sync = Instant::now();
-        }
-        Ok(())
-    }
-
-    /// Syncs to disk.
-    ///
-    /// # Errors
-    /// The sync failed.
-    pub fn sync(&mut self) -> Result<()> {
-        self.file.sync_all().context("syncing the journal")
-    }
-}
-
 /// A decoded point packet held until a header arrives.
 struct Pending {
     points: Vec<Point3<f32>>,
     rgb: Vec<[u8; 3]>,
 }
 
-/// Bytes in, grid out.
+/// Bytes in, grid out: the decoder, and what it feeds.
 pub struct Collector {
-    opts: CollectOptions,
     decoder: Box<Decoder<MAX_ENCODED>>,
+    state: State,
+}
+
+/// Everything but the decoder (so the decoder's callback can borrow it while it decodes).
+struct State {
+    opts: CollectOptions,
     journal: Option<Journal>,
     header: Option<Header>,
     grid: Option<Grid>,
     colour: bool,
     pending: VecDeque<Pending>,
     counts: Counts,
-    error: Option<anyhow::Error>,
+    error: Option<CollectError>,
     points: Vec<Point3<f32>>,
     seen: BTreeSet<(u32, u32)>,
 }
@@ -158,8 +121,69 @@ impl Collector {
     /// A collector, journaling to `journal` if given.
     pub fn new(opts: CollectOptions, journal: Option<Journal>) -> Collector {
         Collector {
-            opts,
             decoder: Box::new(Decoder::new()),
+            state: State::new(opts, journal),
+        }
+    }
+
+    /// The counts so far.
+    pub fn counts(&self) -> Counts {
+        let mut c = self.state.counts.clone();
+        c.decode = self.decoder.stats();
+        c
+    }
+
+    /// The first header.
+    pub fn header(&self) -> Option<&Header> {
+        self.state.header.as_ref()
+    }
+
+    /// The grid (once a header has arrived).
+    pub fn grid(&self) -> Option<&Grid> {
+        self.state.grid.as_ref()
+    }
+
+    /// Whether points carried colour.
+    pub fn colour(&self) -> bool {
+        self.state.colour
+    }
+
+    /// Feeds bytes in any chunks.
+    ///
+    /// # Errors
+    /// The journal could not be written (nothing received is dropped from memory), or the first
+    /// header is unusable.
+    pub fn feed(&mut self, bytes: &[u8]) -> Result<()> {
+        let state = &mut self.state;
+        self.decoder.feed(bytes, |m| {
+            if let Ok(msg) = m
+                && let Err(e) = state.handle(&msg)
+            {
+                state.error.get_or_insert(e);
+            }
+        });
+        match self.state.error.take() {
+            Some(e) => Err(e),
+            None => Ok(()),
+        }
+    }
+
+    /// Flushes the journal to disk.
+    ///
+    /// # Errors
+    /// The sync failed.
+    pub fn sync(&mut self) -> Result<()> {
+        if let Some(j) = &mut self.state.journal {
+            j.sync()?;
+        }
+        Ok(())
+    }
+}
+
+impl State {
+    fn new(opts: CollectOptions, journal: Option<Journal>) -> State {
+        State {
+            opts,
             journal,
             header: None,
             grid: None,
@@ -169,48 +193,6 @@ impl Collector {
             error: None,
             points: Vec::with_capacity(4096),
             seen: BTreeSet::new(),
-        }
-    }
-
-    /// The counts so far.
-    pub fn counts(&self) -> Counts {
-        let mut c = self.counts.clone();
-        c.decode = self.decoder.stats();
-        c
-    }
-
-    /// The first header.
-    pub fn header(&self) -> Option<&Header> {
-        self.header.as_ref()
-    }
-
-    /// The grid (once a header has arrived).
-    pub fn grid(&self) -> Option<&Grid> {
-        self.grid.as_ref()
-    }
-
-    /// Whether points carried colour.
-    pub fn colour(&self) -> bool {
-        self.colour
-    }
-
-    /// Feeds bytes in any chunks.
-    ///
-    /// # Errors
-    /// The journal could not be written (nothing received is dropped from memory).
-    pub fn feed(&mut self, bytes: &[u8]) -> Result<()> {
-        let mut decoder = std::mem::replace(&mut self.decoder, Box::new(Decoder::new()));
-        decoder.feed(bytes, |m| {
-            if let Ok(msg) = m
-                && let Err(e) = self.handle(&msg)
-            {
-                self.error.get_or_insert(e);
-            }
-        });
-        self.decoder = decoder;
-        match self.error.take() {
-            Some(e) => Err(e),
-            None => Ok(()),
         }
     }
 
@@ -281,10 +263,7 @@ impl Collector {
     }
 
     fn start(&mut self, h: &Header) -> Result<()> {
-        let camera: Camera<f64> = h
-            .camera()
-            .map_err(|e| anyhow::anyhow!("the header's camera is unusable: {e}"))?
-            .cast();
+        let camera: Camera<f64> = h.camera().map_err(CollectError::Camera)?.cast();
         // Millimetre grids span the view out to the board's crease distance (or 2 m).
         let depth = h
             .board
@@ -300,8 +279,7 @@ impl Collector {
             self.opts.cell,
             depth,
             self.opts.outlier_mm,
-        )
-        .map_err(|e| anyhow::anyhow!(e))?;
+        )?;
         self.header = Some(*h);
         self.grid = Some(grid);
         while let Some(p) = self.pending.pop_front() {
@@ -317,16 +295,5 @@ impl Collector {
                 self.counts.gridded += 1;
             }
         }
-    }
-
-    /// Flushes the journal to disk.
-    ///
-    /// # Errors
-    /// The sync failed.
-    pub fn sync(&mut self) -> Result<()> {
-        if let Some(j) = &mut self.journal {
-            j.sync()?;
-        }
-        Ok(())
     }
 }

@@ -7,36 +7,49 @@ use std::fmt::Write as _;
 use std::io::Write as _;
 use std::path::Path;
 
-use anyhow::{Context, Result};
 use image::{Rgb, RgbImage};
 
 use crate::grid::Grid;
 use crate::mesh::Mesh;
 
-/// Writes `bytes` to `path` through a temporary file in the same folder and a rename.
+/// Why an output could not be written.
+#[derive(Debug, thiserror::Error)]
+pub enum ExportError {
+    /// The file (or its folder) cannot be written.
+    #[error("cannot write {}", path.display())]
+    Write {
+        /// The file.
+        path: std::path::PathBuf,
+        /// Why.
+        #[source]
+        source: std::io::Error,
+    },
+    /// A picture could not be encoded.
+    #[error("encoding a picture")]
+    Png(#[source] image::ImageError),
+}
+
+/// Writes `bytes` to `path` through a temporary file in the same folder (`tempfile`) and a
+/// rename, so that a crash never leaves a half-written file in place of a good one.
 ///
 /// # Errors
-/// Names the file and the failure.
-pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
+/// [`ExportError::Write`] naming the file.
+pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), ExportError> {
     let dir = path
         .parent()
         .filter(|p| !p.as_os_str().is_empty())
         .unwrap_or(Path::new("."));
-    let name = path
-        .file_name()
-        .map(|n| n.to_string_lossy().into_owned())
-        .unwrap_or_default();
-    let tmp = dir.join(format!(".{name}.tmp{}", std::process::id()));
-    let res = (|| -> std::io::Result<()> {
-        let mut f = std::fs::File::create(&tmp)?;
+    let write = || -> std::io::Result<()> {
+        let mut f = tempfile::NamedTempFile::new_in(dir)?;
         f.write_all(bytes)?;
-        f.sync_all()?;
-        std::fs::rename(&tmp, path)
-    })();
-    if res.is_err() {
-        let _ = std::fs::remove_file(&tmp);
-    }
-    res.with_context(|| format!("cannot write {}", path.display()))
+        f.as_file().sync_all()?;
+        f.persist(path).map_err(|e| e.error)?;
+        Ok(())
+    };
+    write().map_err(|source| ExportError::Write {
+        path: path.to_path_buf(),
+        source,
+    })
 }
 
 /// The mesh as OBJ text (colours as `v x y z r g b` with components in 0–1).
@@ -337,8 +350,9 @@ pub fn shaded_png(grid: &Grid, mesh: &Mesh) -> RgbImage {
 ///
 /// # Errors
 /// Encoding failure.
-pub fn png_bytes(img: &RgbImage) -> Result<Vec<u8>> {
+pub fn png_bytes(img: &RgbImage) -> Result<Vec<u8>, ExportError> {
     let mut v = Vec::new();
-    img.write_to(&mut std::io::Cursor::new(&mut v), image::ImageFormat::Png)?;
+    img.write_to(&mut std::io::Cursor::new(&mut v), image::ImageFormat::Png)
+        .map_err(ExportError::Png)?;
     Ok(v)
 }

@@ -24,26 +24,54 @@ pub enum Cell {
     Mm(f64),
 }
 
+/// A `--cell` that is not a cell size.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("cell size {text:?}: {why}")]
+pub struct CellError {
+    /// What was given.
+    pub text: String,
+    /// What is wrong.
+    pub why: &'static str,
+}
+
+/// Most cells a grid may have (each is 48 bytes: 64 Mi cells are 3 GiB).
+pub const MAX_CELLS: usize = 64 << 20;
+
+/// Why a grid cannot be built.
+#[derive(Debug, thiserror::Error)]
+pub enum GridError {
+    /// The camera's image corners have no rays.
+    #[error("the header's camera cannot cast rays")]
+    Camera(#[source] scanner_core::GeomError),
+    /// Too many or no cells.
+    #[error("a grid of {cols}×{rows} cells (at most {MAX_CELLS}): choose a larger cell size")]
+    Size {
+        /// Columns.
+        cols: usize,
+        /// Rows.
+        rows: usize,
+    },
+}
+
 impl std::str::FromStr for Cell {
-    type Err = String;
+    type Err = CellError;
 
     fn from_str(s: &str) -> Result<Self, Self::Err> {
         let s = s.trim();
+        let err = |why| CellError {
+            text: s.chars().take(40).collect(),
+            why,
+        };
         let (num, unit) = if let Some(n) = s.strip_suffix("px") {
             (n, "px")
         } else if let Some(n) = s.strip_suffix("mm") {
             (n, "mm")
         } else {
-            return Err(format!(
-                "cell size {s:?}: give a number with px or mm, e.g. 2px or 0.5mm"
-            ));
+            return Err(err("give a number with px or mm, e.g. 2px or 0.5mm"));
         };
-        let v: f64 = num
-            .trim()
-            .parse()
-            .map_err(|_| format!("cell size {s:?}: {num:?} is not a number"))?;
+        let v: f64 = num.trim().parse().map_err(|_| err("not a number"))?;
         if !(v > 0.0 && v.is_finite()) {
-            return Err(format!("cell size {s:?} must be positive"));
+            return Err(err("must be positive"));
         }
         Ok(if unit == "px" {
             Cell::Pixels(v)
@@ -157,7 +185,7 @@ impl Grid {
         cell: Cell,
         depth: f64,
         outlier_mm: f32,
-    ) -> Result<Grid, String> {
+    ) -> Result<Grid, GridError> {
         let (cols, rows, origin) = match cell {
             Cell::Pixels(p) => (
                 (f64::from(width) / p).ceil() as usize,
@@ -176,7 +204,7 @@ impl Grid {
                 ] {
                     let r = camera
                         .pixel_to_ray(&scanner_core::nalgebra::Point2::new(u, v))
-                        .map_err(|e| format!("camera: {e}"))?;
+                        .map_err(GridError::Camera)?;
                     let p = Vector2::new(r.x * depth, r.y * depth);
                     lo = lo.inf(&p);
                     hi = hi.sup(&p);
@@ -188,10 +216,8 @@ impl Grid {
                 )
             }
         };
-        if cols == 0 || rows == 0 || cols.saturating_mul(rows) > 64 << 20 {
-            return Err(format!(
-                "a grid of {cols}×{rows} cells: choose a larger cell size"
-            ));
+        if cols == 0 || rows == 0 || cols.saturating_mul(rows) > MAX_CELLS {
+            return Err(GridError::Size { cols, rows });
         }
         Ok(Grid {
             cell,

@@ -1,0 +1,199 @@
+//! The command line: `receive`, `replay`, `ports`.
+
+use std::io::Read;
+use std::path::PathBuf;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::{Duration, Instant};
+
+use anyhow::{Context, Result};
+use clap::{Parser, Subcommand};
+
+use crate::collect::{CollectOptions, Collector, Journal};
+use crate::grid::Cell;
+use crate::link::Input;
+use crate::outputs::{Summary, replay_into, write_outputs};
+
+/// Command line of the host tool.
+#[derive(Debug, Parser)]
+#[command(
+    name = "scanner-host",
+    version,
+    about = "Host: point packets → grid → OBJ and pictures"
+)]
+pub struct Args {
+    /// Print the conventions of this build and exit.
+    #[arg(long)]
+    pub info: bool,
+    /// What to do.
+    #[command(subcommand)]
+    pub command: Option<Command>,
+}
+
+/// Options shared by `receive` and `replay`.
+#[derive(Debug, clap::Args)]
+pub struct OutputArgs {
+    /// Output folder (created): scan.obj, scan.ply, scan.stl, depth.png, preview.png,
+    /// summary.txt.
+    #[arg(long, default_value = "scan-out")]
+    pub out: PathBuf,
+    /// Grid cell: pixels (`2px`) or millimetres (`0.5mm`).
+    #[arg(long, default_value = "2px")]
+    pub cell: Cell,
+    /// Cells with fewer samples are left out of the mesh.
+    #[arg(long, default_value_t = 1)]
+    pub min_count: u32,
+    /// No progress display.
+    #[arg(long, short)]
+    pub quiet: bool,
+}
+
+/// The host's commands.
+#[derive(Debug, Subcommand)]
+pub enum Command {
+    /// Receive a scan from the head: `serial:PATH[@BAUD]`, a recorded stream file, `-` for
+    /// stdin, or `pty`: a new pseudo-terminal pair whose device end (printed, and written to
+    /// OUT/device-port) the head writes to, like a serial cable. Every accepted frame is journaled to OUT/journal.stream as it arrives; the outputs
+    /// are written when the input ends, the head's final status arrives (`--until-done`), or on
+    /// Ctrl-C.
+    Receive {
+        /// The input.
+        input: Input,
+        /// Stop at the first final status from the head.
+        #[arg(long)]
+        until_done: bool,
+        /// Outputs.
+        #[command(flatten)]
+        out: OutputArgs,
+    },
+    /// Rebuild all outputs from a journal or a raw recording.
+    Replay {
+        /// The journal or recording.
+        input: PathBuf,
+        /// Outputs.
+        #[command(flatten)]
+        out: OutputArgs,
+    },
+    /// List the serial ports.
+    Ports,
+}
+
+fn collect_options(o: &OutputArgs) -> CollectOptions {
+    CollectOptions {
+        cell: o.cell,
+        ..CollectOptions::default()
+    }
+}
+
+fn progress_bar(quiet: bool) -> indicatif::ProgressBar {
+    if quiet {
+        return indicatif::ProgressBar::hidden();
+    }
+    let pb = indicatif::ProgressBar::new_spinner();
+    pb.set_style(
+        indicatif::ProgressStyle::with_template("{spinner} {elapsed} {msg}")
+            .unwrap_or_else(|_| indicatif::ProgressStyle::default_spinner()),
+    );
+    pb
+}
+
+fn receive(input: &Input, until_done: bool, o: &OutputArgs) -> Result<Summary> {
+    std::fs::create_dir_all(&o.out)
+        .with_context(|| format!("cannot create {}", o.out.display()))?;
+    let journal_path = o.out.join("journal.stream");
+    let mut c = Collector::new(collect_options(o), Some(Journal::open(&journal_path)?));
+    let stop = Arc::new(AtomicBool::new(false));
+    {
+        let stop = stop.clone();
+        // A second handler cannot be installed in the same process (tests): ignore that.
+        let _ = ctrlc::set_handler(move || stop.store(true, Ordering::SeqCst));
+    }
+    let mut input = input.open()?;
+    if let Some(name) = &input.device {
+        crate::export::write_atomic(&o.out.join("device-port"), name.as_bytes())?;
+        eprintln!("device end of the link: {name}");
+    }
+    let pb = progress_bar(o.quiet);
+    let t0 = Instant::now();
+    let mut buf = vec![0u8; 1 << 16];
+    let mut last_draw = Instant::now();
+    let ended = loop {
+        if stop.load(Ordering::SeqCst) {
+            break "stopped (Ctrl-C)";
+        }
+        match input.reader.read(&mut buf) {
+            Ok(0) => break "input ended",
+            Ok(n) => c.feed(&buf[..n])?,
+            Err(e)
+                if e.kind() == std::io::ErrorKind::TimedOut
+                    || e.kind() == std::io::ErrorKind::Interrupted => {}
+            Err(e) => {
+                pb.println(format!("input failed: {e}; writing what was received"));
+                break "input failed";
+            }
+        }
+        if until_done && c.counts().status.values().any(|s| s.done) {
+            break "the head's scan is done";
+        }
+        if last_draw.elapsed() > Duration::from_millis(100) {
+            let k = c.counts();
+            pb.set_message(format!(
+                "frames {}, points {}, {:.0} points/s, link errors {}",
+                k.decode.frames,
+                k.points,
+                k.points as f64 / t0.elapsed().as_secs_f64().max(1e-3),
+                k.decode.rejected()
+            ));
+            pb.tick();
+            last_draw = Instant::now();
+        }
+    };
+    pb.finish_and_clear();
+    c.sync()?;
+    if !o.quiet {
+        eprintln!("{ended}; journal: {}", journal_path.display());
+    }
+    Ok(write_outputs(&c, &o.out, o.min_count)?)
+}
+
+/// Runs the host tool with parsed arguments.
+///
+/// # Errors
+/// Any failure of the run, with context naming what failed.
+pub fn run(args: &Args) -> anyhow::Result<()> {
+    if args.info {
+        println!(
+            "scanner-host {}: units mm, camera +z forward, +y down",
+            env!("CARGO_PKG_VERSION")
+        );
+        return Ok(());
+    }
+    let summary = match &args.command {
+        None => {
+            println!("scanner-host: nothing to do (try --help)");
+            return Ok(());
+        }
+        Some(Command::Ports) => {
+            let ports = serialport::available_ports().context("listing serial ports")?;
+            if ports.is_empty() {
+                println!("no serial ports found");
+            }
+            for p in ports {
+                println!("{}: {:?}", p.port_name, p.port_type);
+            }
+            return Ok(());
+        }
+        Some(Command::Receive {
+            input,
+            until_done,
+            out,
+        }) => receive(input, *until_done, out)?,
+        Some(Command::Replay { input, out }) => {
+            let mut c = Collector::new(collect_options(out), None);
+            replay_into(&mut c, input)?;
+            write_outputs(&c, &out.out, out.min_count)?
+        }
+    };
+    print!("{}", summary.text());
+    Ok(())
+}

@@ -1,0 +1,187 @@
+//! What a collection becomes: the mesh, the files and pictures, the summary; and a replay of a
+//! journal or recording into a collector.
+
+use std::io::Read;
+use std::path::Path;
+
+use scanner_core::wire::Skip;
+
+use crate::collect::{CollectError, Collector, Counts};
+use crate::export::{self, ExportError};
+use crate::mesh::{self, MeshOptions};
+
+/// Why the outputs could not be made.
+#[derive(Debug, thiserror::Error)]
+pub enum OutputError {
+    /// The output folder cannot be created.
+    #[error("cannot create the output folder {}", path.display())]
+    Folder {
+        /// The folder.
+        path: std::path::PathBuf,
+        /// Why.
+        #[source]
+        source: std::io::Error,
+    },
+    /// Nothing to build: no session header arrived.
+    #[error(
+        "no session header received ({bytes} bytes, {frames} frames, {rejected} rejected): nothing to build; is this a scanner stream?"
+    )]
+    NoHeader {
+        /// Bytes read.
+        bytes: u64,
+        /// Frames decoded.
+        frames: u64,
+        /// Frames rejected.
+        rejected: u64,
+    },
+    /// A file could not be written.
+    #[error(transparent)]
+    Export(#[from] ExportError),
+    /// The input of a replay cannot be read.
+    #[error("cannot read {}", path.display())]
+    Input {
+        /// The file.
+        path: std::path::PathBuf,
+        /// Why.
+        #[source]
+        source: std::io::Error,
+    },
+    /// The collection failed while replaying.
+    #[error(transparent)]
+    Collect(#[from] CollectError),
+}
+
+/// What a run produced.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Summary {
+    /// The counts.
+    pub counts: Counts,
+    /// Mesh vertices.
+    pub vertices: usize,
+    /// Mesh faces.
+    pub faces: usize,
+    /// Filled cells over all cells of the grid.
+    pub coverage: f64,
+    /// Points per second of capture time.
+    pub point_rate: f64,
+    /// Outlier samples rejected by the grid.
+    pub outliers: u64,
+}
+
+impl Summary {
+    /// The summary as text lines.
+    pub fn text(&self) -> String {
+        let c = &self.counts;
+        let d = &c.decode;
+        let mut s = format!(
+            "frames {} ({} point packets, {} headers) from {} scan(s); points {} ({} in the grid, {} outliers); vertices {}, faces {}; coverage {:.1} % of the grid; {:.0} points/s\n",
+            d.frames,
+            c.packets,
+            c.headers,
+            c.scans.len(),
+            c.points,
+            c.gridded,
+            self.outliers,
+            self.vertices,
+            self.faces,
+            100.0 * self.coverage,
+            self.point_rate
+        );
+        s += &format!(
+            "link: {} bytes; rejected frames: {} bad CRC, {} bad COBS, {} unknown version, {} bad payload, {} oversize, {} truncated; {} packets with bad points, {} without a header, {} duplicates\n",
+            d.bytes,
+            d.bad_crc,
+            d.bad_cobs,
+            d.bad_version,
+            d.bad_payload,
+            d.oversize,
+            d.truncated,
+            c.bad_points,
+            c.no_header,
+            c.duplicates
+        );
+        let skipped = c.skipped();
+        for r in Skip::ALL {
+            if skipped[r as usize] > 0 {
+                s += &format!(
+                    "head skipped {} frames: {}\n",
+                    skipped[r as usize],
+                    r.name()
+                );
+            }
+        }
+        s
+    }
+}
+
+/// Writes every output of a collection into `dir`.
+///
+/// # Errors
+/// No header ever arrived (nothing to grid), or a file cannot be written.
+pub fn write_outputs(c: &Collector, dir: &Path, min_count: u32) -> Result<Summary, OutputError> {
+    std::fs::create_dir_all(dir).map_err(|source| OutputError::Folder {
+        path: dir.to_path_buf(),
+        source,
+    })?;
+    let counts = c.counts();
+    let (Some(grid), Some(header)) = (c.grid(), c.header()) else {
+        let e = OutputError::NoHeader {
+            bytes: counts.decode.bytes,
+            frames: counts.decode.frames,
+            rejected: counts.decode.rejected(),
+        };
+        export::write_atomic(&dir.join("summary.txt"), e.to_string().as_bytes())?;
+        return Err(e);
+    };
+    let opts = MeshOptions {
+        min_count,
+        ..MeshOptions::default()
+    };
+    let m = mesh::build(grid, f64::from(header.camera.fx), &opts, c.colour());
+    export::write_atomic(&dir.join("scan.obj"), export::obj(&m).as_bytes())?;
+    export::write_atomic(&dir.join("scan.ply"), &export::ply(&m))?;
+    export::write_atomic(&dir.join("scan.stl"), &export::stl(&m))?;
+    export::write_atomic(
+        &dir.join("depth.png"),
+        &export::png_bytes(&export::depth_png(grid, &m))?,
+    )?;
+    export::write_atomic(
+        &dir.join("preview.png"),
+        &export::png_bytes(&export::shaded_png(grid, &m))?,
+    )?;
+    let span = counts.time_us.map_or(0.0, |(a, b)| (b - a) as f64 / 1e6);
+    let summary = Summary {
+        point_rate: if span > 0.0 {
+            counts.points as f64 / span
+        } else {
+            0.0
+        },
+        counts,
+        vertices: m.vertices.len(),
+        faces: m.faces.len(),
+        coverage: grid.filled() as f64 / (grid.cols * grid.rows) as f64,
+        outliers: grid.rejected(),
+    };
+    export::write_atomic(&dir.join("summary.txt"), summary.text().as_bytes())?;
+    Ok(summary)
+}
+
+/// Feeds a whole file (a journal or a recording) into a collector.
+///
+/// # Errors
+/// The file cannot be read.
+pub fn replay_into(c: &mut Collector, input: &Path) -> Result<(), OutputError> {
+    let io = |source| OutputError::Input {
+        path: input.to_path_buf(),
+        source,
+    };
+    let mut f = std::fs::File::open(input).map_err(io)?;
+    let mut buf = vec![0u8; 1 << 16];
+    loop {
+        let n = f.read(&mut buf).map_err(io)?;
+        if n == 0 {
+            return Ok(());
+        }
+        c.feed(&buf[..n])?;
+    }
+}
