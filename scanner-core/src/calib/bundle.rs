@@ -268,6 +268,52 @@ pub fn refine(
     poses: &mut [Pose],
     radius: f64,
 ) -> Result<Refinement, GeomError> {
+    check_problem(free, views, poses, radius)?;
+    let mut cam = *camera;
+    let (mut cost, _, count) = total_cost(&cam, views, poses, radius)?;
+    let mut mu = 1e-3;
+    let mut iterations = 0;
+    while iterations < MAX_ITERATIONS && mu <= 1e16 {
+        iterations += 1;
+        let lm = Damped {
+            cam: &cam,
+            free,
+            views,
+            radius,
+            mu,
+        };
+        let Some((dc, candidate)) = lm.intrinsics_step(poses)? else {
+            mu *= 10.0;
+            continue;
+        };
+        match lm.cost_after(poses, &dc, &candidate) {
+            Some(new_cost) if new_cost <= cost => {
+                for (v, p) in views.iter().zip(poses.iter_mut()) {
+                    *p = lm.pose_step(v, p, &dc)?;
+                }
+                let small_step = dc.norm() <= 1e-12 * (1.0 + params(&candidate)[0].abs());
+                let converged = cost - new_cost <= 1e-13 * cost.max(1e-300);
+                cam = candidate;
+                cost = new_cost;
+                mu = (mu / 10.0).max(1e-12);
+                if converged && small_step || cost == 0.0 {
+                    break;
+                }
+            }
+            _ => mu *= 10.0,
+        }
+    }
+    let (cost, max_px, _) = total_cost(&cam, views, poses, radius)?;
+    Ok(Refinement {
+        camera: cam,
+        rms_px: libm::sqrt(cost / count as f64),
+        max_px,
+        iterations,
+    })
+}
+
+/// The checks of [`refine`]'s errors section, before any work.
+fn check_problem(free: Free, views: &[View], poses: &[Pose], radius: f64) -> Result<(), GeomError> {
     if views.len() != poses.len() {
         return Err(GeomError::LengthMismatch);
     }
@@ -288,38 +334,40 @@ pub fn refine(
             got: equations / 2,
         });
     }
-    let mut cam = *camera;
-    let (mut cost, _, count) = total_cost(&cam, views, poses, radius)?;
-    let mut mu = 1e-3;
-    let mut iterations = 0;
-    while iterations < MAX_ITERATIONS {
-        iterations += 1;
-        // Pass 1: the reduced system S δc = rhs for the intrinsics.
+    Ok(())
+}
+
+/// One Levenberg–Marquardt iteration at damping `mu`, with the poses eliminated (Schur
+/// complement): the intrinsics' step first, then each view's pose step given it.
+struct Damped<'a> {
+    cam: &'a Camera<f64>,
+    free: Free,
+    views: &'a [View<'a>],
+    radius: f64,
+    mu: f64,
+}
+
+impl Damped<'_> {
+    /// The reduced system S δc = rhs for the intrinsics, solved; with the camera it leads to.
+    /// `None` when the damped system is singular or the step leaves the valid cameras (more
+    /// damping is needed).
+    fn intrinsics_step(&self, poses: &[Pose]) -> Result<Option<(Vec9, Camera<f64>)>, GeomError> {
         let mut s = Mat9::zeros();
         let mut rhs = Vec9::zeros();
-        let mut singular = false;
-        for (v, p) in views.iter().zip(poses.iter()) {
-            let bl = blocks(&cam, free, v, p, radius)?;
-            let Ok(ainv) = damped6(&bl.a, mu) else {
-                singular = true;
-                break;
+        for (v, p) in self.views.iter().zip(poses) {
+            let bl = blocks(self.cam, self.free, v, p, self.radius)?;
+            let Ok(ainv) = damped6(&bl.a, self.mu) else {
+                return Ok(None);
             };
             let bt_ainv = bl.b.transpose() * ainv;
             s += bl.c - bt_ainv * bl.b;
             rhs += -bl.gc + bt_ainv * bl.gp;
             // Damping of the intrinsics' diagonal uses the undamped C.
             for i in 0..INTRINSICS {
-                s[(i, i)] += mu * bl.c[(i, i)];
+                s[(i, i)] += self.mu * bl.c[(i, i)];
             }
         }
-        if singular {
-            mu *= 10.0;
-            if mu > 1e16 {
-                break;
-            }
-            continue;
-        }
-        for (i, f) in free.0.iter().enumerate() {
+        for (i, f) in self.free.0.iter().enumerate() {
             if !f {
                 s.row_mut(i).fill(0.0);
                 s.column_mut(i).fill(0.0);
@@ -329,78 +377,41 @@ pub fn refine(
                 s[(i, i)] = 1e-12;
             }
         }
-        let dc = if free.any() {
+        let dc = if self.free.any() {
             match s.cholesky() {
                 Some(ch) => ch.solve(&rhs),
-                None => {
-                    mu *= 10.0;
-                    if mu > 1e16 {
-                        break;
-                    }
-                    continue;
-                }
+                None => return Ok(None),
             }
         } else {
             Vec9::zeros()
         };
-        let mut cp = params(&cam);
+        let mut cp = params(self.cam);
         for (p, d) in cp.iter_mut().zip(dc.iter()) {
             *p += d;
         }
-        let Ok(candidate) = camera_from(&cp) else {
-            mu *= 10.0;
-            continue;
-        };
-        // Pass 2: each view's pose step, and the candidate's cost.
-        let pose_step = |v: &View, p: &Pose| -> Result<Pose, GeomError> {
-            let bl = blocks(&cam, free, v, p, radius)?;
-            let ainv = damped6(&bl.a, mu)?;
-            Ok(step_pose(p, &(ainv * (-bl.gp - bl.b * dc))))
-        };
-        let mut new_cost = 0.0;
-        let mut ok = true;
-        for (v, p) in views.iter().zip(poses.iter()) {
-            let c = pose_step(v, p).and_then(|np| {
-                v.layout.iter().zip(v.pixels).try_fold(0.0, |acc, (s, px)| {
-                    observe(&candidate, &np, s, radius, px, false)
-                        .map(|(r, _, _)| acc + r.norm_squared())
-                })
-            });
-            match c {
-                Ok(c) => new_cost += c,
-                Err(_) => {
-                    ok = false;
-                    break;
-                }
-            }
-        }
-        if ok && new_cost.is_finite() && new_cost <= cost {
-            // Pass 3: take the steps.
-            for (v, p) in views.iter().zip(poses.iter_mut()) {
-                *p = pose_step(v, p)?;
-            }
-            let small_step = dc.norm() <= 1e-12 * (1.0 + cp[0].abs());
-            let converged = cost - new_cost <= 1e-13 * cost.max(1e-300);
-            cam = candidate;
-            cost = new_cost;
-            mu = (mu / 10.0).max(1e-12);
-            if converged && small_step || cost == 0.0 {
-                break;
-            }
-        } else {
-            mu *= 10.0;
-            if mu > 1e16 {
-                break;
-            }
-        }
+        Ok(camera_from(&cp).ok().map(|c| (dc, c)))
     }
-    let (cost, max_px, _) = total_cost(&cam, views, poses, radius)?;
-    Ok(Refinement {
-        camera: cam,
-        rms_px: libm::sqrt(cost / count as f64),
-        max_px,
-        iterations,
-    })
+
+    /// A view's pose after the step, given the intrinsics' step `dc`.
+    fn pose_step(&self, v: &View, p: &Pose, dc: &Vec9) -> Result<Pose, GeomError> {
+        let bl = blocks(self.cam, self.free, v, p, self.radius)?;
+        let ainv = damped6(&bl.a, self.mu)?;
+        Ok(step_pose(p, &(ainv * (-bl.gp - bl.b * dc))))
+    }
+
+    /// The cost with `candidate` and every pose stepped; `None` if a step fails or the cost is
+    /// not finite.
+    fn cost_after(&self, poses: &[Pose], dc: &Vec9, candidate: &Camera<f64>) -> Option<f64> {
+        let mut cost = 0.0;
+        for (v, p) in self.views.iter().zip(poses) {
+            let np = self.pose_step(v, p, dc).ok()?;
+            for (s, px) in v.layout.iter().zip(v.pixels) {
+                let (r, _, _) = observe(candidate, &np, s, self.radius, px, false).ok()?;
+                cost += r.norm_squared();
+            }
+        }
+        cost.is_finite().then_some(cost)
+    }
 }
 
 /// Reprojection errors (predicted − found, pixels) of one view, written to `out` (at least as

@@ -1,8 +1,8 @@
 //! Dark circular markers in a gray image, with sub-pixel centres.
 //!
-//! 1. Dark pixels: darker than `dark_ratio` × the local mean over a square window (an integral
-//!    image), so uneven lighting does not matter.
-//! 2. Connected regions (8-neighbour) of dark pixels, not touching the image border.
+//! 1. Dark pixels: darker than `dark_ratio` × the local mean over a square window (`imageproc`'s
+//!    integral image), so uneven lighting does not matter.
+//! 2. Connected regions (8-neighbour, `imageproc`'s labelling) of dark pixels, not touching the image border.
 //! 3. Shape: the ellipse with the region's second moments must cover it — a disc seen at an angle
 //!    is an ellipse; squares, texture, stripes, the object's shadow and half-hidden markers are
 //!    not, and are rejected.
@@ -12,7 +12,10 @@
 //!    averages out instead of biasing the centre; this finds the centroid of the imaged disc,
 //!    which [`scanner_core::calib::model`] predicts.
 
-use image::GrayImage;
+use image::{GrayImage, Luma};
+use imageproc::definitions::Image;
+use imageproc::integral_image::{integral_image, sum_image_pixels};
+use imageproc::region_labelling::{Connectivity, connected_components};
 use scanner_core::nalgebra::{Matrix3, Point2, Vector3};
 
 /// Detection settings.
@@ -99,62 +102,8 @@ pub fn find_markers(img: &GrayImage, cfg: &DetectConfig) -> Detections {
     if w < 8 || h < 8 {
         return out;
     }
-    let raw = img.as_raw();
-    // Integral image of the intensities.
-    let mut integral = vec![0u64; (w + 1) * (h + 1)];
-    for y in 0..h {
-        let mut row = 0u64;
-        for x in 0..w {
-            row += u64::from(raw[y * w + x]);
-            integral[(y + 1) * (w + 1) + x + 1] = integral[y * (w + 1) + x + 1] + row;
-        }
-    }
-    let half = ((w.max(h) as f64 * cfg.window_frac) / 2.0).max(7.0) as usize;
-    let mut dark = vec![false; w * h];
-    for y in 0..h {
-        let (y0, y1) = (y.saturating_sub(half), (y + half + 1).min(h));
-        for x in 0..w {
-            let (x0, x1) = (x.saturating_sub(half), (x + half + 1).min(w));
-            let sum = integral[y1 * (w + 1) + x1] + integral[y0 * (w + 1) + x0]
-                - integral[y0 * (w + 1) + x1]
-                - integral[y1 * (w + 1) + x0];
-            let mean = sum as f64 / ((x1 - x0) * (y1 - y0)) as f64;
-            dark[y * w + x] = f64::from(raw[y * w + x]) < cfg.dark_ratio * mean;
-        }
-    }
     let max_area = (cfg.max_area_frac * (w * h) as f64) as usize;
-    let mut seen = vec![false; w * h];
-    let mut stack = Vec::new();
-    for start in 0..w * h {
-        if !dark[start] || seen[start] {
-            continue;
-        }
-        let mut region = Region {
-            pixels: Vec::new(),
-            border: false,
-        };
-        seen[start] = true;
-        stack.push(start);
-        while let Some(i) = stack.pop() {
-            let (x, y) = (i % w, i / w);
-            region.pixels.push((x as u32, y as u32));
-            if x == 0 || y == 0 || x + 1 == w || y + 1 == h {
-                region.border = true;
-            }
-            for dy in -1i64..=1 {
-                for dx in -1i64..=1 {
-                    let (nx, ny) = (x as i64 + dx, y as i64 + dy);
-                    if nx < 0 || ny < 0 || nx >= w as i64 || ny >= h as i64 {
-                        continue;
-                    }
-                    let j = ny as usize * w + nx as usize;
-                    if dark[j] && !seen[j] {
-                        seen[j] = true;
-                        stack.push(j);
-                    }
-                }
-            }
-        }
+    for region in dark_regions(&dark_mask(img, cfg)) {
         if region.pixels.len() < cfg.min_area {
             continue;
         }
@@ -168,6 +117,45 @@ pub fn find_markers(img: &GrayImage, cfg: &DetectConfig) -> Detections {
         }
     }
     out
+}
+
+/// Step 1: 255 where a pixel is darker than `dark_ratio` × the mean of the square window
+/// around it (clipped at the image border), 0 elsewhere.
+fn dark_mask(img: &GrayImage, cfg: &DetectConfig) -> GrayImage {
+    let (w, h) = img.dimensions();
+    let integral: Image<Luma<u64>> = integral_image(img);
+    let half = ((w.max(h) as f64 * cfg.window_frac) / 2.0).max(7.0) as u32;
+    GrayImage::from_fn(w, h, |x, y| {
+        let (x0, y0) = (x.saturating_sub(half), y.saturating_sub(half));
+        let (x1, y1) = ((x + half).min(w - 1), (y + half).min(h - 1));
+        let sum = sum_image_pixels(&integral, x0, y0, x1, y1)[0];
+        let mean = sum as f64 / (f64::from(x1 - x0 + 1) * f64::from(y1 - y0 + 1));
+        let dark = f64::from(img.get_pixel(x, y)[0]) < cfg.dark_ratio * mean;
+        Luma([if dark { 255 } else { 0 }])
+    })
+}
+
+/// Step 2: the 8-connected regions of a mask, in raster order of their first pixel.
+fn dark_regions(mask: &GrayImage) -> Vec<Region> {
+    let (w, h) = mask.dimensions();
+    let labels = connected_components(mask, Connectivity::Eight, Luma([0u8]));
+    let mut regions: Vec<Region> = Vec::new();
+    for (x, y, l) in labels.enumerate_pixels() {
+        let Some(k) = (l[0] as usize).checked_sub(1) else {
+            continue;
+        };
+        // Labels number the regions from 1 in raster order of their first pixel.
+        if k >= regions.len() {
+            regions.resize_with(k + 1, || Region {
+                pixels: Vec::new(),
+                border: false,
+            });
+        }
+        let region = &mut regions[k];
+        region.pixels.push((x, y));
+        region.border |= x == 0 || y == 0 || x + 1 == w || y + 1 == h;
+    }
+    regions
 }
 
 type Verdict = Result<Blob, (Point2<f64>, &'static str)>;

@@ -31,7 +31,7 @@ use scanner_core::{Camera, Distortion};
 use serde::{Deserialize, Serialize};
 
 use super::board::BoardFile;
-use super::{BoardFit, PlaneMethod};
+use super::{BoardFit, MarkerFit, PlaneMethod, SheetFit};
 
 /// Version of the file format.
 pub const VERSION: u32 = 1;
@@ -306,49 +306,21 @@ impl CalibrationFile {
         )
     }
 
-    /// Adds the board from a fit, by `method`, with the image regions.
+    /// Adds the board from a fit, by `method`, with the image regions; returns the method used
+    /// (the layout pose when the paper's lines are asked for but a sheet lacks them).
     pub fn set_board(
         &mut self,
         fit: &BoardFit,
         board: &BoardFile,
         camera: &Camera<f64>,
         method: PlaneMethod,
-    ) {
-        let sheet = |k: usize, plane: &Plane<f64>| {
-            let s = &fit.sheets[k];
-            SheetSection {
-                normal: (*plane.normal()).into(),
-                offset: plane.offset(),
-                rms_px: s.rms_px,
-                markers: s
-                    .markers
-                    .iter()
-                    .enumerate()
-                    .map(|(i, m)| MarkerEntry {
-                        index: i,
-                        sheet: [m.sheet.x, m.sheet.y],
-                        pixel: m.pixel.map(|p| [p.x, p.y]),
-                        residual_px: m.residual.map(|r| [r.x, r.y]),
-                        status: if m.residual.is_some() {
-                            "used"
-                        } else if m.dropped {
-                            "dropped"
-                        } else {
-                            "missing"
-                        }
-                        .into(),
-                    })
-                    .collect(),
-            }
-        };
-        let planes = match (method, fit.paper) {
-            (PlaneMethod::PaperLines, [Some(l), Some(r)]) => [l, r],
-            _ => [fit.sheets[0].plane, fit.sheets[1].plane],
-        };
-        let used = if planes == [fit.sheets[0].plane, fit.sheets[1].plane] {
-            PlaneMethod::LayoutPose
-        } else {
-            method
+    ) -> PlaneMethod {
+        let (planes, used) = match (method, fit.paper) {
+            (PlaneMethod::PaperLines, [Some(l), Some(r)]) => ([l, r], PlaneMethod::PaperLines),
+            _ => (
+                [fit.sheets[0].plane, fit.sheets[1].plane],
+                PlaneMethod::LayoutPose,
+            ),
         };
         let crease = fit.board.crease();
         let paper = (fit.paper.iter().any(Option::is_some)).then(|| PaperSection {
@@ -361,43 +333,12 @@ impl CalibrationFile {
             angle_deg: board_geom.angle().to_degrees(),
             crease_point: crease.point().coords.into(),
             crease_direction: (*crease.direction()).into(),
-            left: sheet(0, &planes[0]),
-            right: sheet(1, &planes[1]),
+            left: sheet_section(&fit.sheets[0], &planes[0]),
+            right: sheet_section(&fit.sheets[1], &planes[1]),
             paper,
         });
-        // Regions: each sheet's paper outline; the object's region between the marker lines.
-        let (w, h) = (board.sheet.width, board.sheet.height);
-        let poses = [fit.sheets[0].pose, fit.sheets[1].pose];
-        let lines = [board.left.points(), board.right.points()].map(|p| {
-            let (lo, hi) = p
-                .iter()
-                .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), q| {
-                    (lo.min(q.y), hi.max(q.y))
-                });
-            let umax = p.iter().fold(0.0f64, |m, q| m.max(q.x));
-            (lo, hi, umax)
-        });
-        let mut object = Vec::new();
-        let (l, r) = (lines[0], lines[1]);
-        let (vt, vb) = (l.0.max(r.0), l.1.min(r.1));
-        for p in [
-            sheet_pixel(camera, &poses[0], l.2, vt),
-            sheet_pixel(camera, &poses[0], 0.0, vt),
-            sheet_pixel(camera, &poses[1], r.2, vt),
-            sheet_pixel(camera, &poses[1], r.2, vb),
-            sheet_pixel(camera, &poses[1], 0.0, vb),
-            sheet_pixel(camera, &poses[0], l.2, vb),
-        ]
-        .into_iter()
-        .flatten()
-        {
-            object.push(p);
-        }
-        self.regions = Some(Regions {
-            left: outline(camera, &poses[0], (0.0, w), (-h / 2.0, h / 2.0)),
-            right: outline(camera, &poses[1], (0.0, w), (-h / 2.0, h / 2.0)),
-            object,
-        });
+        self.regions = Some(regions(fit, board, camera));
+        used
     }
 
     /// The board planes, if calibrated.
@@ -480,4 +421,62 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
     f.as_file().sync_all()?;
     f.persist(path).map_err(|e| e.error)?;
     Ok(())
+}
+
+/// A sheet's plane and its markers as the file records them.
+fn sheet_section(s: &SheetFit, plane: &Plane<f64>) -> SheetSection {
+    let marker = |(i, m): (usize, &MarkerFit)| MarkerEntry {
+        index: i,
+        sheet: [m.sheet.x, m.sheet.y],
+        pixel: m.pixel.map(|p| [p.x, p.y]),
+        residual_px: m.residual.map(|r| [r.x, r.y]),
+        status: if m.residual.is_some() {
+            "used"
+        } else if m.dropped {
+            "dropped"
+        } else {
+            "missing"
+        }
+        .into(),
+    };
+    SheetSection {
+        normal: (*plane.normal()).into(),
+        offset: plane.offset(),
+        rms_px: s.rms_px,
+        markers: s.markers.iter().enumerate().map(marker).collect(),
+    }
+}
+
+/// The image regions: each sheet's paper outline; the object's region between the marker lines.
+fn regions(fit: &BoardFit, board: &BoardFile, camera: &Camera<f64>) -> Regions {
+    let (w, h) = (board.sheet.width, board.sheet.height);
+    let poses = [fit.sheets[0].pose, fit.sheets[1].pose];
+    // Per sheet: the lowest and highest marker line (v) and the farthest marker from the crease (u).
+    let lines = [board.left.points(), board.right.points()].map(|p| {
+        let (lo, hi) = p
+            .iter()
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), q| {
+                (lo.min(q.y), hi.max(q.y))
+            });
+        let umax = p.iter().fold(0.0f64, |m, q| m.max(q.x));
+        (lo, hi, umax)
+    });
+    let (l, r) = (lines[0], lines[1]);
+    let (vt, vb) = (l.0.max(r.0), l.1.min(r.1));
+    let object = [
+        sheet_pixel(camera, &poses[0], l.2, vt),
+        sheet_pixel(camera, &poses[0], 0.0, vt),
+        sheet_pixel(camera, &poses[1], r.2, vt),
+        sheet_pixel(camera, &poses[1], r.2, vb),
+        sheet_pixel(camera, &poses[1], 0.0, vb),
+        sheet_pixel(camera, &poses[0], l.2, vb),
+    ]
+    .into_iter()
+    .flatten()
+    .collect();
+    Regions {
+        left: outline(camera, &poses[0], (0.0, w), (-h / 2.0, h / 2.0)),
+        right: outline(camera, &poses[1], (0.0, w), (-h / 2.0, h / 2.0)),
+        object,
+    }
 }

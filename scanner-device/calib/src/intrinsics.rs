@@ -356,7 +356,74 @@ fn solve(
     size: (u32, u32),
     free: Free,
 ) -> Result<(Camera<f64>, f64), CalibError> {
-    let mut active: Vec<Active> = reports
+    let mut active = pending_views(reports, layout);
+    let mut camera = closed_form(reports, &mut active, size)?;
+    let images = active.len();
+    let needed = (layout.len() / 2).max(4);
+    for _round in 0..30 {
+        if active.len() < 3 {
+            return Err(too_few_images(reports, active.len()));
+        }
+        let round = fit_round(&camera, free, &active, radius)?;
+        camera = round.camera;
+        let limit = (OUTLIER_OF_MEDIAN * median(round.errs.iter().flatten())).max(OUTLIER_MIN_PX);
+        let view_limit =
+            (VIEW_RMS_OF_MEDIAN * median(round.errs.iter().map(|e| rms(e)))).max(VIEW_RMS_MIN_PX);
+        // Features far off the fit first; an image whose rest still fits badly goes after.
+        let mut changed = false;
+        for (a, e) in active.iter_mut().zip(&round.errs) {
+            changed |= a.drop_beyond(e, limit);
+        }
+        let before = active.len();
+        active = refuse_poor_views(
+            active,
+            &round.errs,
+            reports,
+            view_limit,
+            needed,
+            layout.len(),
+        );
+        if active.len() < before {
+            // Features dropped while a refused image still pulled the fit get another chance.
+            restore_dropped(&mut active, layout);
+            continue;
+        }
+        if changed {
+            continue;
+        }
+        if round.rms_px > MAX_RMS_PX {
+            // No single image stands out, yet the whole does not fit one camera: leave out the
+            // worst image while at most a third are gone; beyond that, refuse.
+            let refused = images - active.len();
+            if active.len() <= 3 || 3 * (refused + 1) > images {
+                return Err(CalibError::PoorCalibration {
+                    rms_px: round.rms_px,
+                    limit_px: MAX_RMS_PX,
+                });
+            }
+            let worst = round
+                .errs
+                .iter()
+                .enumerate()
+                .max_by(|a, b| rms(a.1).total_cmp(&rms(b.1)))
+                .map_or(0, |(i, _)| i);
+            let a = active.remove(worst);
+            reports[a.image].status = Err(CalibError::ResidualTooHigh {
+                rms_px: rms(&round.errs[worst]),
+                limit_px: MAX_RMS_PX,
+            });
+            restore_dropped(&mut active, layout);
+            continue;
+        }
+        record_fits(reports, &active, &round.poses, &camera, radius)?;
+        return Ok((camera, round.rms_px));
+    }
+    Err(CalibError::Unstable)
+}
+
+/// The images still pending, with their correspondences.
+fn pending_views(reports: &[ImageReport], layout: &[Point2<f64>]) -> Vec<Active> {
+    reports
         .iter()
         .enumerate()
         .filter(|(_, r)| is_pending(r))
@@ -370,137 +437,145 @@ fn solve(
                 dropped: Vec::new(),
             })
         })
-        .collect();
-    let mut camera = closed_form(reports, &mut active, size)?;
-    let images = active.len();
-    for _round in 0..30 {
-        if active.len() < 3 {
-            return Err(too_few_images(reports, active.len()));
+        .collect()
+}
+
+/// One refinement over the active images.
+struct Round {
+    camera: Camera<f64>,
+    rms_px: f64,
+    poses: Vec<Pose>,
+    /// Per image, per feature: the reprojection error, pixels.
+    errs: Vec<Vec<f64>>,
+}
+
+fn fit_round(
+    camera: &Camera<f64>,
+    free: Free,
+    active: &[Active],
+    radius: f64,
+) -> Result<Round, CalibError> {
+    let views: Vec<View> = active.iter().map(Active::view).collect();
+    let mut poses: Vec<Pose> = views
+        .iter()
+        .map(|v| initial_pose(camera, v))
+        .collect::<Result<_, _>>()
+        .map_err(geom("intrinsics: initial poses"))?;
+    let r =
+        refine(camera, free, &views, &mut poses, radius).map_err(geom("intrinsics: refinement"))?;
+    let mut errs: Vec<Vec<f64>> = Vec::with_capacity(views.len());
+    for (v, p) in views.iter().zip(&poses) {
+        let mut res = vec![Vector2::zeros(); v.layout.len()];
+        residuals(&r.camera, v, p, radius, &mut res).map_err(geom("intrinsics: residuals"))?;
+        errs.push(res.iter().map(|e| e.norm()).collect());
+    }
+    Ok(Round {
+        camera: r.camera,
+        rms_px: r.rms_px,
+        poses,
+        errs,
+    })
+}
+
+fn rms(e: &[f64]) -> f64 {
+    (e.iter().map(|x| x * x).sum::<f64>() / e.len() as f64).sqrt()
+}
+
+/// The upper median (0 for none).
+fn median(values: impl Iterator<Item = impl std::borrow::Borrow<f64>>) -> f64 {
+    let mut v: Vec<f64> = values.map(|x| *x.borrow()).collect();
+    v.sort_by(f64::total_cmp);
+    v.get(v.len() / 2).copied().unwrap_or(0.0)
+}
+
+impl Active {
+    /// Moves the features whose error `errs` exceeds `limit` to `dropped`; true if any did.
+    fn drop_beyond(&mut self, errs: &[f64], limit: f64) -> bool {
+        if errs.iter().all(|&x| x <= limit) {
+            return false;
         }
-        let views: Vec<View> = active.iter().map(Active::view).collect();
-        let mut poses: Vec<Pose> = views
-            .iter()
-            .map(|v| initial_pose(&camera, v))
-            .collect::<Result<_, _>>()
-            .map_err(geom("intrinsics: initial poses"))?;
-        let r = refine(&camera, free, &views, &mut poses, radius)
-            .map_err(geom("intrinsics: refinement"))?;
-        camera = r.camera;
-        let mut errs: Vec<Vec<f64>> = Vec::with_capacity(views.len());
-        for (v, p) in views.iter().zip(&poses) {
-            let mut res = vec![Vector2::zeros(); v.layout.len()];
-            residuals(&camera, v, p, radius, &mut res).map_err(geom("intrinsics: residuals"))?;
-            errs.push(res.iter().map(|e| e.norm()).collect());
-        }
-        let mut all: Vec<f64> = errs.iter().flatten().copied().collect();
-        all.sort_by(f64::total_cmp);
-        let limit = (OUTLIER_OF_MEDIAN * all[all.len() / 2]).max(OUTLIER_MIN_PX);
-        let rms = |e: &[f64]| (e.iter().map(|x| x * x).sum::<f64>() / e.len() as f64).sqrt();
-        let mut view_rms: Vec<f64> = errs.iter().map(|e| rms(e)).collect();
-        view_rms.sort_by(f64::total_cmp);
-        let view_limit = (VIEW_RMS_OF_MEDIAN * view_rms[view_rms.len() / 2]).max(VIEW_RMS_MIN_PX);
-        drop(views);
-        let mut changed = false;
-        // Features far off the fit first; an image whose rest still fits badly goes after.
-        for (a, e) in active.iter_mut().zip(&errs) {
-            let keep: Vec<bool> = e.iter().map(|&x| x <= limit).collect();
-            if keep.iter().all(|&k| k) {
-                continue;
-            }
-            changed = true;
-            let mut n = 0;
-            for (i, &k) in keep.iter().enumerate() {
-                if k {
-                    a.layout[n] = a.layout[i];
-                    a.pixels[n] = a.pixels[i];
-                    a.index[n] = a.index[i];
-                    n += 1;
-                } else {
-                    a.dropped.push((a.index[i], a.pixels[i], e[i]));
-                }
-            }
-            a.layout.truncate(n);
-            a.pixels.truncate(n);
-            a.index.truncate(n);
-        }
-        let needed = (layout.len() / 2).max(4);
-        let before = active.len();
-        let mut kept = Vec::with_capacity(before);
-        for (a, e) in active.drain(..).zip(&errs) {
-            let r = rms(e);
-            let refused = if r > view_limit {
-                Some(CalibError::ResidualTooHigh {
-                    rms_px: r,
-                    limit_px: view_limit,
-                })
-            } else if a.layout.len() < needed {
-                Some(CalibError::TooFewMarkers {
-                    what: "after dropping features off the fit".into(),
-                    found: a.layout.len(),
-                    expected: layout.len(),
-                    needed,
-                    missing: a.dropped.iter().map(|d| d.0).collect(),
-                })
+        let mut n = 0;
+        for (i, &e) in errs.iter().enumerate() {
+            if e <= limit {
+                self.layout[n] = self.layout[i];
+                self.pixels[n] = self.pixels[i];
+                self.index[n] = self.index[i];
+                n += 1;
             } else {
-                None
-            };
-            match refused {
-                Some(e) => reports[a.image].status = Err(e),
-                None => kept.push(a),
+                self.dropped.push((self.index[i], self.pixels[i], e));
             }
         }
-        active = kept;
-        if active.len() < before {
-            // Features dropped while a refused image still pulled the fit get another chance.
-            restore_dropped(&mut active, layout);
-        }
-        if !changed && active.len() == before && r.rms_px > MAX_RMS_PX {
-            // No single image stands out, yet the whole does not fit one camera: leave out the
-            // worst image while at most a third are gone; beyond that, refuse.
-            let refused = images - active.len();
-            if active.len() <= 3 || 3 * (refused + 1) > images {
-                return Err(CalibError::PoorCalibration {
-                    rms_px: r.rms_px,
-                    limit_px: MAX_RMS_PX,
-                });
-            }
-            let worst = errs
-                .iter()
-                .enumerate()
-                .max_by(|a, b| rms(a.1).total_cmp(&rms(b.1)))
-                .map_or(0, |(i, _)| i);
-            let a = active.remove(worst);
-            reports[a.image].status = Err(CalibError::ResidualTooHigh {
-                rms_px: rms(&errs[worst]),
-                limit_px: MAX_RMS_PX,
-            });
-            restore_dropped(&mut active, layout);
-            continue;
-        }
-        if !changed && active.len() == before {
-            for (a, p) in active.iter().zip(&poses) {
-                let view = a.view();
-                let mut res = vec![Vector2::zeros(); a.layout.len()];
-                let rms_px = residuals(&camera, &view, p, radius, &mut res)
-                    .map_err(geom("intrinsics: residuals"))?;
-                reports[a.image].status = Ok(ViewFit {
-                    found: a
-                        .index
-                        .iter()
-                        .copied()
-                        .zip(a.pixels.iter().copied())
-                        .collect(),
-                    dropped: a.dropped.clone(),
-                    pose: *p,
-                    rms_px,
-                    max_px: res.iter().map(|r| r.norm()).fold(0.0, f64::max),
-                    residuals: res,
-                });
-            }
-            return Ok((camera, r.rms_px));
+        self.layout.truncate(n);
+        self.pixels.truncate(n);
+        self.index.truncate(n);
+        true
+    }
+}
+
+/// Refuses the images fitting worse than `view_limit` (RMS of `errs`, measured before the
+/// drops) or left with fewer than `needed` features; returns the rest.
+fn refuse_poor_views(
+    active: Vec<Active>,
+    errs: &[Vec<f64>],
+    reports: &mut [ImageReport],
+    view_limit: f64,
+    needed: usize,
+    layout_len: usize,
+) -> Vec<Active> {
+    let mut kept = Vec::with_capacity(active.len());
+    for (a, e) in active.into_iter().zip(errs) {
+        let r = rms(e);
+        let refused = if r > view_limit {
+            Some(CalibError::ResidualTooHigh {
+                rms_px: r,
+                limit_px: view_limit,
+            })
+        } else if a.layout.len() < needed {
+            Some(CalibError::TooFewMarkers {
+                what: "after dropping features off the fit".into(),
+                found: a.layout.len(),
+                expected: layout_len,
+                needed,
+                missing: a.dropped.iter().map(|d| d.0).collect(),
+            })
+        } else {
+            None
+        };
+        match refused {
+            Some(e) => reports[a.image].status = Err(e),
+            None => kept.push(a),
         }
     }
-    Err(CalibError::Unstable)
+    kept
+}
+
+/// Each used image's report: its features, the ones dropped, its pose and residuals.
+fn record_fits(
+    reports: &mut [ImageReport],
+    active: &[Active],
+    poses: &[Pose],
+    camera: &Camera<f64>,
+    radius: f64,
+) -> Result<(), CalibError> {
+    for (a, p) in active.iter().zip(poses) {
+        let mut res = vec![Vector2::zeros(); a.layout.len()];
+        let rms_px = residuals(camera, &a.view(), p, radius, &mut res)
+            .map_err(geom("intrinsics: residuals"))?;
+        reports[a.image].status = Ok(ViewFit {
+            found: a
+                .index
+                .iter()
+                .copied()
+                .zip(a.pixels.iter().copied())
+                .collect(),
+            dropped: a.dropped.clone(),
+            pose: *p,
+            rms_px,
+            max_px: res.iter().map(|r| r.norm()).fold(0.0, f64::max),
+            residuals: res,
+        });
+    }
+    Ok(())
 }
 
 /// Puts every dropped feature back into its image's correspondences.

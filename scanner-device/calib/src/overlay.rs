@@ -7,8 +7,10 @@ use scanner_core::Camera;
 use scanner_core::calib::model::predict;
 use scanner_core::nalgebra::{Point2, Point3};
 
-use super::BoardOutcome;
 use super::board::BoardFile;
+use super::detect::Rejected;
+use super::{BoardOutcome, MarkerFit};
+use scanner_core::geometry::{Board, Pose};
 
 /// Colours of the overlay.
 pub mod colour {
@@ -223,137 +225,31 @@ pub fn board_overlay(
     board: &BoardFile,
     camera: &Camera<f64>,
 ) -> RgbImage {
-    let mut cv = Canvas::from_gray(img);
-    let scale = font_scale(img);
-    let th = f64::from(scale);
-    for r in &outcome.detections.rejected {
-        let s = (r.area as f64).sqrt() / 2.0 + 2.0;
-        cv.line(
-            (r.centre.x - s, r.centre.y),
-            (r.centre.x + s, r.centre.y),
-            1.0,
-            colour::CLUTTER,
-        );
-        cv.line(
-            (r.centre.x, r.centre.y - s),
-            (r.centre.x, r.centre.y + s),
-            1.0,
-            colour::CLUTTER,
-        );
-    }
+    let mut pen = Pen {
+        cv: Canvas::from_gray(img),
+        scale: font_scale(img),
+        th: f64::from(font_scale(img)),
+    };
+    pen.clutter(&outcome.detections.rejected);
     let mut legend: Vec<(String, Rgb<u8>)> = Vec::new();
-    let names = ["L", "R"];
-    let layouts = [board.left.points(), board.right.points()];
     match &outcome.result {
         Ok(fit) => {
-            for k in 0..2 {
-                let s = &fit.sheets[k];
-                let radius = [&board.left, &board.right][k].marker_radius(board.marker_diameter);
-                let px =
-                    |p: &Point2<f64>| predict(camera, &s.pose, p, radius).ok().map(|q| (q.x, q.y));
-                // Marker lines: layout points sharing a v.
-                let mut vs: Vec<f64> = layouts[k].iter().map(|p| p.y).collect();
-                vs.sort_by(f64::total_cmp);
-                vs.dedup_by(|a, b| (*a - *b).abs() < 1e-6);
-                for v in vs {
-                    let row: Vec<&Point2<f64>> = layouts[k]
-                        .iter()
-                        .filter(|p| (p.y - v).abs() < 1e-6)
-                        .collect();
-                    if row.len() >= 2 {
-                        let (u0, u1) = row
-                            .iter()
-                            .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), p| {
-                                (a.min(p.x), b.max(p.x))
-                            });
-                        let steps = 24;
-                        let pts: Vec<_> = (0..=steps)
-                            .filter_map(|i| {
-                                px(&Point2::new(
-                                    u0 + (u1 - u0) * f64::from(i) / f64::from(steps),
-                                    v,
-                                ))
-                            })
-                            .collect();
-                        for w in pts.windows(2) {
-                            cv.line(w[0], w[1], th, colour::LINE);
-                        }
-                    }
-                }
+            for (k, s) in fit.sheets.iter().enumerate() {
+                let layout = [&board.left, &board.right][k];
+                let place = SheetPlace {
+                    name: SHEET_NAMES[k],
+                    camera,
+                    pose: &s.pose,
+                    radius: layout.marker_radius(board.marker_diameter),
+                };
+                pen.marker_lines(&layout.points(), &place);
+                let r_px = 0.6 * place.radius.max(5.0) * (img.width() as f64 / 1000.0).max(0.6);
                 for (i, m) in s.markers.iter().enumerate() {
-                    let label = format!("{}{i}", names[k]);
-                    let r_px = 0.6 * radius.max(5.0) * (img.width() as f64 / 1000.0).max(0.6);
-                    match (m.pixel, m.residual) {
-                        (Some(p), Some(res)) => {
-                            cv.circle((p.x, p.y), r_px + 4.0, th, colour::USED);
-                            cv.line(
-                                (p.x, p.y),
-                                (p.x + 100.0 * res.x, p.y + 100.0 * res.y),
-                                th + 1.0,
-                                colour::RESIDUAL,
-                            );
-                            cv.text(
-                                p.x + r_px + 6.0,
-                                p.y - 4.0 * th,
-                                &label,
-                                scale,
-                                colour::USED,
-                            );
-                        }
-                        (Some(p), None) => {
-                            cv.circle((p.x, p.y), r_px + 4.0, th, colour::DROPPED);
-                            cv.text(
-                                p.x + r_px + 6.0,
-                                p.y - 4.0 * th,
-                                &format!("{label} dropped"),
-                                scale,
-                                colour::DROPPED,
-                            );
-                        }
-                        (None, _) => {
-                            if let Some(q) = px(&m.sheet) {
-                                cv.cross(q, 10.0 * th, th + 1.0, colour::MISSING);
-                                cv.text(
-                                    q.0 + 12.0 * th,
-                                    q.1 - 4.0 * th,
-                                    &format!("{label} missing"),
-                                    scale,
-                                    colour::MISSING,
-                                );
-                            }
-                        }
-                    }
+                    pen.marker(i, m, r_px, &place);
                 }
-                let missing = s.missing();
-                legend.push((
-                    format!(
-                        "{} sheet: {}/{} markers, rms {:.3} px{}",
-                        ["left", "right"][k],
-                        s.markers.len() - missing.len(),
-                        s.markers.len(),
-                        s.rms_px,
-                        if missing.is_empty() {
-                            String::new()
-                        } else {
-                            format!(", missing/dropped {missing:?}")
-                        }
-                    ),
-                    colour::USED,
-                ));
+                legend.push((s.summary(["left", "right"][k]), colour::USED));
             }
-            // The crease, between the sheets' top and bottom edges.
-            let c = fit.board.crease();
-            let hh = board.sheet.height / 2.0;
-            let pts: Vec<(f64, f64)> = (0..=32)
-                .filter_map(|i| {
-                    let t = -hh + 2.0 * hh * f64::from(i) / 32.0;
-                    let p: Point3<f64> = c.point() + c.direction() * t;
-                    camera.project(&p).ok().map(|q| (q.x, q.y))
-                })
-                .collect();
-            for w in pts.windows(2) {
-                cv.line(w[0], w[1], th + 1.0, colour::CREASE);
-            }
+            pen.crease(&fit.board, board.sheet.height / 2.0, camera);
             legend.push((
                 format!(
                     "angle between the planes {:.3} deg; crease L_c in magenta",
@@ -364,36 +260,7 @@ pub fn board_overlay(
             legend.push(("residuals drawn x100 (yellow)".into(), colour::RESIDUAL));
         }
         Err(e) => {
-            for (k, a) in outcome.assignments.iter().enumerate() {
-                let sheet = if k == 0 { &board.left } else { &board.right };
-                let features = if sheet.chessboard.is_some() {
-                    &outcome.corners
-                } else {
-                    &outcome.detections.blobs
-                };
-                if let Some(a) = a {
-                    for (i, b) in a.blob_of.iter().enumerate() {
-                        if let Some(b) = b {
-                            let p = features[*b].centre;
-                            cv.text(
-                                p.x + 10.0,
-                                p.y,
-                                &format!("{}{i}?", names[k]),
-                                scale,
-                                colour::DROPPED,
-                            );
-                        }
-                    }
-                }
-            }
-            for b in &outcome.detections.blobs {
-                cv.circle(
-                    (b.centre.x, b.centre.y),
-                    b.axes.0 + 3.0,
-                    th,
-                    colour::DROPPED,
-                );
-            }
+            pen.unfitted(outcome, board);
             legend.push((format!("FAILED: {e}"), colour::MISSING));
         }
     }
@@ -405,8 +272,145 @@ pub fn board_overlay(
         ),
         colour::TEXT,
     ));
-    cv.legend(&legend, scale);
-    cv.image
+    pen.cv.legend(&legend, pen.scale);
+    pen.cv.image
+}
+
+/// Label prefixes of the left and right sheets' markers.
+const SHEET_NAMES: [&str; 2] = ["L", "R"];
+
+/// Where a fitted sheet's layout points land in the image.
+struct SheetPlace<'a> {
+    name: &'static str,
+    camera: &'a Camera<f64>,
+    pose: &'a Pose,
+    radius: f64,
+}
+
+impl SheetPlace<'_> {
+    /// The image of the marker centred at layout point `p`, if it projects.
+    fn pixel(&self, p: &Point2<f64>) -> Option<(f64, f64)> {
+        predict(self.camera, self.pose, p, self.radius)
+            .ok()
+            .map(|q| (q.x, q.y))
+    }
+}
+
+/// A canvas with the line width and font scale of one overlay.
+struct Pen {
+    cv: Canvas,
+    scale: u32,
+    th: f64,
+}
+
+impl Pen {
+    /// A grey + on every dark region rejected as clutter.
+    fn clutter(&mut self, rejected: &[Rejected]) {
+        for r in rejected {
+            let s = (r.area as f64).sqrt() / 2.0 + 2.0;
+            let (x, y) = (r.centre.x, r.centre.y);
+            self.cv.line((x - s, y), (x + s, y), 1.0, colour::CLUTTER);
+            self.cv.line((x, y - s), (x, y + s), 1.0, colour::CLUTTER);
+        }
+    }
+
+    /// The fitted marker lines: layout points sharing a `v`, drawn as projected curves.
+    fn marker_lines(&mut self, layout: &[Point2<f64>], place: &SheetPlace) {
+        let mut vs: Vec<f64> = layout.iter().map(|p| p.y).collect();
+        vs.sort_by(f64::total_cmp);
+        vs.dedup_by(|a, b| (*a - *b).abs() < 1e-6);
+        for v in vs {
+            let (u0, u1, n) = layout
+                .iter()
+                .filter(|p| (p.y - v).abs() < 1e-6)
+                .fold((f64::INFINITY, f64::NEG_INFINITY, 0), |(a, b, n), p| {
+                    (a.min(p.x), b.max(p.x), n + 1)
+                });
+            if n < 2 {
+                continue;
+            }
+            let steps = 24;
+            let pts: Vec<_> = (0..=steps)
+                .filter_map(|i| {
+                    let u = u0 + (u1 - u0) * f64::from(i) / f64::from(steps);
+                    place.pixel(&Point2::new(u, v))
+                })
+                .collect();
+            for w in pts.windows(2) {
+                self.cv.line(w[0], w[1], self.th, colour::LINE);
+            }
+        }
+    }
+
+    /// One layout point: used (green circle, residual ×100), dropped (orange) or missing (red ×
+    /// where it should be).
+    fn marker(&mut self, i: usize, m: &MarkerFit, r_px: f64, place: &SheetPlace) {
+        let label = format!("{}{i}", place.name);
+        let th = self.th;
+        match (m.pixel, m.residual) {
+            (Some(p), Some(res)) => {
+                self.cv.circle((p.x, p.y), r_px + 4.0, th, colour::USED);
+                let tip = (p.x + 100.0 * res.x, p.y + 100.0 * res.y);
+                self.cv.line((p.x, p.y), tip, th + 1.0, colour::RESIDUAL);
+                let at = (p.x + r_px + 6.0, p.y - 4.0 * th);
+                self.label(at, &label, colour::USED);
+            }
+            (Some(p), None) => {
+                self.cv.circle((p.x, p.y), r_px + 4.0, th, colour::DROPPED);
+                let at = (p.x + r_px + 6.0, p.y - 4.0 * th);
+                self.label(at, &format!("{label} dropped"), colour::DROPPED);
+            }
+            (None, _) => {
+                if let Some(q) = place.pixel(&m.sheet) {
+                    self.cv.cross(q, 10.0 * th, th + 1.0, colour::MISSING);
+                    let at = (q.0 + 12.0 * th, q.1 - 4.0 * th);
+                    self.label(at, &format!("{label} missing"), colour::MISSING);
+                }
+            }
+        }
+    }
+
+    /// The crease `L_c` between the sheets' top and bottom edges (`half_height` from its middle).
+    fn crease(&mut self, board: &Board<f64>, half_height: f64, camera: &Camera<f64>) {
+        let c = board.crease();
+        let pts: Vec<(f64, f64)> = (0..=32)
+            .filter_map(|i| {
+                let t = -half_height + 2.0 * half_height * f64::from(i) / 32.0;
+                let p: Point3<f64> = c.point() + c.direction() * t;
+                camera.project(&p).ok().map(|q| (q.x, q.y))
+            })
+            .collect();
+        for w in pts.windows(2) {
+            self.cv.line(w[0], w[1], self.th + 1.0, colour::CREASE);
+        }
+    }
+
+    /// After a failed fit: the identifications found (`L3?`) and every marker detected.
+    fn unfitted(&mut self, outcome: &BoardOutcome, board: &BoardFile) {
+        for (k, a) in outcome.assignments.iter().enumerate() {
+            let sheet = [&board.left, &board.right][k];
+            let features = if sheet.chessboard.is_some() {
+                &outcome.corners
+            } else {
+                &outcome.detections.blobs
+            };
+            let Some(a) = a else { continue };
+            for (i, b) in a.blob_of.iter().enumerate() {
+                if let Some(p) = b.and_then(|b| features.get(b)).map(|f| f.centre) {
+                    let name = format!("{}{i}?", SHEET_NAMES[k]);
+                    self.label((p.x + 10.0, p.y), &name, colour::DROPPED);
+                }
+            }
+        }
+        for b in &outcome.detections.blobs {
+            let at = (b.centre.x, b.centre.y);
+            self.cv.circle(at, b.axes.0 + 3.0, self.th, colour::DROPPED);
+        }
+    }
+
+    fn label(&mut self, at: (f64, f64), text: &str, c: Rgb<u8>) {
+        self.cv.text(at.0, at.1, text, self.scale, c);
+    }
 }
 
 /// An intrinsics image: every feature detected (grey +), the ones used (green, numbered by

@@ -3,7 +3,7 @@
 use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result, bail};
-use clap::Subcommand;
+use clap::{Subcommand, ValueEnum};
 use image::GrayImage;
 use scanner_core::Camera;
 use scanner_core::calib::Free;
@@ -11,8 +11,8 @@ use scanner_core::calib::Free;
 use scanner_calib::board::BoardFile;
 use scanner_calib::file::{CalibrationFile, write_atomic};
 use scanner_calib::{
-    CalibError, DotGrid, PlaneMethod, Target, board_planes, check_size, intrinsics_outcome,
-    overlay, print,
+    CalibError, DotGrid, PlaneMethod, Target, ViewFit, board_planes, check_size,
+    intrinsics_outcome, overlay, print,
 };
 
 /// What to calibrate.
@@ -86,8 +86,8 @@ pub enum Calibrate {
         #[arg(long)]
         camera: PathBuf,
         /// Planes by the layout pose (default) or the paper's three-point lines.
-        #[arg(long, default_value = "layout-pose", value_parser = ["layout-pose", "paper-lines"])]
-        method: String,
+        #[arg(long, value_enum, default_value_t = MethodArg::LayoutPose)]
+        method: MethodArg,
         /// Output calibration file.
         #[arg(long, default_value = "calibration.toml")]
         out: PathBuf,
@@ -97,6 +97,24 @@ pub enum Calibrate {
         /// The board image.
         image: PathBuf,
     },
+}
+
+/// `--method` of `calibrate board`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum MethodArg {
+    /// Every marker of a sheet with its known layout.
+    LayoutPose,
+    /// The paper's construction: two lines of three markers per sheet (eq. 1-6).
+    PaperLines,
+}
+
+impl From<MethodArg> for PlaneMethod {
+    fn from(m: MethodArg) -> PlaneMethod {
+        match m {
+            MethodArg::LayoutPose => PlaneMethod::LayoutPose,
+            MethodArg::PaperLines => PlaneMethod::PaperLines,
+        }
+    }
 }
 
 fn parse_grid(s: &str) -> Result<(usize, usize), String> {
@@ -181,34 +199,10 @@ pub fn calibrate(cmd: &Calibrate) -> Result<()> {
             }
             let squares = chessboard_squares.or(chessboard_corners.map(|(c, r)| (c + 1, r + 1)));
             let target = match squares {
-                Some((cols, rows)) => {
-                    if !(*square > 0.0) {
-                        bail!("--square must be positive, found {square}");
-                    }
-                    if cols < 3 || rows < 3 {
-                        bail!(
-                            "a chessboard needs at least 3x3 squares (2x2 inner corners), found {cols}x{rows} squares"
-                        );
-                    }
-                    Target::Chessboard {
-                        cols,
-                        rows,
-                        square: *square,
-                    }
-                }
-                None => {
-                    if !(pitch > dot && *dot > 0.0) {
-                        bail!("--pitch ({pitch} mm) must exceed --dot ({dot} mm), both positive");
-                    }
-                    Target::Dots(DotGrid {
-                        cols: dots.0,
-                        rows: dots.1,
-                        pitch: *pitch,
-                        dot: *dot,
-                    })
-                }
+                Some(squares) => chessboard_target(squares, *square)?,
+                None => dot_target(*dots, *pitch, *dot)?,
             };
-            intrinsics_command(&target, images, out, overlays.as_deref())?;
+            intrinsics_command(&target, images, out, overlays.as_deref())
         }
         Calibrate::Distance {
             board,
@@ -217,102 +211,136 @@ pub fn calibrate(cmd: &Calibrate) -> Result<()> {
             far,
             far_mm,
             out,
-        } => {
-            let b = load_board(board.as_deref())?;
-            let (n, f) = (load_gray(near)?, load_gray(far)?);
-            check_size(n.dimensions(), &f)
-                .with_context(|| format!("{} against {}", far.display(), near.display()))?;
-            let d = scanner_calib::image_distance(&b.cross, (&n, *near_mm), (&f, *far_mm))
-                .context("image distance")?;
-            let (w, h) = n.dimensions();
-            let cam = Camera::paper(d.d_z, w, h).context("image distance")?;
-            let file = CalibrationFile::from_camera(
-                &cam,
-                (w, h),
-                format!(
-                    "image distance by the paper's two-position procedure (eq. 7-9); mark offset {:.2} mm",
-                    d.epsilon_mm
-                ),
-                None,
-            );
-            file.save(out)?;
-            outln!(
-                "d_z {:.3} px, mark offset ε {:.2} mm -> {}",
-                d.d_z,
-                d.epsilon_mm,
-                out.display()
-            );
-        }
+        } => distance_command(board.as_deref(), (near, *near_mm), (far, *far_mm), out),
         Calibrate::Board {
             board,
             camera,
             method,
             out,
-            overlay: overlay_path,
+            overlay,
             image,
         } => {
-            let b = load_board(board.as_deref())?;
-            let cam_file = CalibrationFile::load(camera)?;
-            let cam = cam_file
-                .camera()
-                .with_context(|| format!("camera in {}", camera.display()))?;
-            let img = load_gray(image)?;
-            check_size((cam_file.image.width, cam_file.image.height), &img).with_context(|| {
-                format!(
-                    "{} with the camera of {}",
-                    image.display(),
-                    camera.display()
-                )
-            })?;
-            let outcome = board_planes(&img, &b, &cam);
-            save_png(
-                &overlay::board_overlay(&img, &outcome, &b, &cam),
-                overlay_path,
-            )?;
-            let fit = outcome.result.with_context(|| {
-                format!(
-                    "board calibration from {} (see {})",
-                    image.display(),
-                    overlay_path.display()
-                )
-            })?;
-            let method = if method == "paper-lines" {
-                PlaneMethod::PaperLines
-            } else {
-                PlaneMethod::LayoutPose
+            let paths = BoardPaths {
+                board: board.as_deref(),
+                camera,
+                image,
+                out,
+                overlay,
             };
-            let mut file = cam_file.clone();
-            file.set_board(&fit, &b, &cam, method);
-            file.save(out)?;
-            let sec = file.board.as_ref().expect("set");
-            if method == PlaneMethod::PaperLines && sec.method != "paper-lines" {
-                eprintln!(
-                    "warning: the paper's construction needs all six markers of the paper's layout on each sheet; used the layout pose"
-                );
-            }
-            for (k, s) in fit.sheets.iter().enumerate() {
-                outln!(
-                    "{} sheet: {}/{} markers, rms {:.3} px{}",
-                    ["left", "right"][k],
-                    s.markers.len() - s.missing().len(),
-                    s.markers.len(),
-                    s.rms_px,
-                    if s.missing().is_empty() {
-                        String::new()
-                    } else {
-                        format!(", missing or dropped: {:?}", s.missing())
-                    }
-                );
-            }
-            outln!(
-                "planes by {}; angle between them {:.3}°; -> {} (picture: {})",
-                sec.method,
-                sec.angle_deg,
-                out.display(),
-                overlay_path.display()
-            );
+            board_planes_command(&paths, (*method).into())
         }
     }
+}
+
+fn chessboard_target((cols, rows): (usize, usize), square: f64) -> Result<Target> {
+    if !(square > 0.0) {
+        bail!("--square must be positive, found {square}");
+    }
+    if cols < 3 || rows < 3 {
+        bail!(
+            "a chessboard needs at least 3x3 squares (2x2 inner corners), found {cols}x{rows} squares"
+        );
+    }
+    Ok(Target::Chessboard { cols, rows, square })
+}
+
+fn dot_target((cols, rows): (usize, usize), pitch: f64, dot: f64) -> Result<Target> {
+    if !(pitch > dot && dot > 0.0) {
+        bail!("--pitch ({pitch} mm) must exceed --dot ({dot} mm), both positive");
+    }
+    Ok(Target::Dots(DotGrid {
+        cols,
+        rows,
+        pitch,
+        dot,
+    }))
+}
+
+/// `calibrate distance`: the paper's d_z from the cross at two tape-measured distances.
+fn distance_command(
+    board: Option<&Path>,
+    (near, near_mm): (&Path, f64),
+    (far, far_mm): (&Path, f64),
+    out: &Path,
+) -> Result<()> {
+    let b = load_board(board)?;
+    let (n, f) = (load_gray(near)?, load_gray(far)?);
+    check_size(n.dimensions(), &f)
+        .with_context(|| format!("{} against {}", far.display(), near.display()))?;
+    let d = scanner_calib::image_distance(&b.cross, (&n, near_mm), (&f, far_mm))
+        .context("image distance")?;
+    let (w, h) = n.dimensions();
+    let cam = Camera::paper(d.d_z, w, h).context("image distance")?;
+    let file = CalibrationFile::from_camera(
+        &cam,
+        (w, h),
+        format!(
+            "image distance by the paper's two-position procedure (eq. 7-9); mark offset {:.2} mm",
+            d.epsilon_mm
+        ),
+        None,
+    );
+    file.save(out)?;
+    outln!(
+        "d_z {:.3} px, mark offset ε {:.2} mm -> {}",
+        d.d_z,
+        d.epsilon_mm,
+        out.display()
+    );
+    Ok(())
+}
+
+/// The files of `calibrate board`.
+struct BoardPaths<'a> {
+    board: Option<&'a Path>,
+    camera: &'a Path,
+    image: &'a Path,
+    out: &'a Path,
+    overlay: &'a Path,
+}
+
+/// `calibrate board`: both planes from one image, the overlay written also when it fails.
+fn board_planes_command(p: &BoardPaths, method: PlaneMethod) -> Result<()> {
+    let b = load_board(p.board)?;
+    let cam_file = CalibrationFile::load(p.camera)?;
+    let cam = cam_file
+        .camera()
+        .with_context(|| format!("camera in {}", p.camera.display()))?;
+    let img = load_gray(p.image)?;
+    check_size((cam_file.image.width, cam_file.image.height), &img).with_context(|| {
+        format!(
+            "{} with the camera of {}",
+            p.image.display(),
+            p.camera.display()
+        )
+    })?;
+    let outcome = board_planes(&img, &b, &cam);
+    save_png(&overlay::board_overlay(&img, &outcome, &b, &cam), p.overlay)?;
+    let fit = outcome.result.with_context(|| {
+        format!(
+            "board calibration from {} (see {})",
+            p.image.display(),
+            p.overlay.display()
+        )
+    })?;
+    let mut file = cam_file;
+    let used = file.set_board(&fit, &b, &cam, method);
+    if used != method {
+        eprintln!(
+            "warning: the paper's construction needs all six markers of the paper's layout on each sheet; used the layout pose"
+        );
+    }
+    let angle = file.board.as_ref().map_or(f64::NAN, |s| s.angle_deg);
+    file.save(p.out)?;
+    for (k, s) in fit.sheets.iter().enumerate() {
+        outln!("{}", s.summary(["left", "right"][k]));
+    }
+    outln!(
+        "planes by {}; angle between them {angle:.3}°; -> {} (picture: {})",
+        used.name(),
+        p.out.display(),
+        p.overlay.display()
+    );
     Ok(())
 }
 
@@ -328,45 +356,9 @@ fn intrinsics_command(
     let outcome = intrinsics_outcome(&imgs, target, Free::ALL);
     let name = |i: usize| images[i].display().to_string();
     for (i, r) in outcome.images.iter().enumerate() {
-        let what = match &r.status {
-            Ok(v) => format!(
-                "used: {} features, rms {:.3} px, max {:.3} px{}",
-                v.found.len(),
-                v.rms_px,
-                v.max_px,
-                if v.dropped.is_empty() {
-                    String::new()
-                } else {
-                    format!(
-                        "; dropped {} far off the fit ({})",
-                        v.dropped.len(),
-                        v.dropped
-                            .iter()
-                            .map(|(k, _, e)| format!("#{k} {e:.1} px"))
-                            .collect::<Vec<_>>()
-                            .join(", ")
-                    )
-                }
-            ),
-            Err(CalibError::SameView { other }) => {
-                format!(
-                    "refused: the same view as {} (it adds nothing)",
-                    name(*other)
-                )
-            }
-            Err(e) => format!("refused: {e}"),
-        };
-        outln!("  {}: {what}", name(i));
+        outln!("  {}: {}", name(i), image_line(&r.status, name));
     }
-    let dir = match overlays {
-        Some(d) => d.to_path_buf(),
-        None => {
-            let stem = out
-                .file_stem()
-                .map_or("camera".into(), |s| s.to_string_lossy());
-            out.with_file_name(format!("{stem}-overlays"))
-        }
-    };
+    let dir = overlays.map_or_else(|| default_overlays(out), Path::to_path_buf);
     std::fs::create_dir_all(&dir).with_context(|| format!("cannot create {}", dir.display()))?;
     for ((p, img), r) in images.iter().zip(&imgs).zip(&outcome.images) {
         let stem = p
@@ -385,17 +377,7 @@ fn intrinsics_command(
     let file = CalibrationFile::from_camera(
         &fit.camera,
         fit.size,
-        match *target {
-            Target::Dots(g) => format!(
-                "intrinsics from {used} dot-grid images ({}x{}, {} mm pitch)",
-                g.cols, g.rows, g.pitch
-            ),
-            Target::Chessboard { cols, rows, square } => format!(
-                "intrinsics from {used} chessboard images ({cols}x{rows} squares of {square} mm, {}x{} inner corners)",
-                cols - 1,
-                rows - 1
-            ),
-        },
+        source_note(target, used),
         Some(fit.rms_px),
     );
     file.save(out)?;
@@ -416,4 +398,58 @@ fn intrinsics_command(
         out.display()
     );
     Ok(())
+}
+
+/// What `calibrate intrinsics` says about one image.
+fn image_line(status: &Result<ViewFit, CalibError>, name: impl Fn(usize) -> String) -> String {
+    match status {
+        Ok(v) if v.dropped.is_empty() => format!(
+            "used: {} features, rms {:.3} px, max {:.3} px",
+            v.found.len(),
+            v.rms_px,
+            v.max_px
+        ),
+        Ok(v) => format!(
+            "used: {} features, rms {:.3} px, max {:.3} px; dropped {} far off the fit ({})",
+            v.found.len(),
+            v.rms_px,
+            v.max_px,
+            v.dropped.len(),
+            v.dropped
+                .iter()
+                .map(|(k, _, e)| format!("#{k} {e:.1} px"))
+                .collect::<Vec<_>>()
+                .join(", ")
+        ),
+        Err(CalibError::SameView { other }) => {
+            format!(
+                "refused: the same view as {} (it adds nothing)",
+                name(*other)
+            )
+        }
+        Err(e) => format!("refused: {e}"),
+    }
+}
+
+/// `<out stem>-overlays/` beside the camera file.
+fn default_overlays(out: &Path) -> PathBuf {
+    let stem = out
+        .file_stem()
+        .map_or("camera".into(), |s| s.to_string_lossy());
+    out.with_file_name(format!("{stem}-overlays"))
+}
+
+/// The calibration file's note on where the intrinsics came from.
+fn source_note(target: &Target, used: usize) -> String {
+    match *target {
+        Target::Dots(g) => format!(
+            "intrinsics from {used} dot-grid images ({}x{}, {} mm pitch)",
+            g.cols, g.rows, g.pitch
+        ),
+        Target::Chessboard { cols, rows, square } => format!(
+            "intrinsics from {used} chessboard images ({cols}x{rows} squares of {square} mm, {}x{} inner corners)",
+            cols - 1,
+            rows - 1
+        ),
+    }
 }

@@ -45,6 +45,103 @@ mod imp {
         }
     }
 
+    /// The camera format asked for (`fourcc`), or the first the camera offers of those this head
+    /// reads, in order of preference.
+    fn choose_format(
+        path: &str,
+        dev: &Device,
+        fourcc: Option<&str>,
+    ) -> Result<CameraFormat, SourceError> {
+        let offered: Vec<[u8; 4]> = dev
+            .enum_formats()
+            .map_err(|e| cam(path, "cannot list formats", e))?
+            .into_iter()
+            .map(|d| d.fourcc.repr)
+            .collect();
+        let wanted = match fourcc {
+            Some(s) => {
+                Some(CameraFormat::parse(s).map_err(|e| SourceError::BadSpec(e.to_string()))?)
+            }
+            None => [*b"YUYV", *b"GREY", *b"RGB3", *b"MJPG"]
+                .into_iter()
+                .filter(|c| offered.contains(c))
+                .find_map(CameraFormat::from_fourcc),
+        };
+        let Some(camera) = wanted else {
+            let list: Vec<String> = offered
+                .iter()
+                .map(|c| String::from_utf8_lossy(c).into_owned())
+                .collect();
+            return Err(refused(
+                path,
+                format!(
+                    "offers {} but none this head reads (YUYV, GREY, RGB3, MJPG)",
+                    list.join(", ")
+                ),
+            ));
+        };
+        if !offered.contains(&camera.fourcc()) {
+            return Err(refused(
+                path,
+                format!(
+                    "does not offer {}",
+                    String::from_utf8_lossy(&camera.fourcc())
+                ),
+            ));
+        }
+        Ok(camera)
+    }
+
+    /// Sets the format and, if given, the size; refuses a camera that picks something else.
+    fn set_format(
+        path: &str,
+        dev: &Device,
+        code: [u8; 4],
+        size: Option<(u32, u32)>,
+    ) -> Result<v4l::Format, SourceError> {
+        let mut fmt = dev
+            .format()
+            .map_err(|e| cam(path, "cannot read the format", e))?;
+        fmt.fourcc = FourCC::new(&code);
+        if let Some((w, h)) = size {
+            fmt.width = w;
+            fmt.height = h;
+        }
+        let fmt = dev
+            .set_format(&fmt)
+            .map_err(|e| cam(path, "cannot set the format", e))?;
+        if fmt.fourcc.repr != code || size.is_some_and(|(w, h)| (fmt.width, fmt.height) != (w, h)) {
+            return Err(refused(
+                path,
+                format!(
+                    "asked for {} {:?}, the camera chose {} {}×{}",
+                    String::from_utf8_lossy(&code),
+                    size,
+                    String::from_utf8_lossy(&fmt.fourcc.repr),
+                    fmt.width,
+                    fmt.height
+                ),
+            ));
+        }
+        Ok(fmt)
+    }
+
+    /// Locks exposure and white balance where the camera allows (the difference image needs
+    /// the reference and the laser frames taken alike); returns what was locked.
+    fn lock_controls(dev: &Device) -> Vec<&'static str> {
+        let set = |id: u32, value: Value| dev.set_control(Control { id, value }).is_ok();
+        let mut locked = Vec::new();
+        if set(CID_EXPOSURE_AUTO, Value::Integer(EXPOSURE_MANUAL)) {
+            locked.push("exposure");
+        }
+        if set(CID_AUTO_WHITE_BALANCE, Value::Boolean(false))
+            || set(CID_AUTO_WHITE_BALANCE, Value::Integer(0))
+        {
+            locked.push("white balance");
+        }
+        locked
+    }
+
     /// A streaming V4L2 camera.
     pub struct V4lSource {
         path: String,
@@ -69,102 +166,15 @@ mod imp {
         ) -> Result<Self, SourceError> {
             let dev =
                 Device::with_path(path).map_err(|e| cam(path, "cannot open the device", e))?;
-            let mut fmt = dev
-                .format()
-                .map_err(|e| cam(path, "cannot read the format", e))?;
-            let offered: Vec<[u8; 4]> = dev
-                .enum_formats()
-                .map_err(|e| cam(path, "cannot list formats", e))?
-                .into_iter()
-                .map(|d| d.fourcc.repr)
-                .collect();
-            let wanted: Option<[u8; 4]> = match &opts.fourcc {
-                Some(s) => Some(
-                    CameraFormat::parse(s)
-                        .map_err(|e| SourceError::BadSpec(e.to_string()))?
-                        .fourcc(),
-                ),
-                None => [*b"YUYV", *b"GREY", *b"RGB3", *b"MJPG"]
-                    .into_iter()
-                    .find(|c| offered.contains(c)),
-            };
-            let Some(code) = wanted else {
-                let list: Vec<String> = offered
-                    .iter()
-                    .map(|c| String::from_utf8_lossy(c).into_owned())
-                    .collect();
-                return Err(refused(
-                    path,
-                    format!(
-                        "offers {} but none this head reads (YUYV, GREY, RGB3, MJPG)",
-                        list.join(", ")
-                    ),
-                ));
-            };
-            if !offered.contains(&code) {
-                return Err(refused(
-                    path,
-                    format!("does not offer {}", String::from_utf8_lossy(&code)),
-                ));
-            }
-            fmt.fourcc = FourCC::new(&code);
-            if let Some((w, h)) = opts.size {
-                fmt.width = w;
-                fmt.height = h;
-            }
-            let fmt = dev
-                .set_format(&fmt)
-                .map_err(|e| cam(path, "cannot set the format", e))?;
-            if fmt.fourcc.repr != code
-                || opts
-                    .size
-                    .is_some_and(|(w, h)| (fmt.width, fmt.height) != (w, h))
-            {
-                return Err(refused(
-                    path,
-                    format!(
-                        "asked for {} {:?}, the camera chose {} {}×{}",
-                        String::from_utf8_lossy(&code),
-                        opts.size,
-                        String::from_utf8_lossy(&fmt.fourcc.repr),
-                        fmt.width,
-                        fmt.height
-                    ),
-                ));
-            }
+            let camera = choose_format(path, &dev, opts.fourcc.as_deref())?;
+            let fmt = set_format(path, &dev, camera.fourcc(), opts.size)?;
             if let Some(fps) = opts.fps {
                 dev.set_params(&v4l::video::capture::Parameters::with_fps(fps))
                     .map_err(|e| cam(path, "cannot set the frame rate", e))?;
             }
-            // Lock exposure and white balance where the camera allows.
-            let mut locked = Vec::new();
-            if dev
-                .set_control(Control {
-                    id: CID_EXPOSURE_AUTO,
-                    value: Value::Integer(EXPOSURE_MANUAL),
-                })
-                .is_ok()
-            {
-                locked.push("exposure");
-            }
-            if dev
-                .set_control(Control {
-                    id: CID_AUTO_WHITE_BALANCE,
-                    value: Value::Boolean(false),
-                })
-                .is_ok()
-                || dev
-                    .set_control(Control {
-                        id: CID_AUTO_WHITE_BALANCE,
-                        value: Value::Integer(0),
-                    })
-                    .is_ok()
-            {
-                locked.push("white balance");
-            }
+            let locked = lock_controls(&dev);
             let stream = Stream::with_buffers(&dev, Type::VideoCapture, 4)
                 .map_err(|e| cam(path, "cannot start streaming", e))?;
-            let camera = CameraFormat::from_fourcc(code).expect("checked above");
             Ok(V4lSource {
                 path: path.to_string(),
                 stream,
