@@ -376,55 +376,7 @@ impl<const W: usize> Extractor<W> {
         reference: Option<&Frame<'_>>,
         cfg: &StripeConfig,
     ) -> Result<Extraction<'_>, StripeError> {
-        if let Some(r) = reference
-            && !frame.same_shape(r)
-        {
-            return Err(FrameError::ReferenceMismatch.into());
-        }
-        if cfg.method == Method::Dim && reference.is_none() {
-            return Err(StripeError::NoReference);
-        }
-        if cfg.half_window == 0 || cfg.half_window > MAX_HALF_WINDOW {
-            return Err(StripeError::BadConfig("half_window must be 1..=48"));
-        }
-        if !(cfg.min_width >= 0.0 && cfg.max_width >= cfg.min_width) {
-            return Err(StripeError::BadConfig("need 0 ≤ min_width ≤ max_width"));
-        }
-        if !(cfg.ambiguity > 0.0) {
-            return Err(StripeError::BadConfig("ambiguity must be positive"));
-        }
-        let roi = cfg.roi.unwrap_or(Roi {
-            x: 0,
-            y: 0,
-            width: frame.width(),
-            height: frame.height(),
-        });
-        let inside = roi.width > 0
-            && roi.height > 0
-            && roi
-                .x
-                .checked_add(roi.width)
-                .is_some_and(|e| e <= frame.width())
-            && roi
-                .y
-                .checked_add(roi.height)
-                .is_some_and(|e| e <= frame.height());
-        if !inside {
-            return Err(FrameError::BadRoi.into());
-        }
-        let (lines, length) = match cfg.axis {
-            Axis::Columns => (roi.width, roi.height),
-            Axis::Rows => (roi.height, roi.width),
-        };
-        for n in [lines, length, roi.width] {
-            if n > W || n > usize::from(u16::MAX) {
-                return Err(FrameError::TooLarge {
-                    asked: n,
-                    capacity: W.min(usize::from(u16::MAX)),
-                }
-                .into());
-            }
-        }
+        let (roi, lines, length) = checked::<W>(frame, reference, cfg)?;
         let reference_or_frame = reference.unwrap_or(frame);
         let io = Io {
             frame,
@@ -925,4 +877,62 @@ fn quantile(hist: &[u32], n: u32, q: f32) -> usize {
         }
     }
     hist.len() - 1
+}
+/// The checks of `extract`'s errors section, for `W` lines: the region of interest (the whole
+/// frame by default), the number of lines across it and their length.
+fn checked<const W: usize>(
+    frame: &Frame<'_>,
+    reference: Option<&Frame<'_>>,
+    cfg: &StripeConfig,
+) -> Result<(Roi, usize, usize), StripeError> {
+    if let Some(r) = reference
+        && !frame.same_shape(r)
+    {
+        return Err(FrameError::ReferenceMismatch.into());
+    }
+    if cfg.method == Method::Dim && reference.is_none() {
+        return Err(StripeError::NoReference);
+    }
+    if cfg.half_window == 0 || cfg.half_window > MAX_HALF_WINDOW {
+        return Err(StripeError::BadConfig("half_window must be 1..=48"));
+    }
+    if !(cfg.min_width >= 0.0 && cfg.max_width >= cfg.min_width) {
+        return Err(StripeError::BadConfig("need 0 ≤ min_width ≤ max_width"));
+    }
+    if !(cfg.ambiguity > 0.0) {
+        return Err(StripeError::BadConfig("ambiguity must be positive"));
+    }
+    let roi = cfg.roi.unwrap_or(Roi {
+        x: 0,
+        y: 0,
+        width: frame.width(),
+        height: frame.height(),
+    });
+    let inside = roi.width > 0
+        && roi.height > 0
+        && roi
+            .x
+            .checked_add(roi.width)
+            .is_some_and(|e| e <= frame.width())
+        && roi
+            .y
+            .checked_add(roi.height)
+            .is_some_and(|e| e <= frame.height());
+    if !inside {
+        return Err(FrameError::BadRoi.into());
+    }
+    let (lines, length) = match cfg.axis {
+        Axis::Columns => (roi.width, roi.height),
+        Axis::Rows => (roi.height, roi.width),
+    };
+    for n in [lines, length, roi.width] {
+        if n > W || n > usize::from(u16::MAX) {
+            return Err(FrameError::TooLarge {
+                asked: n,
+                capacity: W.min(usize::from(u16::MAX)),
+            }
+            .into());
+        }
+    }
+    Ok((roi, lines, length))
 }

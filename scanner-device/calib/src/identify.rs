@@ -365,99 +365,25 @@ pub fn candidates(
         .filter(|&i| !exclude.get(i).copied().unwrap_or(false))
         .collect();
     let mut all: Vec<Assignment> = Vec::new();
-    for ([p, q, r], fourth) in seeds(layout) {
-        let lq = layout[q] - layout[p];
-        let lr = layout[r] - layout[p];
-        let lm = Matrix2::from_columns(&[lq, lr]);
-        let Some(lm_inv) = lm.try_inverse() else {
+    for (corners, fourth) in seeds(layout) {
+        let Some(seed) = Seed::new(layout, corners, fourth) else {
             continue;
         };
         for &i in &avail {
-            let bi = &blobs[i];
-            let mut near: Vec<usize> = avail.iter().copied().filter(|&j| j != i).collect();
-            near.sort_by(|&a, &b| {
-                (blobs[a].centre - bi.centre)
-                    .norm()
-                    .total_cmp(&(blobs[b].centre - bi.centre).norm())
-            });
-            near.truncate(10);
+            let near = nearest_ten(blobs, &avail, i);
             for &j in &near {
                 for &k in &near {
-                    if j == k {
+                    let three = [i, j, k];
+                    if j == k || seed.grown(&all, three) {
                         continue;
                     }
-                    let (bj, bk) = (&blobs[j], &blobs[k]);
-                    let areas = [bi.area, bj.area, bk.area];
-                    let (amin, amax) =
-                        areas.iter().fold((f64::INFINITY, 0.0f64), |(lo, hi), &a| {
-                            (lo.min(a), hi.max(a))
-                        });
-                    if amax > 3.0 * amin {
-                        continue;
-                    }
-                    let im = Matrix2::from_columns(&[bj.centre - bi.centre, bk.centre - bi.centre]);
-                    let a = im * lm_inv;
-                    let det = a.determinant();
-                    if (det < 0.0) != orient.mirrored || det == 0.0 {
-                        continue;
-                    }
-                    if let Some(s) = orient.u_along_x
-                        && (a[(0, 0)] * f64::from(s)) <= 0.0
-                    {
-                        continue;
-                    }
-                    // A seed inside a match already grown would grow it again. (Every seed is
-                    // tried even after a full match: a symmetric layout also fits the other
-                    // sheet's markers, mirrored, in full.)
-                    if all.iter().any(|m| {
-                        m.blob_of[p] == Some(i)
-                            && m.blob_of[q] == Some(j)
-                            && m.blob_of[r] == Some(k)
-                    }) {
-                        continue;
-                    }
-                    let mut blob_of = vec![None; layout.len()];
-                    let mut used = vec![false; blobs.len()];
-                    for (e, ex) in exclude.iter().enumerate() {
-                        if *ex && e < used.len() {
-                            used[e] = true;
-                        }
-                    }
-                    for (l, b) in [(p, i), (q, j), (r, k)] {
-                        blob_of[l] = Some(b);
-                        used[b] = true;
-                    }
-                    let predict = |l: usize| bi.centre + a * (layout[l] - layout[p]);
-                    if let Some(s) = fourth {
-                        // The parallelogram's fourth corner, allowing for strong perspective;
-                        // with it, a homography.
-                        // A close, angled sheet foreshortens one side of the parallelogram
-                        // by a fraction of its length.
-                        let (c0, c1) = (im.column(0).norm(), im.column(1).norm());
-                        let tol = (0.35 * c0.min(c1)).max(0.25 * c0.max(c1));
-                        match nearest(blobs, &used, &predict(s), tol) {
-                            Some(b) => blob_of[s] = Some(b),
-                            None => continue,
-                        }
-                    } else {
-                        // No parallelogram in the layout: the affine guess must find a fourth.
-                        let tol = 0.35 * spacing * det.abs().sqrt();
-                        let mut found = 0;
-                        for (l, slot) in blob_of.iter_mut().enumerate() {
-                            if slot.is_none()
-                                && let Some(b) = nearest(blobs, &used, &predict(l), tol)
-                            {
-                                *slot = Some(b);
-                                used[b] = true;
-                                found += 1;
-                            }
-                        }
-                        if found == 0 {
-                            continue;
-                        }
-                    }
-                    let Some(m) = grow(blobs, layout, dark, exclude, blob_of, spacing, orient)
+                    let Some(start) = seed
+                        .affine(blobs, three, orient)
+                        .and_then(|a| seed.start(blobs, exclude, layout, three, &a, spacing))
                     else {
+                        continue;
+                    };
+                    let Some(m) = grow(blobs, layout, dark, exclude, start, spacing, orient) else {
                         continue;
                     };
                     if m.matched() >= 4 && !all.iter().any(|a| a.blob_of == m.blob_of) {
@@ -473,4 +399,132 @@ pub fn candidates(
             .then(a.rms_px.total_cmp(&b.rms_px))
     });
     all
+}
+/// The ten available features nearest to feature `i` (not `i` itself), nearest first.
+fn nearest_ten(blobs: &[Blob], avail: &[usize], i: usize) -> Vec<usize> {
+    let c = blobs[i].centre;
+    let mut near: Vec<usize> = avail.iter().copied().filter(|&j| j != i).collect();
+    near.sort_by(|&a, &b| {
+        (blobs[a].centre - c)
+            .norm()
+            .total_cmp(&(blobs[b].centre - c).norm())
+    });
+    near.truncate(10);
+    near
+}
+
+/// Three layout points `p`, `q`, `r` (an L) to place on three features, and the point
+/// completing their parallelogram if the layout has one.
+struct Seed {
+    p: usize,
+    q: usize,
+    r: usize,
+    fourth: Option<usize>,
+    /// Inverse of the matrix with columns q − p and r − p (layout mm).
+    inverse: Matrix2<f64>,
+}
+
+/// The affine map of a seed placed on three features (layout mm → pixels), and the matrix of
+/// the features' offsets it came from.
+struct Affine {
+    map: Matrix2<f64>,
+    offsets: Matrix2<f64>,
+}
+
+impl Seed {
+    fn new(layout: &[Point2<f64>], [p, q, r]: [usize; 3], fourth: Option<usize>) -> Option<Seed> {
+        let lm = Matrix2::from_columns(&[layout[q] - layout[p], layout[r] - layout[p]]);
+        Some(Seed {
+            p,
+            q,
+            r,
+            fourth,
+            inverse: lm.try_inverse()?,
+        })
+    }
+
+    /// A seed inside a match already grown would grow it again. (Every seed is tried even
+    /// after a full match: a symmetric layout also fits the other sheet's markers, mirrored, in
+    /// full.)
+    fn grown(&self, all: &[Assignment], [i, j, k]: [usize; 3]) -> bool {
+        all.iter().any(|m| {
+            m.blob_of[self.p] == Some(i)
+                && m.blob_of[self.q] == Some(j)
+                && m.blob_of[self.r] == Some(k)
+        })
+    }
+
+    /// The seed on features `i`, `j`, `k`, if their sizes are alike and the map has the
+    /// orientation asked for.
+    fn affine(&self, blobs: &[Blob], [i, j, k]: [usize; 3], orient: Orientation) -> Option<Affine> {
+        let (bi, bj, bk) = (&blobs[i], &blobs[j], &blobs[k]);
+        let areas = [bi.area, bj.area, bk.area];
+        let (amin, amax) = areas.iter().fold((f64::INFINITY, 0.0f64), |(lo, hi), &a| {
+            (lo.min(a), hi.max(a))
+        });
+        if amax > 3.0 * amin {
+            return None;
+        }
+        let offsets = Matrix2::from_columns(&[bj.centre - bi.centre, bk.centre - bi.centre]);
+        let map = offsets * self.inverse;
+        let det = map.determinant();
+        if (det < 0.0) != orient.mirrored || det == 0.0 {
+            return None;
+        }
+        if let Some(s) = orient.u_along_x
+            && (map[(0, 0)] * f64::from(s)) <= 0.0
+        {
+            return None;
+        }
+        Some(Affine { map, offsets })
+    }
+
+    /// The seed's three features and a fourth: the parallelogram's fourth corner if the layout
+    /// has one (with it, a homography), else whatever the affine guess finds.
+    fn start(
+        &self,
+        blobs: &[Blob],
+        exclude: &[bool],
+        layout: &[Point2<f64>],
+        three: [usize; 3],
+        a: &Affine,
+        spacing: f64,
+    ) -> Option<Vec<Option<usize>>> {
+        let mut blob_of = vec![None; layout.len()];
+        let mut used = vec![false; blobs.len()];
+        for (e, ex) in exclude.iter().enumerate() {
+            if *ex && e < used.len() {
+                used[e] = true;
+            }
+        }
+        for (l, b) in [self.p, self.q, self.r].into_iter().zip(three) {
+            blob_of[l] = Some(b);
+            used[b] = true;
+        }
+        let origin = blobs[three[0]].centre;
+        let predict = |l: usize| origin + a.map * (layout[l] - layout[self.p]);
+        if let Some(s) = self.fourth {
+            // Allowing for strong perspective: a close, angled sheet foreshortens one side of
+            // the parallelogram by a fraction of its length.
+            let (c0, c1) = (a.offsets.column(0).norm(), a.offsets.column(1).norm());
+            let tol = (0.35 * c0.min(c1)).max(0.25 * c0.max(c1));
+            blob_of[s] = Some(nearest(blobs, &used, &predict(s), tol)?);
+        } else {
+            let tol = 0.35 * spacing * a.map.determinant().abs().sqrt();
+            let mut found = 0;
+            for (l, slot) in blob_of.iter_mut().enumerate() {
+                if slot.is_none()
+                    && let Some(b) = nearest(blobs, &used, &predict(l), tol)
+                {
+                    *slot = Some(b);
+                    used[b] = true;
+                    found += 1;
+                }
+            }
+            if found == 0 {
+                return None;
+            }
+        }
+        Some(blob_of)
+    }
 }

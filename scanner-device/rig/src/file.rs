@@ -7,7 +7,7 @@ use scanner_core::nalgebra::{Point3, Unit, Vector3};
 use scanner_core::{Camera, Distortion};
 use serde::Deserialize;
 
-use super::{Markers, Object, RigError, Scene, Shape};
+use super::{BoardSpec, LaserSpec, Markers, Object, RigError, Scene, Shape};
 
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -178,90 +178,20 @@ impl Scene {
         set(&mut s.fps, f.fps);
         set(&mut s.exposure, f.exposure);
         if let Some(c) = f.camera {
-            let old = s.camera;
-            let d = *old.distortion();
-            let pp = old.principal_point();
-            s.camera = Camera::new(
-                c.fx.unwrap_or(old.fx()),
-                c.fy.or(c.fx).unwrap_or(old.fy()),
-                c.cx.unwrap_or(pp.x),
-                c.cy.unwrap_or(pp.y),
-                Distortion {
-                    k1: c.k1.unwrap_or(d.k1),
-                    k2: c.k2.unwrap_or(d.k2),
-                    p1: c.p1.unwrap_or(d.p1),
-                    p2: c.p2.unwrap_or(d.p2),
-                    k3: c.k3.unwrap_or(d.k3),
-                },
-            )
-            .map_err(|e| RigError::Scene(format!("[camera]: {e}")))?;
+            s.camera = c.over(&s.camera)?;
         }
         if let Some(b) = f.board {
-            set(&mut s.board.distance, b.distance);
-            set(&mut s.board.angle_deg, b.angle_deg);
-            set(&mut s.board.yaw_deg, b.yaw_deg);
-            set(&mut s.board.pitch_deg, b.pitch_deg);
-            set(&mut s.board.albedo, b.albedo);
-            s.board.markers = match (b.markers, b.layout) {
-                (Some(_), Some(_)) => {
-                    return Err(RigError::Scene(
-                        "[board]: give `layout` (a board file) or [board.markers], not both".into(),
-                    ));
-                }
-                (None, Some(path)) => Markers::from(
-                    &scanner_calib::board::BoardFile::load(&base.join(&path))
-                        .map_err(|e| RigError::Scene(format!("[board] layout: {e}")))?,
-                ),
-                (Some(m), None) => {
-                    if !(m.diameter > 0.0) {
-                        return Err(RigError::Scene(
-                            "[board.markers]: diameter must be positive".into(),
-                        ));
-                    }
-                    Markers {
-                        left: m.left,
-                        right: m.right,
-                        diameter: m.diameter,
-                        albedo: m.albedo.unwrap_or([0.06; 3]),
-                        chess: [None, None],
-                    }
-                }
-                // the default board file's layout
-                (None, None) => Markers::paper(110.0),
-            };
+            b.apply(&mut s.board, base)?;
         }
         if let Some(objects) = f.objects {
             s.objects = objects
                 .into_iter()
                 .enumerate()
-                .map(|(i, o)| {
-                    let mut obj = object(i, o.shape, base)?;
-                    obj.texture = match (o.texture_cell, o.texture_albedo) {
-                        (Some(cell), Some(other)) => {
-                            Some((positive(i, "texture_cell", cell)?, other))
-                        }
-                        (None, None) => None,
-                        _ => {
-                            return Err(RigError::Scene(format!(
-                                "objects[{i}]: texture_cell and texture_albedo go together"
-                            )));
-                        }
-                    };
-                    Ok(obj)
-                })
+                .map(|(i, o)| object(i, o, base))
                 .collect::<Result<_, _>>()?;
         }
         if let Some(l) = f.laser {
-            set(&mut s.laser.source, l.source.map(Point3::from));
-            set(&mut s.laser.sweep, l.sweep.map(|[a, b]| (a, b)));
-            set(&mut s.laser.frames, l.frames);
-            set(&mut s.laser.wobble_deg, l.wobble_deg);
-            set(&mut s.laser.jitter_mm, l.jitter_mm);
-            set(&mut s.laser.sigma_mm, l.sigma_mm);
-            set(&mut s.laser.power, l.power);
-            set(&mut s.laser.colour, l.colour);
-            set(&mut s.laser.speckle, l.speckle);
-            set(&mut s.laser.seed, l.seed);
+            l.apply(&mut s.laser);
         }
         if let Some(n) = f.sensor {
             set(&mut s.sensor.gain, n.gain);
@@ -270,6 +200,82 @@ impl Scene {
             set(&mut s.sensor.seed, n.seed);
         }
         Ok(s)
+    }
+}
+
+impl CameraFile {
+    /// `old` with the values the file gives (`fy` defaults to the file's `fx`).
+    fn over(self, old: &Camera<f64>) -> Result<Camera<f64>, RigError> {
+        let d = *old.distortion();
+        let pp = old.principal_point();
+        Camera::new(
+            self.fx.unwrap_or(old.fx()),
+            self.fy.or(self.fx).unwrap_or(old.fy()),
+            self.cx.unwrap_or(pp.x),
+            self.cy.unwrap_or(pp.y),
+            Distortion {
+                k1: self.k1.unwrap_or(d.k1),
+                k2: self.k2.unwrap_or(d.k2),
+                p1: self.p1.unwrap_or(d.p1),
+                p2: self.p2.unwrap_or(d.p2),
+                k3: self.k3.unwrap_or(d.k3),
+            },
+        )
+        .map_err(|e| RigError::Scene(format!("[camera]: {e}")))
+    }
+}
+
+impl BoardFile {
+    /// Sets what the file gives; the markers from `layout` (a board file relative to `base`),
+    /// from `[board.markers]`, or the default board file's layout.
+    fn apply(self, board: &mut BoardSpec, base: &std::path::Path) -> Result<(), RigError> {
+        set(&mut board.distance, self.distance);
+        set(&mut board.angle_deg, self.angle_deg);
+        set(&mut board.yaw_deg, self.yaw_deg);
+        set(&mut board.pitch_deg, self.pitch_deg);
+        set(&mut board.albedo, self.albedo);
+        board.markers = match (self.markers, self.layout) {
+            (Some(_), Some(_)) => {
+                return Err(RigError::Scene(
+                    "[board]: give `layout` (a board file) or [board.markers], not both".into(),
+                ));
+            }
+            (None, Some(path)) => Markers::from(
+                &scanner_calib::board::BoardFile::load(&base.join(&path))
+                    .map_err(|e| RigError::Scene(format!("[board] layout: {e}")))?,
+            ),
+            (Some(m), None) => {
+                if !(m.diameter > 0.0) {
+                    return Err(RigError::Scene(
+                        "[board.markers]: diameter must be positive".into(),
+                    ));
+                }
+                Markers {
+                    left: m.left,
+                    right: m.right,
+                    diameter: m.diameter,
+                    albedo: m.albedo.unwrap_or([0.06; 3]),
+                    chess: [None, None],
+                }
+            }
+            (None, None) => Markers::paper(110.0),
+        };
+        Ok(())
+    }
+}
+
+impl LaserFile {
+    fn apply(self, laser: &mut LaserSpec) {
+        set(&mut laser.source, self.source.map(Point3::from));
+        set(&mut laser.sweep, self.sweep.map(|[a, b]| (a, b)));
+        set(&mut laser.frames, self.frames);
+        set(&mut laser.wobble_deg, self.wobble_deg);
+        set(&mut laser.jitter_mm, self.jitter_mm);
+        set(&mut laser.sigma_mm, self.sigma_mm);
+        set(&mut laser.power, self.power);
+        set(&mut laser.colour, self.colour);
+        set(&mut laser.speckle, self.speckle);
+        set(&mut laser.seed, self.seed);
     }
 }
 
@@ -283,49 +289,62 @@ fn positive(i: usize, what: &str, v: f64) -> Result<f64, RigError> {
     }
 }
 
-fn object(i: usize, o: ObjectFile, base: &std::path::Path) -> Result<Object, RigError> {
+/// `objects[i]`: its shape, albedo and checker texture.
+fn object(i: usize, entry: ObjectEntry, base: &std::path::Path) -> Result<Object, RigError> {
+    let texture = match (entry.texture_cell, entry.texture_albedo) {
+        (Some(cell), Some(other)) => Some((positive(i, "texture_cell", cell)?, other)),
+        (None, None) => None,
+        _ => {
+            return Err(RigError::Scene(format!(
+                "objects[{i}]: texture_cell and texture_albedo go together"
+            )));
+        }
+    };
+    let o = entry.shape;
+    let albedo = match &o {
+        ObjectFile::Mesh { albedo, .. }
+        | ObjectFile::Sphere { albedo, .. }
+        | ObjectFile::Cylinder { albedo, .. }
+        | ObjectFile::Box { albedo, .. }
+        | ObjectFile::Plane { albedo, .. } => albedo.unwrap_or(GREY),
+    };
+    Ok(Object {
+        shape: shape(i, o, base)?,
+        albedo,
+        texture,
+    })
+}
+
+/// The shape of `objects[i]`, its sizes checked; a mesh is loaded relative to `base`.
+fn shape(i: usize, o: ObjectFile, base: &std::path::Path) -> Result<Shape, RigError> {
+    use scanner_core::nalgebra::Rotation3;
     Ok(match o {
         ObjectFile::Mesh {
             path,
             centre,
             height_mm,
             yaw_deg,
-            albedo,
+            ..
         } => {
-            let mesh = super::mesh::Mesh::load(
-                &base.join(&path),
-                height_mm,
-                yaw_deg,
-                Point3::from(centre),
-            )
-            .map_err(|e| RigError::Mesh {
-                object: i,
-                source: e,
-            })?;
-            Object {
-                shape: Shape::Mesh(std::sync::Arc::new(mesh)),
-                albedo: albedo.unwrap_or(GREY),
-                texture: None,
-            }
+            let at = Point3::from(centre);
+            let mesh = super::mesh::Mesh::load(&base.join(&path), height_mm, yaw_deg, at).map_err(
+                |e| RigError::Mesh {
+                    object: i,
+                    source: e,
+                },
+            )?;
+            Shape::Mesh(std::sync::Arc::new(mesh))
         }
-        ObjectFile::Sphere {
-            centre,
-            radius,
-            albedo,
-        } => Object {
-            shape: Shape::Sphere {
-                centre: Point3::from(centre),
-                radius: positive(i, "radius", radius)?,
-            },
-            albedo: albedo.unwrap_or(GREY),
-            texture: None,
+        ObjectFile::Sphere { centre, radius, .. } => Shape::Sphere {
+            centre: Point3::from(centre),
+            radius: positive(i, "radius", radius)?,
         },
         ObjectFile::Cylinder {
             base,
             axis,
             radius,
             height,
-            albedo,
+            ..
         } => {
             let axis = Vector3::from(axis);
             if !(axis.norm() > 0.0) {
@@ -333,39 +352,25 @@ fn object(i: usize, o: ObjectFile, base: &std::path::Path) -> Result<Object, Rig
                     "objects[{i}]: axis must be non-zero"
                 )));
             }
-            Object {
-                shape: Shape::Cylinder {
-                    base: Point3::from(base),
-                    axis: Unit::new_normalize(axis),
-                    radius: positive(i, "radius", radius)?,
-                    height: positive(i, "height", height)?,
-                },
-                albedo: albedo.unwrap_or(GREY),
-                texture: None,
+            Shape::Cylinder {
+                base: Point3::from(base),
+                axis: Unit::new_normalize(axis),
+                radius: positive(i, "radius", radius)?,
+                height: positive(i, "height", height)?,
             }
         }
         ObjectFile::Box {
             centre,
             size,
             yaw_deg,
-            albedo,
+            ..
         } => {
-            let r = scanner_core::nalgebra::Rotation3::from_axis_angle(
-                &Vector3::y_axis(),
-                yaw_deg.to_radians(),
-            );
-            Object {
-                shape: Shape::Cuboid {
-                    centre: Point3::from(centre),
-                    half: Vector3::new(
-                        positive(i, "size", size[0])? / 2.0,
-                        positive(i, "size", size[1])? / 2.0,
-                        positive(i, "size", size[2])? / 2.0,
-                    ),
-                    axes: [r * Vector3::x(), r * Vector3::y(), r * Vector3::z()],
-                },
-                albedo: albedo.unwrap_or(GREY),
-                texture: None,
+            let r = Rotation3::from_axis_angle(&Vector3::y_axis(), yaw_deg.to_radians());
+            let half = |k: usize| positive(i, "size", size[k]).map(|v| v / 2.0);
+            Shape::Cuboid {
+                centre: Point3::from(centre),
+                half: Vector3::new(half(0)?, half(1)?, half(2)?),
+                axes: [r * Vector3::x(), r * Vector3::y(), r * Vector3::z()],
             }
         }
         ObjectFile::Plane {
@@ -373,24 +378,15 @@ fn object(i: usize, o: ObjectFile, base: &std::path::Path) -> Result<Object, Rig
             size,
             tilt_x_deg,
             tilt_y_deg,
-            albedo,
+            ..
         } => {
-            let r = scanner_core::nalgebra::Rotation3::from_euler_angles(
-                tilt_x_deg.to_radians(),
-                tilt_y_deg.to_radians(),
-                0.0,
-            );
-            Object {
-                shape: Shape::Rectangle {
-                    centre: Point3::from(centre),
-                    axes: [r * Vector3::x(), r * Vector3::y()],
-                    half: [
-                        positive(i, "size", size[0])? / 2.0,
-                        positive(i, "size", size[1])? / 2.0,
-                    ],
-                },
-                albedo: albedo.unwrap_or(GREY),
-                texture: None,
+            let r =
+                Rotation3::from_euler_angles(tilt_x_deg.to_radians(), tilt_y_deg.to_radians(), 0.0);
+            let half = |k: usize| positive(i, "size", size[k]).map(|v| v / 2.0);
+            Shape::Rectangle {
+                centre: Point3::from(centre),
+                axes: [r * Vector3::x(), r * Vector3::y()],
+                half: [half(0)?, half(1)?],
             }
         }
     })

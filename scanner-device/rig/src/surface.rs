@@ -140,132 +140,167 @@ impl Shape {
         t_min: f64,
         id: u16,
     ) -> Option<Hit> {
-        let surface = SurfaceId::Object(id);
-        let make = |t: f64, n: Vector3<f64>| Hit {
-            t,
-            point: origin + dir * t,
-            normal: facing(n, dir),
-            surface,
+        let ray = Ray {
+            origin: *origin,
+            dir: *dir,
+            t_min,
         };
-        match self {
-            Shape::Sphere { centre, radius } => {
-                let oc = origin - centre;
-                let b = oc.dot(dir);
-                let c = oc.norm_squared() - radius * radius;
-                let disc = b * b - c;
-                if disc < 0.0 {
-                    return None;
-                }
-                let s = disc.sqrt();
-                let t = [-b - s, -b + s].into_iter().find(|&t| t > t_min)?;
-                let p = origin + dir * t;
-                Some(make(t, (p - centre) / *radius))
-            }
+        let (t, n) = match self {
+            Shape::Sphere { centre, radius } => ray.sphere(centre, *radius),
             Shape::Cylinder {
                 base,
                 axis,
                 radius,
                 height,
-            } => {
-                let a = axis.into_inner();
-                let mut best: Option<Hit> = None;
-                let mut consider = |t: f64, n: Vector3<f64>| {
-                    if t > t_min && best.is_none_or(|b| t < b.t) {
-                        best = Some(make(t, n));
-                    }
-                };
-                // side: |(p − base) − ((p − base)·a) a| = r
-                let ob = origin - base;
-                let d_perp = dir - a * dir.dot(&a);
-                let o_perp = ob - a * ob.dot(&a);
-                let qa = d_perp.norm_squared();
-                let qb = 2.0 * d_perp.dot(&o_perp);
-                let qc = o_perp.norm_squared() - radius * radius;
-                let disc = qb * qb - 4.0 * qa * qc;
-                if qa > 1e-12 && disc >= 0.0 {
-                    for t in [
-                        (-qb - disc.sqrt()) / (2.0 * qa),
-                        (-qb + disc.sqrt()) / (2.0 * qa),
-                    ] {
-                        let p = origin + dir * t;
-                        let h = (p - base).dot(&a);
-                        if (0.0..=*height).contains(&h) {
-                            let n = (p - base) - a * h;
-                            consider(t, n / *radius);
-                        }
-                    }
-                }
-                // caps
-                let den = dir.dot(&a);
-                if den.abs() > 1e-12 {
-                    for h in [0.0, *height] {
-                        let t = (h - ob.dot(&a)) / den;
-                        let p = origin + dir * t;
-                        let r = (p - base) - a * h;
-                        if r.norm() <= *radius {
-                            consider(t, a);
-                        }
-                    }
-                }
-                best
+            } => ray.cylinder(base, &axis.into_inner(), *radius, *height),
+            Shape::Cuboid { centre, half, axes } => ray.cuboid(centre, half, axes),
+            Shape::Mesh(mesh) => mesh.hit(origin, dir, t_min),
+            Shape::Rectangle { centre, axes, half } => ray.rectangle(centre, axes, half),
+        }?;
+        Some(Hit {
+            t,
+            point: origin + dir * t,
+            normal: facing(n, dir),
+            surface: SurfaceId::Object(id),
+        })
+    }
+}
+
+/// A ray `origin + t·dir` (unit `dir`) and the nearest distance that counts. Each shape's
+/// intersection gives the distance of the nearest hit beyond `t_min` and the outward normal
+/// there (not necessarily unit).
+struct Ray {
+    origin: Point3<f64>,
+    dir: Vector3<f64>,
+    t_min: f64,
+}
+
+impl Ray {
+    fn at(&self, t: f64) -> Point3<f64> {
+        self.origin + self.dir * t
+    }
+
+    fn sphere(&self, centre: &Point3<f64>, radius: f64) -> Option<(f64, Vector3<f64>)> {
+        let oc = self.origin - centre;
+        let b = oc.dot(&self.dir);
+        let c = oc.norm_squared() - radius * radius;
+        let disc = b * b - c;
+        if disc < 0.0 {
+            return None;
+        }
+        let s = disc.sqrt();
+        let t = [-b - s, -b + s].into_iter().find(|&t| t > self.t_min)?;
+        Some((t, (self.at(t) - centre) / radius))
+    }
+
+    /// A closed cylinder from `base` along the unit `a` for `height`.
+    fn cylinder(
+        &self,
+        base: &Point3<f64>,
+        a: &Vector3<f64>,
+        radius: f64,
+        height: f64,
+    ) -> Option<(f64, Vector3<f64>)> {
+        let dir = &self.dir;
+        let mut best: Option<(f64, Vector3<f64>)> = None;
+        let mut consider = |t: f64, n: Vector3<f64>| {
+            if t > self.t_min && best.is_none_or(|b| t < b.0) {
+                best = Some((t, n));
             }
-            Shape::Cuboid { centre, half, axes } => {
-                // slab test in the box frame
-                let (mut t0, mut t1) = (f64::NEG_INFINITY, f64::INFINITY);
-                let (mut n0, mut n1) = (Vector3::zeros(), Vector3::zeros());
-                let oc = origin - centre;
-                for k in 0..3 {
-                    let o = oc.dot(&axes[k]);
-                    let d = dir.dot(&axes[k]);
-                    if d.abs() < 1e-12 {
-                        if o.abs() > half[k] {
-                            return None;
-                        }
-                        continue;
-                    }
-                    let (mut a, mut b) = ((-half[k] - o) / d, (half[k] - o) / d);
-                    if a > b {
-                        std::mem::swap(&mut a, &mut b);
-                    }
-                    if a > t0 {
-                        t0 = a;
-                        n0 = axes[k];
-                    }
-                    if b < t1 {
-                        t1 = b;
-                        n1 = axes[k];
-                    }
+        };
+        // side: |(p − base) − ((p − base)·a) a| = r
+        let ob = self.origin - base;
+        let d_perp = dir - a * dir.dot(a);
+        let o_perp = ob - a * ob.dot(a);
+        let qa = d_perp.norm_squared();
+        let qb = 2.0 * d_perp.dot(&o_perp);
+        let qc = o_perp.norm_squared() - radius * radius;
+        let disc = qb * qb - 4.0 * qa * qc;
+        if qa > 1e-12 && disc >= 0.0 {
+            for t in [
+                (-qb - disc.sqrt()) / (2.0 * qa),
+                (-qb + disc.sqrt()) / (2.0 * qa),
+            ] {
+                let p = self.at(t);
+                let h = (p - base).dot(a);
+                if (0.0..=height).contains(&h) {
+                    consider(t, ((p - base) - a * h) / radius);
                 }
-                if t0 > t1 {
-                    return None;
-                }
-                if t0 > t_min {
-                    Some(make(t0, n0))
-                } else if t1 > t_min {
-                    Some(make(t1, n1))
-                } else {
-                    None
-                }
-            }
-            Shape::Mesh(mesh) => {
-                let (t, n) = mesh.hit(origin, dir, t_min)?;
-                Some(make(t, n))
-            }
-            Shape::Rectangle { centre, axes, half } => {
-                let n = axes[0].cross(&axes[1]);
-                let den = dir.dot(&n);
-                if den.abs() < 1e-12 {
-                    return None;
-                }
-                let t = (centre - origin).dot(&n) / den;
-                if t <= t_min {
-                    return None;
-                }
-                let p = origin + dir * t;
-                let r = p - centre;
-                (r.dot(&axes[0]).abs() <= half[0] && r.dot(&axes[1]).abs() <= half[1])
-                    .then(|| make(t, n))
             }
         }
+        // caps
+        let den = dir.dot(a);
+        if den.abs() > 1e-12 {
+            for h in [0.0, height] {
+                let t = (h - ob.dot(a)) / den;
+                let r = (self.at(t) - base) - a * h;
+                if r.norm() <= radius {
+                    consider(t, *a);
+                }
+            }
+        }
+        best
+    }
+
+    /// A box: the slab test in its frame (`axes` unit, `half` its half sides).
+    fn cuboid(
+        &self,
+        centre: &Point3<f64>,
+        half: &Vector3<f64>,
+        axes: &[Vector3<f64>; 3],
+    ) -> Option<(f64, Vector3<f64>)> {
+        let (mut t0, mut t1) = (f64::NEG_INFINITY, f64::INFINITY);
+        let (mut n0, mut n1) = (Vector3::zeros(), Vector3::zeros());
+        let oc = self.origin - centre;
+        for k in 0..3 {
+            let o = oc.dot(&axes[k]);
+            let d = self.dir.dot(&axes[k]);
+            if d.abs() < 1e-12 {
+                if o.abs() > half[k] {
+                    return None;
+                }
+                continue;
+            }
+            let (mut a, mut b) = ((-half[k] - o) / d, (half[k] - o) / d);
+            if a > b {
+                std::mem::swap(&mut a, &mut b);
+            }
+            if a > t0 {
+                t0 = a;
+                n0 = axes[k];
+            }
+            if b < t1 {
+                t1 = b;
+                n1 = axes[k];
+            }
+        }
+        if t0 > t1 {
+            None
+        } else if t0 > self.t_min {
+            Some((t0, n0))
+        } else if t1 > self.t_min {
+            Some((t1, n1))
+        } else {
+            None
+        }
+    }
+
+    fn rectangle(
+        &self,
+        centre: &Point3<f64>,
+        axes: &[Vector3<f64>; 2],
+        half: &[f64; 2],
+    ) -> Option<(f64, Vector3<f64>)> {
+        let n = axes[0].cross(&axes[1]);
+        let den = self.dir.dot(&n);
+        if den.abs() < 1e-12 {
+            return None;
+        }
+        let t = (centre - self.origin).dot(&n) / den;
+        if t <= self.t_min {
+            return None;
+        }
+        let r = self.at(t) - centre;
+        (r.dot(&axes[0]).abs() <= half[0] && r.dot(&axes[1]).abs() <= half[1]).then_some((t, n))
     }
 }

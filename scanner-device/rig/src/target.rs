@@ -378,85 +378,20 @@ impl Rig {
         around: &Surroundings,
         noise_seed: u64,
     ) -> Shot {
+        let view = ShotView::new(self, pattern, pose, around);
+        let image = self.render_albedo(|d| view.albedo_along(d), noise_seed ^ 0xCA1B);
+        let features = view.features(self);
+        Shot { image, features }
+    }
+
+    /// A frame of the scene's camera where a ray `d` (unit, camera frame) sees `albedo(d)` in
+    /// the ambient light: supersampled, finer on edges, blurred by the lens, exposed.
+    fn render_albedo(&self, albedo: impl Fn(&Vector3<f64>) -> f64, noise_seed: u64) -> Rgb8 {
         let (w, h) = (self.scene.width as usize, self.scene.height as usize);
-        let turn = Rotation3::from_euler_angles(
-            pose.turn_deg[0].to_radians(),
-            pose.turn_deg[1].to_radians(),
-            pose.turn_deg[2].to_radians(),
-        );
-        let (ex, ey, n) = (
-            turn * Vector3::x(),
-            turn * Vector3::y(),
-            turn * Vector3::z(),
-        );
-        let sheet = |p: &Point3<f64>| ((p - pose.centre).dot(&ex), (p - pose.centre).dot(&ey));
-        let amb = self.scene.ambient;
-        // Where a ray meets a plane through `c` with normal `n` (distance along the unit ray).
-        let meet = |d: &Vector3<f64>, c: &Point3<f64>, n: &Vector3<f64>| {
-            let den = d.dot(n);
-            if den.abs() < 1e-9 {
-                return None;
-            }
-            let t = c.coords.dot(n) / den;
-            (t > 0.0).then_some(t)
-        };
-        let (hx, hy) = pattern.half_extent();
-        let hand = around.hand.map(|at| {
-            // Fingers point from `at` towards the pattern's centre.
-            let len = (at[0] * at[0] + at[1] * at[1]).sqrt().max(1e-9);
-            let dir = (-at[0] / len, -at[1] / len);
-            let plane = pose.centre - n * HAND_LIFT;
-            (at, dir, plane)
-        });
-        let on_hand = |d: &Vector3<f64>| -> Option<f64> {
-            let (at, dir, plane) = hand?;
-            let t = meet(d, &plane, &n)?;
-            let q = Point3::from(d * t);
-            let (x, y) = ((q - plane).dot(&ex) - at[0], (q - plane).dot(&ey) - at[1]);
-            let (fx, fy) = (x * dir.0 + y * dir.1, -x * dir.1 + y * dir.0);
-            hand_covers(fx, fy).then_some(t)
-        };
-        let wall = around.clutter.map(|c| {
-            let z = pose.centre.z + c.behind;
-            let cam = &self.scene.camera;
-            let span = (
-                0.6 * z * f64::from(self.scene.width) / cam.fx(),
-                0.6 * z * f64::from(self.scene.height) / cam.fy(),
-            );
-            (z, clutter_things(c.seed, span))
-        });
-        let albedo_along = |d: &Vector3<f64>| -> f64 {
-            if on_hand(d).is_some() {
-                return SKIN;
-            }
-            if let Some(t) = meet(d, &pose.centre, &n) {
-                let (x, y) = sheet(&Point3::from(d * t));
-                let on_sheet = around
-                    .margin
-                    .is_none_or(|m| x.abs() <= hx + m && y.abs() <= hy + m);
-                if on_sheet {
-                    return pattern.albedo(x, y);
-                }
-            }
-            match &wall {
-                Some((z, things)) if d.z > 0.0 => {
-                    let (x, y) = (d.x / d.z * z, d.y / d.z * z);
-                    if things.iter().any(|t| t.covers(x, y)) {
-                        DARK
-                    } else {
-                        WALL
-                    }
-                }
-                Some(_) => 0.0,
-                // Without a wall, the sheet has no edge unless a margin is given: then the room
-                // is dark.
-                None => 0.0,
-            }
-        };
         let coverage = |u: usize, v: usize, sub: usize| {
             let (mut sum, mut lo, mut hi) = (0.0, f64::INFINITY, 0.0f64);
             for (su, sv) in super::subpixels(u, v, sub) {
-                let a = self.ray_fast(su, sv).map_or(0.0, |d| albedo_along(&d));
+                let a = self.ray_fast(su, sv).map_or(0.0, |d| albedo(&d));
                 sum += a;
                 lo = lo.min(a);
                 hi = hi.max(a);
@@ -466,6 +401,7 @@ impl Rig {
         let coarse: Vec<(f64, bool)> = (0..w * h).map(|i| coverage(i % w, i / w, SUB)).collect();
         // Pixels on an edge of the pattern, and their neighbours (a thin sliver can pass between
         // the coarse samples), get a finer grid: the edges are what calibration measures.
+        let amb = self.scene.ambient;
         let mut flat = vec![[0.0; 3]; w * h];
         for v in 0..h {
             for u in 0..w {
@@ -484,65 +420,196 @@ impl Rig {
             .into_iter()
             .map(|p| p.map(|v| v as f32))
             .collect();
-        let image = self.expose(&blurred, noise_seed ^ 0xCA1B);
-        let cam = &self.scene.camera;
-        let place = |s: [f64; 2]| pose.centre + ex * s[0] + ey * s[1];
-        let mut features = Vec::new();
-        let r = pattern.dot_diameter() / 2.0;
-        let (w, h) = (f64::from(self.scene.width), f64::from(self.scene.height));
-        let clear = match *pattern {
+        self.expose(&blurred, noise_seed)
+    }
+}
+
+/// Where a ray meets a plane through `c` with normal `n` (distance along the unit ray `d`).
+fn meet(d: &Vector3<f64>, c: &Point3<f64>, n: &Vector3<f64>) -> Option<f64> {
+    let den = d.dot(n);
+    if den.abs() < 1e-9 {
+        return None;
+    }
+    let t = c.coords.dot(n) / den;
+    (t > 0.0).then_some(t)
+}
+
+/// A hand held over the sheet: fingers from `at` (sheet mm) towards the pattern's centre
+/// (`dir`), in a plane parallel to the sheet through `plane`.
+#[derive(Clone, Copy)]
+struct Hand {
+    at: [f64; 2],
+    dir: (f64, f64),
+    plane: Point3<f64>,
+}
+
+/// What a calibration shot's camera looks at: the sheet with its pattern, a hand, a wall.
+struct ShotView<'a> {
+    pattern: &'a Pattern,
+    centre: Point3<f64>,
+    /// The sheet's x and y axes and its normal, camera frame.
+    ex: Vector3<f64>,
+    ey: Vector3<f64>,
+    n: Vector3<f64>,
+    /// Half the sheet's size, mm (`None`: it fills the view).
+    half_sheet: Option<(f64, f64)>,
+    hand: Option<Hand>,
+    /// The clutter wall: its depth, mm, and the dark things on it.
+    wall: Option<(f64, Vec<Thing>)>,
+}
+
+impl<'a> ShotView<'a> {
+    fn new(rig: &Rig, pattern: &'a Pattern, pose: &TargetPose, around: &Surroundings) -> Self {
+        let turn = Rotation3::from_euler_angles(
+            pose.turn_deg[0].to_radians(),
+            pose.turn_deg[1].to_radians(),
+            pose.turn_deg[2].to_radians(),
+        );
+        let n = turn * Vector3::z();
+        let (hx, hy) = pattern.half_extent();
+        let hand = around.hand.map(|at| {
+            let len = (at[0] * at[0] + at[1] * at[1]).sqrt().max(1e-9);
+            Hand {
+                at,
+                dir: (-at[0] / len, -at[1] / len),
+                plane: pose.centre - n * HAND_LIFT,
+            }
+        });
+        let wall = around.clutter.map(|c| {
+            let z = pose.centre.z + c.behind;
+            let (scene, cam) = (&rig.scene, &rig.scene.camera);
+            let span = (
+                0.6 * z * f64::from(scene.width) / cam.fx(),
+                0.6 * z * f64::from(scene.height) / cam.fy(),
+            );
+            (z, clutter_things(c.seed, span))
+        });
+        ShotView {
+            pattern,
+            centre: pose.centre,
+            ex: turn * Vector3::x(),
+            ey: turn * Vector3::y(),
+            n,
+            half_sheet: around.margin.map(|m| (hx + m, hy + m)),
+            hand,
+            wall,
+        }
+    }
+
+    /// The point of the sheet at sheet coordinates `s`, camera frame.
+    fn place(&self, s: [f64; 2]) -> Point3<f64> {
+        self.centre + self.ex * s[0] + self.ey * s[1]
+    }
+
+    /// The distance along the unit ray `d` to the hand, if it meets the hand.
+    fn on_hand(&self, d: &Vector3<f64>) -> Option<f64> {
+        let hand = self.hand?;
+        let t = meet(d, &hand.plane, &self.n)?;
+        let q = Point3::from(d * t) - hand.plane;
+        let (x, y) = (q.dot(&self.ex) - hand.at[0], q.dot(&self.ey) - hand.at[1]);
+        let (fx, fy) = (
+            x * hand.dir.0 + y * hand.dir.1,
+            -x * hand.dir.1 + y * hand.dir.0,
+        );
+        hand_covers(fx, fy).then_some(t)
+    }
+
+    /// What the unit ray `d` sees: the hand, the sheet, the wall or the dark room.
+    fn albedo_along(&self, d: &Vector3<f64>) -> f64 {
+        if self.on_hand(d).is_some() {
+            return SKIN;
+        }
+        if let Some(t) = meet(d, &self.centre, &self.n) {
+            let q = Point3::from(d * t) - self.centre;
+            let (x, y) = (q.dot(&self.ex), q.dot(&self.ey));
+            if self
+                .half_sheet
+                .is_none_or(|(hx, hy)| x.abs() <= hx && y.abs() <= hy)
+            {
+                return self.pattern.albedo(x, y);
+            }
+        }
+        match &self.wall {
+            Some((z, things)) if d.z > 0.0 => {
+                let (x, y) = (d.x / d.z * z, d.y / d.z * z);
+                if things.iter().any(|t| t.covers(x, y)) {
+                    DARK
+                } else {
+                    WALL
+                }
+            }
+            // Without a wall, the sheet has no edge unless a margin is given: then the room is
+            // dark.
+            _ => 0.0,
+        }
+    }
+
+    /// In the image and not under the hand, nor anything within `clear` (sheet mm) of it.
+    fn visible(
+        &self,
+        cam: &scanner_core::Camera<f64>,
+        size: (f64, f64),
+        s: [f64; 2],
+        clear: f64,
+    ) -> bool {
+        let ring = (0..8).map(|i| {
+            let a = f64::from(i) / 8.0 * std::f64::consts::TAU;
+            [s[0] + clear * a.cos(), s[1] + clear * a.sin()]
+        });
+        std::iter::once(s).chain(ring).all(|q| {
+            let p = self.place(q);
+            let Ok(px) = cam.project(&p) else {
+                return false;
+            };
+            let inside = px.x >= 0.5 && px.y >= 0.5 && px.x <= size.0 - 1.5 && px.y <= size.1 - 1.5;
+            inside && self.on_hand(&p.coords.normalize()).is_none()
+        })
+    }
+
+    /// The truth of every feature that projects: dots with the centroid of their imaged disc,
+    /// then corners.
+    fn features(&self, rig: &Rig) -> Vec<FeatureTruth> {
+        let cam = &rig.scene.camera;
+        let size = (f64::from(rig.scene.width), f64::from(rig.scene.height));
+        let r = self.pattern.dot_diameter() / 2.0;
+        let clear = match *self.pattern {
             // The corner refinement's window reaches about 0.35 of a square.
             Pattern::Chessboard { square, .. } => square / 2.0,
             _ => r,
         };
-        // In the image and not under the hand, nor anything around it.
-        let visible = |s: [f64; 2]| {
-            let ring = (0..8).map(|i| {
-                let a = f64::from(i) / 8.0 * std::f64::consts::TAU;
-                [s[0] + clear * a.cos(), s[1] + clear * a.sin()]
-            });
-            std::iter::once(s).chain(ring).all(|q| {
-                let p = place(q);
-                let Ok(px) = cam.project(&p) else {
-                    return false;
-                };
-                let inside = px.x >= 0.5 && px.y >= 0.5 && px.x <= w - 1.5 && px.y <= h - 1.5;
-                inside && on_hand(&p.coords.normalize()).is_none()
-            })
-        };
-        for s in pattern.dots() {
-            let point = place(s);
+        let mut features = Vec::new();
+        for s in self.pattern.dots() {
+            let point = self.place(s);
             let Ok(projected) = cam.project(&point) else {
                 continue;
             };
             let rim: Vec<Point2<f64>> = (0..720)
                 .filter_map(|i| {
                     let a = i as f64 / 720.0 * std::f64::consts::TAU;
-                    cam.project(&place([s[0] + r * a.cos(), s[1] + r * a.sin()]))
+                    cam.project(&self.place([s[0] + r * a.cos(), s[1] + r * a.sin()]))
                         .ok()
                 })
                 .collect();
-            let centroid = super::polygon_centroid(&rim).unwrap_or(projected);
             features.push(FeatureTruth {
                 sheet: s,
                 point,
                 projected,
-                centroid,
-                visible: visible(s),
+                centroid: super::polygon_centroid(&rim).unwrap_or(projected),
+                visible: self.visible(cam, size, s, clear),
             });
         }
-        for s in pattern.corners() {
-            let point = place(s);
+        for s in self.pattern.corners() {
+            let point = self.place(s);
             if let Ok(projected) = cam.project(&point) {
                 features.push(FeatureTruth {
                     sheet: s,
                     point,
                     projected,
                     centroid: projected,
-                    visible: visible(s),
+                    visible: self.visible(cam, size, s, clear),
                 });
             }
         }
-        Shot { image, features }
+        features
     }
 }
