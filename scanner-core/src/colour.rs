@@ -5,10 +5,15 @@
 //! back: `R = Y + 1.402 (V − 128)`, `G = Y − 0.344 (U − 128) − 0.714 (V − 128)`,
 //! `B = Y + 1.772 (U − 128)`. Integer arithmetic in 1/256 steps, rounded.
 
+/// The luma weights of R, G and B in 1/256 steps (they sum to 256, so a luma fits 16 bits:
+/// `77·255 + 150·255 + 29·255 + 128 = 65408`, which lets vector code work in `u16` lanes).
+pub const LUMA_WEIGHTS: [u16; 3] = [77, 150, 29];
+
 /// The luma of an RGB pixel.
 #[inline]
 pub fn luma(p: [u8; 3]) -> u8 {
-    ((77 * u32::from(p[0]) + 150 * u32::from(p[1]) + 29 * u32::from(p[2]) + 128) >> 8) as u8
+    let [r, g, b] = LUMA_WEIGHTS;
+    ((r * u16::from(p[0]) + g * u16::from(p[1]) + b * u16::from(p[2]) + 128) >> 8) as u8
 }
 
 /// A pair of RGB pixels as YUYV: each pixel's luma, the pair's mean chroma.
@@ -16,7 +21,8 @@ pub fn luma(p: [u8; 3]) -> u8 {
 pub fn rgb_pair_to_yuyv(a: [u8; 3], b: [u8; 3]) -> [u8; 4] {
     let mean = |i: usize| (i32::from(a[i]) + i32::from(b[i]) + 1) / 2;
     let (r, g, bl) = (mean(0), mean(1), mean(2));
-    let y = (77 * r + 150 * g + 29 * bl + 128) >> 8;
+    let [wr, wg, wb] = LUMA_WEIGHTS.map(i32::from);
+    let y = (wr * r + wg * g + wb * bl + 128) >> 8;
     let chroma = |d: i32, k: i32| (128 + ((k * d + 128) >> 8)).clamp(0, 255) as u8;
     [luma(a), chroma(bl - y, 144), luma(b), chroma(r - y, 183)]
 }

@@ -11,17 +11,9 @@ use nalgebra::{Point2, Point3, Vector3};
 
 use crate::geometry::{Board, LaserFitConfig, LaserPlane, Limits, Plane, Surface, laser};
 use crate::stripe::{Axis, Extraction, Extractor, Frame, PixelFormat, StripeConfig, StripeError};
+pub use crate::wire::PlaneMethod;
 use crate::wire::{Skip, points::quantise};
 use crate::{Camera, GeomError};
-
-/// How the laser plane is found.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum PlaneMethod {
-    /// Least squares over all board-stripe points with outlier rejection (default).
-    LeastSquares,
-    /// The paper's construction (lines MN and QR, corrected through the mean of S and T).
-    Paper,
-}
 
 /// Settings of the head.
 #[derive(Debug, Clone, Copy, PartialEq)]

@@ -9,8 +9,8 @@ use scanner_core::pipeline::{HeadConfig, PlaneMethod};
 use scanner_core::stripe::{Axis, Method, PixelFormat, StripeConfig};
 use scanner_core::wire::MAX_ENCODED;
 use scanner_device::link::Link;
+use scanner_device::session::truth_calibration;
 use scanner_device::session::{ScanOptions, Session};
-use scanner_device::source::truth_calibration;
 use scanner_device::source::{FrameSource, RigSource};
 use scanner_rig::{Rig, Scene};
 

@@ -144,7 +144,7 @@ impl Session {
             &camera,
             &board,
             opts.head.colour,
-            opts.head.method.into(),
+            opts.head.method,
         );
         Ok(Session {
             head: Box::new(Head::new(camera.cast(), board.cast(), opts.head)),
@@ -337,4 +337,20 @@ pub fn run_scan(
         }
     };
     session.finish(link, ended)
+}
+
+/// The rig's true camera and board, as the head takes a calibration (for tests and benches that
+/// want the truth, not an estimate; the command line reads `truth-calibration.toml` instead).
+///
+/// # Panics
+/// Never for a rig built from a valid scene (its board's planes meet).
+#[cfg(feature = "rig")]
+pub fn truth_calibration(rig: &scanner_rig::Rig) -> Calibration {
+    let s = rig.scene();
+    let [l, r] = rig.board_planes();
+    Calibration {
+        camera: s.camera,
+        board: scanner_core::geometry::Board::new(l, r).expect("the rig's board is valid"),
+        size: (s.width, s.height),
+    }
 }

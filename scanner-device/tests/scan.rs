@@ -11,9 +11,9 @@ use scanner_core::pipeline::HeadConfig;
 use scanner_core::stripe::{Axis, Method, PixelFormat, StripeConfig};
 use scanner_core::wire::{self, Decoder, MAX_ENCODED, Message, points};
 use scanner_device::link::Link;
+use scanner_device::session::truth_calibration;
 use scanner_device::session::{ScanOptions, run_scan};
 use scanner_device::source::RigSource;
-use scanner_device::source::truth_calibration;
 use scanner_rig::{Rig, Scene};
 
 fn options(scan_id: u32) -> ScanOptions {

@@ -19,7 +19,7 @@ fn recording(dir: &std::path::Path) -> std::path::PathBuf {
     let mut scene = scanner_rig::Scene::demo(320, 240);
     scene.laser.frames = 30;
     let rig = scanner_rig::Rig::new(scene).unwrap();
-    let cal = scanner_device::source::truth_calibration(&rig);
+    let cal = scanner_device::session::truth_calibration(&rig);
     let mut src = scanner_device::source::RigSource::new(rig, PixelFormat::Gray8);
     let path = dir.join("rec.stream");
     let mut link = scanner_device::link::Link::spawn(
@@ -233,7 +233,7 @@ fn head_to_host_over_a_pseudo_terminal() {
     let mut scene = scanner_rig::Scene::demo(320, 240);
     scene.laser.frames = 40;
     let rig = scanner_rig::Rig::new(scene).unwrap();
-    let cal = scanner_device::source::truth_calibration(&rig);
+    let cal = scanner_device::session::truth_calibration(&rig);
     let mut source =
         scanner_device::source::RigSource::new(rig, scanner_core::stripe::PixelFormat::Gray8);
     let mut link = Link::spawn(

@@ -360,8 +360,9 @@ fn lumas(p: &[u8; 48], out: &mut [u8]) {
             u16::from(p[3 * i + 1]),
             u16::from(p[3 * i + 2]),
         );
-        // `colour::luma` in 16 bits (77 R + 150 G + 29 B + 128 ≤ 65408), for the vector unit.
-        *o = ((77 * r + 150 * g + 29 * b + 128) >> 8) as u8;
+        // `colour::luma` written out over 16 pixels, so that the vector unit takes them together.
+        let [wr, wg, wb] = crate::colour::LUMA_WEIGHTS;
+        *o = ((wr * r + wg * g + wb * b + 128) >> 8) as u8;
     }
 }
 

@@ -79,12 +79,12 @@ impl Skip {
     }
 }
 
-/// How the head finds each frame's laser plane (the header says it).
+/// How the head finds each frame's laser plane (the pipeline's setting; the header says it).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(into = "u8", try_from = "u8")]
 #[repr(u8)]
 pub enum PlaneMethod {
-    /// Least squares over all of the stripe's board points.
+    /// Least squares over all of the stripe's board points, with outlier rejection (default).
     LeastSquares = 0,
     /// The paper's construction (lines MN and QR, crossings S and T).
     Paper = 1,
@@ -245,15 +245,6 @@ pub struct Header {
     pub colour: bool,
     /// How the laser plane is found.
     pub method: PlaneMethod,
-}
-
-impl From<crate::pipeline::PlaneMethod> for PlaneMethod {
-    fn from(m: crate::pipeline::PlaneMethod) -> Self {
-        match m {
-            crate::pipeline::PlaneMethod::LeastSquares => PlaneMethod::LeastSquares,
-            crate::pipeline::PlaneMethod::Paper => PlaneMethod::Paper,
-        }
-    }
 }
 
 impl Header {

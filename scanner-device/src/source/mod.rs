@@ -20,7 +20,7 @@ use scanner_core::stripe::{Frame, FrameError, PixelFormat};
 
 pub use images::{ImageDir, load_frame};
 #[cfg(feature = "rig")]
-pub use rig::{RigSource, truth_calibration};
+pub use rig::RigSource;
 
 /// A frame owned by the caller, rows packed.
 #[derive(Debug, Clone, PartialEq, Eq)]

@@ -4,22 +4,6 @@ use scanner_core::stripe::PixelFormat;
 use scanner_rig::{Rig, Scene};
 
 use super::{FrameSource, OwnedFrame, SourceError};
-use crate::session::Calibration;
-
-/// The rig's true camera and board, as the head takes a calibration (for tests and benches that
-/// want the truth, not an estimate; the command line reads `truth-calibration.toml` instead).
-///
-/// # Panics
-/// Never for a rig built from a valid scene (its board's planes meet).
-pub fn truth_calibration(rig: &Rig) -> Calibration {
-    let s = rig.scene();
-    let [l, r] = rig.board_planes();
-    Calibration {
-        camera: s.camera,
-        board: scanner_core::geometry::Board::new(l, r).expect("the rig's board is valid"),
-        size: (s.width, s.height),
-    }
-}
 
 /// The virtual rig as a frame source: its reference, then each frame of its laser sweep.
 #[derive(Debug)]
