@@ -126,6 +126,58 @@ impl<T: Real> Camera<T> {
         })
     }
 
+    /// Whether the camera is plausible for a `width` × `height` image (see [`crate::config`] for
+    /// the limits): each side 1 to [`MAX_LINES`](crate::config::MAX_LINES); focal lengths from
+    /// [`MIN_FOCAL_PER_SIDE`](crate::config::MIN_FOCAL_PER_SIDE) to
+    /// [`MAX_FOCAL_PER_SIDE`](crate::config::MAX_FOCAL_PER_SIDE) times the longer side and
+    /// within a factor 2 of each other; the principal point within half an image of the image;
+    /// radial coefficients within ±[`MAX_RADIAL`](crate::config::MAX_RADIAL), tangential within
+    /// ±[`MAX_TANGENTIAL`](crate::config::MAX_TANGENTIAL). A camera outside these is a corrupt
+    /// file or header, not a lens: every frame would fail later, so it is refused at the start.
+    ///
+    /// # Errors
+    /// [`GeomError::BadParameter`] saying which value is out of range.
+    pub fn check_plausible(&self, width: u32, height: u32) -> Result<(), GeomError> {
+        use crate::config::{
+            MAX_FOCAL_PER_SIDE, MAX_LINES, MAX_RADIAL, MAX_TANGENTIAL, MIN_FOCAL_PER_SIDE,
+        };
+        let bad = |why| Err(GeomError::BadParameter(why));
+        if width == 0 || height == 0 || width as usize > MAX_LINES || height as usize > MAX_LINES {
+            return bad("the image size must be 1 to 4096 pixels on each side");
+        }
+        let side = f64::from(width.max(height));
+        let (fx, fy) = (self.fx.to_f64(), self.fy.to_f64());
+        if !(fx >= MIN_FOCAL_PER_SIDE * side
+            && fx <= MAX_FOCAL_PER_SIDE * side
+            && fy >= MIN_FOCAL_PER_SIDE * side
+            && fy <= MAX_FOCAL_PER_SIDE * side)
+        {
+            return bad("the focal length must be 0.1 to 50 times the image's longer side");
+        }
+        if !(fx <= 2.0 * fy && fy <= 2.0 * fx) {
+            return bad("fx and fy must be within a factor 2 of each other");
+        }
+        let (cx, cy) = (self.cx.to_f64(), self.cy.to_f64());
+        let (w, h) = (f64::from(width), f64::from(height));
+        if !(cx >= -0.5 * w && cx <= 1.5 * w && cy >= -0.5 * h && cy <= 1.5 * h) {
+            return bad("the principal point must lie within half an image of the image");
+        }
+        let d = self.distortion;
+        if ![d.k1, d.k2, d.k3]
+            .iter()
+            .all(|k| k.to_f64().abs() <= MAX_RADIAL)
+        {
+            return bad("radial distortion k1, k2, k3 must be within ±100");
+        }
+        if ![d.p1, d.p2]
+            .iter()
+            .all(|p| p.to_f64().abs() <= MAX_TANGENTIAL)
+        {
+            return bad("tangential distortion p1, p2 must be within ±1");
+        }
+        Ok(())
+    }
+
     /// The paper's camera: one image distance `d_z` in pixels for both axes, the principal point
     /// at the centre of a `width` × `height` image, no distortion.
     ///

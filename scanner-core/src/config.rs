@@ -15,3 +15,14 @@ pub const MAX_FRAME: usize =
     MAX_LINES * (MAX_XYZ_BYTES_PER_POINT + RGB_BYTES_PER_POINT) + MESSAGE_OVERHEAD;
 /// Most markers (or corners) of one plane or view the pose and calibration fits take.
 pub const MAX_MARKERS: usize = 256;
+
+/// Smallest plausible focal length, in multiples of the image's longer side (a 157° view).
+pub const MIN_FOCAL_PER_SIDE: f64 = 0.1;
+/// Largest plausible focal length, in multiples of the image's longer side (a 1.1° view).
+pub const MAX_FOCAL_PER_SIDE: f64 = 50.0;
+/// Largest plausible radial distortion coefficient, by magnitude.
+pub const MAX_RADIAL: f64 = 100.0;
+/// Largest plausible tangential distortion coefficient, by magnitude.
+pub const MAX_TANGENTIAL: f64 = 1.0;
+/// Largest plausible distance of a board plane from the camera, mm.
+pub const MAX_PLANE_OFFSET_MM: f64 = 100_000.0;

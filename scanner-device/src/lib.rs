@@ -22,6 +22,15 @@ macro_rules! outln {
     }};
 }
 
+/// Prints a line to standard error; a closed stderr is ignored like a closed stdout ([`outln`]).
+#[macro_export]
+macro_rules! errln {
+    ($($t:tt)*) => {{
+        use std::io::Write as _;
+        let _ = writeln!(std::io::stderr().lock(), $($t)*);
+    }};
+}
+
 /// An error and its sources as one line, `outer: inner: innermost` (for summaries and messages
 /// that go on as text, where `{e:#}` of `anyhow` is not at hand).
 pub fn error_chain(e: &dyn std::error::Error) -> String {

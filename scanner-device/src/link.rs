@@ -155,10 +155,14 @@ pub struct Link {
     stats: LinkStats,
 }
 
+/// Most buffers between the pipeline and the writer (`--link-depth`): 64 packets of the largest
+/// size are under 5 MB.
+pub const MAX_DEPTH: usize = 64;
+
 impl Link {
     /// Starts the writer on `out` with `depth` buffers of `capacity` bytes (allocated now, once).
     pub fn spawn(mut out: Box<dyn Write + Send>, depth: usize, capacity: usize) -> Link {
-        let depth = depth.max(1);
+        let depth = depth.clamp(1, MAX_DEPTH);
         let (tx, rx) = sync_channel::<Filled>(depth);
         let (back_tx, back) = sync_channel::<Vec<u8>>(depth);
         let thread = std::thread::spawn(move || -> std::io::Result<u64> {

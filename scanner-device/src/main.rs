@@ -8,7 +8,7 @@ fn main() -> ExitCode {
     match scanner_device::run(&args) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
-            eprintln!("scanner-device: error: {e:#}");
+            scanner_device::errln!("scanner-device: error: {e:#}");
             ExitCode::FAILURE
         }
     }

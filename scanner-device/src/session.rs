@@ -94,9 +94,10 @@ pub struct ScanReport {
 }
 
 impl ScanReport {
-    /// Bytes on the link per point sent, headers and framing included.
-    pub fn bytes_per_point(&self) -> f64 {
-        self.bytes as f64 / self.status.points.max(1) as f64
+    /// Bytes on the link per point sent, headers and framing included; `None` when no point
+    /// was sent (there is no rate to give).
+    pub fn bytes_per_point(&self) -> Option<f64> {
+        (self.status.points > 0).then(|| self.bytes as f64 / self.status.points as f64)
     }
 }
 

@@ -263,7 +263,11 @@ fn bad_input_names_what_was_expected_and_found() {
         Free::ALL,
     )
     .unwrap_err();
-    assert!(e.to_string().contains("images with the grid found"), "{e}");
+    assert!(
+        e.to_string()
+            .contains("0 of 3 images usable (grid found, not refused)"),
+        "{e}"
+    );
 }
 
 #[test]

@@ -211,15 +211,22 @@ fn a_folder_of_rendered_frames_is_a_source() {
         n += 1;
     }
     assert_eq!(n, 5);
-    // Without reference.png: the first frames are averaged (documented: laser off).
+    // Without reference.png: the first frames are averaged, once checked to be laser-off; these
+    // are laser frames, so the reference is refused, naming the first frame that shows the laser.
     std::fs::remove_file(dir.path().join("reference.png")).unwrap();
     let opts = SourceOptions {
         reference_frames: 2,
         ..SourceOptions::default()
     };
     let mut src = open_with(dir.path().to_str().unwrap(), PixelFormat::Gray8, &opts).unwrap();
-    src.reference().unwrap();
-    assert_eq!(src.next_frame().unwrap().unwrap().index, 2);
+    match src.reference() {
+        Err(scanner_device::source::SourceError::LaserInReference {
+            frame: 1,
+            frames: 2,
+            ..
+        }) => {}
+        other => panic!("laser frames averaged into a reference: {:?}", other.err()),
+    }
     // An empty folder.
     let empty = tempfile::tempdir().unwrap();
     let e = open_with(

@@ -93,12 +93,12 @@ fn the_stream_in_a_file_decodes_to_exactly_the_heads_points() {
     println!(
         "{} points, {:.2} bytes per point",
         report.status.points,
-        report.bytes_per_point()
+        report.bytes_per_point().expect("points were sent")
     );
     assert!(
-        report.bytes_per_point() <= 4.0,
+        report.bytes_per_point().expect("points were sent") <= 4.0,
         "{}",
-        report.bytes_per_point()
+        report.bytes_per_point().expect("points were sent")
     );
 }
 

@@ -62,6 +62,10 @@ pub enum Command {
         /// Stop at the first final status from the head.
         #[arg(long)]
         until_done: bool,
+        /// Add this session to an existing OUT/journal.stream (by default a folder whose
+        /// journal already holds a scan is refused, so that two sessions never mix by accident).
+        #[arg(long)]
+        append: bool,
         /// Outputs.
         #[command(flatten)]
         out: OutputArgs,
@@ -97,10 +101,34 @@ fn progress_bar(quiet: bool) -> indicatif::ProgressBar {
     pb
 }
 
-fn receive(input: &Input, until_done: bool, o: &OutputArgs) -> Result<Summary> {
+/// Refuses a receive that would read its own journal, or mix into an earlier session's journal
+/// unless told to append.
+fn check_journal(input: &Input, journal: &std::path::Path, append: bool) -> Result<()> {
+    if let Input::File(path) = input
+        && let (Ok(a), Ok(b)) = (path.canonicalize(), journal.canonicalize())
+        && a == b
+    {
+        anyhow::bail!(
+            "{} is this output folder's own journal: receiving from it would append to what it reads; use `scanner-host replay {}` or another --out",
+            path.display(),
+            path.display()
+        );
+    }
+    let held = std::fs::metadata(journal).map_or(0, |m| m.len());
+    if held > 0 && !append {
+        anyhow::bail!(
+            "{} already holds {held} bytes from an earlier session: give another --out, move it away, or add --append to add this session to it",
+            journal.display()
+        );
+    }
+    Ok(())
+}
+
+fn receive(input: &Input, until_done: bool, append: bool, o: &OutputArgs) -> Result<Summary> {
     std::fs::create_dir_all(&o.out)
-        .with_context(|| format!("cannot create {}", o.out.display()))?;
+        .with_context(|| format!("cannot create the output folder {}", o.out.display()))?;
     let journal_path = o.out.join("journal.stream");
+    check_journal(input, &journal_path, append)?;
     let mut c = Collector::new(collect_options(o), Some(Journal::open(&journal_path)?));
     let stop = Arc::new(AtomicBool::new(false));
     {
@@ -111,7 +139,7 @@ fn receive(input: &Input, until_done: bool, o: &OutputArgs) -> Result<Summary> {
     let mut input = input.open()?;
     if let Some(name) = &input.device {
         crate::export::write_atomic(&o.out.join("device-port"), name.as_bytes())?;
-        eprintln!("device end of the link: {name}");
+        crate::errln!("device end of the link: {name}");
     }
     let pb = progress_bar(o.quiet);
     let t0 = Instant::now();
@@ -149,9 +177,10 @@ fn receive(input: &Input, until_done: bool, o: &OutputArgs) -> Result<Summary> {
         }
     };
     pb.finish_and_clear();
+    c.finish();
     c.sync()?;
     if !o.quiet {
-        eprintln!("{ended}; journal: {}", journal_path.display());
+        crate::errln!("{ended}; journal: {}", journal_path.display());
     }
     Ok(write_outputs(&c, &o.out, o.min_count)?)
 }
@@ -162,7 +191,7 @@ fn receive(input: &Input, until_done: bool, o: &OutputArgs) -> Result<Summary> {
 /// Any failure of the run, with context naming what failed.
 pub fn run(args: &Args) -> anyhow::Result<()> {
     if args.info {
-        println!(
+        crate::outln!(
             "scanner-host {}: units mm, camera +z forward, +y down",
             env!("CARGO_PKG_VERSION")
         );
@@ -170,30 +199,31 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
     }
     let summary = match &args.command {
         None => {
-            println!("scanner-host: nothing to do (try --help)");
+            crate::outln!("scanner-host: nothing to do (try --help)");
             return Ok(());
         }
         Some(Command::Ports) => {
             let ports = serialport::available_ports().context("listing serial ports")?;
             if ports.is_empty() {
-                println!("no serial ports found");
+                crate::outln!("no serial ports found");
             }
             for p in ports {
-                println!("{}: {:?}", p.port_name, p.port_type);
+                crate::outln!("{}: {:?}", p.port_name, p.port_type);
             }
             return Ok(());
         }
         Some(Command::Receive {
             input,
             until_done,
+            append,
             out,
-        }) => receive(input, *until_done, out)?,
+        }) => receive(input, *until_done, *append, out)?,
         Some(Command::Replay { input, out }) => {
             let mut c = Collector::new(collect_options(out), None);
             replay_into(&mut c, input)?;
             write_outputs(&c, &out.out, out.min_count)?
         }
     };
-    print!("{}", summary.text());
+    crate::outln!("{}", summary.text().trim_end());
     Ok(())
 }

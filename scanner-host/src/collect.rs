@@ -25,6 +25,14 @@ pub enum CollectError {
     /// The grid cannot be built for the header.
     #[error(transparent)]
     Grid(#[from] GridError),
+    /// The first header describes no usable scan (a corrupt or crafted header).
+    #[error("the header of scan {scan_id:08x}: {why}")]
+    Header {
+        /// Its scan.
+        scan_id: u32,
+        /// What is wrong.
+        why: String,
+    },
 }
 
 type Result<T, E = CollectError> = std::result::Result<T, E>;
@@ -72,6 +80,11 @@ pub struct Counts {
     pub duplicates: u64,
     /// Scans seen.
     pub scans: BTreeSet<u32>,
+    /// Scans left out of the grid because their header's image size or camera differs from the
+    /// first scan's (their points would be ghosts in its grid); their frames are in the journal.
+    pub other_camera: BTreeSet<u32>,
+    /// Points of those scans.
+    pub other_camera_points: u64,
     /// The latest status of each scan.
     pub status: BTreeMap<u32, Status>,
     /// Capture time span of the points, µs (first, last).
@@ -168,6 +181,11 @@ impl Collector {
         }
     }
 
+    /// Ends the input: a frame cut off at the end counts as truncated (see [`Decoder::finish`]).
+    pub fn finish(&mut self) {
+        self.decoder.finish();
+    }
+
     /// Flushes the journal to disk.
     ///
     /// # Errors
@@ -204,8 +222,12 @@ impl State {
             Message::Header(h) => {
                 self.counts.headers += 1;
                 self.counts.scans.insert(h.scan_id);
-                if self.grid.is_none() {
-                    self.start(h)?;
+                match &self.header {
+                    None => self.start(h)?,
+                    Some(first) if !same_view(first, h) => {
+                        self.counts.other_camera.insert(h.scan_id);
+                    }
+                    Some(_) => {}
                 }
             }
             Message::Status(s) => {
@@ -219,6 +241,10 @@ impl State {
                 }
                 self.counts.packets += 1;
                 self.counts.scans.insert(p.scan_id);
+                if self.counts.other_camera.contains(&p.scan_id) {
+                    self.counts.other_camera_points += u64::from(p.count);
+                    return Ok(());
+                }
                 self.counts.time_us = Some(match self.counts.time_us {
                     Some((a, b)) => (a.min(p.time_us), b.max(p.time_us)),
                     None => (p.time_us, p.time_us),
@@ -263,6 +289,7 @@ impl State {
     }
 
     fn start(&mut self, h: &Header) -> Result<()> {
+        check_header(h)?;
         let camera: Camera<f64> = h.camera().map_err(CollectError::Camera)?.cast();
         // Millimetre grids span the view out to the board's crease distance (or 2 m).
         let depth = h
@@ -296,4 +323,47 @@ impl State {
             }
         }
     }
+}
+
+/// Whether two headers describe the same view: image size and camera (sweeps of one scan, or
+/// several scans from one camera that stayed put, share a grid).
+fn same_view(a: &Header, b: &Header) -> bool {
+    (a.width, a.height, a.unit_um) == (b.width, b.height, b.unit_um) && a.camera == b.camera
+}
+
+/// Refuses a header that no real head sends: an image size beyond the head's
+/// [`MAX_LINES`](scanner_core::config::MAX_LINES), a zero unit, an implausible camera or
+/// board (see [`Camera::check_plausible`]). Nothing is allocated for it.
+fn check_header(h: &Header) -> Result<()> {
+    let bad = |why: String| {
+        Err(CollectError::Header {
+            scan_id: h.scan_id,
+            why,
+        })
+    };
+    if h.unit_um == 0 {
+        return bad("its unit is 0 µm: no point can be placed".into());
+    }
+    let camera = h.camera().map_err(|e| CollectError::Header {
+        scan_id: h.scan_id,
+        why: format!("its camera is unusable ({e})"),
+    })?;
+    if let Err(e) = camera.check_plausible(u32::from(h.width), u32::from(h.height)) {
+        return bad(format!(
+            "{e} (image {}×{}, fx {:.4e}, fy {:.4e})",
+            h.width,
+            h.height,
+            camera.fx(),
+            camera.fy()
+        ));
+    }
+    for (name, b) in ["left", "right"].iter().zip(&h.board) {
+        if !(f64::from(b.offset).abs() <= scanner_core::config::MAX_PLANE_OFFSET_MM) {
+            return bad(format!(
+                "its {name} board plane is {:.4e} mm away",
+                b.offset
+            ));
+        }
+    }
+    Ok(())
 }

@@ -24,9 +24,6 @@ pub enum ExportError {
         #[source]
         source: std::io::Error,
     },
-    /// A picture could not be encoded.
-    #[error("encoding a picture")]
-    Png(#[source] image::ImageError),
 }
 
 /// Writes `bytes` to `path` through a temporary file in the same folder (`tempfile`) and a
@@ -35,13 +32,32 @@ pub enum ExportError {
 /// # Errors
 /// [`ExportError::Write`] naming the file.
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), ExportError> {
+    write_atomic_with(path, |w| w.write_all(bytes))
+}
+
+/// The buffered temporary file a [`write_atomic_with`] writer writes to.
+pub type TempWriter = std::io::BufWriter<tempfile::NamedTempFile>;
+
+/// Like [`write_atomic`], with the file's content streamed by `fill` (a mesh of millions of
+/// faces is written as it is formatted, never held whole in memory).
+///
+/// # Errors
+/// [`ExportError::Write`] naming the file, also for an error of `fill`.
+pub fn write_atomic_with(
+    path: &Path,
+    fill: impl FnOnce(&mut TempWriter) -> std::io::Result<()>,
+) -> Result<(), ExportError> {
     let dir = path
         .parent()
         .filter(|p| !p.as_os_str().is_empty())
         .unwrap_or(Path::new("."));
     let write = || -> std::io::Result<()> {
-        let mut f = tempfile::NamedTempFile::new_in(dir)?;
-        f.write_all(bytes)?;
+        let mut w =
+            std::io::BufWriter::with_capacity(1 << 20, tempfile::NamedTempFile::new_in(dir)?);
+        fill(&mut w)?;
+        let f = w
+            .into_inner()
+            .map_err(std::io::IntoInnerError::into_error)?;
         f.as_file().sync_all()?;
         f.persist(path).map_err(|e| e.error)?;
         Ok(())
@@ -54,44 +70,61 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), ExportError> {
 
 /// The mesh as OBJ text (colours as `v x y z r g b` with components in 0–1).
 pub fn obj(mesh: &Mesh) -> String {
-    let mut s = String::with_capacity(64 * mesh.vertices.len() + 32 * mesh.faces.len());
-    let _ = writeln!(
-        s,
+    let mut v = Vec::new();
+    // Writing to memory cannot fail.
+    let _ = write_obj(mesh, &mut v);
+    String::from_utf8_lossy(&v).into_owned()
+}
+
+/// Writes the mesh as OBJ text.
+///
+/// # Errors
+/// The writer's error.
+pub fn write_obj(mesh: &Mesh, w: &mut impl std::io::Write) -> std::io::Result<()> {
+    writeln!(
+        w,
         "# scanner-host: {} vertices, {} faces; mm, camera coordinates (+y down, +z forward)",
         mesh.vertices.len(),
         mesh.faces.len()
-    );
+    )?;
     for (i, v) in mesh.vertices.iter().enumerate() {
         match mesh.colours.get(i) {
-            Some(c) => {
-                let _ = writeln!(
-                    s,
-                    "v {} {} {} {:.4} {:.4} {:.4}",
-                    v.x,
-                    v.y,
-                    v.z,
-                    f32::from(c[0]) / 255.0,
-                    f32::from(c[1]) / 255.0,
-                    f32::from(c[2]) / 255.0
-                );
-            }
-            None => {
-                let _ = writeln!(s, "v {} {} {}", v.x, v.y, v.z);
-            }
+            Some(c) => writeln!(
+                w,
+                "v {} {} {} {:.4} {:.4} {:.4}",
+                v.x,
+                v.y,
+                v.z,
+                f32::from(c[0]) / 255.0,
+                f32::from(c[1]) / 255.0,
+                f32::from(c[2]) / 255.0
+            )?,
+            None => writeln!(w, "v {} {} {}", v.x, v.y, v.z)?,
         }
     }
     for n in &mesh.normals {
-        let _ = writeln!(s, "vn {} {} {}", n.x, n.y, n.z);
+        writeln!(w, "vn {} {} {}", n.x, n.y, n.z)?;
     }
     for f in &mesh.faces {
         let [a, b, c] = f.map(|i| i + 1);
-        let _ = writeln!(s, "f {a}//{a} {b}//{b} {c}//{c}");
+        writeln!(w, "f {a}//{a} {b}//{b} {c}//{c}")?;
     }
-    s
+    Ok(())
 }
 
 /// The mesh as binary little-endian PLY.
 pub fn ply(mesh: &Mesh) -> Vec<u8> {
+    let mut v = Vec::new();
+    // Writing to memory cannot fail.
+    let _ = write_ply(mesh, &mut v);
+    v
+}
+
+/// Writes the mesh as binary little-endian PLY.
+///
+/// # Errors
+/// The writer's error.
+pub fn write_ply(mesh: &Mesh, w: &mut impl std::io::Write) -> std::io::Result<()> {
     let colour = !mesh.colours.is_empty();
     let mut h = format!(
         "ply\nformat binary_little_endian 1.0\ncomment scanner-host: mm, camera coordinates\nelement vertex {}\nproperty float x\nproperty float y\nproperty float z\nproperty float nx\nproperty float ny\nproperty float nz\n",
@@ -105,43 +138,52 @@ pub fn ply(mesh: &Mesh) -> Vec<u8> {
         "element face {}\nproperty list uchar int vertex_indices\nend_header\n",
         mesh.faces.len()
     );
-    let mut b = h.into_bytes();
-    b.reserve(mesh.vertices.len() * 27 + mesh.faces.len() * 13);
+    w.write_all(h.as_bytes())?;
     for (i, (v, n)) in mesh.vertices.iter().zip(&mesh.normals).enumerate() {
         for x in [v.x, v.y, v.z, n.x, n.y, n.z] {
-            b.extend_from_slice(&x.to_le_bytes());
+            w.write_all(&x.to_le_bytes())?;
         }
         if colour {
-            b.extend_from_slice(&mesh.colours[i]);
+            w.write_all(&mesh.colours[i])?;
         }
     }
     for f in &mesh.faces {
-        b.push(3);
+        w.write_all(&[3])?;
         for i in f {
-            b.extend_from_slice(&(*i as i32).to_le_bytes());
+            w.write_all(&(*i as i32).to_le_bytes())?;
         }
     }
-    b
+    Ok(())
 }
 
 /// The mesh as binary STL (facet normals; no colour).
 pub fn stl(mesh: &Mesh) -> Vec<u8> {
-    let mut b = Vec::with_capacity(84 + 50 * mesh.faces.len());
+    let mut v = Vec::new();
+    // Writing to memory cannot fail.
+    let _ = write_stl(mesh, &mut v);
+    v
+}
+
+/// Writes the mesh as binary STL.
+///
+/// # Errors
+/// The writer's error.
+pub fn write_stl(mesh: &Mesh, w: &mut impl std::io::Write) -> std::io::Result<()> {
     let mut head = [0u8; 80];
     let text = b"scanner-host mesh, mm";
     head[..text.len()].copy_from_slice(text);
-    b.extend_from_slice(&head);
-    b.extend_from_slice(&(mesh.faces.len() as u32).to_le_bytes());
+    w.write_all(&head)?;
+    w.write_all(&(mesh.faces.len() as u32).to_le_bytes())?;
     for f in &mesh.faces {
         let [p, q, r] = f.map(|i| mesh.vertices[i as usize]);
         let n = (q - p).cross(&(r - p));
         let n = if n.norm() > 0.0 { n.normalize() } else { n };
         for v in [n.x, n.y, n.z, p.x, p.y, p.z, q.x, q.y, q.z, r.x, r.y, r.z] {
-            b.extend_from_slice(&v.to_le_bytes());
+            w.write_all(&v.to_le_bytes())?;
         }
-        b.extend_from_slice(&[0, 0]);
+        w.write_all(&[0, 0])?;
     }
-    b
+    Ok(())
 }
 
 /// Fills the triangle with corners `p` (pixels) by `colour(w)` where `w` are barycentric weights.
@@ -346,13 +388,11 @@ pub fn shaded_png(grid: &Grid, mesh: &Mesh) -> RgbImage {
     img
 }
 
-/// PNG bytes of a picture.
+/// Writes a picture as PNG.
 ///
 /// # Errors
-/// Encoding failure.
-pub fn png_bytes(img: &RgbImage) -> Result<Vec<u8>, ExportError> {
-    let mut v = Vec::new();
-    img.write_to(&mut std::io::Cursor::new(&mut v), image::ImageFormat::Png)
-        .map_err(ExportError::Png)?;
-    Ok(v)
+/// The writer's error, or the encoder's as an I/O error.
+pub fn write_png(img: &RgbImage, w: &mut TempWriter) -> std::io::Result<()> {
+    img.write_to(w, image::ImageFormat::Png)
+        .map_err(std::io::Error::other)
 }

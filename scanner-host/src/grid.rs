@@ -34,8 +34,10 @@ pub struct CellError {
     pub why: &'static str,
 }
 
-/// Most cells a grid may have (each is 48 bytes: 64 Mi cells are 3 GiB).
-pub const MAX_CELLS: usize = 64 << 20;
+/// Most cells a grid may have: 2048 × 2048, what the default 2-pixel cells give on the largest
+/// image a head sends (4096 × 4096). With the mesh and the pictures built from it, the host's
+/// peak memory stays under 1 GB (`cargo run --release -p scanner-host --example peak_memory`).
+pub const MAX_CELLS: usize = 2048 * 2048;
 
 /// Why a grid cannot be built.
 #[derive(Debug, thiserror::Error)]
@@ -43,9 +45,21 @@ pub enum GridError {
     /// The camera's image corners have no rays.
     #[error("the header's camera cannot cast rays")]
     Camera(#[source] scanner_core::GeomError),
-    /// Too many or no cells.
-    #[error("a grid of {cols}×{rows} cells (at most {MAX_CELLS}): choose a larger cell size")]
-    Size {
+    /// Too many cells.
+    #[error(
+        "--cell gives a grid of {cols}×{rows} cells (at most {MAX_CELLS}): choose a larger cell size"
+    )]
+    TooMany {
+        /// Columns.
+        cols: usize,
+        /// Rows.
+        rows: usize,
+    },
+    /// Fewer than 2 × 2 cells: the cell is about as large as the view.
+    #[error(
+        "--cell gives a grid of {cols}×{rows} cells (at least 2×2): the cell is as large as the view; choose a smaller cell size"
+    )]
+    TooFew {
         /// Columns.
         cols: usize,
         /// Rows.
@@ -216,8 +230,11 @@ impl Grid {
                 )
             }
         };
-        if cols == 0 || rows == 0 || cols.saturating_mul(rows) > MAX_CELLS {
-            return Err(GridError::Size { cols, rows });
+        if cols < 2 || rows < 2 {
+            return Err(GridError::TooFew { cols, rows });
+        }
+        if cols.saturating_mul(rows) > MAX_CELLS {
+            return Err(GridError::TooMany { cols, rows });
         }
         Ok(Grid {
             cell,

@@ -56,6 +56,12 @@ pub enum LinkError {
     /// The pseudo-terminal pair cannot be made.
     #[error("cannot create a pseudo-terminal pair")]
     Pty(#[source] serialport::Error),
+    /// A folder was given where a recording belongs.
+    #[error("{} is a folder: give a recorded stream or journal file (e.g. OUT/journal.stream)", path.display())]
+    Folder {
+        /// The folder.
+        path: PathBuf,
+    },
     /// The file cannot be read.
     #[error("cannot read {}", path.display())]
     File {
@@ -115,12 +121,7 @@ impl Input {
         };
         Ok(match self {
             Input::Stdin => plain(Box::new(std::io::stdin())),
-            Input::File(path) => plain(Box::new(std::fs::File::open(path).map_err(|source| {
-                LinkError::File {
-                    path: path.clone(),
-                    source,
-                }
-            })?)),
+            Input::File(path) => plain(Box::new(open_file(path)?)),
             Input::Serial { path, baud } => plain(Box::new(
                 serialport::new(path, *baud)
                     .timeout(READ_TIMEOUT)
@@ -144,4 +145,22 @@ impl Input {
             }
         })
     }
+}
+
+/// Opens a recorded stream or journal for reading; a folder is named as one.
+///
+/// # Errors
+/// [`LinkError::Folder`] or [`LinkError::File`] naming the path.
+pub fn open_file(path: &std::path::Path) -> Result<std::fs::File, LinkError> {
+    let file = |source| LinkError::File {
+        path: path.to_path_buf(),
+        source,
+    };
+    let f = std::fs::File::open(path).map_err(file)?;
+    if f.metadata().map_err(file)?.is_dir() {
+        return Err(LinkError::Folder {
+            path: path.to_path_buf(),
+        });
+    }
+    Ok(f)
 }

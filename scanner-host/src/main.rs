@@ -8,7 +8,7 @@ fn main() -> ExitCode {
     match scanner_host::run(&args) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
-            eprintln!("scanner-host: error: {e:#}");
+            scanner_host::errln!("scanner-host: error: {e:#}");
             ExitCode::FAILURE
         }
     }

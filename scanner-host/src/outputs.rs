@@ -37,6 +37,9 @@ pub enum OutputError {
     /// A file could not be written.
     #[error(transparent)]
     Export(#[from] ExportError),
+    /// The input of a replay cannot be opened.
+    #[error(transparent)]
+    Open(#[from] crate::link::LinkError),
     /// The input of a replay cannot be read.
     #[error("cannot read {}", path.display())]
     Input {
@@ -100,6 +103,17 @@ impl Summary {
             c.no_header,
             c.duplicates
         );
+        if !c.other_camera.is_empty() {
+            s += &format!(
+                "warning: {} left out of the grid ({} points): their image size or camera differs from the first scan's; they are in the journal\n",
+                c.other_camera
+                    .iter()
+                    .map(|id| format!("scan {id:08x}"))
+                    .collect::<Vec<_>>()
+                    .join(", "),
+                c.other_camera_points
+            );
+        }
         let skipped = c.skipped();
         for r in Skip::ALL {
             if skipped[r as usize] > 0 {
@@ -113,6 +127,15 @@ impl Summary {
         s
     }
 }
+
+/// The files [`write_outputs`] makes besides `summary.txt`.
+pub const OUTPUT_FILES: [&str; 5] = [
+    "scan.obj",
+    "scan.ply",
+    "scan.stl",
+    "depth.png",
+    "preview.png",
+];
 
 /// Writes every output of a collection into `dir`.
 ///
@@ -130,6 +153,11 @@ pub fn write_outputs(c: &Collector, dir: &Path, min_count: u32) -> Result<Summar
             frames: counts.decode.frames,
             rejected: counts.decode.rejected(),
         };
+        // Meshes and pictures of an earlier run beside this run's error would be taken for its
+        // result: they go (the journal they came from, if any, stays).
+        for f in OUTPUT_FILES {
+            let _ = std::fs::remove_file(dir.join(f));
+        }
         export::write_atomic(&dir.join("summary.txt"), e.to_string().as_bytes())?;
         return Err(e);
     };
@@ -138,17 +166,16 @@ pub fn write_outputs(c: &Collector, dir: &Path, min_count: u32) -> Result<Summar
         ..MeshOptions::default()
     };
     let m = mesh::build(grid, f64::from(header.camera.fx), &opts, c.colour());
-    export::write_atomic(&dir.join("scan.obj"), export::obj(&m).as_bytes())?;
-    export::write_atomic(&dir.join("scan.ply"), &export::ply(&m))?;
-    export::write_atomic(&dir.join("scan.stl"), &export::stl(&m))?;
-    export::write_atomic(
-        &dir.join("depth.png"),
-        &export::png_bytes(&export::depth_png(grid, &m))?,
-    )?;
-    export::write_atomic(
-        &dir.join("preview.png"),
-        &export::png_bytes(&export::shaded_png(grid, &m))?,
-    )?;
+    // Streamed to their files: the mesh is never held twice in memory.
+    export::write_atomic_with(&dir.join("scan.obj"), |w| export::write_obj(&m, w))?;
+    export::write_atomic_with(&dir.join("scan.ply"), |w| export::write_ply(&m, w))?;
+    export::write_atomic_with(&dir.join("scan.stl"), |w| export::write_stl(&m, w))?;
+    export::write_atomic_with(&dir.join("depth.png"), |w| {
+        export::write_png(&export::depth_png(grid, &m), w)
+    })?;
+    export::write_atomic_with(&dir.join("preview.png"), |w| {
+        export::write_png(&export::shaded_png(grid, &m), w)
+    })?;
     let span = counts.time_us.map_or(0.0, |(a, b)| (b - a) as f64 / 1e6);
     let summary = Summary {
         point_rate: if span > 0.0 {
@@ -175,11 +202,12 @@ pub fn replay_into(c: &mut Collector, input: &Path) -> Result<(), OutputError> {
         path: input.to_path_buf(),
         source,
     };
-    let mut f = std::fs::File::open(input).map_err(io)?;
+    let mut f = crate::link::open_file(input)?;
     let mut buf = vec![0u8; 1 << 16];
     loop {
         let n = f.read(&mut buf).map_err(io)?;
         if n == 0 {
+            c.finish();
             return Ok(());
         }
         c.feed(&buf[..n])?;

@@ -529,6 +529,18 @@ impl<const N: usize> Decoder<N> {
         self.len
     }
 
+    /// Ends the input: an unfinished frame (bytes after the last delimiter, a stream cut
+    /// mid-frame) is counted as truncated and dropped. Returns whether there was one.
+    pub fn finish(&mut self) -> bool {
+        let cut = self.len > 0 || self.overflow;
+        if cut {
+            self.stats.truncated += 1;
+        }
+        self.len = 0;
+        self.overflow = false;
+        cut
+    }
+
     /// Feeds bytes; `f` gets each complete frame in order.
     pub fn feed(&mut self, bytes: &[u8], mut f: impl FnMut(Result<Message<'_>, WireError>)) {
         for &b in bytes {

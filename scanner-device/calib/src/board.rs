@@ -27,7 +27,13 @@
 
 use std::path::Path;
 
+use scanner_core::config::MAX_MARKERS;
 use scanner_core::nalgebra::Point2;
+
+use crate::short;
+
+/// The largest sheet side, mm (A0's long side is 1189 mm).
+pub const MAX_SHEET_MM: f64 = 1500.0;
 use serde::{Deserialize, Serialize};
 
 /// A grid of markers on a sheet: `cols` along `u` from `u0` in steps of `du`, `rows` along `v`
@@ -200,6 +206,21 @@ impl Default for BoardFile {
 }
 
 impl SheetLayout {
+    /// How many markers (or inner corners) the sheet has, from the counts alone (nothing is
+    /// allocated); `None` when it has none of the three kinds or the count overflows.
+    pub fn count(&self) -> Option<usize> {
+        if let Some(c) = self.chessboard {
+            return c
+                .cols
+                .saturating_sub(1)
+                .checked_mul(c.rows.saturating_sub(1));
+        }
+        if let Some(m) = &self.markers {
+            return Some(m.len());
+        }
+        self.grid.and_then(|g| g.cols.checked_mul(g.rows))
+    }
+
     /// Marker centres in order: listed ones as listed, a grid row by row (along `u` first).
     pub fn points(&self) -> Vec<Point2<f64>> {
         if let Some(c) = self.chessboard {
@@ -264,7 +285,7 @@ impl BoardFile {
     /// # Errors
     /// [`BoardError`] naming the file and what is wrong.
     pub fn load(path: &Path) -> Result<BoardFile, BoardError> {
-        let text = std::fs::read_to_string(path).map_err(|source| BoardError::Read {
+        let text = crate::text_file::read(path).map_err(|source| BoardError::Read {
             path: path.display().to_string(),
             source,
         })?;
@@ -309,8 +330,16 @@ impl BoardFile {
                 self.marker_diameter
             ));
         }
-        if !(self.sheet.width > 0.0 && self.sheet.height > 0.0) {
-            return bad("sheet width and height must be positive".into());
+        if !(self.sheet.width > 0.0
+            && self.sheet.height > 0.0
+            && self.sheet.width <= MAX_SHEET_MM
+            && self.sheet.height <= MAX_SHEET_MM)
+        {
+            return bad(format!(
+                "[sheet]: width and height must be between 0 and {MAX_SHEET_MM} mm, found {} × {}",
+                short(self.sheet.width),
+                short(self.sheet.height)
+            ));
         }
         if !(self.cross.arm > 2.0 * self.cross.dot && self.cross.dot > 0.0) {
             return bad("cross: arm must exceed twice the dot diameter, both positive".into());
@@ -324,6 +353,13 @@ impl BoardFile {
             if kinds.iter().filter(|&&k| k).count() != 1 {
                 return bad(format!(
                     "[{name}]: give exactly one of `markers`, `grid` or `chessboard`"
+                ));
+            }
+            if s.count().is_none_or(|n| n > MAX_MARKERS) {
+                return bad(format!(
+                    "[{name}]: {} markers or corners; at most {MAX_MARKERS} per sheet",
+                    s.count()
+                        .map_or_else(|| "too many".to_string(), |n| n.to_string())
                 ));
             }
             if let Some(c) = s.chessboard {
@@ -356,12 +392,6 @@ impl BoardFile {
                 return bad(format!(
                     "[{name}]: {} markers; a sheet needs at least 4 (the paper uses 6)",
                     p.len()
-                ));
-            }
-            if p.len() > scanner_core::geometry::pose::MAX_MARKERS {
-                return bad(format!(
-                    "[{name}]: more than {} markers",
-                    scanner_core::geometry::pose::MAX_MARKERS
                 ));
             }
             for (i, a) in p.iter().enumerate() {

@@ -22,6 +22,9 @@
 //!                          # region between the marker lines
 //! ```
 
+use scanner_core::config::MAX_PLANE_OFFSET_MM;
+
+use crate::short;
 use std::path::Path;
 
 use scanner_core::calib::model::predict;
@@ -183,9 +186,18 @@ pub struct CalibrationFile {
 /// Why a calibration file is unusable.
 #[derive(Debug, thiserror::Error)]
 pub enum FileError {
-    /// Not readable, or not writable.
-    #[error("calibration file {path}")]
+    /// Not readable.
+    #[error("cannot read the calibration file {path}")]
     Io {
+        /// The file.
+        path: String,
+        /// What went wrong.
+        #[source]
+        source: std::io::Error,
+    },
+    /// Cannot be written (a missing folder, no permission, a full disk).
+    #[error("cannot write the calibration file {path} (does its folder exist?)")]
+    Write {
         /// The file.
         path: String,
         /// What went wrong.
@@ -353,7 +365,7 @@ impl CalibrationFile {
     /// # Errors
     /// [`FileError`] naming the file and the problem.
     pub fn load(path: &Path) -> Result<Self, FileError> {
-        let text = std::fs::read_to_string(path).map_err(|source| FileError::Io {
+        let text = crate::text_file::read(path).map_err(|source| FileError::Io {
             path: path.display().to_string(),
             source,
         })?;
@@ -379,10 +391,33 @@ impl CalibrationFile {
                 f.version
             )));
         }
-        if f.image.width == 0 || f.image.height == 0 {
-            return Err(invalid("image size is zero".into()));
+        let (w, h) = (f.image.width, f.image.height);
+        let c = &f.camera;
+        let values = format!(
+            "fx {}, fy {}, cx {}, cy {}, k1 {}, k2 {}, p1 {}, p2 {}, k3 {} for a {w}×{h} image",
+            short(c.fx),
+            short(c.fy),
+            short(c.cx),
+            short(c.cy),
+            short(c.k1),
+            short(c.k2),
+            short(c.p1),
+            short(c.p2),
+            short(c.k3)
+        );
+        f.camera()
+            .and_then(|cam| cam.check_plausible(w, h))
+            .map_err(|e| invalid(format!("[camera]: {e} ({values})")))?;
+        if let Some(b) = &f.board {
+            for (name, s) in [("left", &b.left), ("right", &b.right)] {
+                if !(s.offset.abs() <= MAX_PLANE_OFFSET_MM) {
+                    return Err(invalid(format!(
+                        "[board.{name}]: offset {} mm is not a board's distance (at most {MAX_PLANE_OFFSET_MM} mm)",
+                        short(s.offset)
+                    )));
+                }
+            }
         }
-        f.camera().map_err(|e| invalid(format!("[camera]: {e}")))?;
         if let Some(b) = f.board() {
             b.map_err(|e| invalid(format!("[board]: {e}")))?;
         }
@@ -392,13 +427,13 @@ impl CalibrationFile {
     /// Writes the file atomically (a temporary file beside it, then a rename).
     ///
     /// # Errors
-    /// [`FileError::Serialize`] or [`FileError::Io`].
+    /// [`FileError::Serialize`] or [`FileError::Write`].
     pub fn save(&self, path: &Path) -> Result<(), FileError> {
         let text = toml::to_string(self).map_err(|source| FileError::Serialize {
             path: path.display().to_string(),
             source,
         })?;
-        write_atomic(path, text.as_bytes()).map_err(|source| FileError::Io {
+        write_atomic(path, text.as_bytes()).map_err(|source| FileError::Write {
             path: path.display().to_string(),
             source,
         })

@@ -337,14 +337,10 @@ fn refuse_repeated_views(reports: &mut [ImageReport]) {
 }
 
 fn too_few_images(reports: &[ImageReport], active: usize) -> CalibError {
-    CalibError::TooFewMarkers {
-        what: "intrinsics: images with the grid found and usable".into(),
-        found: active,
-        expected: reports.len(),
+    CalibError::TooFewImages {
+        usable: active,
+        given: reports.len(),
         needed: 3,
-        missing: (0..reports.len())
-            .filter(|&i| !is_pending(&reports[i]))
-            .collect(),
     }
 }
 

@@ -14,16 +14,28 @@
 //! The results go into one calibration file ([`file`](mod@file)) with an annotated picture ([`overlay`]).
 #![deny(missing_docs)]
 
+/// A number for a message: as is when short, in scientific notation when it would run to many
+/// digits (a crafted `1e300` is not printed as a 301-digit number).
+pub fn short(x: f64) -> String {
+    if x.is_finite() && (x == 0.0 || (1e-3..1e7).contains(&x.abs())) {
+        format!("{x}")
+    } else {
+        format!("{x:.4e}")
+    }
+}
+
 pub mod blur;
 pub mod board;
 pub mod corners;
 pub mod detect;
 pub mod file;
 pub mod identify;
+pub mod image_file;
 pub mod intrinsics;
 pub mod lattice;
 pub mod overlay;
 pub mod print;
+pub mod text_file;
 
 use image::GrayImage;
 use scanner_core::calib::bundle::{initial_pose, refine, residuals};
@@ -41,6 +53,13 @@ pub use intrinsics::{
     Found, GridView, ImageReport, IntrinsicsFit, IntrinsicsOutcome, ViewFit, find_grid, intrinsics,
     intrinsics_outcome,
 };
+
+/// The largest RMS of a sheet's markers against its layout that a board calibration accepts,
+/// pixels (the rig's boards fit within 0.03 px; a dot-grid target mistaken for the board, 0.9 px).
+pub const MAX_SHEET_RMS_PX: f64 = 0.5;
+
+/// The opening angles of a two-plane board that a board calibration accepts, degrees.
+pub const BOARD_ANGLE_DEG: (f64, f64) = (30.0, 150.0);
 
 /// Why a calibration step failed. Each names what was expected and what was found.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
@@ -70,6 +89,21 @@ pub enum CalibError {
         /// Layout indices not found.
         missing: Vec<usize>,
     },
+    /// Too few images are usable for the intrinsics.
+    #[error(
+        "{usable} of {given} images usable (grid found, not refused), at least {needed} needed: see the line of each image"
+    )]
+    TooFewImages {
+        /// Usable images.
+        usable: usize,
+        /// Images given.
+        given: usize,
+        /// Needed.
+        needed: usize,
+    },
+    /// A result that no real board or target gives (the text says why and what to check).
+    #[error("implausible result: {0}")]
+    Implausible(String),
     /// The image is not the size the camera was calibrated for.
     #[error(
         "image is {found_w}×{found_h} but the camera was calibrated at {expected_w}×{expected_h}"
@@ -85,12 +119,12 @@ pub enum CalibError {
         found_h: u32,
     },
     /// The geometry could not be solved.
-    #[error("{what}: {source}")]
+    #[error("{what}: {reason}")]
     Geometry {
         /// Which step.
         what: String,
-        /// Why.
-        source: GeomError,
+        /// Why (in the message itself, not chained: summaries print this error alone).
+        reason: GeomError,
     },
     /// Too many features for a target: clutter, not a grid.
     #[error("{found} features detected, more than the {limit} a target search takes (clutter?)")]
@@ -215,9 +249,9 @@ fn missing_list(m: &[usize]) -> String {
 }
 
 fn geom(what: &str) -> impl Fn(GeomError) -> CalibError + '_ {
-    move |source| CalibError::Geometry {
+    move |reason| CalibError::Geometry {
         what: what.to_string(),
-        source,
+        reason,
     }
 }
 
@@ -636,7 +670,22 @@ fn finish_board(
     camera: &Camera<f64>,
     [left, right]: [SheetFit; 2],
 ) -> Result<BoardFit, CalibError> {
+    for (side, fit) in [("left", &left), ("right", &right)] {
+        if fit.rms_px > MAX_SHEET_RMS_PX {
+            return Err(CalibError::Implausible(format!(
+                "the {side} sheet's markers fit their layout with {:.2} px RMS; a printed board fits within {MAX_SHEET_RMS_PX} px: is this an image of this board (not of another target), flat and in focus?",
+                fit.rms_px
+            )));
+        }
+    }
     let board_geom = Board::new(left.plane, right.plane).map_err(geom("board"))?;
+    let angle = board_geom.angle().to_degrees();
+    if !(BOARD_ANGLE_DEG.0..=BOARD_ANGLE_DEG.1).contains(&angle) {
+        return Err(CalibError::Implausible(format!(
+            "the sheets meet at {angle:.1}°; a two-plane board is built at {}–{}° (about 90°): is this an image of this board?",
+            BOARD_ANGLE_DEG.0, BOARD_ANGLE_DEG.1
+        )));
+    }
     let paper = [&board.left, &board.right].map(|s| s.paper_lines());
     let sheets = [left, right];
     let paper_planes: Vec<Option<Plane<f64>>> = (0..2)

@@ -150,12 +150,19 @@ impl Sheet {
         s
     }
 
-    /// The sheet as a picture at `px_per_mm`.
-    pub fn png(&self, px_per_mm: f64) -> image::RgbImage {
-        let (w, h) = (
-            (self.width * px_per_mm).round() as u32,
-            (self.height * px_per_mm).round() as u32,
-        );
+    /// The size of the sheet's picture at `px_per_mm`, pixels.
+    pub fn png_size(&self, px_per_mm: f64) -> (u64, u64) {
+        let side = |mm: f64| ((mm * px_per_mm).round().max(1.0)).min(u64::MAX as f64) as u64;
+        (side(self.width), side(self.height))
+    }
+
+    /// The sheet's picture at `px_per_mm`, refused beyond [`MAX_PNG_PIXELS`] (before anything is
+    /// allocated).
+    ///
+    /// # Errors
+    /// [`PngTooLarge`] with the size it would have.
+    pub fn png(&self, px_per_mm: f64) -> Result<image::RgbImage, PngTooLarge> {
+        let (w, h) = self.check_png(px_per_mm)?;
         let mut cv = Canvas::blank(w.max(1), h.max(1), Rgb([255, 255, 255]));
         let black = Rgb([0, 0, 0]);
         // Discs with 4×4 supersampled rims.
@@ -235,7 +242,42 @@ impl Sheet {
             scale,
             black,
         );
-        cv.image
+        Ok(cv.image)
+    }
+}
+
+/// Most pixels of a printable sheet's PNG (A3 at 600 dpi is 70 M; 240 MB as RGB).
+pub const MAX_PNG_PIXELS: u64 = 80_000_000;
+
+/// A sheet's PNG would be too large at the asked resolution.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error(
+    "a {title} PNG would be {width}×{height} pixels (at most {MAX_PNG_PIXELS} pixels): choose a lower --dpi or a smaller sheet"
+)]
+pub struct PngTooLarge {
+    /// The sheet's title.
+    pub title: String,
+    /// Width it would have, pixels.
+    pub width: u64,
+    /// Height it would have, pixels.
+    pub height: u64,
+}
+
+impl Sheet {
+    /// The picture's size at `px_per_mm` if it is within [`MAX_PNG_PIXELS`].
+    ///
+    /// # Errors
+    /// [`PngTooLarge`] with the size it would have.
+    pub fn check_png(&self, px_per_mm: f64) -> Result<(u32, u32), PngTooLarge> {
+        let (w, h) = self.png_size(px_per_mm);
+        if w.saturating_mul(h) > MAX_PNG_PIXELS {
+            return Err(PngTooLarge {
+                title: self.title.clone(),
+                width: w,
+                height: h,
+            });
+        }
+        Ok((w as u32, h as u32))
     }
 }
 

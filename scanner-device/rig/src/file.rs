@@ -170,7 +170,9 @@ impl Scene {
     pub fn from_toml_in(text: &str, base: &std::path::Path) -> Result<Scene, RigError> {
         let f: File =
             toml::from_str(text).map_err(|e| RigError::Scene(e.to_string().trim().to_string()))?;
-        let mut s = Scene::demo(f.width.unwrap_or(640), f.height.unwrap_or(480));
+        let (width, height) = (f.width.unwrap_or(640), f.height.unwrap_or(480));
+        Scene::check_size(width, height)?;
+        let mut s = Scene::demo(width, height);
         set(&mut s.ambient, f.ambient);
         set(&mut s.blur_px, f.blur_px);
         set(&mut s.flicker, f.flicker);

@@ -272,10 +272,36 @@ pub struct Scene {
     pub sensor: SensorSpec,
 }
 
+/// The longest side of a rendered image, pixels (the head's [`scanner_core::config::MAX_LINES`]).
+pub const MAX_SCENE_SIDE: u32 = scanner_core::config::MAX_LINES as u32;
+/// Most pixels of a rendered image: a 4K UHD camera, 3840×2160 (the renderer keeps about 95
+/// bytes per pixel: 0.8 GB at this size).
+pub const MAX_SCENE_PIXELS: u64 = 3840 * 2160;
+
 impl Scene {
+    /// Whether the rig renders images of `width`×`height`: each side 2 to [`MAX_SCENE_SIDE`],
+    /// at most [`MAX_SCENE_PIXELS`] in all.
+    ///
+    /// # Errors
+    /// [`RigError::Scene`] naming the size and the limits.
+    pub fn check_size(width: u32, height: u32) -> Result<(), RigError> {
+        if (2..=MAX_SCENE_SIDE).contains(&width)
+            && (2..=MAX_SCENE_SIDE).contains(&height)
+            && u64::from(width) * u64::from(height) <= MAX_SCENE_PIXELS
+        {
+            return Ok(());
+        }
+        Err(RigError::Scene(format!(
+            "image size {width}×{height}: each side must be 2 to {MAX_SCENE_SIDE} pixels and the image at most {MAX_SCENE_PIXELS} pixels (3840×2160)"
+        )))
+    }
+
     /// The demo scene: a right-angled board 800 mm away with the default board file's markers, a sphere and a cylinder in front of it,
     /// a red laser held 150 mm above the camera sweeping down over them; f = 0.875 × width px
     /// (1400 px at 1600 wide) with mild barrel distortion; sensor noise of a webcam.
+    ///
+    /// # Panics
+    /// For a size that [`Scene::check_size`] refuses (check it first with sizes from outside).
     pub fn demo(width: u32, height: u32) -> Scene {
         let f = 0.875 * f64::from(width);
         let camera = Camera::new(
@@ -566,12 +592,7 @@ impl Rig {
     /// # Errors
     /// [`RigError::Scene`] for out-of-range values, [`RigError::Geometry`] for a degenerate board.
     pub fn new(scene: Scene) -> Result<Rig, RigError> {
-        if scene.width < 2 || scene.height < 2 || scene.width > 8192 || scene.height > 8192 {
-            return Err(RigError::Scene(format!(
-                "image size {}×{} (need 2–8192)",
-                scene.width, scene.height
-            )));
-        }
+        Scene::check_size(scene.width, scene.height)?;
         if scene.laser.frames == 0 {
             return Err(RigError::Scene(
                 "the laser sweep needs at least one frame".into(),

@@ -12,7 +12,7 @@ use scanner_calib::board::BoardFile;
 use scanner_calib::file::{CalibrationFile, write_atomic};
 use scanner_calib::{
     CalibError, DotGrid, PlaneMethod, Target, ViewFit, board_planes, check_size,
-    intrinsics_outcome, overlay, print,
+    intrinsics_outcome, overlay, print, short,
 };
 
 /// What to calibrate.
@@ -118,9 +118,17 @@ impl From<MethodArg> for PlaneMethod {
 }
 
 fn parse_grid(s: &str) -> Result<(usize, usize), String> {
-    let (a, b) = crate::source::parse_size(s).map_err(|e| e.to_string())?;
-    if a < 2 || b < 2 {
-        return Err(format!("{s:?}: both counts must be at least 2"));
+    let max = scanner_core::config::MAX_MARKERS as u32;
+    let (a, b) = crate::source::parse_size(s).map_err(|_| {
+        format!(
+            "{:?}: expected COLSxROWS, like 9x7, with at most {max} in all",
+            s.chars().take(40).collect::<String>()
+        )
+    })?;
+    if a < 2 || b < 2 || a * b > max {
+        return Err(format!(
+            "{s:?}: both counts must be at least 2, and there can be at most {max} in all"
+        ));
     }
     Ok((a as usize, b as usize))
 }
@@ -130,9 +138,7 @@ fn parse_grid(s: &str) -> Result<(usize, usize), String> {
 /// # Errors
 /// Names the file and the problem.
 pub fn load_gray(path: &Path) -> Result<GrayImage> {
-    Ok(image::open(path)
-        .with_context(|| format!("cannot read image {}", path.display()))?
-        .to_luma8())
+    Ok(scanner_calib::image_file::open(path)?.to_luma8())
 }
 
 fn load_board(path: Option<&Path>) -> Result<BoardFile> {
@@ -157,15 +163,20 @@ fn save_png(img: &image::RgbImage, path: &Path) -> Result<()> {
 /// Unreadable board file, unwritable output.
 pub fn board_command(board: Option<&Path>, out: &Path, dpi: f64) -> Result<()> {
     let b = load_board(board)?;
+    let sheets = print::sheets(&b);
+    // Every picture's size is checked before anything is written.
+    for (_, sheet) in &sheets {
+        sheet.check_png(dpi / 25.4)?;
+    }
     std::fs::create_dir_all(out).with_context(|| format!("cannot create {}", out.display()))?;
     let bf = out.join("board.toml");
     write_atomic(&bf, b.to_toml()?.as_bytes())
         .with_context(|| format!("cannot write {}", bf.display()))?;
-    for (stem, sheet) in print::sheets(&b) {
+    for (stem, sheet) in sheets {
         let svg = out.join(format!("{stem}.svg"));
         write_atomic(&svg, sheet.svg().as_bytes())
             .with_context(|| format!("cannot write {}", svg.display()))?;
-        save_png(&sheet.png(dpi / 25.4), &out.join(format!("{stem}.png")))?;
+        save_png(&sheet.png(dpi / 25.4)?, &out.join(format!("{stem}.png")))?;
     }
     outln!(
         "wrote board.toml, left-sheet, right-sheet and cross (.svg, .png at {dpi} dpi) to {}; print the SVGs at 100 % and check the 100 mm ruler",
@@ -233,8 +244,11 @@ pub fn calibrate(cmd: &Calibrate) -> Result<()> {
 }
 
 fn chessboard_target((cols, rows): (usize, usize), square: f64) -> Result<Target> {
-    if !(square > 0.0) {
-        bail!("--square must be positive, found {square}");
+    if !(square > 0.0 && square <= 1000.0) {
+        bail!(
+            "--square must be between 0 and 1000 mm, found {}",
+            short(square)
+        );
     }
     if cols < 3 || rows < 3 {
         bail!(
@@ -245,8 +259,12 @@ fn chessboard_target((cols, rows): (usize, usize), square: f64) -> Result<Target
 }
 
 fn dot_target((cols, rows): (usize, usize), pitch: f64, dot: f64) -> Result<Target> {
-    if !(pitch > dot && dot > 0.0) {
-        bail!("--pitch ({pitch} mm) must exceed --dot ({dot} mm), both positive");
+    if !(pitch > dot && dot > 0.0 && pitch <= 1000.0) {
+        bail!(
+            "--pitch ({} mm) must exceed --dot ({} mm), both positive and at most 1000 mm",
+            short(pitch),
+            short(dot)
+        );
     }
     Ok(Target::Dots(DotGrid {
         cols,
@@ -267,8 +285,7 @@ fn distance_command(
     let (n, f) = (load_gray(near)?, load_gray(far)?);
     check_size(n.dimensions(), &f)
         .with_context(|| format!("{} against {}", far.display(), near.display()))?;
-    let d = scanner_calib::image_distance(&b.cross, (&n, near_mm), (&f, far_mm))
-        .context("image distance")?;
+    let d = scanner_calib::image_distance(&b.cross, (&n, near_mm), (&f, far_mm))?;
     let (w, h) = n.dimensions();
     let cam = Camera::paper(d.d_z, w, h).context("image distance")?;
     let file = CalibrationFile::from_camera(
@@ -326,7 +343,7 @@ fn board_planes_command(p: &BoardPaths, method: PlaneMethod) -> Result<()> {
     let mut file = cam_file;
     let used = file.set_board(&fit, &b, &cam, method);
     if used != method {
-        eprintln!(
+        crate::errln!(
             "warning: the paper's construction needs all six markers of the paper's layout on each sheet; used the layout pose"
         );
     }
@@ -372,7 +389,7 @@ fn intrinsics_command(
     let overlays_note = format!("(pictures: {})", dir.display());
     let fit = outcome
         .into_fit()
-        .with_context(|| format!("intrinsics calibration {overlays_note}"))?;
+        .with_context(|| format!("no camera calibrated {overlays_note}"))?;
     let used = fit.views.iter().filter(|v| v.is_ok()).count();
     let file = CalibrationFile::from_camera(
         &fit.camera,

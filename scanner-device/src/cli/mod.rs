@@ -110,7 +110,7 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
             };
             let n = render::render(&job, |done, total| {
                 if !quiet && (done % 10 == 0 || done == total) {
-                    eprintln!("rendered {done}/{total} frames");
+                    crate::errln!("rendered {done}/{total} frames");
                 }
             })?;
             crate::outln!(
@@ -138,7 +138,7 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
         Some(Command::Calibrate(c)) => calibrate::calibrate(c)?,
         Some(Command::Scan(a)) => {
             let report = scan::scan(a)?;
-            scan::print_report(&report);
+            scan::print_report(&report, a.out.trim() == "-");
             if let Some(e) = report.ended_early {
                 anyhow::bail!("{e}");
             }

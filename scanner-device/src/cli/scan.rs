@@ -70,8 +70,8 @@ pub struct ScanArgs {
     /// Colour each point from the reference frame.
     #[arg(long)]
     pub colour: bool,
-    /// Buffers between the camera and the link (frames dropped beyond).
-    #[arg(long, default_value_t = 8)]
+    /// Buffers between the camera and the link (frames dropped beyond), 1 to 64.
+    #[arg(long, default_value_t = 8, value_parser = parse_link_depth)]
     pub link_depth: usize,
     /// Scan id (random without).
     #[arg(long)]
@@ -151,15 +151,21 @@ pub const LINKS: [(&str, f64); 3] = [
     ("USB CDC", 1_000_000.0),
 ];
 
-/// Prints the end-of-scan summary.
-pub fn print_report(r: &ScanReport) {
+/// Counts a noun: `1 frame`, `2 frames`.
+fn count(n: impl Into<u64>, noun: &str) -> String {
+    let n = n.into();
+    format!("{n} {noun}{}", if n == 1 { "" } else { "s" })
+}
+
+/// The end-of-scan summary, one line per item.
+pub fn report_lines(r: &ScanReport) -> Vec<String> {
     let s = &r.status;
-    crate::outln!(
-        "scan {:08x}: {} frames, {} point packets, {} points, {} bytes in {:.2} s ({:.1} frames/s){}",
+    let mut lines = vec![format!(
+        "scan {:08x}: {}, {}, {}, {} bytes in {:.2} s ({:.1} frames/s){}",
         s.scan_id,
-        s.frames,
-        s.packets,
-        s.points,
+        count(s.frames, "frame"),
+        count(s.packets, "point packet"),
+        count(s.points, "point"),
         r.bytes,
         r.seconds,
         f64::from(s.frames) / r.seconds.max(1e-9),
@@ -167,17 +173,43 @@ pub fn print_report(r: &ScanReport) {
             .as_ref()
             .map(|e| format!("; ended early: {e}"))
             .unwrap_or_default()
-    );
-    let bpp = r.bytes_per_point();
-    crate::outln!("{bpp:.2} bytes per point on the link (framing and headers included)");
-    for (name, bps) in LINKS {
-        crate::outln!("  {name}: {:.0} points/s", bps / bpp);
+    )];
+    match r.bytes_per_point() {
+        Some(bpp) => {
+            lines.push(format!(
+                "{bpp:.2} bytes per point on the link (framing and headers included)"
+            ));
+            for (name, bps) in LINKS {
+                lines.push(format!("  {name}: {:.0} points/s", bps / bpp));
+            }
+        }
+        None => lines.push(
+            "no points were sent: check the laser, the reference frame and the calibration (the skip reasons below)".into(),
+        ),
     }
     for reason in Skip::ALL {
         let n = s.skipped[reason as usize];
         if n > 0 {
-            crate::outln!("  skipped {n} frames: {}", reason.name());
+            lines.push(format!(
+                "  skipped {}: {}",
+                count(n, "frame"),
+                reason.name()
+            ));
         }
+    }
+    lines
+}
+
+/// Prints the end-of-scan summary: on standard output, or on standard error when standard
+/// output carries the scan itself (`--out -`). A closed stream is not an error.
+pub fn print_report(r: &ScanReport, to_stderr: bool) {
+    use std::io::Write as _;
+    for line in report_lines(r) {
+        let _ = if to_stderr {
+            writeln!(std::io::stderr().lock(), "{line}")
+        } else {
+            writeln!(std::io::stdout().lock(), "{line}")
+        };
     }
 }
 
@@ -304,7 +336,7 @@ fn head_config(a: &ScanArgs) -> HeadConfig {
     let axis = if a.rows { Axis::Rows } else { Axis::Columns };
     let colour = a.laser.map_or(LaserColour::Red, LaserColour::from);
     if a.laser.is_some() && a.format == FormatArg::Gray {
-        eprintln!(
+        crate::errln!(
             "note: --laser {} has no effect on gray frames (--format gray): a gray camera sees no colour",
             colour.name()
         );
@@ -335,7 +367,7 @@ pub fn run(plan: ScanPlan) -> Result<ScanReport> {
         quiet,
     } = plan;
     if !quiet {
-        eprintln!("source: {}", source.describe());
+        crate::errln!("source: {}", source.describe());
     }
     let report = run_scan(
         source.as_mut(),
@@ -344,9 +376,11 @@ pub fn run(plan: ScanPlan) -> Result<ScanReport> {
         &mut link,
         |s| {
             if !quiet && s.frames % 30 == 0 {
-                eprintln!(
+                crate::errln!(
                     "frames {}, packets {}, points {}",
-                    s.frames, s.packets, s.points
+                    s.frames,
+                    s.packets,
+                    s.points
                 );
             }
         },
@@ -365,4 +399,19 @@ pub fn devices() {
     for l in list {
         crate::outln!("{l}");
     }
+}
+
+fn parse_link_depth(s: &str) -> Result<usize, String> {
+    let max = crate::link::MAX_DEPTH;
+    s.trim()
+        .parse::<usize>()
+        .ok()
+        .filter(|d| (1..=max).contains(d))
+        .ok_or_else(|| {
+            format!(
+                "{:?}: a whole number of buffers from 1 to {max} (each holds one packet of up to {} KB)",
+                s.chars().take(40).collect::<String>(),
+                scanner_core::wire::MAX_ENCODED / 1024
+            )
+        })
 }

@@ -113,7 +113,7 @@ pub fn convert(
     out: &mut Vec<u8>,
 ) -> Result<(), ConvertError> {
     if format == CameraFormat::Mjpeg {
-        let img = image::load_from_memory_with_format(data, image::ImageFormat::Jpeg)
+        let img = scanner_calib::image_file::decode(data, image::ImageFormat::Jpeg)
             .map_err(|e| ConvertError::Jpeg(e.to_string()))?;
         if (img.width() as usize, img.height() as usize) != (width, height) {
             return Err(ConvertError::Jpeg(format!(

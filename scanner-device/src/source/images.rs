@@ -2,7 +2,7 @@
 
 use scanner_core::stripe::PixelFormat;
 
-use super::{FrameSource, OwnedFrame, SourceError, SourceOptions, average};
+use super::{FrameSource, OwnedFrame, SourceError, SourceOptions, laser_off_reference};
 
 /// Reads an image file as a frame in `format`.
 ///
@@ -13,10 +13,7 @@ pub fn load_frame(
     format: PixelFormat,
     index: u64,
 ) -> Result<OwnedFrame, SourceError> {
-    let img = image::open(path).map_err(|source| SourceError::Image {
-        path: path.to_path_buf(),
-        source,
-    })?;
+    let img = scanner_calib::image_file::open(path).map_err(SourceError::Image)?;
     let rgb = img.to_rgb8();
     let (w, h) = (rgb.width() as usize, rgb.height() as usize);
     let mut data = Vec::new();
@@ -133,7 +130,7 @@ impl FrameSource for ImageDir {
                     .map(|p| load_frame(p, self.format, u64::MAX))
                     .collect::<Result<Vec<_>, _>>()?;
                 self.next = n;
-                average(&frames)?
+                laser_off_reference(&frames)?
             }
         };
         if (r.width, r.height) != self.size {

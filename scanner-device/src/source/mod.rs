@@ -61,15 +61,9 @@ pub enum SourceError {
     #[cfg(feature = "rig")]
     #[error("virtual rig")]
     Rig(#[source] scanner_rig::RigError),
-    /// An image file could not be read or decoded.
-    #[error("image {}", path.display())]
-    Image {
-        /// The file.
-        path: std::path::PathBuf,
-        /// Why.
-        #[source]
-        source: image::ImageError,
-    },
+    /// An image file could not be read or decoded, or is too large.
+    #[error(transparent)]
+    Image(scanner_calib::image_file::ImageFileError),
     /// A folder could not be listed.
     #[error("image folder {}", path.display())]
     Folder {
@@ -105,6 +99,20 @@ pub enum SourceError {
     /// Reference frames that cannot be averaged.
     #[error("reference frames: {0}")]
     Reference(&'static str),
+    /// The laser was on while the reference frames were taken.
+    #[error(
+        "the laser was on while the laser-off reference was taken: frame {frame} of the {frames} averaged shows a stripe on {lines} of {total} lines; switch the laser off for the reference (or give --reference FILE, a photo without the laser)"
+    )]
+    LaserInReference {
+        /// Which of the averaged frames (from 1).
+        frame: usize,
+        /// Frames averaged.
+        frames: usize,
+        /// Its lines with a stripe.
+        lines: usize,
+        /// Its lines.
+        total: usize,
+    },
 }
 
 #[cfg(feature = "rig")]
@@ -194,6 +202,65 @@ impl SourceOptions {
             self.reference_frames
         }
     }
+}
+
+/// Share of a frame's lines on which a stripe means the laser was on.
+pub const LASER_LINES: f64 = 0.2;
+
+/// Averages laser-off frames into the reference, after checking that the laser was off: each
+/// frame against the average, by the difference method with a white laser (any laser adds
+/// light), must not show a stripe on more than [`LASER_LINES`] of its lines (columns or rows). A laser moving
+/// over the scene while the frames were taken shows in the frames it lit.
+///
+/// # Errors
+/// [`SourceError::LaserInReference`] naming the frame; as [`average`].
+pub fn laser_off_reference(frames: &[OwnedFrame]) -> Result<OwnedFrame, SourceError> {
+    let avg = average(frames)?;
+    for (i, f) in frames.iter().enumerate() {
+        if let Some((lines, total)) = stripe_lines(f, &avg)
+            && lines as f64 > LASER_LINES * total as f64
+        {
+            return Err(SourceError::LaserInReference {
+                frame: i + 1,
+                frames: frames.len(),
+                lines,
+                total,
+            });
+        }
+    }
+    Ok(avg)
+}
+
+/// Lines of `frame` on which the difference method (white laser) finds a peak against
+/// `reference`, and the lines, along whichever axis shows more of it (a stripe may run either
+/// way across the image); `None` for frames the extractor does not take.
+pub fn stripe_lines(frame: &OwnedFrame, reference: &OwnedFrame) -> Option<(usize, usize)> {
+    use scanner_core::stripe::{Axis, Extractor, LaserColour, Method, StripeConfig};
+    fn view(f: &OwnedFrame) -> Option<scanner_core::stripe::Frame<'_>> {
+        scanner_core::stripe::Frame::packed(&f.data, f.width, f.height, f.format).ok()
+    }
+    let (f, r) = (view(frame)?, view(reference)?);
+    let mut ex = Box::new(Extractor::<{ scanner_core::config::MAX_LINES }>::new());
+    let mut best: Option<(usize, usize)> = None;
+    for (axis, total) in [(Axis::Columns, frame.width), (Axis::Rows, frame.height)] {
+        let cfg = StripeConfig {
+            colour: LaserColour::White,
+            ..StripeConfig::new(Method::Dim, axis)
+        };
+        let Ok(found) = ex.extract(&f, Some(&r), &cfg) else {
+            continue;
+        };
+        // Any peak above the threshold counts (two lasers make every line "ambiguous").
+        let lines = found
+            .points
+            .iter()
+            .filter(|p| p.status != scanner_core::stripe::Status::NoStripe)
+            .count();
+        if best.is_none_or(|(l, t)| lines * t > l * total) {
+            best = Some((lines, total));
+        }
+    }
+    best
 }
 
 /// Averages frames of one shape into one.

@@ -93,6 +93,7 @@ pub(super) fn open(
             "{name:?}: YUYV needs an even width"
         )));
     }
+    Scene::check_size(w, h).map_err(|e| SourceError::BadSpec(format!("{name:?}: {e}")))?;
     Ok(Box::new(RigSource::new(
         Rig::new(Scene::demo(w, h))?,
         format,

@@ -21,7 +21,7 @@ mod imp {
     use v4l::{Device, FourCC};
 
     use crate::source::convert::{CameraFormat, convert};
-    use crate::source::{FrameSource, OwnedFrame, SourceError, SourceOptions, average};
+    use crate::source::{FrameSource, OwnedFrame, SourceError, SourceOptions, laser_off_reference};
 
     /// `V4L2_CID_EXPOSURE_AUTO` and its manual setting.
     const CID_EXPOSURE_AUTO: u32 = 0x009a_0901;
@@ -248,10 +248,16 @@ mod imp {
             if let Some(p) = self.reference.clone() {
                 return crate::source::load_frame(&p, self.format, u64::MAX);
             }
+            crate::errln!(
+                "keep the laser OFF: taking {} reference frames of the scene without it…",
+                self.reference_frames
+            );
             let frames = (0..self.reference_frames)
                 .map(|_| self.grab(u64::MAX))
                 .collect::<Result<Vec<_>, _>>()?;
-            average(&frames)
+            let reference = laser_off_reference(&frames)?;
+            crate::errln!("reference taken: switch the laser ON now and sweep it over the object");
+            Ok(reference)
         }
         fn next_frame(&mut self) -> Result<Option<OwnedFrame>, SourceError> {
             let i = self.next;
