@@ -89,8 +89,61 @@ pub struct ScanReport {
     pub dropped: u64,
     /// Wall time, seconds.
     pub seconds: f64,
-    /// Why the scan ended early, if it did.
+    /// Why the scan ended early, if it did (the camera failed: an error for the command line).
     pub ended_early: Option<String>,
+    /// Why the operator's limit stopped it, if one did (Ctrl-C, a signal, `--frames`,
+    /// `--duration`: a clean end).
+    pub stopped: Option<String>,
+}
+
+/// How a scan ends.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum Ending {
+    /// The source ran out of frames.
+    Ran,
+    /// The operator's limit stopped it (the text says which).
+    Stopped(String),
+    /// The source failed mid-scan (the text says how).
+    Failed(String),
+}
+
+/// When a scan stops before its source ends: after a number of frames, a duration, or when a
+/// flag is raised (by the Ctrl-C/SIGTERM handler of the command line).
+#[derive(Debug, Clone, Default)]
+pub struct StopWhen {
+    /// Frames taken (after the reference).
+    pub frames: Option<u32>,
+    /// Time since the first frame.
+    pub duration: Option<std::time::Duration>,
+    /// Raised from outside (a signal handler).
+    pub flag: Option<std::sync::Arc<std::sync::atomic::AtomicBool>>,
+}
+
+impl StopWhen {
+    /// Why to stop now, after `frames` frames and `elapsed` time; `None` to go on.
+    pub fn reason(&self, frames: u32, elapsed: std::time::Duration) -> Option<String> {
+        if self
+            .flag
+            .as_ref()
+            .is_some_and(|f| f.load(std::sync::atomic::Ordering::SeqCst))
+        {
+            return Some("stopped by a signal (Ctrl-C or SIGTERM)".into());
+        }
+        if let Some(n) = self.frames
+            && frames >= n
+        {
+            return Some(format!("stopped after {n} frames (--frames)"));
+        }
+        if let Some(d) = self.duration
+            && elapsed >= d
+        {
+            return Some(format!(
+                "stopped after {:.1} s (--duration)",
+                d.as_secs_f64()
+            ));
+        }
+        None
+    }
 }
 
 impl ScanReport {
@@ -270,12 +323,20 @@ impl Session {
     ///
     /// # Errors
     /// The link failed.
-    pub fn finish(mut self, link: &mut Link, ended_early: Option<String>) -> Result<ScanReport> {
+    pub fn finish(mut self, link: &mut Link, ending: Ending) -> Result<ScanReport> {
         let mut s = self.status();
         s.done = true;
-        if ended_early.is_some() {
-            s.ended = wire::EndReason::CameraLost;
-        }
+        let (ended_early, stopped) = match ending {
+            Ending::Ran => (None, None),
+            Ending::Stopped(why) => {
+                s.ended = wire::EndReason::Stopped;
+                (None, Some(why))
+            }
+            Ending::Failed(why) => {
+                s.ended = wire::EndReason::CameraLost;
+                (Some(why), None)
+            }
+        };
         let before = self.status.bytes;
         self.send(link, &Message::Status(s), true)?;
         let bytes = self.status.bytes;
@@ -286,6 +347,7 @@ impl Session {
             dropped: link.stats().dropped,
             seconds: self.started.elapsed().as_secs_f64(),
             ended_early,
+            stopped,
         })
     }
 }
@@ -321,23 +383,52 @@ pub fn run_scan(
     cal: &Calibration,
     opts: ScanOptions,
     link: &mut Link,
+    progress: impl FnMut(&Status),
+    on_points: impl FnMut(u32, &[[i32; 3]]),
+) -> Result<ScanReport> {
+    run_scan_until(
+        source,
+        cal,
+        opts,
+        link,
+        &StopWhen::default(),
+        progress,
+        on_points,
+    )
+}
+
+/// [`run_scan`] that also stops when `stop` says so, with a final status saying it was stopped
+/// (so that a host waiting for the end, `receive --until-done`, writes its outputs).
+///
+/// # Errors
+/// As [`run_scan`].
+pub fn run_scan_until(
+    source: &mut dyn FrameSource,
+    cal: &Calibration,
+    opts: ScanOptions,
+    link: &mut Link,
+    stop: &StopWhen,
     mut progress: impl FnMut(&Status),
     mut on_points: impl FnMut(u32, &[[i32; 3]]),
 ) -> Result<ScanReport> {
     let reference = source.reference().map_err(SessionError::Reference)?;
     let mut session = Session::new(cal, reference, opts)?;
     session.send_header(link)?;
-    let ended = loop {
+    let started = Instant::now();
+    let ending = loop {
+        if let Some(why) = stop.reason(session.status().frames, started.elapsed()) {
+            break Ending::Stopped(why);
+        }
         match source.next_frame() {
             Ok(Some(frame)) => {
                 session.frame(&frame, link, &mut on_points)?;
                 progress(&session.status());
             }
-            Ok(None) => break None,
-            Err(e) => break Some(crate::error_chain(&e)),
+            Ok(None) => break Ending::Ran,
+            Err(e) => break Ending::Failed(crate::error_chain(&e)),
         }
     };
-    session.finish(link, ended)
+    session.finish(link, ending)
 }
 
 /// The rig's true camera and board, as the head takes a calibration (for tests and benches that

@@ -155,3 +155,120 @@ fn errors_before_the_first_frame_are_clear() {
     let (ok, _, err) = run(&["scan", "--source", "rig:640x480", "--calibration", &truth]);
     assert!(!ok && err.contains("is for 320×240 images"), "{err}");
 }
+
+/// The last status message of a stream file.
+fn final_status(path: &std::path::Path) -> scanner_core::wire::Status {
+    use scanner_core::wire::{Decoder, MAX_ENCODED, Message};
+    let bytes = std::fs::read(path).unwrap();
+    let mut dec = Box::new(Decoder::<MAX_ENCODED>::new());
+    let mut last = None;
+    dec.feed(&bytes, |m| {
+        if let Ok(Message::Status(s)) = m {
+            last = Some(s);
+        }
+    });
+    assert_eq!(dec.stats().rejected(), 0, "a damaged stream");
+    last.expect("a status message")
+}
+
+#[test]
+fn frame_and_time_limits_end_the_scan_with_a_final_stopped_status() {
+    use scanner_core::wire::EndReason;
+    let dir = tempfile::tempdir().unwrap();
+    let truth = truth_file(dir.path(), 320, 240);
+    let out = dir.path().join("a.stream");
+    let (ok, stdout, err) = run(&[
+        "scan",
+        "--source",
+        "rig:320x240",
+        "--calibration",
+        &truth,
+        "--out",
+        out.to_str().unwrap(),
+        "--frames",
+        "7",
+        "-q",
+    ]);
+    assert!(ok, "{err}");
+    assert!(
+        stdout.contains("7 frames") && stdout.contains("--frames"),
+        "{stdout}"
+    );
+    let s = final_status(&out);
+    assert!(
+        s.done && s.ended == EndReason::Stopped && s.frames == 7,
+        "{s:?}"
+    );
+    let out = dir.path().join("b.stream");
+    let (ok, stdout, err) = run(&[
+        "scan",
+        "--source",
+        "rig:320x240",
+        "--calibration",
+        &truth,
+        "--out",
+        out.to_str().unwrap(),
+        "--duration",
+        "0.05",
+        "-q",
+    ]);
+    assert!(ok, "{err}");
+    let s = final_status(&out);
+    assert!(
+        s.done && s.ended == EndReason::Stopped && s.frames < 60,
+        "{s:?} {stdout}"
+    );
+    let (ok, _, err) = run(&["scan", "--duration=-1"]);
+    assert!(!ok && err.contains("seconds"), "{err}");
+}
+
+#[test]
+fn sigterm_and_sigint_end_the_scan_with_a_final_status() {
+    use scanner_core::wire::EndReason;
+    let dir = tempfile::tempdir().unwrap();
+    let truth = truth_file(dir.path(), 640, 480);
+    for signal in ["TERM", "INT"] {
+        let out = dir.path().join(format!("{signal}.stream"));
+        let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_scanner-device"))
+            .args([
+                "scan",
+                "--source",
+                "rig:640x480",
+                "--calibration",
+                &truth,
+                "--out",
+                out.to_str().unwrap(),
+                "-q",
+            ])
+            .stdout(std::process::Stdio::piped())
+            .stderr(std::process::Stdio::piped())
+            .spawn()
+            .unwrap();
+        // Wait until frames flow (the stream grows past its header), then signal.
+        let t0 = std::time::Instant::now();
+        while std::fs::metadata(&out).map_or(0, |m| m.len()) < 2000 {
+            assert!(t0.elapsed().as_secs() < 60, "no frames within 60 s");
+            std::thread::sleep(std::time::Duration::from_millis(20));
+        }
+        let kill = std::process::Command::new("kill")
+            .args([format!("-{signal}"), child.id().to_string()])
+            .status()
+            .unwrap();
+        assert!(kill.success());
+        let result = child.wait_with_output().unwrap();
+        let stdout = String::from_utf8_lossy(&result.stdout);
+        assert!(
+            result.status.success(),
+            "SIG{signal}: {:?}\n{}",
+            result.status,
+            String::from_utf8_lossy(&result.stderr)
+        );
+        assert!(stdout.contains("stopped by a signal"), "{stdout}");
+        let s = final_status(&out);
+        assert!(
+            s.done && s.ended == EndReason::Stopped,
+            "SIG{signal}: {s:?}"
+        );
+        assert!(s.frames < 120, "SIG{signal}: the whole sweep ran: {s:?}");
+    }
+}

@@ -11,7 +11,7 @@ use scanner_core::stripe::{Axis, LaserColour, Method, PixelFormat, StripeConfig}
 use scanner_core::wire::Skip;
 
 use crate::link::{Link, Target};
-use crate::session::{Calibration, ScanOptions, ScanReport, run_scan};
+use crate::session::{Calibration, ScanOptions, ScanReport, StopWhen, run_scan_until};
 use crate::source::convert::CameraFormat;
 use crate::source::{FrameSource, SourceOptions, open_with};
 
@@ -73,6 +73,12 @@ pub struct ScanArgs {
     /// Buffers between the camera and the link (frames dropped beyond), 1 to 64.
     #[arg(long, default_value_t = 8, value_parser = parse_link_depth)]
     pub link_depth: usize,
+    /// Stop after this many frames (after the reference), with a final status.
+    #[arg(long)]
+    pub frames: Option<u32>,
+    /// Stop after this many seconds of scanning, with a final status.
+    #[arg(long, value_parser = parse_seconds)]
+    pub duration: Option<std::time::Duration>,
     /// Scan id (random without).
     #[arg(long)]
     pub scan_id: Option<u32>,
@@ -141,6 +147,7 @@ pub struct ScanPlan {
     calibration: Calibration,
     options: ScanOptions,
     link: Link,
+    stop: StopWhen,
     quiet: bool,
 }
 
@@ -169,10 +176,11 @@ pub fn report_lines(r: &ScanReport) -> Vec<String> {
         r.bytes,
         r.seconds,
         f64::from(s.frames) / r.seconds.max(1e-9),
-        r.ended_early
-            .as_ref()
-            .map(|e| format!("; ended early: {e}"))
-            .unwrap_or_default()
+        match (&r.ended_early, &r.stopped) {
+            (Some(e), _) => format!("; ended early: {e}"),
+            (None, Some(why)) => format!("; {why}"),
+            (None, None) => String::new(),
+        }
     )];
     match r.bytes_per_point() {
         Some(bpp) => {
@@ -261,7 +269,13 @@ pub fn plan(a: &ScanArgs) -> Result<ScanPlan> {
         a.link_depth,
         scanner_core::wire::MAX_ENCODED,
     );
+    let stop = StopWhen {
+        frames: a.frames,
+        duration: a.duration,
+        flag: stop_flag(),
+    };
     Ok(ScanPlan {
+        stop,
         source,
         calibration,
         options,
@@ -364,16 +378,18 @@ pub fn run(plan: ScanPlan) -> Result<ScanReport> {
         calibration,
         options,
         mut link,
+        stop,
         quiet,
     } = plan;
     if !quiet {
         crate::errln!("source: {}", source.describe());
     }
-    let report = run_scan(
+    let report = run_scan_until(
         source.as_mut(),
         &calibration,
         options,
         &mut link,
+        &stop,
         |s| {
             if !quiet && s.frames % 30 == 0 {
                 crate::errln!(
@@ -414,4 +430,29 @@ fn parse_link_depth(s: &str) -> Result<usize, String> {
                 scanner_core::wire::MAX_ENCODED / 1024
             )
         })
+}
+
+fn parse_seconds(s: &str) -> Result<std::time::Duration, String> {
+    s.trim()
+        .parse::<f64>()
+        .ok()
+        .filter(|v| *v > 0.0 && *v <= 86_400.0)
+        .map(std::time::Duration::from_secs_f64)
+        .ok_or_else(|| {
+            format!(
+                "{:?}: seconds, more than 0 and at most 86400 (a day)",
+                s.chars().take(40).collect::<String>()
+            )
+        })
+}
+
+/// A flag raised by Ctrl-C (SIGINT) or SIGTERM, so that a scan ends with its final status
+/// instead of being killed mid-stream. `None` when a handler cannot be installed (a second
+/// scan in one process, e.g. in tests): the scan then runs without it.
+fn stop_flag() -> Option<std::sync::Arc<std::sync::atomic::AtomicBool>> {
+    let flag = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
+    let f = flag.clone();
+    ctrlc::set_handler(move || f.store(true, std::sync::atomic::Ordering::SeqCst))
+        .ok()
+        .map(|()| flag)
 }
