@@ -229,7 +229,7 @@ fn sigterm_and_sigint_end_the_scan_with_a_final_status() {
     let truth = truth_file(dir.path(), 640, 480);
     for signal in ["TERM", "INT"] {
         let out = dir.path().join(format!("{signal}.stream"));
-        let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_scanner-device"))
+        let child = std::process::Command::new(env!("CARGO_BIN_EXE_scanner-device"))
             .args([
                 "scan",
                 "--source",
