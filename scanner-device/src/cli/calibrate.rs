@@ -15,35 +15,63 @@ use scanner_calib::{
     intrinsics_outcome, overlay, print, short,
 };
 
+/// The intrinsics target: a dot grid (default) or a chessboard, with its sizes.
+#[derive(Debug, Clone, clap::Args)]
+pub struct TargetArgs {
+    /// A chessboard with COLSxROWS inner corners (OpenCV's count: 9x6 for a board of 10x7
+    /// squares) instead of the dot grid.
+    #[arg(long, value_parser = parse_grid, conflicts_with_all = ["dots", "pitch", "dot", "chessboard_squares"])]
+    pub chessboard_corners: Option<(usize, usize)>,
+    /// A chessboard of COLSxROWS squares (10x7 has 9x6 inner corners) instead of the dot grid.
+    #[arg(long, value_parser = parse_grid, conflicts_with_all = ["dots", "pitch", "dot"])]
+    pub chessboard_squares: Option<(usize, usize)>,
+    /// Refused: it did not say whether it counts squares or inner corners.
+    #[arg(long, hide = true)]
+    pub chessboard: Option<String>,
+    /// Chessboard square side, mm.
+    #[arg(long, default_value_t = 25.0)]
+    pub square: f64,
+    /// The grid: dots per row × rows.
+    #[arg(long, default_value = "9x7", value_parser = parse_grid)]
+    pub dots: (usize, usize),
+    /// Centre-to-centre distance, mm.
+    #[arg(long, default_value_t = 30.0)]
+    pub pitch: f64,
+    /// Dot diameter, mm.
+    #[arg(long, default_value_t = 12.0)]
+    pub dot: f64,
+}
+
+impl TargetArgs {
+    /// The target the options describe, checked.
+    ///
+    /// # Errors
+    /// An ambiguous `--chessboard`, a chessboard under 3×3 squares, sizes out of range.
+    pub fn target(&self) -> Result<Target> {
+        if let Some(v) = &self.chessboard {
+            bail!(
+                "--chessboard {v} is ambiguous: say what it counts, --chessboard-squares {v} (squares along each side) or --chessboard-corners {v} (inner corners, OpenCV's convention; a board of 10x7 squares has 9x6)"
+            );
+        }
+        let squares = self
+            .chessboard_squares
+            .or(self.chessboard_corners.map(|(c, r)| (c + 1, r + 1)));
+        match squares {
+            Some(squares) => chessboard_target(squares, self.square),
+            None => dot_target(self.dots, self.pitch, self.dot),
+        }
+    }
+}
+
 /// What to calibrate.
 #[derive(Debug, Subcommand)]
 pub enum Calibrate {
     /// Full intrinsics (fx, fy, cx, cy, k1, k2, p1, p2, k3) from several images of a dot grid
     /// (default) or a chessboard.
     Intrinsics {
-        /// A chessboard with COLSxROWS inner corners (OpenCV's count: 9x6 for a board of 10x7
-        /// squares) instead of the dot grid.
-        #[arg(long, value_parser = parse_grid, conflicts_with_all = ["dots", "pitch", "dot", "chessboard_squares"])]
-        chessboard_corners: Option<(usize, usize)>,
-        /// A chessboard of COLSxROWS squares (10x7 has 9x6 inner corners) instead of the dot
-        /// grid.
-        #[arg(long, value_parser = parse_grid, conflicts_with_all = ["dots", "pitch", "dot"])]
-        chessboard_squares: Option<(usize, usize)>,
-        /// Refused: it did not say whether it counts squares or inner corners.
-        #[arg(long, hide = true)]
-        chessboard: Option<String>,
-        /// Chessboard square side, mm.
-        #[arg(long, default_value_t = 25.0)]
-        square: f64,
-        /// The grid: dots per row × rows.
-        #[arg(long, default_value = "9x7", value_parser = parse_grid)]
-        dots: (usize, usize),
-        /// Centre-to-centre distance, mm.
-        #[arg(long, default_value_t = 30.0)]
-        pitch: f64,
-        /// Dot diameter, mm.
-        #[arg(long, default_value_t = 12.0)]
-        dot: f64,
+        /// The target in the images.
+        #[command(flatten)]
+        target: TargetArgs,
         /// Output camera file (TOML; a calibration file without a board).
         #[arg(long, default_value = "camera.toml")]
         out: PathBuf,
@@ -141,7 +169,7 @@ pub fn load_gray(path: &Path) -> Result<GrayImage> {
     Ok(scanner_calib::image_file::open(path)?.to_luma8())
 }
 
-fn load_board(path: Option<&Path>) -> Result<BoardFile> {
+pub(crate) fn load_board(path: Option<&Path>) -> Result<BoardFile> {
     match path {
         Some(p) => Ok(BoardFile::load(p)?),
         None => Ok(BoardFile::default()),
@@ -192,29 +220,11 @@ pub fn board_command(board: Option<&Path>, out: &Path, dpi: f64) -> Result<()> {
 pub fn calibrate(cmd: &Calibrate) -> Result<()> {
     match cmd {
         Calibrate::Intrinsics {
-            chessboard_corners,
-            chessboard_squares,
-            chessboard,
-            square,
-            dots,
-            pitch,
-            dot,
+            target,
             out,
             overlays,
             images,
-        } => {
-            if let Some(v) = chessboard {
-                bail!(
-                    "--chessboard {v} is ambiguous: say what it counts, --chessboard-squares {v} (squares along each side) or --chessboard-corners {v} (inner corners, OpenCV's convention; a board of 10x7 squares has 9x6)"
-                );
-            }
-            let squares = chessboard_squares.or(chessboard_corners.map(|(c, r)| (c + 1, r + 1)));
-            let target = match squares {
-                Some(squares) => chessboard_target(squares, *square)?,
-                None => dot_target(*dots, *pitch, *dot)?,
-            };
-            intrinsics_command(&target, images, out, overlays.as_deref())
-        }
+        } => intrinsics_command(&target.target()?, images, out, overlays.as_deref()),
         Calibrate::Distance {
             board,
             near,

@@ -1,6 +1,7 @@
 //! The command line of the scanner head: arguments, then a validated plan, then the run.
 
 pub mod calibrate;
+pub mod capture;
 #[cfg(feature = "rig")]
 pub mod render;
 pub mod scan;
@@ -74,6 +75,10 @@ pub enum Command {
     /// Calibrate from images: intrinsics, the paper's image distance, or the board planes.
     #[command(subcommand)]
     Calibrate(calibrate::Calibrate),
+    /// Capture still images for calibration from the scan's source (a camera locked as `scan`
+    /// locks it, a folder, the rig): each is checked by the detector at once and only usable
+    /// shots are kept.
+    Capture(capture::CaptureArgs),
     /// Scan: frames from the source through the pipeline to point packets on the link.
     Scan(scan::ScanArgs),
     /// List the V4L2 cameras with their formats and sizes.
@@ -143,6 +148,7 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
                 anyhow::bail!("{e}");
             }
         }
+        Some(Command::Capture(a)) => capture::capture(a)?,
         Some(Command::Devices) => scan::devices(),
         None => crate::outln!("scanner-device: nothing to do yet (try --help)"),
     }

@@ -1,0 +1,179 @@
+//! `capture`: still images for calibration from the scan's own source (a camera opened and
+//! locked as `scan` opens it, a folder, the virtual rig), each checked at once by the detector
+//! that will use it; only usable shots are kept.
+
+use std::path::PathBuf;
+use std::time::Duration;
+
+use anyhow::{Context, Result, bail};
+use scanner_calib::file::CalibrationFile;
+use scanner_calib::{Target, board_planes, find_grid};
+use scanner_core::stripe::PixelFormat;
+
+use super::calibrate::{TargetArgs, load_board};
+use crate::source::{OwnedFrame, SourceOptions};
+
+/// `capture`'s options.
+#[derive(Debug, clap::Args)]
+pub struct CaptureArgs {
+    /// Frame source, as for `scan`: `/dev/videoN`, `dir:FOLDER`, `rig`, `rig:WIDTHxHEIGHT`.
+    #[arg(long)]
+    pub source: String,
+    /// Camera resolution, WIDTHxHEIGHT: the scan's.
+    #[arg(long)]
+    pub size: Option<String>,
+    /// Camera pixel format FourCC (YUYV, GREY, RGB3, MJPG).
+    #[arg(long)]
+    pub fourcc: Option<String>,
+    /// Capture the board (laser off) instead of the intrinsics target; each shot's planes are
+    /// fitted with this camera file (from `calibrate intrinsics`).
+    #[arg(long, value_name = "CAMERA_FILE")]
+    pub board: Option<PathBuf>,
+    /// Board file of the printed board (with `--board`); the default board without one.
+    #[arg(long)]
+    pub board_file: Option<PathBuf>,
+    /// The intrinsics target (without `--board`).
+    #[command(flatten)]
+    pub target: TargetArgs,
+    /// Usable shots to keep.
+    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=100))]
+    pub count: u32,
+    /// Seconds between shots from a camera (time to move the target); 0 from files and the rig.
+    #[arg(long, default_value_t = 3.0)]
+    pub interval: f64,
+    /// Frames to try before giving up.
+    #[arg(long, default_value_t = 200)]
+    pub tries: u32,
+    /// Folder for the kept shots (`board.png`, or `grid-00.png`, `grid-01.png`, …).
+    #[arg(long, default_value = "captures")]
+    pub out: PathBuf,
+}
+
+/// What a shot is checked for.
+enum Check {
+    Board {
+        board: Box<scanner_calib::board::BoardFile>,
+        camera: scanner_core::Camera<f64>,
+    },
+    Grid(Target),
+}
+
+impl Check {
+    /// Whether the shot is usable, and one line saying what the detector found.
+    fn run(&self, gray: &image::GrayImage) -> (bool, String) {
+        match self {
+            Check::Board { board, camera } => match board_planes(gray, board, camera).result {
+                Ok(fit) => (
+                    true,
+                    format!(
+                        "{}; {}; the sheets meet at {:.1}°",
+                        fit.sheets[0].summary("left"),
+                        fit.sheets[1].summary("right"),
+                        fit.board.angle().to_degrees()
+                    ),
+                ),
+                Err(e) => (false, format!("not usable: {e}")),
+            },
+            Check::Grid(target) => match find_grid(gray, target) {
+                Ok(v) => (
+                    true,
+                    format!(
+                        "grid found: {} points identified over {}×{}{}",
+                        v.found.len(),
+                        v.extent.0,
+                        v.extent.1,
+                        if v.complete { ", complete" } else { "" }
+                    ),
+                ),
+                Err(e) => (false, format!("not usable: {e}")),
+            },
+        }
+    }
+}
+
+/// Runs `capture`: takes frames until `--count` usable shots are kept or `--tries` frames were
+/// looked at; prints a line per frame.
+///
+/// # Errors
+/// A source that cannot open, a bad camera or board file, fewer usable shots than asked.
+pub fn capture(a: &CaptureArgs) -> Result<()> {
+    let check = match &a.board {
+        Some(camera_file) => Check::Board {
+            board: Box::new(load_board(a.board_file.as_deref())?),
+            camera: CalibrationFile::load(camera_file)?
+                .camera()
+                .with_context(|| format!("camera in {}", camera_file.display()))?,
+        },
+        None => Check::Grid(a.target.target()?),
+    };
+    if !(a.interval >= 0.0 && a.interval <= 600.0) {
+        bail!("--interval must be 0 to 600 seconds, found {}", a.interval);
+    }
+    let opts = SourceOptions {
+        size: a
+            .size
+            .as_deref()
+            .map(|s| crate::source::parse_size(s).with_context(|| format!("--size {s:?}")))
+            .transpose()?,
+        fourcc: a.fourcc.clone(),
+        ..SourceOptions::default()
+    };
+    let mut source = crate::source::open_with(&a.source, PixelFormat::Rgb24, &opts)
+        .with_context(|| format!("source {}", a.source))?;
+    let live = a.source.starts_with("/dev/") || a.source.starts_with("v4l:");
+    std::fs::create_dir_all(&a.out)
+        .with_context(|| format!("cannot create the output folder {}", a.out.display()))?;
+    crate::outln!("capturing from {}", source.describe());
+    let mut kept = 0u32;
+    for shot in 0..a.tries {
+        if kept == a.count {
+            break;
+        }
+        if live && shot > 0 {
+            std::thread::sleep(Duration::from_secs_f64(a.interval));
+        }
+        let Some(frame) = source.next_frame().context("the source")? else {
+            break;
+        };
+        let rgb = to_image(&frame)?;
+        let (usable, what) = check.run(&image::DynamicImage::ImageRgb8(rgb.clone()).to_luma8());
+        let name = match (&check, usable) {
+            (_, false) => None,
+            (Check::Board { .. }, true) if kept == 0 => Some("board.png".to_string()),
+            (Check::Board { .. }, true) => Some(format!("board-{kept:02}.png")),
+            (Check::Grid(_), true) => Some(format!("grid-{kept:02}.png")),
+        };
+        match name {
+            Some(name) => {
+                let path = a.out.join(&name);
+                let bytes = png_bytes(&rgb)?;
+                scanner_calib::file::write_atomic(&path, &bytes)
+                    .with_context(|| format!("cannot write {}", path.display()))?;
+                kept += 1;
+                crate::outln!("frame {shot}: {what} → kept as {name}");
+            }
+            None => crate::outln!("frame {shot}: {what}"),
+        }
+    }
+    if kept < a.count {
+        bail!(
+            "{kept} of {} usable shots kept (see the line of each frame): check the target is in view, lit and in focus",
+            a.count
+        );
+    }
+    crate::outln!("{kept} shots in {}", a.out.display());
+    Ok(())
+}
+
+/// An RGB frame as an image.
+fn to_image(f: &OwnedFrame) -> Result<image::RgbImage> {
+    image::RgbImage::from_raw(f.width as u32, f.height as u32, f.data.clone())
+        .context("a frame of the wrong size for its format")
+}
+
+fn png_bytes(img: &image::RgbImage) -> Result<Vec<u8>> {
+    let mut v = Vec::new();
+    img.write_to(&mut std::io::Cursor::new(&mut v), image::ImageFormat::Png)
+        .context("encoding a PNG")?;
+    Ok(v)
+}
