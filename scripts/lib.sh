@@ -1,6 +1,8 @@
 # Shared by the scripts: sourced, not run. Gives
 #   REPO        the repository's root (the scripts work from any current directory),
 #   step NAME   names the step under way; a failing command then says which step failed,
+#   have_pkg P  whether the Debian package P is installed,
+#   apt_install WHY P...  installs packages, or without root and sudo says what is missing,
 #   bin NAME    the path of a release binary, wherever cargo puts its target directory
 #               (CARGO_TARGET_DIR, .cargo/config.toml, or the default target/).
 set -euo pipefail
@@ -28,4 +30,28 @@ bin() {
         return 1
     fi
     printf '%s' "$dir/release/$1"
+}
+
+have_pkg() { dpkg-query -W -f='${Status}' "$1" 2>/dev/null | grep -q "install ok installed"; }
+
+# apt_install WHY PACKAGE...: installs, or without root and sudo says what is missing and how.
+apt_install() {
+    local why="$1"
+    shift
+    local sudo=""
+    if [ "$(id -u)" -ne 0 ]; then
+        if command -v sudo >/dev/null && sudo -n true 2>/dev/null; then
+            sudo="sudo"
+        else
+            echo "setup: missing system package(s): $* ($why)." >&2
+            echo "setup: this user is not root and cannot use sudo; ask an administrator to run:" >&2
+            echo "    apt-get update && apt-get install -y $*" >&2
+            return 1
+        fi
+    fi
+    if [ -z "${SCANNER_APT_UPDATED:-}" ]; then
+        $sudo apt-get update -qq
+        export SCANNER_APT_UPDATED=1
+    fi
+    DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq "$@"
 }
