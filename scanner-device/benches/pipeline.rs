@@ -27,10 +27,30 @@ fn main() {
     let cal = truth_calibration(&rig);
     // (format, from MJPEG, method, plane)
     let cases = [
-        (PixelFormat::Gray8, false, Method::Dim, PlaneMethod::LeastSquares),
-        (PixelFormat::Yuyv, false, Method::Dim, PlaneMethod::LeastSquares),
-        (PixelFormat::Yuyv, true, Method::Dim, PlaneMethod::LeastSquares),
-        (PixelFormat::Gray8, false, Method::Lim, PlaneMethod::LeastSquares),
+        (
+            PixelFormat::Gray8,
+            false,
+            Method::Dim,
+            PlaneMethod::LeastSquares,
+        ),
+        (
+            PixelFormat::Yuyv,
+            false,
+            Method::Dim,
+            PlaneMethod::LeastSquares,
+        ),
+        (
+            PixelFormat::Yuyv,
+            true,
+            Method::Dim,
+            PlaneMethod::LeastSquares,
+        ),
+        (
+            PixelFormat::Gray8,
+            false,
+            Method::Lim,
+            PlaneMethod::LeastSquares,
+        ),
         (PixelFormat::Gray8, false, Method::Dim, PlaneMethod::Paper),
     ];
     let mut rendered: Vec<(PixelFormat, _, Vec<_>)> = Vec::new();

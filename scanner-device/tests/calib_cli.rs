@@ -170,6 +170,14 @@ fn printed_sheets_are_true_to_scale() {
         }
     }
     assert!(d.join("cross.svg").exists() && d.join("cross.png").exists());
+    // The printed intrinsics target is the grid `calibrate intrinsics` looks for, at its size.
+    let target = image::open(d.join("target.png")).unwrap().to_luma8();
+    let view = scanner_calib::find_grid(
+        &target,
+        &scanner_calib::Target::Dots(scanner_calib::DotGrid::RIG),
+    )
+    .expect("the printed target's grid");
+    assert!(view.complete && view.found.len() == 63, "{view:?}");
 }
 
 #[test]

@@ -78,6 +78,30 @@ impl Sheet {
         }
     }
 
+    /// The intrinsics target: a dot grid (`calibrate intrinsics`' default, 9×7 dots of 12 mm at
+    /// 30 mm), centred with a 20 mm margin and room for the title and the ruler.
+    pub fn target(g: &crate::DotGrid) -> Sheet {
+        let span = |n: usize| (n.saturating_sub(1)) as f64 * g.pitch + g.dot;
+        let (w, h) = (span(g.cols) + 40.0, span(g.rows) + 60.0);
+        let (x0, y0) = (20.0 + g.dot / 2.0, 25.0 + g.dot / 2.0);
+        Sheet {
+            title: format!(
+                "intrinsics target: {}x{} dots of {} mm at {} mm - print at 100 % (A3), glue flat",
+                g.cols, g.rows, g.dot, g.pitch
+            ),
+            width: w,
+            height: h,
+            dots: (0..g.rows)
+                .flat_map(|r| {
+                    (0..g.cols)
+                        .map(move |c| (x0 + c as f64 * g.pitch, y0 + r as f64 * g.pitch, g.dot))
+                })
+                .collect(),
+            squares: Vec::new(),
+            crease_x: None,
+        }
+    }
+
     /// The paper's image-distance cross (Fig. 5): A top, B left, C centre, D right, E bottom.
     pub fn cross(c: &Cross) -> Sheet {
         let (w, h) = (c.arm + 4.0 * c.dot + 40.0, c.arm + 4.0 * c.dot + 60.0);
@@ -281,11 +305,13 @@ impl Sheet {
     }
 }
 
-/// The three sheets of a board file: left, right, cross, with file stems.
-pub fn sheets(board: &BoardFile) -> [(&'static str, Sheet); 3] {
+/// The sheets to print for a board file, with file stems: left, right, the image-distance
+/// cross, and the intrinsics target (`calibrate intrinsics`' default dot grid, [`crate::DotGrid::RIG`]).
+pub fn sheets(board: &BoardFile) -> [(&'static str, Sheet); 4] {
     [
         ("left-sheet", Sheet::board(board, 0)),
         ("right-sheet", Sheet::board(board, 1)),
         ("cross", Sheet::cross(&board.cross)),
+        ("target", Sheet::target(&crate::DotGrid::RIG)),
     ]
 }

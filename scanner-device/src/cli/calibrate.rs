@@ -207,7 +207,7 @@ pub fn board_command(board: Option<&Path>, out: &Path, dpi: f64) -> Result<()> {
         save_png(&sheet.png(dpi / 25.4)?, &out.join(format!("{stem}.png")))?;
     }
     outln!(
-        "wrote board.toml, left-sheet, right-sheet and cross (.svg, .png at {dpi} dpi) to {}; print the SVGs at 100 % and check the 100 mm ruler",
+        "wrote board.toml, left-sheet, right-sheet, cross and target (the intrinsics dot grid) (.svg, .png at {dpi} dpi) to {}; print the SVGs at 100 % and check the 100 mm ruler",
         out.display()
     );
     Ok(())
