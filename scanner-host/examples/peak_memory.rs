@@ -76,7 +76,9 @@ fn main() {
         grid.filled()
     );
     let dir = tempfile::tempdir().expect("temporary folder");
-    let summary = scanner_host::write_outputs(&c_, dir.path(), 1).expect("outputs");
+    let summary =
+        scanner_host::write_outputs(&c_, dir.path(), &scanner_host::OutputOptions::default())
+            .expect("outputs");
     println!(
         "mesh: {} vertices, {} faces; peak heap {:.0} MB (after the header and the decoder: {:.0} MB; limit 1024 MB)",
         summary.vertices,

@@ -12,7 +12,7 @@ use clap::{Parser, Subcommand};
 use crate::collect::{CollectOptions, Collector, Journal};
 use crate::grid::Cell;
 use crate::link::Input;
-use crate::outputs::{Summary, replay_into, write_outputs};
+use crate::outputs::{FrameChoice, OutputOptions, Summary, replay_into, write_outputs};
 
 /// Command line of the host tool.
 #[derive(Debug, Parser)]
@@ -43,6 +43,10 @@ pub struct OutputArgs {
     /// Cells with fewer samples are left out of the mesh.
     #[arg(long, default_value_t = 1)]
     pub min_count: u32,
+    /// The meshes' frame: `board` (y up, for MeshLab/Blender/CloudCompare) or `camera` (+y
+    /// down, +z forward). The pictures are the camera's view either way.
+    #[arg(long, value_enum, default_value_t = FrameChoice::Board)]
+    pub frame: FrameChoice,
     /// No progress display.
     #[arg(long, short)]
     pub quiet: bool,
@@ -80,6 +84,15 @@ pub enum Command {
     },
     /// List the serial ports.
     Ports,
+}
+
+impl OutputArgs {
+    fn output_options(&self) -> OutputOptions {
+        OutputOptions {
+            min_count: self.min_count,
+            frame: self.frame,
+        }
+    }
 }
 
 fn collect_options(o: &OutputArgs) -> CollectOptions {
@@ -182,7 +195,7 @@ fn receive(input: &Input, until_done: bool, append: bool, o: &OutputArgs) -> Res
     if !o.quiet {
         crate::errln!("{ended}; journal: {}", journal_path.display());
     }
-    Ok(write_outputs(&c, &o.out, o.min_count)?)
+    Ok(write_outputs(&c, &o.out, &o.output_options())?)
 }
 
 /// Runs the host tool with parsed arguments.
@@ -221,7 +234,7 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
         Some(Command::Replay { input, out }) => {
             let mut c = Collector::new(collect_options(out), None);
             replay_into(&mut c, input)?;
-            write_outputs(&c, &out.out, out.min_count)?
+            write_outputs(&c, &out.out, &out.output_options())?
         }
     };
     crate::outln!("{}", summary.text().trim_end());

@@ -83,9 +83,10 @@ pub fn obj(mesh: &Mesh) -> String {
 pub fn write_obj(mesh: &Mesh, w: &mut impl std::io::Write) -> std::io::Result<()> {
     writeln!(
         w,
-        "# scanner-host: {} vertices, {} faces; mm, camera coordinates (+y down, +z forward)",
+        "# scanner-host: {} vertices, {} faces; mm, {}",
         mesh.vertices.len(),
-        mesh.faces.len()
+        mesh.faces.len(),
+        mesh.frame.describe()
     )?;
     for (i, v) in mesh.vertices.iter().enumerate() {
         match mesh.colours.get(i) {
@@ -127,7 +128,8 @@ pub fn ply(mesh: &Mesh) -> Vec<u8> {
 pub fn write_ply(mesh: &Mesh, w: &mut impl std::io::Write) -> std::io::Result<()> {
     let colour = !mesh.colours.is_empty();
     let mut h = format!(
-        "ply\nformat binary_little_endian 1.0\ncomment scanner-host: mm, camera coordinates\nelement vertex {}\nproperty float x\nproperty float y\nproperty float z\nproperty float nx\nproperty float ny\nproperty float nz\n",
+        "ply\nformat binary_little_endian 1.0\ncomment scanner-host: mm, {}\nelement vertex {}\nproperty float x\nproperty float y\nproperty float z\nproperty float nx\nproperty float ny\nproperty float nz\n",
+        mesh.frame.describe(),
         mesh.vertices.len()
     );
     if colour {

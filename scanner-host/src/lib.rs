@@ -41,4 +41,4 @@ pub mod mesh;
 pub mod outputs;
 
 pub use cli::{Args, Command, OutputArgs, run};
-pub use outputs::{Summary, replay_into, write_outputs};
+pub use outputs::{FrameChoice, OutputOptions, Summary, replay_into, write_outputs};

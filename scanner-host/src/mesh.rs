@@ -2,7 +2,8 @@
 //! filled cells (one where three are filled), none across a depth jump or a hole; vertex normals
 //! from the faces, facing the camera.
 
-use scanner_core::nalgebra::{Point3, Vector3};
+use scanner_core::geometry::Board;
+use scanner_core::nalgebra::{Matrix3, Point3, Vector3};
 
 use crate::grid::{Cell, Grid};
 
@@ -19,6 +20,92 @@ pub struct Mesh {
     pub faces: Vec<[u32; 3]>,
     /// Grid cell of each vertex (column, row).
     pub cells: Vec<(u32, u32)>,
+    /// The frame the vertices and normals are in.
+    pub frame: MeshFrame,
+}
+
+/// The frame a mesh is written in.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub enum MeshFrame {
+    /// The camera's: mm, +x right, +y down, +z forward (the head's wire coordinates).
+    #[default]
+    Camera,
+    /// The board's, for y-up viewers (MeshLab, Blender, CloudCompare): +y up along the crease,
+    /// +z towards the camera (between the two sheets' normals), +x to the right; the origin on
+    /// the crease where it passes closest to the camera. `p_board = rotation · (p_camera − origin)`.
+    Board {
+        /// Rows: the board's x, y, z axes in camera coordinates.
+        rotation: Matrix3<f32>,
+        /// The origin in camera coordinates.
+        origin: Point3<f32>,
+    },
+}
+
+impl MeshFrame {
+    /// The board frame of `board` (see [`MeshFrame::Board`]).
+    pub fn board(board: &Board<f32>) -> MeshFrame {
+        let crease = board.crease();
+        let mut down = crease.direction().normalize();
+        if down.y < 0.0 {
+            down = -down;
+        }
+        let up = -down;
+        // The normals face the camera: their sum points from the crease towards it.
+        let towards = board.left().normal() + board.right().normal();
+        // Made exactly perpendicular to the crease.
+        let z = (towards - up * up.dot(&towards)).normalize();
+        let x = up.cross(&z);
+        let p = crease.point().coords;
+        let origin = Point3::from(p - down * p.dot(&down));
+        MeshFrame::Board {
+            rotation: Matrix3::from_rows(&[x.transpose(), up.transpose(), z.transpose()]),
+            origin,
+        }
+    }
+
+    /// One line saying which frame, for file headers and the summary.
+    pub fn describe(&self) -> String {
+        match self {
+            MeshFrame::Camera => "camera frame (+x right, +y down, +z forward)".into(),
+            MeshFrame::Board {
+                rotation: r,
+                origin: o,
+            } => format!(
+                "board frame, y up (+y up the crease, +z towards the camera, origin on the crease nearest the camera); from camera coordinates p = R (p_camera - o), R = [[{:.6}, {:.6}, {:.6}], [{:.6}, {:.6}, {:.6}], [{:.6}, {:.6}, {:.6}]], o = [{:.3}, {:.3}, {:.3}]",
+                r[(0, 0)],
+                r[(0, 1)],
+                r[(0, 2)],
+                r[(1, 0)],
+                r[(1, 1)],
+                r[(1, 2)],
+                r[(2, 0)],
+                r[(2, 1)],
+                r[(2, 2)],
+                o.x,
+                o.y,
+                o.z
+            ),
+        }
+    }
+}
+
+impl Mesh {
+    /// Moves the mesh from camera coordinates into `frame` (a rotation: faces keep their
+    /// winding). A mesh already in another frame than the camera's is left as it is.
+    pub fn into_frame(&mut self, frame: MeshFrame) {
+        if self.frame != MeshFrame::Camera {
+            return;
+        }
+        if let MeshFrame::Board { rotation, origin } = frame {
+            for v in &mut self.vertices {
+                *v = Point3::from(rotation * (*v - origin));
+            }
+            for n in &mut self.normals {
+                *n = rotation * *n;
+            }
+        }
+        self.frame = frame;
+    }
 }
 
 /// Meshing settings.

@@ -8,7 +8,7 @@ use scanner_core::wire::Skip;
 
 use crate::collect::{CollectError, Collector, Counts};
 use crate::export::{self, ExportError};
-use crate::mesh::{self, MeshOptions};
+use crate::mesh::{self, MeshFrame, MeshOptions};
 
 /// Why the outputs could not be made.
 #[derive(Debug, thiserror::Error)]
@@ -69,6 +69,8 @@ pub struct Summary {
     pub point_rate: f64,
     /// Outlier samples rejected by the grid.
     pub outliers: u64,
+    /// The meshes' frame, described.
+    pub frame: String,
 }
 
 impl Summary {
@@ -114,6 +116,7 @@ impl Summary {
                 c.other_camera_points
             );
         }
+        s += &format!("meshes in the {}\n", self.frame);
         let skipped = c.skipped();
         for r in Skip::ALL {
             if skipped[r as usize] > 0 {
@@ -137,11 +140,43 @@ pub const OUTPUT_FILES: [&str; 5] = [
     "preview.png",
 ];
 
+/// Which frame the meshes are written in.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, clap::ValueEnum)]
+pub enum FrameChoice {
+    /// The board's, y up: the right way up in MeshLab, Blender, CloudCompare (default).
+    #[default]
+    Board,
+    /// The camera's: +y down, +z forward, as the head sends the points.
+    Camera,
+}
+
+/// How the outputs are made.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct OutputOptions {
+    /// Cells with fewer samples are left out of the mesh.
+    pub min_count: u32,
+    /// The meshes' frame.
+    pub frame: FrameChoice,
+}
+
+impl Default for OutputOptions {
+    fn default() -> Self {
+        OutputOptions {
+            min_count: 1,
+            frame: FrameChoice::Board,
+        }
+    }
+}
+
 /// Writes every output of a collection into `dir`.
 ///
 /// # Errors
 /// No header ever arrived (nothing to grid), or a file cannot be written.
-pub fn write_outputs(c: &Collector, dir: &Path, min_count: u32) -> Result<Summary, OutputError> {
+pub fn write_outputs(
+    c: &Collector,
+    dir: &Path,
+    out: &OutputOptions,
+) -> Result<Summary, OutputError> {
     std::fs::create_dir_all(dir).map_err(|source| OutputError::Folder {
         path: dir.to_path_buf(),
         source,
@@ -162,20 +197,29 @@ pub fn write_outputs(c: &Collector, dir: &Path, min_count: u32) -> Result<Summar
         return Err(e);
     };
     let opts = MeshOptions {
-        min_count,
+        min_count: out.min_count,
         ..MeshOptions::default()
     };
     let m = mesh::build(grid, f64::from(header.camera.fx), &opts, c.colour());
-    // Streamed to their files: the mesh is never held twice in memory.
-    export::write_atomic_with(&dir.join("scan.obj"), |w| export::write_obj(&m, w))?;
-    export::write_atomic_with(&dir.join("scan.ply"), |w| export::write_ply(&m, w))?;
-    export::write_atomic_with(&dir.join("scan.stl"), |w| export::write_stl(&m, w))?;
+    // The pictures are the camera's view; then the meshes, in their frame, streamed to their
+    // files (the mesh is never held twice in memory).
     export::write_atomic_with(&dir.join("depth.png"), |w| {
         export::write_png(&export::depth_png(grid, &m), w)
     })?;
     export::write_atomic_with(&dir.join("preview.png"), |w| {
         export::write_png(&export::shaded_png(grid, &m), w)
     })?;
+    let mut m = m;
+    if out.frame == FrameChoice::Board {
+        let board = header.board().map_err(|e| CollectError::Header {
+            scan_id: header.scan_id,
+            why: format!("its board gives no frame for the meshes ({e})"),
+        })?;
+        m.into_frame(MeshFrame::board(&board));
+    }
+    export::write_atomic_with(&dir.join("scan.obj"), |w| export::write_obj(&m, w))?;
+    export::write_atomic_with(&dir.join("scan.ply"), |w| export::write_ply(&m, w))?;
+    export::write_atomic_with(&dir.join("scan.stl"), |w| export::write_stl(&m, w))?;
     let span = counts.time_us.map_or(0.0, |(a, b)| (b - a) as f64 / 1e6);
     let summary = Summary {
         point_rate: if span > 0.0 {
@@ -188,6 +232,7 @@ pub fn write_outputs(c: &Collector, dir: &Path, min_count: u32) -> Result<Summar
         faces: m.faces.len(),
         coverage: grid.filled() as f64 / (grid.cols * grid.rows) as f64,
         outliers: grid.rejected(),
+        frame: m.frame.describe(),
     };
     export::write_atomic(&dir.join("summary.txt"), summary.text().as_bytes())?;
     Ok(summary)

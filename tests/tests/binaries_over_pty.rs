@@ -41,6 +41,8 @@ fn host(out: &Path) -> (Child, String) {
             "pty",
             "--until-done",
             "--quiet",
+            "--frame",
+            "camera",
             "--out",
             out.to_str().unwrap(),
         ])
@@ -205,6 +207,8 @@ fn a_host_stopped_mid_scan_replays_its_journal_to_the_same_grid() {
             "replay",
             journal.to_str().unwrap(),
             "--quiet",
+            "--frame",
+            "camera",
             "--out",
             again.to_str().unwrap(),
         ])

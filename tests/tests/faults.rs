@@ -21,6 +21,12 @@ use scanner_device::source::RigSource;
 use scanner_host::collect::{CollectOptions, Collector};
 use scanner_rig::{Rig, Scene};
 
+/// Outputs in the camera frame, where the rig's truth is.
+const CAMERA: scanner_host::OutputOptions = scanner_host::OutputOptions {
+    min_count: 1,
+    frame: scanner_host::FrameChoice::Camera,
+};
+
 /// A clean recorded stream of a small rig scan, split into its frames (each with its delimiters).
 fn clean_frames() -> &'static Vec<Vec<u8>> {
     static F: std::sync::OnceLock<Vec<Vec<u8>>> = std::sync::OnceLock::new();
@@ -252,7 +258,7 @@ fn a_host_killed_at_random_moments_keeps_a_replayable_journal() {
         if replayed.iter().any(|m| m.starts_with("Header")) {
             let mut c = Collector::new(CollectOptions::default(), None);
             c.feed(&journal).unwrap();
-            scanner_host::write_outputs(&c, &dir.path().join("replay"), 1).unwrap();
+            scanner_host::write_outputs(&c, &dir.path().join("replay"), &CAMERA).unwrap();
         }
     }
     println!("{kills} kills survived: every journal a replayable prefix of the stream");

@@ -18,6 +18,12 @@ use scanner_host::collect::{CollectOptions, Collector, Journal};
 use scanner_host::{replay_into, write_outputs};
 use scanner_rig::{Rig, Scene};
 
+/// Outputs in the camera frame, where the rig's truth is.
+const CAMERA: scanner_host::OutputOptions = scanner_host::OutputOptions {
+    min_count: 1,
+    frame: scanner_host::FrameChoice::Camera,
+};
+
 /// Records the demo scan (`frames` laser frames) at `w`×`h` into `path`; returns the rig.
 fn record(w: u32, h: u32, frames: usize, colour: bool, path: &Path) -> Rig {
     let mut scene = Scene::demo(w, h);
@@ -104,7 +110,7 @@ fn a_recorded_scan_becomes_a_mesh_on_the_true_surface() {
     let mut c = Collector::new(CollectOptions::default(), None);
     replay_into(&mut c, &stream).unwrap();
     let out = dir.path().join("out");
-    let s = write_outputs(&c, &out, 1).unwrap();
+    let s = write_outputs(&c, &out, &CAMERA).unwrap();
     println!("{}", s.text());
     for f in [
         "scan.obj",
@@ -268,7 +274,62 @@ proptest! {
         let mut c = Collector::new(CollectOptions::default(), None);
         replay_into(&mut c, &p).unwrap();
         prop_assert_eq!(c.counts().decode.frames as usize, whole);
-        let r = write_outputs(&c, &dir.path().join("out"), 1);
+        let r = write_outputs(&c, &dir.path().join("out"), &CAMERA);
         prop_assert_eq!(r.is_ok(), c.header().is_some());
     }
+}
+
+#[test]
+fn meshes_in_the_board_frame_are_y_up_and_the_same_surface() {
+    let dir = tempfile::tempdir().unwrap();
+    let stream = dir.path().join("scan.stream");
+    let rig = record(640, 480, 120, false, &stream);
+    let mut c = Collector::new(CollectOptions::default(), None);
+    replay_into(&mut c, &stream).unwrap();
+    let (cam, board) = (dir.path().join("cam"), dir.path().join("board"));
+    write_outputs(&c, &cam, &CAMERA).unwrap();
+    let s = write_outputs(&c, &board, &scanner_host::OutputOptions::default()).unwrap();
+    assert!(
+        s.text().contains("meshes in the board frame, y up"),
+        "{}",
+        s.text()
+    );
+    let (vc, fc) = read_ply(&std::fs::read(cam.join("scan.ply")).unwrap());
+    let (vb, fb) = read_ply(&std::fs::read(board.join("scan.ply")).unwrap());
+    assert_eq!(fc, fb, "the same faces, the same winding");
+    // The board frame from the rig's true board: each vertex is the camera-frame vertex moved.
+    let [l, r] = rig.board_planes();
+    let b = scanner_core::geometry::Board::new(l, r)
+        .unwrap()
+        .cast::<f32>();
+    let scanner_host::mesh::MeshFrame::Board { rotation, origin } =
+        scanner_host::mesh::MeshFrame::board(&b)
+    else {
+        unreachable!()
+    };
+    let worst = vc
+        .iter()
+        .zip(&vb)
+        .map(|(c, b)| {
+            let moved = rotation * (Point3::new(c[0], c[1], c[2]) - origin);
+            (moved - Vector3::new(b[0], b[1], b[2])).norm()
+        })
+        .fold(0.0f32, f32::max);
+    assert!(worst < 0.01, "board-frame vertices off by {worst} mm");
+    // y is up: the camera's +y (down) is the board frame's −y; z points at the camera, which
+    // sits in front of the board (+z) at the origin's height.
+    let down = rotation * Vector3::new(0.0, 1.0, 0.0);
+    assert!(down.y < -0.9, "camera down is {down:?} in the board frame");
+    let camera = rotation * (Point3::origin() - origin);
+    assert!(
+        camera.z > 500.0 && camera.y.abs() < 1.0,
+        "camera at {camera:?}"
+    );
+    // The OBJ says which frame, with the transform.
+    let obj = std::fs::read_to_string(board.join("scan.obj")).unwrap();
+    assert!(
+        obj.lines().next().unwrap().contains("board frame, y up"),
+        "{}",
+        obj.lines().next().unwrap()
+    );
 }
