@@ -164,6 +164,8 @@ pub struct Session {
     scratch: Vec<u8>,
     xyz: Vec<u8>,
     started: Instant,
+    /// The latest frame's capture time, µs.
+    last_us: u64,
     frames_since_header: u32,
     frames_since_status: u32,
 }
@@ -212,6 +214,7 @@ impl Session {
             scratch: vec![0; wire::MAX_FRAME],
             xyz: vec![0; scanner_core::config::MAX_XYZ_BYTES_PER_POINT * MAX_LINES],
             started: Instant::now(),
+            last_us: 0,
             frames_since_header: 0,
             frames_since_status: 0,
         })
@@ -225,7 +228,8 @@ impl Session {
     /// The counters so far.
     pub fn status(&self) -> Status {
         let mut s = self.status;
-        let secs = self.started.elapsed().as_secs_f64();
+        // By the frames' own times, so that a recording reprocessed gives the same counters.
+        let secs = self.last_us as f64 / 1e6;
         s.fps_milli = if secs > 0.0 {
             (f64::from(s.frames) / secs * 1000.0) as u32
         } else {
@@ -270,7 +274,10 @@ impl Session {
         self.status.frames += 1;
         self.frames_since_header += 1;
         self.frames_since_status += 1;
-        let time_us = self.started.elapsed().as_micros() as u64;
+        let time_us = frame
+            .time_us
+            .unwrap_or_else(|| self.started.elapsed().as_micros() as u64);
+        self.last_us = time_us;
         let outcome = match (frame.view(), self.reference.view()) {
             (Ok(f), Ok(r)) => match self.head.process(&f, Some(&r)) {
                 Ok(out) => {

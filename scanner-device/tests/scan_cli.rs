@@ -272,3 +272,93 @@ fn sigterm_and_sigint_end_the_scan_with_a_final_status() {
         assert!(s.frames < 120, "SIG{signal}: the whole sweep ran: {s:?}");
     }
 }
+
+#[test]
+fn a_recorded_scan_reprocesses_to_the_same_stream_and_with_a_new_calibration() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = |n: &str| dir.path().join(n).display().to_string();
+    let truth = truth_file(dir.path(), 320, 240);
+    let scan = |source: &str, cal: &str, out: &str, extra: &[&str]| {
+        let mut args = vec![
+            "scan",
+            "--source",
+            source,
+            "--format",
+            "yuyv",
+            "--calibration",
+            cal,
+            "--out",
+            out,
+            "--scan-id",
+            "77",
+            "--link-depth",
+            "64",
+            "-q",
+        ];
+        args.extend_from_slice(extra);
+        let (ok, stdout, err) = run(&args);
+        assert!(ok, "{args:?}: {err}");
+        stdout
+    };
+    let rec = d("rec");
+    scan(
+        "rig:320x240",
+        &truth,
+        &d("live.stream"),
+        &["--record", &rec],
+    );
+    let meta = std::fs::read_to_string(dir.path().join("rec/recording.toml")).unwrap();
+    assert!(meta.contains("yuyv") && meta.contains("320"), "{meta}");
+    // Reprocessed with the calibration it was made with: the very same bytes.
+    let source = format!("record:{rec}");
+    let out = scan(&source, &truth, &d("again.stream"), &[]);
+    assert!(out.contains("60 frames"), "{out}");
+    let (a, b) = (
+        std::fs::read(d("live.stream")).unwrap(),
+        std::fs::read(d("again.stream")).unwrap(),
+    );
+    assert!(a.len() > 1000);
+    assert!(
+        a == b,
+        "the reprocessed stream differs ({} vs {} bytes)",
+        a.len(),
+        b.len()
+    );
+    // With another calibration (the board moved 5 mm): a different, valid stream.
+    let text = std::fs::read_to_string(&truth).unwrap();
+    let line = text.lines().find(|l| l.starts_with("offset = ")).unwrap();
+    let v: f64 = line["offset = ".len()..].parse().unwrap();
+    std::fs::write(
+        d("moved.toml"),
+        text.replacen(line, &format!("offset = {}", v + 5.0), 1),
+    )
+    .unwrap();
+    scan(&source, &d("moved.toml"), &d("moved.stream"), &[]);
+    let c = std::fs::read(d("moved.stream")).unwrap();
+    assert!(c != a && final_status(&dir.path().join("moved.stream")).done);
+    // A recording is not overwritten, and a format other than the recorded one is refused.
+    let (ok, _, err) = run(&[
+        "scan",
+        "--source",
+        "rig:320x240",
+        "--format",
+        "yuyv",
+        "--calibration",
+        &truth,
+        "--out",
+        &d("x.stream"),
+        "--record",
+        &rec,
+    ]);
+    assert!(!ok && err.contains("already holds a recording"), "{err}");
+    let (ok, _, err) = run(&[
+        "scan",
+        "--source",
+        &source,
+        "--calibration",
+        &truth,
+        "--out",
+        &d("y.stream"),
+    ]);
+    assert!(!ok && err.contains("same --format"), "{err}");
+}

@@ -18,7 +18,8 @@ use crate::source::{FrameSource, SourceOptions, open_with};
 /// Options of `scan`.
 #[derive(Debug, Args)]
 pub struct ScanArgs {
-    /// Frame source: `rig`, `rig:WIDTHxHEIGHT`, `dir:FOLDER` (or a folder), `/dev/videoN`.
+    /// Frame source: `rig`, `rig:WIDTHxHEIGHT`, `dir:FOLDER` (or a folder), `/dev/videoN`, or
+    /// `record:FOLDER` (a recording made with `--record`, reprocessed).
     #[arg(long, default_value = "rig")]
     pub source: String,
     /// With the virtual rig: this scene file instead of the demo scene.
@@ -73,6 +74,10 @@ pub struct ScanArgs {
     /// Buffers between the camera and the link (frames dropped beyond), 1 to 64.
     #[arg(long, default_value_t = 8, value_parser = parse_link_depth)]
     pub link_depth: usize,
+    /// Keep the raw frames (and the reference) in this folder, so that the scan can be
+    /// reprocessed later with `--source record:FOLDER` and another calibration.
+    #[arg(long)]
+    pub record: Option<PathBuf>,
     /// Stop after this many frames (after the reference), with a final status.
     #[arg(long)]
     pub frames: Option<u32>,
@@ -255,7 +260,13 @@ pub fn plan(a: &ScanArgs) -> Result<ScanPlan> {
         reference: a.reference.clone(),
         reference_frames: a.reference_frames,
     };
-    let source = open_source(a, format, &opts)?;
+    let mut source = open_source(a, format, &opts)?;
+    if let Some(dir) = &a.record {
+        source = Box::new(
+            crate::source::record::Recorder::new(source, dir)
+                .with_context(|| format!("--record {}", dir.display()))?,
+        );
+    }
     let calibration = read_calibration(cal_path, source.as_ref(), &a.source)?;
     let options = ScanOptions {
         head: head_config(a),

@@ -31,6 +31,7 @@ pub fn load_frame(
         source,
     })?;
     Ok(OwnedFrame {
+        time_us: None,
         data,
         width: w,
         height: h,

@@ -12,6 +12,7 @@
 
 pub mod convert;
 mod images;
+pub mod record;
 #[cfg(feature = "rig")]
 mod rig;
 pub mod v4l2;
@@ -35,6 +36,9 @@ pub struct OwnedFrame {
     pub format: PixelFormat,
     /// Index in the stream (the reference is `u64::MAX`).
     pub index: u64,
+    /// When it was captured, µs since the source opened, if the source knows (a recording
+    /// replays its frames' times; the scan stamps the others as they arrive).
+    pub time_us: Option<u64>,
 }
 
 impl OwnedFrame {
@@ -52,7 +56,9 @@ impl OwnedFrame {
 #[non_exhaustive]
 pub enum SourceError {
     /// No source of that name.
-    #[error("no frame source named {0:?} (known: rig, rig:WIDTHxHEIGHT, dir:FOLDER, /dev/videoN)")]
+    #[error(
+        "no frame source named {0:?} (known: rig, rig:WIDTHxHEIGHT, dir:FOLDER, record:FOLDER, /dev/videoN)"
+    )]
     Unknown(String),
     /// The name's parameters are malformed (the text says how).
     #[error("bad frame source: {0}")]
@@ -309,6 +315,16 @@ pub fn open_with(
     if name.starts_with("/dev/video") || name.starts_with("v4l:") {
         let path = name.strip_prefix("v4l:").unwrap_or(name);
         return v4l2::open(path, format, opts);
+    }
+    if let Some(dir) = name.strip_prefix("record:") {
+        let r = record::RecordingSource::open(std::path::Path::new(dir))?;
+        if r.format() != format {
+            return Err(SourceError::BadSpec(format!(
+                "{name:?} was recorded as {:?}: give the scan the same --format",
+                r.format()
+            )));
+        }
+        return Ok(Box::new(r));
     }
     if let Some(dir) = name.strip_prefix("dir:") {
         return Ok(Box::new(ImageDir::open(

@@ -31,6 +31,7 @@ impl RigSource {
     fn owned(&self, data: Vec<u8>, index: u64) -> OwnedFrame {
         let (width, height) = self.size();
         OwnedFrame {
+            time_us: None,
             data,
             width,
             height,

@@ -213,6 +213,7 @@ mod imp {
                 source,
             })?;
             Ok(OwnedFrame {
+                time_us: None,
                 data,
                 width: self.size.0,
                 height: self.size.1,
