@@ -25,6 +25,9 @@ pub struct CaptureArgs {
     /// Camera pixel format FourCC (YUYV, GREY, RGB3, MJPG).
     #[arg(long)]
     pub fourcc: Option<String>,
+    /// The local mains frequency (50 or 60 Hz), for the camera's power-line filter.
+    #[arg(long, value_parser = crate::cli::scan::parse_mains)]
+    pub mains: Option<u32>,
     /// Capture the board (laser off) instead of the intrinsics target; each shot's planes are
     /// fitted with this camera file (from `calibrate intrinsics`).
     #[arg(long, value_name = "CAMERA_FILE")]
@@ -116,6 +119,7 @@ pub fn capture(a: &CaptureArgs) -> Result<()> {
             .map(|s| crate::source::parse_size(s).with_context(|| format!("--size {s:?}")))
             .transpose()?,
         fourcc: a.fourcc.clone(),
+        mains_hz: a.mains,
         ..SourceOptions::default()
     };
     let mut source = crate::source::open_with(&a.source, PixelFormat::Rgb24, &opts)

@@ -34,6 +34,9 @@ pub struct ScanArgs {
     /// Camera frame rate.
     #[arg(long)]
     pub fps: Option<u32>,
+    /// The local mains frequency (50 or 60 Hz), for the camera's power-line filter.
+    #[arg(long, value_parser = crate::cli::scan::parse_mains)]
+    pub mains: Option<u32>,
     /// Camera pixel format FourCC (YUYV, GREY, RGB3, MJPG).
     #[arg(long)]
     pub fourcc: Option<String>,
@@ -259,6 +262,7 @@ pub fn plan(a: &ScanArgs) -> Result<ScanPlan> {
         fourcc: a.fourcc.clone(),
         reference: a.reference.clone(),
         reference_frames: a.reference_frames,
+        mains_hz: a.mains,
     };
     let mut source = open_source(a, format, &opts)?;
     if let Some(dir) = &a.record {
@@ -466,4 +470,16 @@ fn stop_flag() -> Option<std::sync::Arc<std::sync::atomic::AtomicBool>> {
     ctrlc::set_handler(move || f.store(true, std::sync::atomic::Ordering::SeqCst))
         .ok()
         .map(|()| flag)
+}
+
+/// `--mains`: 50 or 60 (Hz).
+pub(crate) fn parse_mains(s: &str) -> Result<u32, String> {
+    match s.trim() {
+        "50" => Ok(50),
+        "60" => Ok(60),
+        other => Err(format!(
+            "{:?}: the mains frequency is 50 or 60 (Hz)",
+            other.chars().take(20).collect::<String>()
+        )),
+    }
 }

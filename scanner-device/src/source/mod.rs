@@ -10,6 +10,7 @@
 //! folder, its `reference.png` / `reference.jpg` if present; otherwise the average of the first
 //! `reference_frames` frames (default 8), which must be taken with the laser off.
 
+pub mod controls;
 pub mod convert;
 mod images;
 pub mod record;
@@ -197,6 +198,9 @@ pub struct SourceOptions {
     /// Otherwise average this many first frames (laser off) into the reference (0: the
     /// default, [`REFERENCE_FRAMES`]).
     pub reference_frames: usize,
+    /// The local mains frequency, Hz (50 or 60), for the camera's power-line filter; the
+    /// camera's automatic choice without it.
+    pub mains_hz: Option<u32>,
 }
 
 impl SourceOptions {

@@ -1,6 +1,7 @@
 //! V4L2 cameras through the `v4l` crate: list devices and formats, choose format, resolution
-//! and frame rate, lock exposure and white balance (the difference image needs the reference
-//! and the laser frames taken alike), memory-mapped streaming. Buffers are converted by
+//! and frame rate, set the controls the scan needs ([`super::controls`]: exposure, gain, white
+//! balance, focus, power-line frequency — the difference image needs the reference and the laser
+//! frames taken alike; what was set, refused and missing is printed), memory-mapped streaming. Buffers are converted by
 //! [`super::convert`], which is tested on recorded buffers; this file needs a camera and is
 //! exercised only by the ignored hardware test.
 
@@ -20,14 +21,9 @@ mod imp {
     use v4l::video::Capture;
     use v4l::{Device, FourCC};
 
+    use crate::source::controls;
     use crate::source::convert::{CameraFormat, convert};
     use crate::source::{FrameSource, OwnedFrame, SourceError, SourceOptions, laser_off_reference};
-
-    /// `V4L2_CID_EXPOSURE_AUTO` and its manual setting.
-    const CID_EXPOSURE_AUTO: u32 = 0x009a_0901;
-    const EXPOSURE_MANUAL: i64 = 1;
-    /// `V4L2_CID_AUTO_WHITE_BALANCE`.
-    const CID_AUTO_WHITE_BALANCE: u32 = 0x0098_090c;
 
     fn cam(path: &str, what: &str, e: std::io::Error) -> SourceError {
         SourceError::Camera {
@@ -126,20 +122,58 @@ mod imp {
         Ok(fmt)
     }
 
-    /// Locks exposure and white balance where the camera allows (the difference image needs
-    /// the reference and the laser frames taken alike); returns what was locked.
-    fn lock_controls(dev: &Device) -> Vec<&'static str> {
-        let set = |id: u32, value: Value| dev.set_control(Control { id, value }).is_ok();
-        let mut locked = Vec::new();
-        if set(CID_EXPOSURE_AUTO, Value::Integer(EXPOSURE_MANUAL)) {
-            locked.push("exposure");
-        }
-        if set(CID_AUTO_WHITE_BALANCE, Value::Boolean(false))
-            || set(CID_AUTO_WHITE_BALANCE, Value::Integer(0))
-        {
-            locked.push("white balance");
-        }
-        locked
+    /// The camera's controls as [`controls::Control`]s.
+    fn offered(dev: &Device) -> Vec<controls::Control> {
+        use v4l::control::{Flags, MenuItem, Type as CType};
+        dev.query_controls()
+            .unwrap_or_default()
+            .into_iter()
+            .map(|d| controls::Control {
+                id: d.id,
+                name: d.name.clone(),
+                kind: match d.typ {
+                    CType::Integer | CType::Integer64 => controls::Kind::Integer,
+                    CType::Boolean => controls::Kind::Boolean,
+                    CType::Menu | CType::IntegerMenu => controls::Kind::Menu,
+                    _ => controls::Kind::Other,
+                },
+                min: d.minimum,
+                max: d.maximum,
+                menu: d
+                    .items
+                    .unwrap_or_default()
+                    .into_iter()
+                    .map(|(i, item)| {
+                        let name = match item {
+                            MenuItem::Name(n) => n,
+                            MenuItem::Value(v) => v.to_string(),
+                        };
+                        (i64::from(i), name)
+                    })
+                    .collect(),
+                read_only: d.flags.intersects(Flags::READ_ONLY | Flags::DISABLED),
+            })
+            .collect()
+    }
+
+    /// Sets what the scan needs ([`controls::plan`]) and says what was set, refused and missing;
+    /// returns the report line.
+    fn lock_controls(dev: &Device, mains_hz: Option<u32>) -> String {
+        let plan = controls::plan(&offered(dev), mains_hz);
+        let refused: Vec<(String, String)> = plan
+            .settings
+            .iter()
+            .filter_map(|s| {
+                let value = match s.kind {
+                    controls::Kind::Boolean => Value::Boolean(s.value != 0),
+                    _ => Value::Integer(s.value),
+                };
+                dev.set_control(Control { id: s.id, value })
+                    .err()
+                    .map(|e| (s.control.clone(), e.to_string()))
+            })
+            .collect();
+        controls::report(&plan, &refused)
     }
 
     /// A streaming V4L2 camera.
@@ -155,7 +189,7 @@ mod imp {
         next: u64,
         reference: Option<std::path::PathBuf>,
         reference_frames: usize,
-        locked: Vec<&'static str>,
+        controls: String,
     }
 
     impl V4lSource {
@@ -172,7 +206,8 @@ mod imp {
                 dev.set_params(&v4l::video::capture::Parameters::with_fps(fps))
                     .map_err(|e| cam(path, "cannot set the frame rate", e))?;
             }
-            let locked = lock_controls(&dev);
+            let controls = lock_controls(&dev, opts.mains_hz);
+            crate::errln!("{path}: {controls}");
             let stream = Stream::with_buffers(&dev, Type::VideoCapture, 4)
                 .map_err(|e| cam(path, "cannot start streaming", e))?;
             Ok(V4lSource {
@@ -186,7 +221,7 @@ mod imp {
                 next: 0,
                 reference: opts.reference.clone(),
                 reference_frames: opts.reference_frames(),
-                locked,
+                controls,
             })
         }
 
@@ -226,17 +261,8 @@ mod imp {
     impl FrameSource for V4lSource {
         fn describe(&self) -> String {
             format!(
-                "{} {}×{} {:?} → {:?}; locked: {}",
-                self.path,
-                self.size.0,
-                self.size.1,
-                self.camera,
-                self.format,
-                if self.locked.is_empty() {
-                    "nothing (the camera offers no such controls)".to_string()
-                } else {
-                    self.locked.join(", ")
-                }
+                "{} {}×{} {:?} → {:?}; {}",
+                self.path, self.size.0, self.size.1, self.camera, self.format, self.controls
             )
         }
         fn format(&self) -> PixelFormat {
