@@ -55,6 +55,9 @@ pub enum SessionError {
     /// The reference frame could not be read.
     #[error("the laser-off reference frame")]
     Reference(#[source] SourceError),
+    /// The laser never appeared after the reference (or the wait was stopped).
+    #[error("{0}")]
+    NoLaser(String),
     /// A message did not fit its buffer (a bug: the buffers are sized for the largest).
     #[error("encoding a message")]
     Encode(#[source] wire::WireError),
@@ -117,6 +120,9 @@ pub struct StopWhen {
     pub duration: Option<std::time::Duration>,
     /// Raised from outside (a signal handler).
     pub flag: Option<std::sync::Arc<std::sync::atomic::AtomicBool>>,
+    /// Before counting frames, wait up to this long for the laser to appear (a live camera:
+    /// the operator switches it on after the reference); frames before it are not scanned.
+    pub wait_for_laser: Option<std::time::Duration>,
 }
 
 impl StopWhen {
@@ -419,8 +425,17 @@ pub fn run_scan_until(
     mut on_points: impl FnMut(u32, &[[i32; 3]]),
 ) -> Result<ScanReport> {
     let reference = source.reference().map_err(SessionError::Reference)?;
+    let mut first = None;
+    if let Some(limit) = stop.wait_for_laser {
+        first =
+            Some(wait_for_laser(source, &reference, limit, stop).map_err(SessionError::NoLaser)?);
+    }
     let mut session = Session::new(cal, reference, opts)?;
     session.send_header(link)?;
+    if let Some(frame) = first {
+        session.frame(&frame, link, &mut on_points)?;
+        progress(&session.status());
+    }
     let started = Instant::now();
     let ending = loop {
         if let Some(why) = stop.reason(session.status().frames, started.elapsed()) {
@@ -451,5 +466,45 @@ pub fn truth_calibration(rig: &scanner_rig::Rig) -> Calibration {
         camera: s.camera,
         board: scanner_core::geometry::Board::new(l, r).expect("the rig's board is valid"),
         size: (s.width, s.height),
+    }
+}
+
+/// Takes frames until one shows the laser against the reference (on more than
+/// [`crate::source::LASER_LINES`] of its lines, as the reference check counts), up to `limit`;
+/// that frame, or why none came.
+fn wait_for_laser(
+    source: &mut dyn FrameSource,
+    reference: &OwnedFrame,
+    limit: std::time::Duration,
+    stop: &StopWhen,
+) -> std::result::Result<OwnedFrame, String> {
+    crate::errln!("waiting for the laser (switch it on and sweep)…");
+    let t0 = Instant::now();
+    loop {
+        if t0.elapsed() > limit {
+            return Err(format!(
+                "no laser seen within {:.0} s after the reference",
+                limit.as_secs_f64()
+            ));
+        }
+        if let Some(why) = stop.reason(0, std::time::Duration::ZERO) {
+            return Err(why);
+        }
+        let frame = match source.next_frame() {
+            Ok(Some(f)) => f,
+            Ok(None) => return Err("the source ended before the laser appeared".into()),
+            Err(e) => {
+                return Err(format!(
+                    "the source failed while waiting for the laser: {}",
+                    crate::error_chain(&e)
+                ));
+            }
+        };
+        if let Some((lines, total)) = crate::source::stripe_lines(&frame, reference)
+            && lines as f64 > crate::source::LASER_LINES * total as f64
+        {
+            crate::errln!("laser seen: scanning");
+            return Ok(frame);
+        }
     }
 }

@@ -362,3 +362,81 @@ fn a_recorded_scan_reprocesses_to_the_same_stream_and_with_a_new_calibration() {
     ]);
     assert!(!ok && err.contains("same --format"), "{err}");
 }
+
+#[test]
+fn waiting_for_the_laser_skips_the_frames_before_it() {
+    use scanner_device::source::FrameSource;
+    let dir = tempfile::tempdir().unwrap();
+    let truth = truth_file(dir.path(), 320, 240);
+    // A "camera": the reference, four more laser-off frames, then the sweep's middle.
+    let mut src = scanner_device::source::RigSource::new(
+        scanner_rig::Rig::new(scanner_rig::Scene::demo(320, 240)).unwrap(),
+        scanner_core::stripe::PixelFormat::Rgb24,
+    );
+    let reference = src.reference().unwrap();
+    let laser: Vec<_> = (0..40)
+        .filter_map(|_| src.next_frame().unwrap())
+        .skip(30)
+        .collect();
+    let folder = dir.path().join("cam");
+    std::fs::create_dir(&folder).unwrap();
+    let save = |name: &str, data: &[u8]| {
+        image::RgbImage::from_raw(320, 240, data.to_vec())
+            .unwrap()
+            .save(folder.join(name))
+            .unwrap();
+    };
+    save("reference.png", &reference.data);
+    for i in 0..4 {
+        save(&format!("a{i}.png"), &reference.data);
+    }
+    for (i, f) in laser.iter().enumerate() {
+        save(&format!("b{i}.png"), &f.data);
+    }
+    let out = dir.path().join("w.stream");
+    let source = format!("dir:{}", folder.display());
+    let (ok, stdout, err) = run(&[
+        "scan",
+        "--source",
+        &source,
+        "--calibration",
+        &truth,
+        "--out",
+        out.to_str().unwrap(),
+        "--wait-for-laser",
+        "5",
+        "-q",
+    ]);
+    assert!(ok, "{err}");
+    assert!(
+        err.contains("waiting for the laser") && err.contains("laser seen"),
+        "{err}"
+    );
+    assert!(
+        stdout.contains(&format!("{} frames", laser.len())),
+        "{stdout}"
+    );
+    // Only laser-off frames: the wait ends with a clear error, not a scan of nothing.
+    for f in std::fs::read_dir(&folder).unwrap() {
+        let p = f.unwrap().path();
+        if p.file_name().unwrap().to_str().unwrap().starts_with('b') {
+            std::fs::remove_file(p).unwrap();
+        }
+    }
+    let (ok, _, err) = run(&[
+        "scan",
+        "--source",
+        &source,
+        "--calibration",
+        &truth,
+        "--out",
+        out.to_str().unwrap(),
+        "--wait-for-laser",
+        "5",
+        "-q",
+    ]);
+    assert!(
+        !ok && err.contains("the source ended before the laser appeared"),
+        "{err}"
+    );
+}

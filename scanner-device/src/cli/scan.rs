@@ -81,6 +81,10 @@ pub struct ScanArgs {
     /// reprocessed later with `--source record:FOLDER` and another calibration.
     #[arg(long)]
     pub record: Option<PathBuf>,
+    /// After the reference, wait up to this many seconds for the laser before counting frames
+    /// (default: 60 for a camera, none for files and the rig; 0 turns it off).
+    #[arg(long, value_parser = parse_wait)]
+    pub wait_for_laser: Option<std::time::Duration>,
     /// Stop after this many frames (after the reference), with a final status.
     #[arg(long)]
     pub frames: Option<u32>,
@@ -284,10 +288,17 @@ pub fn plan(a: &ScanArgs) -> Result<ScanPlan> {
         a.link_depth,
         scanner_core::wire::MAX_ENCODED,
     );
+    let live = a.source.starts_with("/dev/") || a.source.starts_with("v4l:");
     let stop = StopWhen {
         frames: a.frames,
         duration: a.duration,
         flag: stop_flag(),
+        wait_for_laser: match a.wait_for_laser {
+            Some(d) if d.is_zero() => None,
+            Some(d) => Some(d),
+            None if live => Some(std::time::Duration::from_secs(60)),
+            None => None,
+        },
     };
     Ok(ScanPlan {
         stop,
@@ -482,4 +493,11 @@ pub(crate) fn parse_mains(s: &str) -> Result<u32, String> {
             other.chars().take(20).collect::<String>()
         )),
     }
+}
+
+fn parse_wait(s: &str) -> Result<std::time::Duration, String> {
+    if s.trim() == "0" {
+        return Ok(std::time::Duration::ZERO);
+    }
+    parse_seconds(s)
 }
