@@ -190,6 +190,7 @@ fn a_folder_of_rendered_frames_is_a_source() {
         out: dir.path().to_path_buf(),
         gray: true,
         frames: Some(5),
+        view: None,
     };
     scanner_device::cli::render::render(&job, |_, _| {}).unwrap();
     let mut src = open_with(

@@ -3,7 +3,7 @@
 //! replaces the demo's objects. Lengths in mm, angles in degrees, camera coordinates (+z forward,
 //! +y down). The README has a full example (`scanner-device/scenes/demo.toml`).
 
-use scanner_core::nalgebra::{Point3, Unit, Vector3};
+use scanner_core::nalgebra::{Isometry3, Point3, Translation3, Unit, UnitQuaternion, Vector3};
 use scanner_core::{Camera, Distortion};
 use serde::Deserialize;
 
@@ -25,6 +25,46 @@ struct File {
     objects: Option<Vec<ObjectEntry>>,
     laser: Option<LaserFile>,
     sensor: Option<SensorFile>,
+    views: Option<Vec<ViewFile>>,
+}
+
+/// One view of a 360° scan: the objects turned by `angle_deg` about `axis` through `pivot`
+/// (default: the mean of the objects' centres), then moved by `translate` (mm).
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct ViewFile {
+    axis: Option<[f64; 3]>,
+    angle_deg: Option<f64>,
+    pivot: Option<[f64; 3]>,
+    translate: Option<[f64; 3]>,
+}
+
+/// Most views a scene may list.
+pub const MAX_VIEWS: usize = 64;
+
+impl ViewFile {
+    fn pose(&self, k: usize, centre: Point3<f64>) -> Result<Isometry3<f64>, RigError> {
+        let bad = |why: &str| Err(RigError::Scene(format!("views[{k}]: {why}")));
+        let axis = Vector3::from(self.axis.unwrap_or([0.0, 1.0, 0.0]));
+        let angle = self.angle_deg.unwrap_or(0.0);
+        let pivot = self.pivot.map_or(centre, Point3::from);
+        let t = Vector3::from(self.translate.unwrap_or([0.0; 3]));
+        if !(axis.iter().all(|v| v.is_finite()) && axis.norm() > 1e-9) {
+            return bad("axis must be a non-zero vector");
+        }
+        if !(angle.is_finite() && pivot.coords.iter().chain(t.iter()).all(|v| v.is_finite())) {
+            return bad("angle_deg, pivot and translate must be numbers");
+        }
+        if t.norm() > 1000.0 {
+            return bad("translate moves the objects more than 1 m");
+        }
+        let r = UnitQuaternion::from_axis_angle(&Unit::new_normalize(axis), angle.to_radians());
+        // Turn about the pivot, then move: p ↦ R (p − pivot) + pivot + t.
+        Ok(Isometry3::from_parts(
+            Translation3::from(pivot.coords + t - r * pivot.coords),
+            r,
+        ))
+    }
 }
 
 #[derive(Debug, Deserialize)]
@@ -194,6 +234,26 @@ impl Scene {
         }
         if let Some(l) = f.laser {
             l.apply(&mut s.laser);
+        }
+        if let Some(views) = f.views {
+            if views.len() > MAX_VIEWS {
+                return Err(RigError::Scene(format!(
+                    "{} views: at most {MAX_VIEWS}",
+                    views.len()
+                )));
+            }
+            let n = s.objects.len().max(1) as f64;
+            let centre = Point3::from(
+                s.objects
+                    .iter()
+                    .fold(Vector3::zeros(), |a, o| a + o.shape.centre().coords)
+                    / n,
+            );
+            s.views = views
+                .iter()
+                .enumerate()
+                .map(|(k, v)| v.pose(k, centre))
+                .collect::<Result<_, _>>()?;
         }
         if let Some(n) = f.sensor {
             set(&mut s.sensor.gain, n.gain);

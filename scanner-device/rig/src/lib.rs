@@ -47,7 +47,7 @@ pub mod target;
 use rand::rngs::SmallRng;
 use rand::{Rng, SeedableRng};
 use scanner_core::geometry::Plane;
-use scanner_core::nalgebra::{Point2, Point3, Rotation3, Vector3};
+use scanner_core::nalgebra::{Isometry3, Point2, Point3, Rotation3, Vector3};
 use scanner_core::stripe::PixelFormat;
 use scanner_core::{Camera, GeomError};
 
@@ -270,6 +270,13 @@ pub struct Scene {
     pub exposure: f64,
     /// The sensor.
     pub sensor: SensorSpec,
+    /// Views for a 360° scan: the objects' pose in each sweep, relative to where the scene
+    /// places them (`p ↦ pose · p`); the camera, board and laser stay. Empty: one view.
+    pub views: Vec<Isometry3<f64>>,
+    /// The objects' pose in this scene relative to where the file placed them (identity unless
+    /// the scene is one of [`Scene::view`]s): the truth of a view's registration. Textures move
+    /// with the objects.
+    pub object_pose: Isometry3<f64>,
 }
 
 /// The longest side of a rendered image, pixels (the head's [`scanner_core::config::MAX_LINES`]).
@@ -375,7 +382,39 @@ impl Scene {
                 shot_noise: 0.05,
                 seed: 7,
             },
+            views: Vec::new(),
+            object_pose: Isometry3::identity(),
         }
+    }
+
+    /// How many views the scene has (1 without a list of views).
+    pub fn view_count(&self) -> usize {
+        self.views.len().max(1)
+    }
+
+    /// View `k` as a scene of its own: the objects moved by the view's pose, which becomes the
+    /// scene's [`Scene::object_pose`] (the truth for registration); the views list is dropped.
+    ///
+    /// # Errors
+    /// [`RigError::Scene`] for a view the scene does not have.
+    pub fn view(&self, k: usize) -> Result<Scene, RigError> {
+        let pose = match (self.views.get(k), k) {
+            (Some(p), _) => *p,
+            (None, 0) if self.views.is_empty() => Isometry3::identity(),
+            _ => {
+                return Err(RigError::Scene(format!(
+                    "view {k}: the scene has {} view(s), numbered from 0",
+                    self.view_count()
+                )));
+            }
+        };
+        let mut s = self.clone();
+        for o in &mut s.objects {
+            o.shape = o.shape.moved(&pose);
+        }
+        s.object_pose = pose * self.object_pose;
+        s.views = Vec::new();
+        Ok(s)
     }
 }
 
@@ -698,6 +737,9 @@ impl Rig {
             SurfaceId::Right => 1,
             SurfaceId::Object(n) => {
                 let o = &self.scene.objects[usize::from(n)];
+                // The checker is fixed to the object: evaluated where the point was before the
+                // view moved it.
+                let p = self.scene.object_pose.inverse_transform_point(p);
                 return match o.texture {
                     Some((cell, other)) if cell > 0.0 => {
                         let parity = (p.x / cell).floor() as i64

@@ -4,7 +4,7 @@
 
 use std::path::Path;
 
-use scanner_core::nalgebra::{Point3, Rotation3, Vector3};
+use scanner_core::nalgebra::{Isometry3, Point3, Rotation3, Vector3};
 
 /// A placed triangle mesh with its hierarchy.
 #[derive(Debug, Clone, PartialEq)]
@@ -133,6 +133,22 @@ impl Mesh {
         let n = mesh.triangles.len();
         mesh.build(0, n);
         mesh
+    }
+
+    /// The mesh moved rigidly by `pose`.
+    pub fn moved(&self, pose: &Isometry3<f64>) -> Mesh {
+        Mesh::new(self.triangles.iter().map(|t| t.map(|v| pose * v)).collect())
+    }
+
+    /// The mean of the triangles' corners.
+    pub fn centroid(&self) -> Point3<f64> {
+        let n = (3 * self.triangles.len()).max(1) as f64;
+        let sum = self
+            .triangles
+            .iter()
+            .flat_map(|t| t.iter())
+            .fold(Vector3::zeros(), |a, v| a + v.coords);
+        Point3::from(sum / n)
     }
 
     /// Distance from `p` to the nearest triangle, mm (every triangle is tried: for tests and

@@ -3,7 +3,7 @@
 
 use std::sync::Arc;
 
-use scanner_core::nalgebra::{Point3, Unit, Vector3};
+use scanner_core::nalgebra::{Isometry3, Point3, Unit, Vector3};
 
 use super::mesh::Mesh;
 
@@ -79,6 +79,52 @@ fn facing(n: Vector3<f64>, dir: &Vector3<f64>) -> Vector3<f64> {
 }
 
 impl Shape {
+    /// The shape moved rigidly by `pose` (`p ↦ pose · p`).
+    pub fn moved(&self, pose: &Isometry3<f64>) -> Shape {
+        let r = pose.rotation;
+        match self {
+            Shape::Sphere { centre, radius } => Shape::Sphere {
+                centre: pose * centre,
+                radius: *radius,
+            },
+            Shape::Cylinder {
+                base,
+                axis,
+                radius,
+                height,
+            } => Shape::Cylinder {
+                base: pose * base,
+                axis: Unit::new_normalize(r * axis.into_inner()),
+                radius: *radius,
+                height: *height,
+            },
+            Shape::Cuboid { centre, half, axes } => Shape::Cuboid {
+                centre: pose * centre,
+                half: *half,
+                axes: axes.map(|a| r * a),
+            },
+            Shape::Mesh(m) => Shape::Mesh(Arc::new(m.moved(pose))),
+            Shape::Rectangle { centre, axes, half } => Shape::Rectangle {
+                centre: pose * centre,
+                axes: axes.map(|a| r * a),
+                half: *half,
+            },
+        }
+    }
+
+    /// A point at the shape's middle (centre, mid-axis, the mesh's vertex centroid).
+    pub fn centre(&self) -> Point3<f64> {
+        match self {
+            Shape::Sphere { centre, .. }
+            | Shape::Cuboid { centre, .. }
+            | Shape::Rectangle { centre, .. } => *centre,
+            Shape::Cylinder {
+                base, axis, height, ..
+            } => base + axis.into_inner() * (height / 2.0),
+            Shape::Mesh(m) => m.centroid(),
+        }
+    }
+
     /// Distance from `p` to the shape's surface, mm (meshes: every triangle is tried).
     pub fn distance(&self, p: &Point3<f64>) -> Option<f64> {
         match self {

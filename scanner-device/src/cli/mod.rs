@@ -44,6 +44,10 @@ pub enum Command {
         /// Render at most this many frames of the sweep.
         #[arg(long)]
         frames: Option<usize>,
+        /// This view of a scene with `[[views]]` (a 360° scan), numbered from 0; its true pose
+        /// is written to `view-pose.txt`.
+        #[arg(long)]
+        view: Option<usize>,
         /// No progress lines.
         #[arg(long, short)]
         quiet: bool,
@@ -105,6 +109,7 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
             out,
             gray,
             frames,
+            view,
             quiet,
         }) => {
             let job = render::RenderJob {
@@ -112,6 +117,7 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
                 out: out.clone(),
                 gray: *gray,
                 frames: *frames,
+                view: *view,
             };
             let n = render::render(&job, |done, total| {
                 if !quiet && (done % 10 == 0 || done == total) {

@@ -27,6 +27,8 @@ pub struct RenderJob {
     pub gray: bool,
     /// Render at most this many frames of the sweep.
     pub frames: Option<usize>,
+    /// Render this view of a scene with views (its true pose goes to `view-pose.txt`).
+    pub view: Option<usize>,
 }
 
 fn save(img: &Rgb8, path: &Path, gray: bool) -> Result<()> {
@@ -42,6 +44,39 @@ fn save(img: &Rgb8, path: &Path, gray: bool) -> Result<()> {
             .save(path)
     };
     result.with_context(|| format!("writing {}", path.display()))
+}
+
+/// View `k` of a scene (see [`Scene::view`]), or the scene itself.
+///
+/// # Errors
+/// A view the scene does not have.
+pub fn view_of(scene: Scene, k: Option<usize>) -> Result<Scene> {
+    match k {
+        Some(k) => scene.view(k).context("--view"),
+        None => Ok(scene),
+    }
+}
+
+/// A view's true pose as text: `p_view = R · p_scene + t` (R by rows, t in mm).
+pub fn pose_text(pose: &scanner_core::nalgebra::Isometry3<f64>) -> String {
+    let r = pose.rotation.to_rotation_matrix();
+    let m = r.matrix();
+    let t = pose.translation.vector;
+    format!(
+        "# the objects' pose in this view: p_view = R p_scene + t (mm)\nR = [[{:.12}, {:.12}, {:.12}], [{:.12}, {:.12}, {:.12}], [{:.12}, {:.12}, {:.12}]]\nt = [{:.9}, {:.9}, {:.9}]\n",
+        m[(0, 0)],
+        m[(0, 1)],
+        m[(0, 2)],
+        m[(1, 0)],
+        m[(1, 1)],
+        m[(1, 2)],
+        m[(2, 0)],
+        m[(2, 1)],
+        m[(2, 2)],
+        t.x,
+        t.y,
+        t.z
+    )
 }
 
 /// Loads the scene of a job.
@@ -65,9 +100,14 @@ pub fn load_scene(path: Option<&Path>) -> Result<Scene> {
 /// # Errors
 /// A bad scene, or a file that cannot be written; the message names it.
 pub fn render(job: &RenderJob, mut progress: impl FnMut(usize, usize)) -> Result<usize> {
-    let scene = load_scene(job.scene.as_deref())?;
+    let scene = view_of(load_scene(job.scene.as_deref())?, job.view)?;
     let rig = Rig::new(scene).context("building the virtual rig")?;
     fs::create_dir_all(&job.out).with_context(|| format!("creating {}", job.out.display()))?;
+    if job.view.is_some() {
+        let path = job.out.join("view-pose.txt");
+        fs::write(&path, pose_text(&rig.scene().object_pose))
+            .with_context(|| format!("writing {}", path.display()))?;
+    }
     save(&rig.reference(), &job.out.join("reference.png"), job.gray)?;
     let total = job
         .frames

@@ -25,6 +25,9 @@ pub struct ScanArgs {
     /// With the virtual rig: this scene file instead of the demo scene.
     #[arg(long)]
     pub scene: Option<PathBuf>,
+    /// With the virtual rig: this view of a scene with `[[views]]` (a 360° scan), from 0.
+    #[arg(long)]
+    pub view: Option<usize>,
     /// Pixel format the pipeline reads.
     #[arg(long, value_enum, default_value_t = FormatArg::Gray)]
     pub format: FormatArg,
@@ -316,13 +319,16 @@ fn open_source(
     format: PixelFormat,
     opts: &SourceOptions,
 ) -> Result<Box<dyn FrameSource>> {
+    if a.view.is_some() && a.scene.is_none() {
+        bail!("--view needs --scene: a scene file with [[views]]");
+    }
     if let Some(path) = &a.scene {
         #[cfg(feature = "rig")]
         {
             if !a.source.starts_with("rig") {
                 bail!("--scene works with the virtual rig only (--source rig)");
             }
-            let scene = super::render::load_scene(Some(path))?;
+            let scene = super::render::view_of(super::render::load_scene(Some(path))?, a.view)?;
             let rig = scanner_rig::Rig::new(scene)
                 .map_err(|e| anyhow::anyhow!("building the virtual rig: {e}"))?;
             return Ok(Box::new(crate::source::RigSource::new(rig, format)));
