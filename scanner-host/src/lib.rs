@@ -39,6 +39,7 @@ pub mod journal;
 pub mod link;
 pub mod mesh;
 pub mod outputs;
+pub mod register;
 
 pub use cli::{Args, Command, OutputArgs, run};
 pub use outputs::{FrameChoice, OutputOptions, Summary, replay_into, write_outputs};

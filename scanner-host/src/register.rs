@@ -1,0 +1,409 @@
+//! Registration of two views of one object (issue 17's first stage): without an initial guess,
+//! by matching local shape descriptors (FPFH, Rusu et al. 2009) with RANSAC, then refined by
+//! point-to-plane ICP. Neighbour searches go through a k-d tree (`kiddo`). The fusion of many
+//! views into one mesh is not built yet.
+//!
+//! Clouds are in millimetres, each in its own view's camera frame; a registration is the rigid
+//! motion that takes the source view's points onto the target view's.
+
+use kiddo::{KdTree, SquaredEuclidean};
+use scanner_core::nalgebra::{
+    Isometry3, Matrix3, Matrix6, Point3, Rotation3, SymmetricEigen, Translation3, UnitQuaternion,
+    Vector3, Vector6,
+};
+
+/// Bins per angle feature of a descriptor (three features: 33 values).
+const BINS: usize = 11;
+/// Descriptor length.
+pub const FPFH_LEN: usize = 3 * BINS;
+
+/// Points with unit normals (facing their camera).
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Cloud {
+    /// Positions, mm.
+    pub points: Vec<Point3<f64>>,
+    /// Unit normals.
+    pub normals: Vec<Vector3<f64>>,
+}
+
+/// Why two views could not be registered.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum RegisterError {
+    /// A view has too few points to describe its shape.
+    #[error(
+        "a view has {points} points after thinning to {voxel_mm} mm: at least {min} are needed"
+    )]
+    TooFewPoints {
+        /// Points left.
+        points: usize,
+        /// The voxel size.
+        voxel_mm: f64,
+        /// Needed.
+        min: usize,
+    },
+    /// No rigid motion brings enough of one view onto the other.
+    #[error(
+        "the views do not overlap enough: the best match brings {overlap_percent:.0} % of the points within {tolerance_mm} mm (at least {min_percent:.0} % needed)"
+    )]
+    NoOverlap {
+        /// The best match's overlap.
+        overlap_percent: f64,
+        /// The distance counted as overlapping.
+        tolerance_mm: f64,
+        /// The least overlap accepted.
+        min_percent: f64,
+    },
+}
+
+/// Settings of a registration.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RegisterOptions {
+    /// Voxel size the clouds are thinned to for the descriptors and the coarse match, mm.
+    pub voxel_mm: f64,
+    /// RANSAC trials.
+    pub trials: usize,
+    /// Least share of the source's thinned points that must land on the target.
+    pub min_overlap: f64,
+    /// Seed of the random trials (the result is reproducible).
+    pub seed: u64,
+}
+
+impl Default for RegisterOptions {
+    fn default() -> Self {
+        RegisterOptions {
+            voxel_mm: 3.0,
+            trials: 20_000,
+            min_overlap: 0.4,
+            seed: 2012,
+        }
+    }
+}
+
+/// A registration's result.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Registration {
+    /// Source → target.
+    pub pose: Isometry3<f64>,
+    /// Share of the source's points within the tolerance of the target after refinement.
+    pub overlap: f64,
+    /// RMS point-to-plane residual of the overlapping points after refinement, mm.
+    pub rms_mm: f64,
+}
+
+fn tree(points: &[Point3<f64>]) -> KdTree<f64, 3> {
+    let mut t: KdTree<f64, 3> = KdTree::new();
+    for (i, p) in points.iter().enumerate() {
+        t.add(&[p.x, p.y, p.z], i as u64);
+    }
+    t
+}
+
+/// Thins a cloud to one point per `voxel` mm cube (the mean of the points and normals in it).
+pub fn thin(c: &Cloud, voxel: f64) -> Cloud {
+    let mut cells: std::collections::HashMap<[i64; 3], (Vector3<f64>, Vector3<f64>, f64)> =
+        std::collections::HashMap::new();
+    for (p, n) in c.points.iter().zip(&c.normals) {
+        let key = [p.x, p.y, p.z].map(|v| (v / voxel).floor() as i64);
+        let e = cells
+            .entry(key)
+            .or_insert((Vector3::zeros(), Vector3::zeros(), 0.0));
+        e.0 += p.coords;
+        e.1 += n;
+        e.2 += 1.0;
+    }
+    let mut keys: Vec<_> = cells.into_iter().collect();
+    keys.sort_by_key(|(k, _)| *k);
+    let mut out = Cloud::default();
+    for (_, (p, n, w)) in keys {
+        if n.norm() > 1e-9 {
+            out.points.push(Point3::from(p / w));
+            out.normals.push(n.normalize());
+        }
+    }
+    out
+}
+
+/// Unit normals from the `k` nearest neighbours (the direction of least spread), turned to face
+/// the camera at the origin.
+pub fn normals(points: &[Point3<f64>], k: usize) -> Vec<Vector3<f64>> {
+    let t = tree(points);
+    points
+        .iter()
+        .map(|p| {
+            let nn = t.nearest_n::<SquaredEuclidean>(&[p.x, p.y, p.z], k.max(3));
+            let mean = nn
+                .iter()
+                .fold(Vector3::zeros(), |a, n| a + points[n.item as usize].coords)
+                / nn.len() as f64;
+            let cov = nn.iter().fold(Matrix3::zeros(), |a, n| {
+                let d = points[n.item as usize].coords - mean;
+                a + d * d.transpose()
+            });
+            let e = SymmetricEigen::new(cov);
+            let i = e.eigenvalues.imin();
+            let n: Vector3<f64> = e.eigenvectors.column(i).into_owned();
+            if n.dot(&p.coords) > 0.0 { -n } else { n }
+        })
+        .collect()
+}
+
+/// The FPFH descriptor of every point within `radius` mm.
+pub fn fpfh(c: &Cloud, radius: f64) -> Vec<[f32; FPFH_LEN]> {
+    let t = tree(&c.points);
+    let r2 = radius * radius;
+    let neighbours: Vec<Vec<(usize, f64)>> = c
+        .points
+        .iter()
+        .map(|p| {
+            t.within_unsorted::<SquaredEuclidean>(&[p.x, p.y, p.z], r2)
+                .into_iter()
+                .map(|n| (n.item as usize, n.distance.sqrt()))
+                .collect()
+        })
+        .collect();
+    let bin =
+        |v: f64, lo: f64, hi: f64| (((v - lo) / (hi - lo) * BINS as f64) as usize).min(BINS - 1);
+    // Simplified point feature histograms.
+    let spfh: Vec<[f64; FPFH_LEN]> = (0..c.points.len())
+        .map(|i| {
+            let mut h = [0.0; FPFH_LEN];
+            let (p, n) = (c.points[i], c.normals[i]);
+            let mut count = 0.0;
+            for &(j, d) in &neighbours[i] {
+                if j == i || d < 1e-9 {
+                    continue;
+                }
+                let dv = (c.points[j] - p) / d;
+                let u = n;
+                let v = u.cross(&dv);
+                if v.norm() < 1e-9 {
+                    continue;
+                }
+                let v = v.normalize();
+                let w = u.cross(&v);
+                let nt = c.normals[j];
+                let alpha = v.dot(&nt);
+                let phi = u.dot(&dv);
+                let theta = w.dot(&nt).atan2(u.dot(&nt));
+                h[bin(alpha, -1.0, 1.0)] += 1.0;
+                h[BINS + bin(phi, -1.0, 1.0)] += 1.0;
+                h[2 * BINS + bin(theta, -std::f64::consts::PI, std::f64::consts::PI)] += 1.0;
+                count += 1.0;
+            }
+            if count > 0.0 {
+                h.iter_mut().for_each(|x| *x *= 100.0 / count);
+            }
+            h
+        })
+        .collect();
+    (0..c.points.len())
+        .map(|i| {
+            let mut f = spfh[i];
+            let mut k = 0.0;
+            let mut acc = [0.0; FPFH_LEN];
+            for &(j, d) in &neighbours[i] {
+                if j != i && d > 1e-9 {
+                    for (a, s) in acc.iter_mut().zip(&spfh[j]) {
+                        *a += s / d;
+                    }
+                    k += 1.0;
+                }
+            }
+            if k > 0.0 {
+                for (x, a) in f.iter_mut().zip(acc) {
+                    *x += a / k;
+                }
+            }
+            f.map(|v| v as f32)
+        })
+        .collect()
+}
+
+/// The rigid motion that best takes `a[i]` onto `b[i]` (Kabsch).
+fn kabsch(a: &[Point3<f64>], b: &[Point3<f64>]) -> Isometry3<f64> {
+    let n = a.len() as f64;
+    let ca = a.iter().fold(Vector3::zeros(), |s, p| s + p.coords) / n;
+    let cb = b.iter().fold(Vector3::zeros(), |s, p| s + p.coords) / n;
+    let h = a.iter().zip(b).fold(Matrix3::zeros(), |s, (p, q)| {
+        s + (p.coords - ca) * (q.coords - cb).transpose()
+    });
+    let svd = h.svd(true, true);
+    let (u, vt) = (svd.u.unwrap_or_default(), svd.v_t.unwrap_or_default());
+    let mut r = vt.transpose() * u.transpose();
+    if r.determinant() < 0.0 {
+        let mut v = vt.transpose();
+        v.column_mut(2).neg_mut();
+        r = v * u.transpose();
+    }
+    let rot = UnitQuaternion::from_rotation_matrix(&Rotation3::from_matrix_unchecked(r));
+    Isometry3::from_parts(Translation3::from(cb - rot * ca), rot)
+}
+
+/// Share of `src` points within `tol` of `dst` after `pose`.
+fn overlap(src: &[Point3<f64>], dst: &KdTree<f64, 3>, pose: &Isometry3<f64>, tol: f64) -> f64 {
+    let t2 = tol * tol;
+    let hits = src
+        .iter()
+        .filter(|p| {
+            let q = pose * *p;
+            dst.nearest_one::<SquaredEuclidean>(&[q.x, q.y, q.z])
+                .distance
+                <= t2
+        })
+        .count();
+    hits as f64 / src.len().max(1) as f64
+}
+
+/// Coarse registration of `src` onto `dst` (both thinned): descriptor matches, then RANSAC over
+/// triples whose edge lengths agree; the motion that brings the most points within 1.5 voxels.
+fn coarse(src: &Cloud, dst: &Cloud, o: &RegisterOptions) -> (Isometry3<f64>, f64) {
+    let radius = 5.0 * o.voxel_mm;
+    let (fs, fd) = (fpfh(src, radius), fpfh(dst, radius));
+    let mut ftree: KdTree<f32, FPFH_LEN> = KdTree::new();
+    for (i, f) in fd.iter().enumerate() {
+        ftree.add(f, i as u64);
+    }
+    let matches: Vec<(usize, usize)> = fs
+        .iter()
+        .enumerate()
+        .map(|(i, f)| (i, ftree.nearest_one::<SquaredEuclidean>(f).item as usize))
+        .collect();
+    let dst_tree = tree(&dst.points);
+    let tol = 1.5 * o.voxel_mm;
+    let mut rng = o.seed | 1;
+    let mut next = move |n: usize| {
+        rng ^= rng << 13;
+        rng ^= rng >> 7;
+        rng ^= rng << 17;
+        (rng % n as u64) as usize
+    };
+    let mut best = (Isometry3::identity(), 0.0);
+    // Each trial scores a subsample; the best few are scored on all points.
+    let sample: Vec<Point3<f64>> = src.points.iter().step_by(4).copied().collect();
+    for _ in 0..o.trials {
+        let m = [0, 1, 2].map(|_| matches[next(matches.len())]);
+        let (a, b) = (m.map(|(i, _)| src.points[i]), m.map(|(_, j)| dst.points[j]));
+        let consistent = (0..3).all(|k| {
+            let (da, db) = (
+                (a[k] - a[(k + 1) % 3]).norm(),
+                (b[k] - b[(k + 1) % 3]).norm(),
+            );
+            da > 2.0 * o.voxel_mm && (da - db).abs() < 0.1 * da.max(db)
+        });
+        if !consistent {
+            continue;
+        }
+        let pose = kabsch(&a, &b);
+        let score = overlap(&sample, &dst_tree, &pose, tol);
+        if score > best.1 {
+            best = (pose, score);
+        }
+    }
+    let full = overlap(&src.points, &dst_tree, &best.0, tol);
+    (best.0, full)
+}
+
+/// Point-to-plane ICP from `init`, pairs within `max_dist` mm; returns the motion, the overlap
+/// and the RMS residual of the pairs.
+pub fn icp(
+    src: &Cloud,
+    dst: &Cloud,
+    init: Isometry3<f64>,
+    max_dist: f64,
+    iterations: usize,
+) -> Registration {
+    let t = tree(&dst.points);
+    let mut pose = init;
+    let mut result = Registration {
+        pose,
+        overlap: 0.0,
+        rms_mm: f64::INFINITY,
+    };
+    for it in 0..iterations {
+        // The pairing distance shrinks from `max_dist` to a third of it.
+        let d = max_dist * (1.0 - 0.66 * it as f64 / iterations.max(1) as f64);
+        let (mut ata, mut atb) = (Matrix6::zeros(), Vector6::zeros());
+        let (mut sum2, mut pairs) = (0.0, 0usize);
+        for p in &src.points {
+            let q = pose * p;
+            let nn = t.nearest_one::<SquaredEuclidean>(&[q.x, q.y, q.z]);
+            if nn.distance > d * d {
+                continue;
+            }
+            let j = nn.item as usize;
+            let (pd, n) = (dst.points[j], dst.normals[j]);
+            let r = (q - pd).dot(&n);
+            let c = q.coords.cross(&n);
+            let row = Vector6::new(c.x, c.y, c.z, n.x, n.y, n.z);
+            ata += row * row.transpose();
+            atb -= row * r;
+            sum2 += r * r;
+            pairs += 1;
+        }
+        if pairs < 6 {
+            break;
+        }
+        result = Registration {
+            pose,
+            overlap: pairs as f64 / src.points.len() as f64,
+            rms_mm: (sum2 / pairs as f64).sqrt(),
+        };
+        let Some(x) = ata.cholesky().map(|c| c.solve(&atb)) else {
+            break;
+        };
+        let step = Isometry3::from_parts(
+            Translation3::new(x[3], x[4], x[5]),
+            UnitQuaternion::from_scaled_axis(Vector3::new(x[0], x[1], x[2])),
+        );
+        pose = step * pose;
+        if x.norm() < 1e-9 {
+            break;
+        }
+    }
+    result.pose = pose;
+    result
+}
+
+/// Registers `src` onto `dst` without an initial guess: coarse by descriptors and RANSAC on the
+/// clouds thinned to `voxel_mm`, then point-to-plane ICP on the full clouds.
+///
+/// # Errors
+/// [`RegisterError::TooFewPoints`] for a view too small to describe,
+/// [`RegisterError::NoOverlap`] when no motion brings `min_overlap` of it onto the other.
+pub fn register(
+    src: &Cloud,
+    dst: &Cloud,
+    o: &RegisterOptions,
+) -> Result<Registration, RegisterError> {
+    const MIN_POINTS: usize = 50;
+    let (s, d) = (thin(src, o.voxel_mm), thin(dst, o.voxel_mm));
+    for c in [&s, &d] {
+        if c.points.len() < MIN_POINTS {
+            return Err(RegisterError::TooFewPoints {
+                points: c.points.len(),
+                voxel_mm: o.voxel_mm,
+                min: MIN_POINTS,
+            });
+        }
+    }
+    let (init, found) = coarse(&s, &d, o);
+    if found < o.min_overlap {
+        return Err(RegisterError::NoOverlap {
+            overlap_percent: 100.0 * found,
+            tolerance_mm: 1.5 * o.voxel_mm,
+            min_percent: 100.0 * o.min_overlap,
+        });
+    }
+    let coarse_fit = icp(&s, &d, init, 2.0 * o.voxel_mm, 30);
+    let fine = icp(src, dst, coarse_fit.pose, o.voxel_mm, 30);
+    // The refined fit must still cover the share asked: a wrong match that happened to score
+    // in the coarse stage (two views of opposite sides) is refused here.
+    if fine.overlap < o.min_overlap {
+        return Err(RegisterError::NoOverlap {
+            overlap_percent: 100.0 * fine.overlap,
+            tolerance_mm: o.voxel_mm / 3.0,
+            min_percent: 100.0 * o.min_overlap,
+        });
+    }
+    Ok(fine)
+}
