@@ -82,6 +82,26 @@ pub enum Command {
         #[command(flatten)]
         out: OutputArgs,
     },
+    /// Register several sweeps of one object, turned between them, into one frame (views:
+    /// receive output folders or journals): writes views.ply (each view in its colour, y up) and
+    /// merge-report.txt. The fusion into one watertight mesh is not built yet.
+    Merge {
+        /// The views, in the order they were scanned (each overlapping an earlier one).
+        #[arg(required = true)]
+        views: Vec<PathBuf>,
+        /// Output folder.
+        #[arg(long, default_value = "model")]
+        out: PathBuf,
+        /// Grid cell of each view (as for receive).
+        #[arg(long, default_value = "2px")]
+        cell: Cell,
+        /// Voxel size the views are thinned to for the coarse match, mm.
+        #[arg(long, default_value_t = 3.0)]
+        voxel: f64,
+        /// No progress display.
+        #[arg(long, short)]
+        quiet: bool,
+    },
     /// List the serial ports.
     Ports,
 }
@@ -231,6 +251,16 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
             append,
             out,
         }) => receive(input, *until_done, *append, out)?,
+        Some(Command::Merge {
+            views,
+            out,
+            cell,
+            voxel,
+            quiet,
+        }) => {
+            merge_command(views, out, *cell, *voxel, *quiet)?;
+            return Ok(());
+        }
         Some(Command::Replay { input, out }) => {
             let mut c = Collector::new(collect_options(out), None);
             replay_into(&mut c, input)?;
@@ -238,5 +268,56 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
         }
     };
     crate::outln!("{}", summary.text().trim_end());
+    Ok(())
+}
+
+fn merge_command(
+    views: &[PathBuf],
+    out: &std::path::Path,
+    cell: Cell,
+    voxel: f64,
+    quiet: bool,
+) -> Result<()> {
+    use crate::merge;
+    if !(voxel > 0.0 && voxel <= 50.0) {
+        anyhow::bail!("--voxel must be more than 0 and at most 50 mm, found {voxel}");
+    }
+    if views.len() < 2 {
+        return Err(merge::MergeError::TooFewViews(views.len()).into());
+    }
+    let pb = progress_bar(quiet);
+    let mut loaded = Vec::new();
+    for (k, p) in views.iter().enumerate() {
+        pb.set_message(format!("reading view {k} ({})", p.display()));
+        pb.tick();
+        loaded.push(merge::load_view(k, p, cell)?);
+    }
+    let opts = crate::register::RegisterOptions {
+        voxel_mm: voxel,
+        ..Default::default()
+    };
+    let results = merge::register_views(&loaded, &opts, |k| {
+        pb.set_message(format!("registered view {k} of {}", loaded.len() - 1));
+        pb.tick();
+    })?;
+    pb.finish_and_clear();
+    std::fs::create_dir_all(out)
+        .with_context(|| format!("cannot create the output folder {}", out.display()))?;
+    let frame = loaded[0]
+        .header
+        .board()
+        .map(|b| crate::mesh::MeshFrame::board(&b))
+        .unwrap_or_default();
+    crate::export::write_atomic(
+        &out.join("views.ply"),
+        &merge::views_ply(&loaded, &results, &frame),
+    )?;
+    let report = merge::report(&loaded, &results);
+    crate::export::write_atomic(&out.join("merge-report.txt"), report.as_bytes())?;
+    crate::outln!("{}", report.trim_end());
+    crate::outln!(
+        "views registered into view 0's frame: {} (each view in its colour, y up); the fusion into one mesh is not built yet",
+        out.join("views.ply").display()
+    );
     Ok(())
 }

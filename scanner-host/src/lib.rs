@@ -37,6 +37,7 @@ pub mod export;
 pub mod grid;
 pub mod journal;
 pub mod link;
+pub mod merge;
 pub mod mesh;
 pub mod outputs;
 pub mod register;

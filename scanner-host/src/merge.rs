@@ -1,0 +1,272 @@
+//! `merge`: several sweeps of one object, turned between them, registered into one frame
+//! (issue 17's first stage: registration; the fusion into one watertight mesh is not built yet).
+//! Each view is a receive output folder or a journal/recording; each is gridded and meshed as
+//! `replay` does, and its mesh's vertices and normals are registered onto its neighbours.
+
+use std::path::{Path, PathBuf};
+
+use scanner_core::nalgebra::{Isometry3, Point3};
+use scanner_core::wire::Header;
+
+use crate::collect::{CollectOptions, Collector};
+use crate::mesh::{self, MeshFrame, MeshOptions};
+use crate::outputs::{OutputError, replay_into};
+use crate::register::{Cloud, RegisterError, RegisterOptions, Registration, register};
+
+/// Why views cannot be merged.
+#[derive(Debug, thiserror::Error)]
+pub enum MergeError {
+    /// Fewer than two views.
+    #[error("merge needs at least two views (sweeps of the object turned between them), got {0}")]
+    TooFewViews(usize),
+    /// A view could not be read.
+    #[error("view {view} ({})", path.display())]
+    Read {
+        /// Which view (from 0).
+        view: usize,
+        /// Its path.
+        path: PathBuf,
+        /// Why.
+        #[source]
+        source: OutputError,
+    },
+    /// A view has no scan in it.
+    #[error("view {view} ({}): no scan in it (no session header): is this a receive output folder or a journal?", path.display())]
+    Empty {
+        /// Which view.
+        view: usize,
+        /// Its path.
+        path: PathBuf,
+    },
+    /// Views from different cameras or calibrations cannot share a frame.
+    #[error(
+        "view {view} ({}) was scanned with another camera or image size than view 0: merge views of one calibrated set-up",
+        path.display()
+    )]
+    OtherCamera {
+        /// Which view.
+        view: usize,
+        /// Its path.
+        path: PathBuf,
+    },
+    /// A view registers onto none of the others.
+    #[error("view {view} ({}) overlaps no other view; best try: {best}", path.display())]
+    NoMatch {
+        /// Which view.
+        view: usize,
+        /// Its path.
+        path: PathBuf,
+        /// The best attempt's reason.
+        best: RegisterError,
+    },
+}
+
+/// One view, read and meshed.
+pub struct View {
+    /// Where it came from.
+    pub path: PathBuf,
+    /// Its mesh's vertices and normals, camera frame.
+    pub cloud: Cloud,
+    /// Its session header.
+    pub header: Header,
+}
+
+/// The journal inside a receive output folder, or the file itself.
+fn stream_of(path: &Path) -> PathBuf {
+    if path.is_dir() {
+        path.join("journal.stream")
+    } else {
+        path.to_path_buf()
+    }
+}
+
+/// Reads view `k` from `path`: replays it into a grid (cells of `cell`) and takes its mesh.
+///
+/// # Errors
+/// The file cannot be read, or holds no scan.
+pub fn load_view(k: usize, path: &Path, cell: crate::grid::Cell) -> Result<View, MergeError> {
+    let mut c = Collector::new(
+        CollectOptions {
+            cell,
+            ..CollectOptions::default()
+        },
+        None,
+    );
+    replay_into(&mut c, &stream_of(path)).map_err(|source| MergeError::Read {
+        view: k,
+        path: path.to_path_buf(),
+        source,
+    })?;
+    let (Some(grid), Some(header)) = (c.grid(), c.header()) else {
+        return Err(MergeError::Empty {
+            view: k,
+            path: path.to_path_buf(),
+        });
+    };
+    let m = mesh::build(
+        grid,
+        f64::from(header.camera.fx),
+        &MeshOptions::default(),
+        false,
+    );
+    Ok(View {
+        path: path.to_path_buf(),
+        cloud: Cloud {
+            points: m.vertices.iter().map(|p| p.cast()).collect(),
+            normals: m.normals.iter().map(|n| n.cast()).collect(),
+        },
+        header: *header,
+    })
+}
+
+/// What the merge found for one view.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ViewResult {
+    /// Its pose in view 0's frame.
+    pub pose: Isometry3<f64>,
+    /// The view it was registered onto (`None` for view 0).
+    pub onto: Option<usize>,
+    /// The registration (`None` for view 0).
+    pub fit: Option<Registration>,
+    /// Points.
+    pub points: usize,
+}
+
+/// Registers every view into view 0's frame: each onto the nearest earlier view it overlaps
+/// (the previous one first, then the others, newest first).
+///
+/// # Errors
+/// Fewer than two views, views of another camera, a view that overlaps none of the earlier.
+pub fn register_views(
+    views: &[View],
+    o: &RegisterOptions,
+    mut progress: impl FnMut(usize),
+) -> Result<Vec<ViewResult>, MergeError> {
+    if views.len() < 2 {
+        return Err(MergeError::TooFewViews(views.len()));
+    }
+    let first = &views[0].header;
+    let mut out = vec![ViewResult {
+        pose: Isometry3::identity(),
+        onto: None,
+        fit: None,
+        points: views[0].cloud.points.len(),
+    }];
+    for (k, v) in views.iter().enumerate().skip(1) {
+        let h = &v.header;
+        if (h.width, h.height) != (first.width, first.height) || h.camera != first.camera {
+            return Err(MergeError::OtherCamera {
+                view: k,
+                path: v.path.clone(),
+            });
+        }
+        let mut best_err = None;
+        let mut found = None;
+        for j in (0..k).rev() {
+            match register(&v.cloud, &views[j].cloud, o) {
+                Ok(fit) => {
+                    found = Some((j, fit));
+                    break;
+                }
+                Err(e) => {
+                    best_err.get_or_insert(e);
+                }
+            }
+        }
+        let Some((j, fit)) = found else {
+            return Err(MergeError::NoMatch {
+                view: k,
+                path: v.path.clone(),
+                best: best_err.unwrap_or(RegisterError::TooFewPoints {
+                    points: 0,
+                    voxel_mm: o.voxel_mm,
+                    min: 1,
+                }),
+            });
+        };
+        out.push(ViewResult {
+            pose: out[j].pose * fit.pose,
+            onto: Some(j),
+            fit: Some(fit),
+            points: v.cloud.points.len(),
+        });
+        progress(k);
+    }
+    Ok(out)
+}
+
+/// Distinct colours for views, in order.
+const COLOURS: [[u8; 3]; 8] = [
+    [230, 25, 75],
+    [60, 180, 75],
+    [0, 130, 200],
+    [245, 130, 48],
+    [145, 30, 180],
+    [70, 240, 240],
+    [240, 50, 230],
+    [210, 245, 60],
+];
+
+/// All views' points in one frame (`frame`: view 0's camera frame moved by it), each view in
+/// its own colour, as a binary PLY with normals.
+pub fn views_ply(views: &[View], results: &[ViewResult], frame: &MeshFrame) -> Vec<u8> {
+    let m = mesh::Mesh {
+        vertices: views
+            .iter()
+            .zip(results)
+            .flat_map(|(v, r)| v.cloud.points.iter().map(move |p| (r.pose * p).cast()))
+            .collect(),
+        normals: views
+            .iter()
+            .zip(results)
+            .flat_map(|(v, r)| v.cloud.normals.iter().map(move |n| (r.pose * n).cast()))
+            .collect(),
+        colours: views
+            .iter()
+            .enumerate()
+            .flat_map(|(k, v)| {
+                std::iter::repeat_n(COLOURS[k % COLOURS.len()], v.cloud.points.len())
+            })
+            .collect(),
+        ..mesh::Mesh::default()
+    };
+    let mut m = m;
+    m.into_frame(*frame);
+    crate::export::ply(&m)
+}
+
+/// The report: per view its points, what it was registered onto, overlap and residual.
+pub fn report(views: &[View], results: &[ViewResult]) -> String {
+    let mut s = String::from(
+        "view | points | registered onto | overlap | residual RMS | rotation from view 0\n",
+    );
+    for (k, (v, r)) in views.iter().zip(results).enumerate() {
+        let (onto, overlap, rms) = match (&r.onto, &r.fit) {
+            (Some(j), Some(f)) => (
+                format!("view {j}"),
+                format!("{:.0} %", 100.0 * f.overlap),
+                format!("{:.3} mm", f.rms_mm),
+            ),
+            _ => ("(the reference)".into(), "—".into(), "—".into()),
+        };
+        s += &format!(
+            "{k} ({}) | {} | {onto} | {overlap} | {rms} | {:.3}°\n",
+            v.path.display(),
+            r.points,
+            r.pose.rotation.angle().to_degrees()
+        );
+    }
+    s
+}
+
+/// The centroid of all registered points (for pictures and checks).
+pub fn centroid(views: &[View], results: &[ViewResult]) -> Point3<f64> {
+    let (mut sum, mut n) = (Point3::origin().coords, 0usize);
+    for (v, r) in views.iter().zip(results) {
+        for p in &v.cloud.points {
+            sum += (r.pose * p).coords;
+            n += 1;
+        }
+    }
+    Point3::from(sum / n.max(1) as f64)
+}
