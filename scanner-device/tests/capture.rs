@@ -5,16 +5,7 @@
 use std::path::Path;
 
 fn run(dir: &Path, args: &[&str]) -> (bool, String, String) {
-    let out = std::process::Command::new(env!("CARGO_BIN_EXE_scanner-device"))
-        .args(args)
-        .current_dir(dir)
-        .output()
-        .unwrap();
-    (
-        out.status.success(),
-        String::from_utf8_lossy(&out.stdout).into_owned(),
-        String::from_utf8_lossy(&out.stderr).into_owned(),
-    )
+    scanner_tests::run_in(Path::new(env!("CARGO_BIN_EXE_scanner-device")), dir, args)
 }
 
 #[test]

@@ -46,6 +46,27 @@ pub fn run(exe: &str, args: &[&str]) -> (bool, String, String) {
     )
 }
 
+/// Runs a binary with arguments in the folder `dir`: (success, stdout, stderr).
+///
+/// # Panics
+/// When the binary cannot be started: this is a test helper.
+pub fn run_in(
+    exe: &std::path::Path,
+    dir: &std::path::Path,
+    args: &[&str],
+) -> (bool, String, String) {
+    let out = Command::new(exe)
+        .args(args)
+        .current_dir(dir)
+        .output()
+        .expect("binary runs");
+    (
+        out.status.success(),
+        String::from_utf8_lossy(&out.stdout).into_owned(),
+        String::from_utf8_lossy(&out.stderr).into_owned(),
+    )
+}
+
 /// A global allocator that counts allocations per thread (the test harness allocates on other
 /// threads while a test runs). Install it in a test binary with
 /// `#[global_allocator] static A: scanner_tests::Counting = scanner_tests::Counting;` and

@@ -4,21 +4,11 @@
 //! view, a folder that is not a scan, views from another camera.
 
 use std::path::Path;
-use std::process::Command;
 
 use scanner_tests::workspace_bin;
 
 fn run(dir: &Path, bin: &str, args: &[&str]) -> (bool, String, String) {
-    let out = Command::new(workspace_bin(bin))
-        .args(args)
-        .current_dir(dir)
-        .output()
-        .unwrap();
-    (
-        out.status.success(),
-        String::from_utf8_lossy(&out.stdout).into_owned(),
-        String::from_utf8_lossy(&out.stderr).into_owned(),
-    )
+    scanner_tests::run_in(&workspace_bin(bin), dir, args)
 }
 
 #[test]
