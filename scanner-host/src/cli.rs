@@ -82,9 +82,9 @@ pub enum Command {
         #[command(flatten)]
         out: OutputArgs,
     },
-    /// Register several sweeps of one object, turned between them, into one frame (views:
-    /// receive output folders or journals): writes views.ply (each view in its colour, y up) and
-    /// merge-report.txt. The fusion into one watertight mesh is not built yet.
+    /// Register several sweeps of one object, turned between them, into one frame and fuse them
+    /// into one closed mesh (views: receive output folders or journals): writes model.obj/ply/stl
+    /// (y up), views.ply (each view in its colour) and merge-report.txt.
     Merge {
         /// The views, in the order they were scanned (each overlapping an earlier one).
         #[arg(required = true)]
@@ -98,6 +98,9 @@ pub enum Command {
         /// Voxel size the views are thinned to for the coarse match, mm.
         #[arg(long, default_value_t = 3.0)]
         voxel: f64,
+        /// Grid cell of the fusion into one mesh, mm.
+        #[arg(long, default_value_t = 1.0)]
+        fuse_cell: f64,
         /// No progress display.
         #[arg(long, short)]
         quiet: bool,
@@ -256,9 +259,10 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
             out,
             cell,
             voxel,
+            fuse_cell,
             quiet,
         }) => {
-            merge_command(views, out, *cell, *voxel, *quiet)?;
+            merge_command(views, out, *cell, (*voxel, *fuse_cell), *quiet)?;
             return Ok(());
         }
         Some(Command::Replay { input, out }) => {
@@ -275,12 +279,15 @@ fn merge_command(
     views: &[PathBuf],
     out: &std::path::Path,
     cell: Cell,
-    voxel: f64,
+    (voxel, fuse_cell): (f64, f64),
     quiet: bool,
 ) -> Result<()> {
     use crate::merge;
     if !(voxel > 0.0 && voxel <= 50.0) {
         anyhow::bail!("--voxel must be more than 0 and at most 50 mm, found {voxel}");
+    }
+    if !(0.1..=20.0).contains(&fuse_cell) {
+        anyhow::bail!("--fuse-cell must be 0.1 to 20 mm, found {fuse_cell}");
     }
     if views.len() < 2 {
         return Err(merge::MergeError::TooFewViews(views.len()).into());
@@ -312,12 +319,41 @@ fn merge_command(
         &out.join("views.ply"),
         &merge::views_ply(&loaded, &results, &frame),
     )?;
-    let report = merge::report(&loaded, &results);
+    let mut report = merge::report(&loaded, &results);
+    let pb = progress_bar(quiet);
+    pb.set_message("fusing the views into one mesh");
+    pb.enable_steady_tick(std::time::Duration::from_millis(200));
+    let (points, normals) = merge::registered_points(&loaded, &results);
+    let mut model = crate::fuse::fuse(&points, &normals, fuse_cell).context("fusing the views")?;
+    pb.finish_and_clear();
+    let c = crate::fuse::check(&model);
+    report += &format!(
+        "model: {} vertices, {} faces, {}, {} component(s), volume {:.0} mm³\n",
+        model.vertices.len(),
+        model.faces.len(),
+        if c.watertight {
+            "watertight".to_string()
+        } else {
+            format!("{} open edges", c.open_edges)
+        },
+        c.components,
+        c.volume_mm3
+    );
+    model.into_frame(frame);
+    crate::export::write_atomic_with(&out.join("model.obj"), |w| {
+        crate::export::write_obj(&model, w)
+    })?;
+    crate::export::write_atomic_with(&out.join("model.ply"), |w| {
+        crate::export::write_ply(&model, w)
+    })?;
+    crate::export::write_atomic_with(&out.join("model.stl"), |w| {
+        crate::export::write_stl(&model, w)
+    })?;
     crate::export::write_atomic(&out.join("merge-report.txt"), report.as_bytes())?;
     crate::outln!("{}", report.trim_end());
     crate::outln!(
-        "views registered into view 0's frame: {} (each view in its colour, y up); the fusion into one mesh is not built yet",
-        out.join("views.ply").display()
+        "wrote model.obj, model.ply, model.stl (one closed mesh, y up) and views.ply (each view in its colour) to {}",
+        out.display()
     );
     Ok(())
 }

@@ -34,6 +34,7 @@ macro_rules! errln {
 pub mod cli;
 pub mod collect;
 pub mod export;
+pub mod fuse;
 pub mod grid;
 pub mod journal;
 pub mod link;

@@ -270,3 +270,17 @@ pub fn centroid(views: &[View], results: &[ViewResult]) -> Point3<f64> {
     }
     Point3::from(sum / n.max(1) as f64)
 }
+
+/// All views' points and normals in view 0's frame.
+pub fn registered_points(
+    views: &[View],
+    results: &[ViewResult],
+) -> (Vec<Point3<f64>>, Vec<scanner_core::nalgebra::Vector3<f64>>) {
+    let mut points = Vec::new();
+    let mut normals = Vec::new();
+    for (v, r) in views.iter().zip(results) {
+        points.extend(v.cloud.points.iter().map(|p| r.pose * p));
+        normals.extend(v.cloud.normals.iter().map(|n| r.pose * n));
+    }
+    (points, normals)
+}

@@ -73,6 +73,12 @@ fn three_scanned_views_register_with_the_rigs_rotations() {
     assert!(ok, "{err}");
     println!("{out}");
     assert!(d.join("model/views.ply").exists() && d.join("model/merge-report.txt").exists());
+    // The fused model is written and described (three front views leave the back unseen: the
+    // report says whether the mesh closed).
+    assert!(
+        out.contains("model: ") && d.join("model/model.stl").exists(),
+        "{out}"
+    );
     // The rotation of each view from view 0, against the truth.
     for (line, k) in out.lines().skip(2).take(2).zip([1usize, 6]) {
         let found: f64 = line
