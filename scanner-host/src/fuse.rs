@@ -1,9 +1,10 @@
 //! Fusion of registered views into one closed mesh (issue 17, a first version): a signed
 //! distance on a regular grid — at each grid point, the distance to the nearest oriented point
 //! along that point's normal (positive outside) — and its zero surface by surface nets (one
-//! vertex per cell that the surface crosses, one quad per grid edge that it crosses). The sign is
-//! defined everywhere in the grid, so the surface closes what no view saw. Checked after: edges
-//! in exactly two faces, components, the enclosed volume.
+//! vertex per cell that the surface crosses, one quad per grid edge that it crosses), of which the
+//! largest component is kept. The sign is defined everywhere in the grid: an object seen from all
+//! sides closes; where no view saw it, the surface may run to the grid's edge and stay open.
+//! Checked after: edges in exactly two faces, components, the enclosed volume.
 
 use kiddo::{KdTree, SquaredEuclidean};
 use scanner_core::nalgebra::{Point3, Vector3};

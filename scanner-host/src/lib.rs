@@ -9,6 +9,8 @@
 //! - [`mesh`]: triangles from neighbouring cells;
 //! - [`export`] and [`outputs`]: OBJ, PLY, STL, depth and preview pictures, the summary, written
 //!   atomically;
+//! - [`register`], [`merge`] and [`fuse`]: several views of one object registered into one
+//!   frame and fused into one mesh (`merge`);
 //! - [`cli`]: the command line (the only place `anyhow` is used).
 #![deny(missing_docs)]
 

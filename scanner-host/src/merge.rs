@@ -1,5 +1,6 @@
-//! `merge`: several sweeps of one object, turned between them, registered into one frame
-//! (issue 17's first stage: registration; the fusion into one watertight mesh is not built yet).
+//! `merge`: several sweeps of one object, turned between them, registered into one frame and
+//! fused into one mesh ([`crate::fuse`]); issue 17, a first version (no joint refinement of all
+//! views yet).
 //! Each view is a receive output folder or a journal/recording; each is gridded and meshed as
 //! `replay` does, and its mesh's vertices and normals are registered onto its neighbours.
 
