@@ -323,7 +323,11 @@ fn merge_command(
     let pb = progress_bar(quiet);
     pb.set_message("fusing the views into one mesh");
     pb.enable_steady_tick(std::time::Duration::from_millis(200));
-    let (points, normals) = merge::registered_points(&loaded, &results);
+    let merge::FusionInput {
+        points,
+        normals,
+        colours,
+    } = merge::fusion_input(&loaded, &results);
     let mut model = crate::fuse::fuse(&points, &normals, fuse_cell).context("fusing the views")?;
     pb.finish_and_clear();
     let c = crate::fuse::check(&model);
@@ -340,6 +344,21 @@ fn merge_command(
         c.volume_mm3
     );
     model.into_frame(frame);
+    // Pictures: the registered views in their colours (front and side), the model from four sides.
+    let mut views_cloud = crate::mesh::Mesh {
+        vertices: points.iter().map(|p| p.cast()).collect(),
+        ..crate::mesh::Mesh::default()
+    };
+    views_cloud.into_frame(frame);
+    crate::export::write_atomic_with(&out.join("views.png"), |w| {
+        crate::export::write_png(
+            &crate::export::points_png(&views_cloud.vertices, &colours),
+            w,
+        )
+    })?;
+    crate::export::write_atomic_with(&out.join("model.png"), |w| {
+        crate::export::write_png(&crate::export::orbit_png(&model), w)
+    })?;
     crate::export::write_atomic_with(&out.join("model.obj"), |w| {
         crate::export::write_obj(&model, w)
     })?;
@@ -352,7 +371,7 @@ fn merge_command(
     crate::export::write_atomic(&out.join("merge-report.txt"), report.as_bytes())?;
     crate::outln!("{}", report.trim_end());
     crate::outln!(
-        "wrote model.obj, model.ply, model.stl (one closed mesh, y up) and views.ply (each view in its colour) to {}",
+        "wrote model.obj, model.ply, model.stl (one mesh, y up), model.png (from four sides), views.ply and views.png (each view in its colour) to {}",
         out.display()
     );
     Ok(())

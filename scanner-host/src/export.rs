@@ -8,6 +8,7 @@ use std::io::Write as _;
 use std::path::Path;
 
 use image::{Rgb, RgbImage};
+use scanner_core::nalgebra::{Point3, Vector3};
 
 use crate::grid::Grid;
 use crate::mesh::Mesh;
@@ -397,4 +398,115 @@ pub fn shaded_png(grid: &Grid, mesh: &Mesh) -> RgbImage {
 pub fn write_png(img: &RgbImage, w: &mut TempWriter) -> std::io::Result<()> {
     img.write_to(w, image::ImageFormat::Png)
         .map_err(std::io::Error::other)
+}
+
+/// Side of one panel of the orbit pictures, pixels.
+const PANEL: u32 = 360;
+
+/// Orthographic projection of camera-independent geometry for the orbit pictures: turned by
+/// `yaw` about the vertical (+y up) through `centre`, scaled so that `radius` fills the panel.
+struct Orbit {
+    centre: Vector3<f32>,
+    scale: f32,
+    cos: f32,
+    sin: f32,
+}
+
+impl Orbit {
+    fn new(points: &[Point3<f32>], yaw_deg: f32) -> Orbit {
+        let n = points.len().max(1) as f32;
+        let centre = points.iter().fold(Vector3::zeros(), |a, p| a + p.coords) / n;
+        let radius = points
+            .iter()
+            .map(|p| (p.coords - centre).norm())
+            .fold(1e-3, f32::max);
+        let (sin, cos) = yaw_deg.to_radians().sin_cos();
+        Orbit {
+            centre,
+            scale: 0.45 * PANEL as f32 / radius,
+            cos,
+            sin,
+        }
+    }
+
+    /// Panel pixel (x right, y down) and depth (larger is nearer the viewer).
+    fn project(&self, p: &Point3<f32>) -> (f32, f32, f32) {
+        let d = p.coords - self.centre;
+        let (x, z) = (
+            self.cos * d.x + self.sin * d.z,
+            -self.sin * d.x + self.cos * d.z,
+        );
+        (
+            PANEL as f32 / 2.0 + self.scale * x,
+            PANEL as f32 / 2.0 - self.scale * d.y,
+            z,
+        )
+    }
+
+    fn turn(&self, n: &Vector3<f32>) -> Vector3<f32> {
+        Vector3::new(
+            self.cos * n.x + self.sin * n.z,
+            n.y,
+            -self.sin * n.x + self.cos * n.z,
+        )
+    }
+}
+
+/// A closed mesh (y up) seen from four sides, 90° apart about the vertical, shaded grey, side
+/// by side: the turntable picture of a fused model.
+pub fn orbit_png(mesh: &Mesh) -> RgbImage {
+    let mut img = RgbImage::from_pixel(4 * PANEL, PANEL, Rgb([24, 24, 32]));
+    let light = Vector3::new(0.3f32, 0.5, 1.0).normalize();
+    for panel in 0..4 {
+        let o = Orbit::new(&mesh.vertices, 90.0 * panel as f32);
+        let projected: Vec<(f32, f32, f32)> = mesh.vertices.iter().map(|p| o.project(p)).collect();
+        // Painter's order: far faces first.
+        let mut order: Vec<usize> = (0..mesh.faces.len()).collect();
+        let depth = |f: usize| {
+            mesh.faces[f]
+                .iter()
+                .map(|&i| projected[i as usize].2)
+                .sum::<f32>()
+        };
+        order.sort_by(|&a, &b| depth(a).total_cmp(&depth(b)));
+        let mut tile = RgbImage::from_pixel(PANEL, PANEL, Rgb([24, 24, 32]));
+        for f in order {
+            let face = mesh.faces[f];
+            let p = face.map(|i| (projected[i as usize].0, projected[i as usize].1));
+            let [a, b, c] = face.map(|i| mesh.vertices[i as usize]);
+            let n = o.turn(&(b - a).cross(&(c - a)));
+            if n.z <= 0.0 {
+                continue; // facing away
+            }
+            let g = (40.0 + 200.0 * n.normalize().dot(&light).max(0.0)) as u8;
+            fill_triangle(&mut tile, p, |_| Rgb([g, g, g.saturating_add(10)]));
+        }
+        image::imageops::replace(&mut img, &tile, i64::from(panel * PANEL), 0);
+    }
+    img
+}
+
+/// Points in colours (the registered views, each in its own), seen from the front and from the
+/// side (90° about the vertical), y up, nearest point on top.
+pub fn points_png(points: &[Point3<f32>], colours: &[[u8; 3]]) -> RgbImage {
+    let mut img = RgbImage::from_pixel(2 * PANEL, PANEL, Rgb([24, 24, 32]));
+    for panel in 0..2u32 {
+        let o = Orbit::new(points, 90.0 * panel as f32);
+        let mut depth = vec![f32::NEG_INFINITY; (PANEL * PANEL) as usize];
+        for (p, c) in points.iter().zip(colours) {
+            let (x, y, z) = o.project(p);
+            for (dx, dy) in [(0i64, 0i64), (1, 0), (0, 1), (1, 1)] {
+                let (px, py) = (x as i64 + dx, y as i64 + dy);
+                if px < 0 || py < 0 || px >= i64::from(PANEL) || py >= i64::from(PANEL) {
+                    continue;
+                }
+                let k = (py as u32 * PANEL + px as u32) as usize;
+                if z > depth[k] {
+                    depth[k] = z;
+                    img.put_pixel(panel * PANEL + px as u32, py as u32, Rgb(*c));
+                }
+            }
+        }
+    }
+    img
 }

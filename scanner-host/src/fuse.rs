@@ -213,6 +213,30 @@ pub fn fuse(
     Ok(m)
 }
 
+/// Indices of the points that are not isolated: whose 8th nearest neighbour is within 4 times
+/// the median of that distance (stray points far from the surface would make surfaces of
+/// their own).
+pub fn inliers(points: &[Point3<f64>]) -> Vec<usize> {
+    let mut tree: KdTree<f64, 3> = KdTree::new();
+    for (i, p) in points.iter().enumerate() {
+        tree.add(&[p.x, p.y, p.z], i as u64);
+    }
+    let d8: Vec<f64> = points
+        .iter()
+        .map(|p| {
+            tree.nearest_n::<SquaredEuclidean>(&[p.x, p.y, p.z], 9)
+                .last()
+                .map_or(0.0, |n| n.distance.sqrt())
+        })
+        .collect();
+    let mut sorted = d8.clone();
+    sorted.sort_by(f64::total_cmp);
+    let median = sorted.get(sorted.len() / 2).copied().unwrap_or(0.0);
+    (0..points.len())
+        .filter(|&i| d8[i] <= 4.0 * median)
+        .collect()
+}
+
 /// Keeps the faces of the largest connected component (by faces) and the vertices they use.
 fn keep_largest_component(m: &mut Mesh) {
     let n = m.vertices.len();

@@ -208,6 +208,15 @@ const COLOURS: [[u8; 3]; 8] = [
     [210, 245, 60],
 ];
 
+/// Each point's view colour, views in order (as [`registered_points`] lists the points).
+pub fn view_colours(views: &[View]) -> Vec<[u8; 3]> {
+    views
+        .iter()
+        .enumerate()
+        .flat_map(|(k, v)| std::iter::repeat_n(COLOURS[k % COLOURS.len()], v.cloud.points.len()))
+        .collect()
+}
+
 /// All views' points in one frame (`frame`: view 0's camera frame moved by it), each view in
 /// its own colour, as a binary PLY with normals.
 pub fn views_ply(views: &[View], results: &[ViewResult], frame: &MeshFrame) -> Vec<u8> {
@@ -284,4 +293,27 @@ pub fn registered_points(
         normals.extend(v.cloud.normals.iter().map(|n| r.pose * n));
     }
     (points, normals)
+}
+
+/// What the fusion and the pictures take: the registered points without isolated ones
+/// ([`crate::fuse::inliers`]), their normals and each point's view colour.
+pub struct FusionInput {
+    /// Points, view 0's frame.
+    pub points: Vec<Point3<f64>>,
+    /// Their normals.
+    pub normals: Vec<scanner_core::nalgebra::Vector3<f64>>,
+    /// Their views' colours.
+    pub colours: Vec<[u8; 3]>,
+}
+
+/// [`registered_points`] without isolated points, with their view colours.
+pub fn fusion_input(views: &[View], results: &[ViewResult]) -> FusionInput {
+    let (points, normals) = registered_points(views, results);
+    let colours = view_colours(views);
+    let keep = crate::fuse::inliers(&points);
+    FusionInput {
+        points: keep.iter().map(|&i| points[i]).collect(),
+        normals: keep.iter().map(|&i| normals[i]).collect(),
+        colours: keep.iter().map(|&i| colours[i]).collect(),
+    }
 }
