@@ -245,3 +245,56 @@ fn a_board_file_with_a_chessboard_sheet_end_to_end() {
             > 32
     );
 }
+
+#[test]
+fn a4_tiles_cover_every_marker_of_the_a3_sheets() {
+    use scanner_calib::print::{a4_tiles, sheets};
+    let dir = tempfile::tempdir().unwrap();
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_scanner-device"))
+        .args(["board", "--a4", "--out"])
+        .arg(dir.path())
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    for (stem, sheet) in sheets(&BoardFile::default()) {
+        let tiles = a4_tiles(&sheet);
+        // A3 (420×297) on A4 landscape with margins and overlaps: 2×2 tiles.
+        assert_eq!(tiles.len(), 4, "{stem}");
+        for t in &tiles {
+            let path = dir
+                .path()
+                .join(format!("{stem}-a4-{}-{}.svg", t.at.0 + 1, t.at.1 + 1));
+            let svg = std::fs::read_to_string(&path).unwrap();
+            assert!(
+                svg.contains("width=\"297mm\" height=\"210mm\""),
+                "{}",
+                path.display()
+            );
+            assert!(svg.contains("measure this 100 mm bar") && svg.contains("of 2x2"));
+            let [_, _, w, h] = t.area;
+            assert!(
+                w <= 277.0 && h <= 190.0,
+                "a tile larger than an A4 page's print area"
+            );
+        }
+        // Every disc (or square) lies whole inside some tile: nothing is lost at a cut.
+        let shapes = sheet
+            .dots
+            .iter()
+            .map(|&(x, y, d)| (x - d / 2.0, y - d / 2.0, d))
+            .chain(sheet.squares.iter().copied());
+        for (x, y, side) in shapes {
+            assert!(
+                tiles.iter().any(|t| {
+                    let [x0, y0, w, h] = t.area;
+                    x >= x0 && y >= y0 && x + side <= x0 + w && y + side <= y0 + h
+                }),
+                "{stem}: a mark at ({x}, {y}) is cut by every tile"
+            );
+        }
+    }
+}

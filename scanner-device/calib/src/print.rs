@@ -315,3 +315,121 @@ pub fn sheets(board: &BoardFile) -> [(&'static str, Sheet); 4] {
         ("target", Sheet::target(&crate::DotGrid::RIG)),
     ]
 }
+
+/// A4 landscape page, mm.
+pub const A4: (f64, f64) = (297.0, 210.0);
+/// Margin kept free on each tile page (printers do not print to the edge), mm.
+const TILE_MARGIN: f64 = 10.0;
+/// Overlap of neighbouring tiles, mm: the alignment crosses are printed in it on both.
+const TILE_OVERLAP: f64 = 10.0;
+
+/// One A4 tile of a larger sheet.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Tile {
+    /// Row and column (from 0).
+    pub at: (usize, usize),
+    /// Rows and columns of tiles for the sheet.
+    pub of: (usize, usize),
+    /// The part of the sheet it shows: x, y, width, height, mm.
+    pub area: [f64; 4],
+    /// The page as SVG (A4 landscape, 1:1).
+    pub svg: String,
+}
+
+/// The sheet cut into A4 landscape tiles that overlap by 10 mm, for printers without A3: each
+/// tile shows its part of the sheet 1:1 inside a 10 mm margin, crop marks, alignment crosses in
+/// the overlaps (the same cross on both neighbours), its place ("tile 1,2 of 2×2") and a 100 mm
+/// bar to check the print scale.
+pub fn a4_tiles(sheet: &Sheet) -> Vec<Tile> {
+    let (tw, th) = (A4.0 - 2.0 * TILE_MARGIN, A4.1 - 2.0 * TILE_MARGIN);
+    let count =
+        |len: f64, t: f64| (((len - TILE_OVERLAP) / (t - TILE_OVERLAP)).ceil() as usize).max(1);
+    let (cols, rows) = (count(sheet.width, tw), count(sheet.height, th));
+    // The sheet's own drawing, without its outer element, to place in each tile.
+    let full = sheet.svg();
+    let inner = full
+        .split_once('\n')
+        .map_or("", |(_, rest)| rest)
+        .trim_end()
+        .trim_end_matches("</svg>");
+    // Alignment crosses: in the middle of each overlap strip, at a few places along it.
+    let mut crosses = Vec::new();
+    for c in 1..cols {
+        let x = c as f64 * (tw - TILE_OVERLAP) + TILE_OVERLAP / 2.0;
+        for k in 1..=3 {
+            crosses.push((x, sheet.height * k as f64 / 4.0));
+        }
+    }
+    for r in 1..rows {
+        let y = r as f64 * (th - TILE_OVERLAP) + TILE_OVERLAP / 2.0;
+        for k in 1..=3 {
+            crosses.push((sheet.width * k as f64 / 4.0, y));
+        }
+    }
+    let mut tiles = Vec::new();
+    for r in 0..rows {
+        for c in 0..cols {
+            let (x0, y0) = (
+                c as f64 * (tw - TILE_OVERLAP),
+                r as f64 * (th - TILE_OVERLAP),
+            );
+            let (w, h) = (tw.min(sheet.width - x0), th.min(sheet.height - y0));
+            let mut s = format!(
+                "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"{pw}mm\" height=\"{ph}mm\" viewBox=\"0 0 {pw} {ph}\">\n\
+                 <defs><clipPath id=\"t\"><rect x=\"{x0}\" y=\"{y0}\" width=\"{w}\" height=\"{h}\"/></clipPath></defs>\n\
+                 <g transform=\"translate({tx} {ty})\"><g clip-path=\"url(#t)\">\n{inner}\n",
+                pw = A4.0,
+                ph = A4.1,
+                tx = TILE_MARGIN - x0,
+                ty = TILE_MARGIN - y0,
+            );
+            for (x, y) in &crosses {
+                if *x >= x0 && *x <= x0 + w && *y >= y0 && *y <= y0 + h {
+                    s += &format!(
+                        "<path d=\"M {} {y} H {} M {x} {} V {}\" stroke=\"black\" stroke-width=\"0.3\"/>\n",
+                        x - 4.0,
+                        x + 4.0,
+                        y - 4.0,
+                        y + 4.0
+                    );
+                }
+            }
+            s += "</g></g>\n";
+            // Crop marks at the content's corners, outside it.
+            let (l, t, rr, b) = (TILE_MARGIN, TILE_MARGIN, TILE_MARGIN + w, TILE_MARGIN + h);
+            for (cx, cy, dx, dy) in [
+                (l, t, -1.0, -1.0),
+                (rr, t, 1.0, -1.0),
+                (l, b, -1.0, 1.0),
+                (rr, b, 1.0, 1.0),
+            ] {
+                s += &format!(
+                    "<path d=\"M {cx} {} V {} M {} {cy} H {}\" stroke=\"black\" stroke-width=\"0.2\"/>\n",
+                    cy + dy * 1.0,
+                    cy + dy * 6.0,
+                    cx + dx * 1.0,
+                    cx + dx * 6.0
+                );
+            }
+            s += &format!(
+                "<text x=\"{TILE_MARGIN}\" y=\"6\" font-family=\"sans-serif\" font-size=\"3\">{} - tile {},{} of {rows}x{cols} (row, column): overlap the neighbours by {TILE_OVERLAP} mm so that the crosses meet - print at 100 %</text>\n\
+                 <rect x=\"{}\" y=\"{}\" width=\"100\" height=\"1.5\" fill=\"black\"/>\n\
+                 <text x=\"{}\" y=\"{}\" font-family=\"sans-serif\" font-size=\"3\">measure this 100 mm bar</text>\n</svg>\n",
+                sheet.title,
+                r + 1,
+                c + 1,
+                A4.0 - TILE_MARGIN - 100.0,
+                A4.1 - 6.0,
+                A4.0 - TILE_MARGIN - 100.0,
+                A4.1 - 1.5,
+            );
+            tiles.push(Tile {
+                at: (r, c),
+                of: (rows, cols),
+                area: [x0, y0, w, h],
+                svg: s,
+            });
+        }
+    }
+    tiles
+}

@@ -189,7 +189,7 @@ fn save_png(img: &image::RgbImage, path: &Path) -> Result<()> {
 ///
 /// # Errors
 /// Unreadable board file, unwritable output.
-pub fn board_command(board: Option<&Path>, out: &Path, dpi: f64) -> Result<()> {
+pub fn board_command(board: Option<&Path>, out: &Path, dpi: f64, a4: bool) -> Result<()> {
     let b = load_board(board)?;
     let sheets = print::sheets(&b);
     // Every picture's size is checked before anything is written.
@@ -205,9 +205,21 @@ pub fn board_command(board: Option<&Path>, out: &Path, dpi: f64) -> Result<()> {
         write_atomic(&svg, sheet.svg().as_bytes())
             .with_context(|| format!("cannot write {}", svg.display()))?;
         save_png(&sheet.png(dpi / 25.4)?, &out.join(format!("{stem}.png")))?;
+        if a4 && (sheet.width > print::A4.0 - 20.0 || sheet.height > print::A4.1 - 20.0) {
+            for t in print::a4_tiles(&sheet) {
+                let path = out.join(format!("{stem}-a4-{}-{}.svg", t.at.0 + 1, t.at.1 + 1));
+                write_atomic(&path, t.svg.as_bytes())
+                    .with_context(|| format!("cannot write {}", path.display()))?;
+            }
+        }
     }
     outln!(
-        "wrote board.toml, left-sheet, right-sheet, cross and target (the intrinsics dot grid) (.svg, .png at {dpi} dpi) to {}; print the SVGs at 100 % and check the 100 mm ruler",
+        "wrote board.toml, left-sheet, right-sheet, cross and target (the intrinsics dot grid) (.svg, .png at {dpi} dpi){} to {}; print the SVGs at 100 % and check the 100 mm ruler",
+        if a4 {
+            ", and each as A4 tiles (*-a4-ROW-COL.svg: overlap them so that the crosses meet)"
+        } else {
+            ""
+        },
         out.display()
     );
     Ok(())

@@ -75,6 +75,10 @@ pub enum Command {
         /// Resolution of the PNGs, dots per inch.
         #[arg(long, default_value_t = 150.0)]
         dpi: f64,
+        /// Also cut every sheet into A4 landscape tiles (`*-a4-ROW-COL.svg`) for a printer
+        /// without A3: 10 mm overlaps with alignment crosses, a 100 mm bar on each.
+        #[arg(long)]
+        a4: bool,
     },
     /// Calibrate from images: intrinsics, the paper's image distance, or the board planes.
     #[command(subcommand)]
@@ -140,11 +144,16 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
                 out.display()
             );
         }
-        Some(Command::Board { board, out, dpi }) => {
+        Some(Command::Board {
+            board,
+            out,
+            dpi,
+            a4,
+        }) => {
             if !(*dpi >= 25.0 && *dpi <= 1200.0) {
                 anyhow::bail!("--dpi must be between 25 and 1200, found {dpi}");
             }
-            calibrate::board_command(board.as_deref(), out, *dpi)?;
+            calibrate::board_command(board.as_deref(), out, *dpi, *a4)?;
         }
         Some(Command::Calibrate(c)) => calibrate::calibrate(c)?,
         Some(Command::Scan(a)) => {
