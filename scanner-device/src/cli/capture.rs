@@ -11,7 +11,7 @@ use scanner_calib::{Target, board_planes, find_grid};
 use scanner_core::stripe::PixelFormat;
 
 use super::calibrate::{TargetArgs, load_board};
-use crate::source::{OwnedFrame, SourceOptions};
+use crate::source::OwnedFrame;
 
 /// `capture`'s options.
 #[derive(Debug, clap::Args)]
@@ -19,15 +19,9 @@ pub struct CaptureArgs {
     /// Frame source, as for `scan`: `/dev/videoN`, `dir:FOLDER`, `rig`, `rig:WIDTHxHEIGHT`.
     #[arg(long)]
     pub source: String,
-    /// Camera resolution, WIDTHxHEIGHT: the scan's.
-    #[arg(long)]
-    pub size: Option<String>,
-    /// Camera pixel format FourCC (YUYV, GREY, RGB3, MJPG).
-    #[arg(long)]
-    pub fourcc: Option<String>,
-    /// The local mains frequency (50 or 60 Hz), for the camera's power-line filter.
-    #[arg(long, value_parser = crate::cli::scan::parse_mains)]
-    pub mains: Option<u32>,
+    /// How the camera is opened: give what the scan will use.
+    #[command(flatten)]
+    pub camera: super::scan::CameraArgs,
     /// Capture the board (laser off) instead of the intrinsics target; each shot's planes are
     /// fitted with this camera file (from `calibrate intrinsics`).
     #[arg(long, value_name = "CAMERA_FILE")]
@@ -112,16 +106,7 @@ pub fn capture(a: &CaptureArgs) -> Result<()> {
     if !(a.interval >= 0.0 && a.interval <= 600.0) {
         bail!("--interval must be 0 to 600 seconds, found {}", a.interval);
     }
-    let opts = SourceOptions {
-        size: a
-            .size
-            .as_deref()
-            .map(|s| crate::source::parse_size(s).with_context(|| format!("--size {s:?}")))
-            .transpose()?,
-        fourcc: a.fourcc.clone(),
-        mains_hz: a.mains,
-        ..SourceOptions::default()
-    };
+    let opts = a.camera.options()?;
     let mut source = crate::source::open_with(&a.source, PixelFormat::Rgb24, &opts)
         .with_context(|| format!("source {}", a.source))?;
     let live = a.source.starts_with("/dev/") || a.source.starts_with("v4l:");

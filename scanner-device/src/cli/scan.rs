@@ -31,18 +31,9 @@ pub struct ScanArgs {
     /// Pixel format the pipeline reads.
     #[arg(long, value_enum, default_value_t = FormatArg::Gray)]
     pub format: FormatArg,
-    /// Camera resolution, WIDTHxHEIGHT.
-    #[arg(long)]
-    pub size: Option<String>,
-    /// Camera frame rate.
-    #[arg(long)]
-    pub fps: Option<u32>,
-    /// The local mains frequency (50 or 60 Hz), for the camera's power-line filter.
-    #[arg(long, value_parser = crate::cli::scan::parse_mains)]
-    pub mains: Option<u32>,
-    /// Camera pixel format FourCC (YUYV, GREY, RGB3, MJPG).
-    #[arg(long)]
-    pub fourcc: Option<String>,
+    /// How a camera is opened.
+    #[command(flatten)]
+    pub camera: CameraArgs,
     /// Reference (laser-off) frame from this image.
     #[arg(long)]
     pub reference: Option<PathBuf>,
@@ -100,6 +91,44 @@ pub struct ScanArgs {
     /// No progress lines.
     #[arg(long, short)]
     pub quiet: bool,
+}
+
+/// How a camera is opened, for `scan` and `capture` alike (so that calibration shots are taken
+/// as the scan takes its frames).
+#[derive(Debug, Clone, clap::Args)]
+pub struct CameraArgs {
+    /// Camera resolution, WIDTHxHEIGHT.
+    #[arg(long)]
+    pub size: Option<String>,
+    /// Camera frame rate.
+    #[arg(long)]
+    pub fps: Option<u32>,
+    /// The local mains frequency (50 or 60 Hz), for the camera's power-line filter.
+    #[arg(long, value_parser = parse_mains)]
+    pub mains: Option<u32>,
+    /// Camera pixel format FourCC (YUYV, GREY, RGB3, MJPG).
+    #[arg(long)]
+    pub fourcc: Option<String>,
+}
+
+impl CameraArgs {
+    /// The source options these give (size parsed and checked).
+    ///
+    /// # Errors
+    /// A `--size` that is not WIDTHxHEIGHT.
+    pub fn options(&self) -> Result<SourceOptions> {
+        Ok(SourceOptions {
+            size: self
+                .size
+                .as_deref()
+                .map(|s| crate::source::parse_size(s).with_context(|| format!("--size {s:?}")))
+                .transpose()?,
+            fps: self.fps,
+            fourcc: self.fourcc.clone(),
+            mains_hz: self.mains,
+            ..SourceOptions::default()
+        })
+    }
 }
 
 /// `--format`: what the pipeline reads.
@@ -251,7 +280,7 @@ pub fn scan(a: &ScanArgs) -> Result<ScanReport> {
 /// A bad option, an unreadable or unsuitable calibration, a source or link that cannot open.
 pub fn plan(a: &ScanArgs) -> Result<ScanPlan> {
     let format = PixelFormat::from(a.format);
-    if let Some(f) = &a.fourcc {
+    if let Some(f) = &a.camera.fourcc {
         CameraFormat::parse(f)?;
     }
     let Some(cal_path) = &a.calibration else {
@@ -260,16 +289,9 @@ pub fn plan(a: &ScanArgs) -> Result<ScanPlan> {
         );
     };
     let opts = SourceOptions {
-        size: a
-            .size
-            .as_deref()
-            .map(|s| crate::source::parse_size(s).with_context(|| format!("--size {s:?}")))
-            .transpose()?,
-        fps: a.fps,
-        fourcc: a.fourcc.clone(),
         reference: a.reference.clone(),
         reference_frames: a.reference_frames,
-        mains_hz: a.mains,
+        ..a.camera.options()?
     };
     let mut source = open_source(a, format, &opts)?;
     if let Some(dir) = &a.record {
