@@ -91,3 +91,53 @@ fn capture_keeps_the_usable_shots_and_says_why_of_the_others() {
     );
     assert!(ok, "{err}");
 }
+
+#[test]
+fn capture_checks_real_webcam_photographs_of_a_chessboard() {
+    let t = tempfile::tempdir().unwrap();
+    let d = t.path();
+    let real = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/real-calibration");
+    std::fs::create_dir(d.join("cam")).unwrap();
+    for name in ["right01.jpg", "right02.jpg", "right03.jpg"] {
+        std::fs::copy(real.join(name), d.join("cam").join(name)).unwrap();
+    }
+    let (ok, out, err) = run(
+        d,
+        &[
+            "capture",
+            "--source",
+            "dir:cam",
+            "--chessboard-corners",
+            "9x6",
+            "--count",
+            "3",
+            "--out",
+            "kept",
+        ],
+    );
+    assert!(ok, "{err}");
+    assert_eq!(
+        out.matches("grid found: 54 points identified over 9×6, complete")
+            .count(),
+        3,
+        "{out}"
+    );
+    // A count smaller than the board shows (a 9x6 board given as 8x5) finds no usable shot and
+    // says so (a larger count is a partial view of a bigger board, which is allowed).
+    let (ok, out, err) = run(
+        d,
+        &[
+            "capture",
+            "--source",
+            "dir:cam",
+            "--chessboard-corners",
+            "8x5",
+            "--count",
+            "1",
+            "--out",
+            "wrong",
+        ],
+    );
+    assert!(!ok && err.contains("0 of 1 usable shots kept"), "{err}");
+    assert!(out.contains("frame 0: not usable"), "{out}");
+}
