@@ -28,6 +28,7 @@
 //! 1 m with f = 1400 px) and the 0.01 mm wire quantum.
 #![no_std]
 #![deny(missing_docs)]
+#![deny(unsafe_code)]
 
 pub mod calib;
 pub mod camera;

@@ -7,7 +7,7 @@ use crate::source::SourceError;
 use scanner_core::Camera;
 use scanner_core::geometry::Board;
 use scanner_core::pipeline::{Head, HeadConfig};
-use scanner_core::wire::{self, Header, Message, Points, Skip, Status};
+use scanner_core::wire::{self, Controls, Header, Message, Points, Skip, Status};
 
 use crate::link::Link;
 use crate::source::{FrameSource, OwnedFrame};
@@ -165,6 +165,8 @@ pub struct Session {
     head: Box<Head<MAX_LINES>>,
     reference: OwnedFrame,
     header: Header,
+    /// The camera's controls, sent after each header (not for sources that are no camera).
+    controls: Option<Controls>,
     status: Status,
     opts: ScanOptions,
     scratch: Vec<u8>,
@@ -212,6 +214,7 @@ impl Session {
             head: Box::new(Head::new(camera.cast(), board.cast(), opts.head)),
             reference,
             header,
+            controls: None,
             status: Status {
                 scan_id: opts.scan_id,
                 ..Status::default()
@@ -254,13 +257,30 @@ impl Session {
         Ok(sent.is_some())
     }
 
-    /// Sends the session header (dropped if the link is busy: it repeats).
+    /// Reports the camera's controls after each header from now on (a source that is no camera
+    /// sends none).
+    pub fn set_controls(&mut self, controls: Controls) {
+        let none = controls
+            .named()
+            .iter()
+            .all(|(_, c)| *c == wire::Control::NoCamera);
+        self.controls = (!none).then_some(Controls {
+            scan_id: self.opts.scan_id,
+            ..controls
+        });
+    }
+
+    /// Sends the session header and the camera's controls (dropped if the link is busy: they
+    /// repeat).
     ///
     /// # Errors
     /// The link failed.
     pub fn send_header(&mut self, link: &mut Link) -> Result<()> {
         let h = Message::Header(self.header);
         self.send(link, &h, false)?;
+        if let Some(k) = self.controls {
+            self.send(link, &Message::Controls(k), false)?;
+        }
         self.frames_since_header = 0;
         Ok(())
     }
@@ -431,6 +451,7 @@ pub fn run_scan_until(
             Some(wait_for_laser(source, &reference, limit, stop).map_err(SessionError::NoLaser)?);
     }
     let mut session = Session::new(cal, reference, opts)?;
+    session.set_controls(source.controls());
     session.send_header(link)?;
     if let Some(frame) = first {
         session.frame(&frame, link, &mut on_points)?;

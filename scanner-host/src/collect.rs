@@ -6,7 +6,7 @@ use std::collections::{BTreeMap, BTreeSet, VecDeque};
 
 use scanner_core::nalgebra::Point3;
 use scanner_core::wire::{
-    DecodeStats, Decoder, Header, MAX_ENCODED, Message, SKIP_REASONS, Status, points,
+    Controls, DecodeStats, Decoder, Header, MAX_ENCODED, Message, SKIP_REASONS, Status, points,
 };
 use scanner_core::{Camera, GeomError};
 
@@ -87,6 +87,8 @@ pub struct Counts {
     pub other_camera_points: u64,
     /// The latest status of each scan.
     pub status: BTreeMap<u32, Status>,
+    /// The camera controls of each scan, as its head reported them.
+    pub controls: BTreeMap<u32, Controls>,
     /// Capture time span of the points, µs (first, last).
     pub time_us: Option<(u64, u64)>,
 }
@@ -233,6 +235,10 @@ impl State {
             Message::Status(s) => {
                 self.counts.scans.insert(s.scan_id);
                 self.counts.status.insert(s.scan_id, *s);
+            }
+            Message::Controls(k) => {
+                self.counts.scans.insert(k.scan_id);
+                self.counts.controls.insert(k.scan_id, *k);
             }
             Message::Points(p) => {
                 if !self.seen.insert((p.scan_id, p.frame)) {

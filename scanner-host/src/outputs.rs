@@ -4,7 +4,7 @@
 use std::io::Read;
 use std::path::Path;
 
-use scanner_core::wire::Skip;
+use scanner_core::wire::{Control, Skip};
 
 use crate::collect::{CollectError, Collector, Counts};
 use crate::export::{self, ExportError};
@@ -115,6 +115,12 @@ impl Summary {
                     .join(", "),
                 c.other_camera_points
             );
+        }
+        for (id, k) in &c.controls {
+            s += &format!("scan {id:08x} camera controls: {k}\n");
+            if k.named().iter().any(|(_, c)| *c == Control::Refused) {
+                s += "warning: a control the difference image needs fixed was refused: the picture may drift between the reference and the laser frames\n";
+            }
         }
         s += &format!("meshes in the {}\n", self.frame);
         let skipped = c.skipped();

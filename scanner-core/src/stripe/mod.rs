@@ -25,6 +25,7 @@
 mod estimate;
 mod frame;
 mod signal;
+mod simd;
 
 pub use estimate::{Estimator, MAX_WINDOW, Shape, Window};
 pub use frame::{Frame, FrameError, PixelFormat};

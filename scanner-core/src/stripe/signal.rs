@@ -25,6 +25,7 @@
 //! threshold as a stripe does (found on the real photographs of `tests/data/real-stripes`).
 
 use super::frame::PixelFormat;
+use super::simd;
 
 /// Light-intensity or difference-image method (paper section 3C).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -257,6 +258,14 @@ pub(crate) fn magnitudes(k: Kind, row: &[u8], reference: &[u8], x0: usize, out: 
         }
         (PixelFormat::Yuyv, Method::Dim, LaserColour::White) => {
             let (cur, refs) = (&row[2 * x0..2 * (x0 + n)], &reference[2 * x0..2 * (x0 + n)]);
+            // The vector kernel where there is one, this portable loop for the rest.
+            let fast = simd::yuyv_dim_white(cur, refs, out);
+            let (out, cur, refs, n) = (
+                &mut out[fast..],
+                &cur[2 * fast..],
+                &refs[2 * fast..],
+                n - fast,
+            );
             let mut outs = out.chunks_exact_mut(16);
             let mut pairs = cur.chunks_exact(32).zip(refs.chunks_exact(32));
             for (o, (p, r)) in (&mut outs).zip(&mut pairs) {
@@ -416,6 +425,14 @@ fn yuyv_colour(
         }
         Method::Dim => {
             let (wb, wr) = chroma_weights(colour);
+            // The vector kernel where there is one, this portable loop for the rest.
+            let fast = simd::yuyv_dim_colour(wb, wr, cur, refs, head);
+            let (head, cur, refs, x) = (
+                &mut head[fast..],
+                &cur[2 * fast..],
+                &refs[2 * fast..],
+                x + fast,
+            );
             let total = head.len();
             let mut outs = head.chunks_exact_mut(16);
             let mut groups = cur.chunks_exact(32).zip(refs.chunks_exact(32));

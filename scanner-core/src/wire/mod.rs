@@ -12,7 +12,8 @@
 //!
 //! Messages: a [`Header`] (image size, units, the calibration summary, scan id; repeated
 //! periodically so that a host that joins late can decode), one [`Points`] per frame
-//! (self-contained: losing one loses only that frame), and a [`Status`] (counters).
+//! (self-contained: losing one loses only that frame), a [`Status`] (counters) and the camera's
+//! [`Controls`] (sent with each header).
 
 pub mod points;
 
@@ -336,6 +337,76 @@ pub struct Status {
     pub ended: EndReason,
 }
 
+/// What the head did with one camera control the scan needs fixed.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+pub enum Control {
+    /// The frames do not come from a camera (the virtual rig, image files).
+    #[default]
+    NoCamera,
+    /// The camera does not offer the control (it may drift).
+    NotOffered,
+    /// Set to this value (the V4L2 value: for the power line 1 is 50 Hz, 2 is 60 Hz, 3 automatic;
+    /// for the others the value that fixes the control).
+    Set(i32),
+    /// The camera refused the value.
+    Refused,
+}
+
+/// The camera controls a difference image needs fixed between the reference and the laser
+/// frames, as the head left them (sent after each [`Header`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+pub struct Controls {
+    /// Scan id.
+    pub scan_id: u32,
+    /// Automatic exposure (set: manual).
+    pub exposure: Control,
+    /// Automatic white balance (set: off).
+    pub white_balance: Control,
+    /// Automatic gain (set: off).
+    pub gain: Control,
+    /// Automatic focus (set: off).
+    pub focus: Control,
+    /// Power-line frequency.
+    pub power_line: Control,
+}
+
+impl Controls {
+    /// The controls by name, in message order.
+    pub fn named(&self) -> [(&'static str, Control); 5] {
+        [
+            ("exposure", self.exposure),
+            ("white balance", self.white_balance),
+            ("gain", self.gain),
+            ("focus", self.focus),
+            ("power line", self.power_line),
+        ]
+    }
+}
+
+impl fmt::Display for Controls {
+    /// One line for people: `exposure fixed, white balance fixed, …, power line 50 Hz`.
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        if self.named().iter().all(|(_, c)| *c == Control::NoCamera) {
+            return f.write_str("no camera (nothing to fix)");
+        }
+        for (i, (name, c)) in self.named().into_iter().enumerate() {
+            if i > 0 {
+                f.write_str(", ")?;
+            }
+            match (name, c) {
+                (_, Control::NoCamera) => write!(f, "{name} not a camera's"),
+                (_, Control::NotOffered) => write!(f, "{name} not offered"),
+                (_, Control::Refused) => write!(f, "{name} REFUSED by the camera"),
+                ("power line", Control::Set(1)) => f.write_str("power line 50 Hz"),
+                ("power line", Control::Set(2)) => f.write_str("power line 60 Hz"),
+                ("power line", Control::Set(_)) => f.write_str("power line automatic"),
+                (_, Control::Set(_)) => write!(f, "{name} fixed"),
+            }?;
+        }
+        Ok(())
+    }
+}
+
 /// A message.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub enum Message<'a> {
@@ -346,6 +417,8 @@ pub enum Message<'a> {
     Points(Points<'a>),
     /// Counters.
     Status(Status),
+    /// The camera controls (after each header).
+    Controls(Controls),
 }
 
 /// Why encoding or decoding failed.

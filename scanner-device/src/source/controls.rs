@@ -176,6 +176,25 @@ pub fn report(plan: &Plan, refused: &[(String, String)]) -> String {
     line
 }
 
+/// What the plan did, for the stream ([`scanner_core::wire::Controls`], sent after each header):
+/// per control the value set, refused (named in `refused` by the driver's name), or not offered.
+pub fn on_wire(plan: &Plan, refused: &[(String, String)]) -> scanner_core::wire::Controls {
+    use scanner_core::wire::Control as C;
+    let state = |id: u32| match plan.settings.iter().find(|s| s.id == id) {
+        None => C::NotOffered,
+        Some(s) if refused.iter().any(|(c, _)| *c == s.control) => C::Refused,
+        Some(s) => C::Set(i32::try_from(s.value).unwrap_or(i32::MAX)),
+    };
+    scanner_core::wire::Controls {
+        scan_id: 0,
+        exposure: state(id::EXPOSURE_AUTO),
+        white_balance: state(id::AUTO_WHITE_BALANCE),
+        gain: state(id::AUTOGAIN),
+        focus: state(id::FOCUS_AUTO),
+        power_line: state(id::POWER_LINE_FREQUENCY),
+    }
+}
+
 /// Reads `v4l2-ctl --list-ctrls-menus` output (what a camera offers, recorded once with that
 /// tool): `name 0xID (kind) : min=… max=… … flags=…`, menus followed by `N: Name` lines.
 /// Lines that are neither are skipped.

@@ -137,6 +137,10 @@ pub trait FrameSource {
     fn format(&self) -> PixelFormat;
     /// Frame size, pixels.
     fn size(&self) -> (usize, usize);
+    /// What was done with the camera's controls (a source that is no camera: nothing).
+    fn controls(&self) -> scanner_core::wire::Controls {
+        scanner_core::wire::Controls::default()
+    }
     /// The laser-off reference frame.
     ///
     /// # Errors

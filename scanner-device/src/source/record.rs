@@ -1,7 +1,7 @@
 //! Recordings: a scan's raw frames kept on disk (`scan --record DIR`) so that the scan can be
 //! reprocessed later, with a new calibration, as a frame source (`--source record:DIR`).
 //!
-//! Layout of `DIR`: `recording.toml` (format version, size, pixel format), `reference.raw` (the
+//! Layout of `DIR`: `recording.toml` (format version, size, pixel format, the camera's controls), `reference.raw` (the
 //! laser-off reference's bytes) and `frames.raw`: per frame, its index and capture time (µs since
 //! the source opened) as two little-endian `u64`, then its `width × height × bytes-per-pixel`
 //! bytes. Frames are appended as they come; a recording cut by a crash reads up to its last
@@ -12,6 +12,7 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use scanner_core::stripe::PixelFormat;
+use scanner_core::wire::Controls;
 
 use super::{FrameSource, OwnedFrame, SourceError};
 
@@ -28,6 +29,10 @@ struct Meta {
     width: usize,
     height: usize,
     format: String,
+    /// The camera's controls as the scan set them (none: not a camera), so that a reprocessed
+    /// stream reports them as the original did.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    controls: Option<Controls>,
 }
 
 fn format_name(f: PixelFormat) -> &'static str {
@@ -77,6 +82,7 @@ impl Recorder {
             width,
             height,
             format: format_name(inner.format()).into(),
+            controls: Some(inner.controls()).filter(|c| *c != Controls::default()),
         };
         let text = toml::to_string(&meta).map_err(|e| bad(dir, e.to_string()))?;
         scanner_calib::file::write_atomic(&dir.join("recording.toml"), text.as_bytes())
@@ -106,6 +112,10 @@ impl FrameSource for Recorder {
 
     fn size(&self) -> (usize, usize) {
         self.inner.size()
+    }
+
+    fn controls(&self) -> Controls {
+        self.inner.controls()
     }
 
     fn reference(&mut self) -> Result<OwnedFrame, SourceError> {
@@ -145,6 +155,7 @@ pub struct RecordingSource {
     width: usize,
     height: usize,
     format: PixelFormat,
+    controls: Controls,
     frames: std::io::BufReader<std::fs::File>,
     scratch: [u8; 16],
 }
@@ -192,6 +203,7 @@ impl RecordingSource {
             width: meta.width,
             height: meta.height,
             format,
+            controls: meta.controls.unwrap_or_default(),
             frames: std::io::BufReader::with_capacity(1 << 20, frames),
             scratch: [0; 16],
         })
@@ -219,6 +231,10 @@ impl FrameSource for RecordingSource {
 
     fn size(&self) -> (usize, usize) {
         (self.width, self.height)
+    }
+
+    fn controls(&self) -> Controls {
+        self.controls
     }
 
     fn reference(&mut self) -> Result<OwnedFrame, SourceError> {

@@ -14,6 +14,7 @@ mod imp {
     use std::time::{Duration, Instant};
 
     use scanner_core::stripe::PixelFormat;
+    use scanner_core::wire;
     use v4l::buffer::Type;
     use v4l::control::{Control, Value};
     use v4l::io::mmap::Stream;
@@ -156,9 +157,9 @@ mod imp {
             .collect()
     }
 
-    /// Sets what the scan needs ([`controls::plan`]) and says what was set, refused and missing;
-    /// returns the report line.
-    fn lock_controls(dev: &Device, mains_hz: Option<u32>) -> String {
+    /// Sets what the scan needs ([`controls::plan`]) and says what was set, refused and missing:
+    /// the report line and the stream's form.
+    fn lock_controls(dev: &Device, mains_hz: Option<u32>) -> (String, wire::Controls) {
         let plan = controls::plan(&offered(dev), mains_hz);
         let refused: Vec<(String, String)> = plan
             .settings
@@ -173,7 +174,10 @@ mod imp {
                     .map(|e| (s.control.clone(), e.to_string()))
             })
             .collect();
-        controls::report(&plan, &refused)
+        (
+            controls::report(&plan, &refused),
+            controls::on_wire(&plan, &refused),
+        )
     }
 
     /// A streaming V4L2 camera.
@@ -190,6 +194,7 @@ mod imp {
         reference: Option<std::path::PathBuf>,
         reference_frames: usize,
         controls: String,
+        locked: wire::Controls,
     }
 
     impl V4lSource {
@@ -206,7 +211,7 @@ mod imp {
                 dev.set_params(&v4l::video::capture::Parameters::with_fps(fps))
                     .map_err(|e| cam(path, "cannot set the frame rate", e))?;
             }
-            let controls = lock_controls(&dev, opts.mains_hz);
+            let (controls, locked) = lock_controls(&dev, opts.mains_hz);
             crate::errln!("{path}: {controls}");
             let stream = Stream::with_buffers(&dev, Type::VideoCapture, 4)
                 .map_err(|e| cam(path, "cannot start streaming", e))?;
@@ -222,6 +227,7 @@ mod imp {
                 reference: opts.reference.clone(),
                 reference_frames: opts.reference_frames(),
                 controls,
+                locked,
             })
         }
 
@@ -267,6 +273,9 @@ mod imp {
         }
         fn format(&self) -> PixelFormat {
             self.format
+        }
+        fn controls(&self) -> wire::Controls {
+            self.locked
         }
         fn size(&self) -> (usize, usize) {
             self.size
