@@ -101,6 +101,14 @@ pub enum Command {
         /// Grid cell of the fusion into one mesh, mm.
         #[arg(long, default_value_t = 1.0)]
         fuse_cell: f64,
+        /// Least share of a view's points that must land on the view it is registered onto
+        /// (0.1–0.9); lower it for views turned far apart, which share less.
+        #[arg(long, default_value_t = 0.4)]
+        min_overlap: f64,
+        /// Keep the surface the fusion closes where no view saw (by default it is trimmed, and
+        /// the model is open where the views left gaps).
+        #[arg(long)]
+        keep_unseen: bool,
         /// No progress display.
         #[arg(long, short)]
         quiet: bool,
@@ -260,9 +268,17 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
             cell,
             voxel,
             fuse_cell,
+            min_overlap,
+            keep_unseen,
             quiet,
         }) => {
-            merge_command(views, out, *cell, (*voxel, *fuse_cell), *quiet)?;
+            merge_command(
+                views,
+                out,
+                *cell,
+                (*voxel, *fuse_cell, *min_overlap),
+                (*keep_unseen, *quiet),
+            )?;
             return Ok(());
         }
         Some(Command::Replay { input, out }) => {
@@ -279,8 +295,8 @@ fn merge_command(
     views: &[PathBuf],
     out: &std::path::Path,
     cell: Cell,
-    (voxel, fuse_cell): (f64, f64),
-    quiet: bool,
+    (voxel, fuse_cell, min_overlap): (f64, f64, f64),
+    (keep_unseen, quiet): (bool, bool),
 ) -> Result<()> {
     use crate::merge;
     if !(voxel > 0.0 && voxel <= 50.0) {
@@ -288,6 +304,9 @@ fn merge_command(
     }
     if !(0.1..=20.0).contains(&fuse_cell) {
         anyhow::bail!("--fuse-cell must be 0.1 to 20 mm, found {fuse_cell}");
+    }
+    if !(0.1..=0.9).contains(&min_overlap) {
+        anyhow::bail!("--min-overlap must be 0.1 to 0.9, found {min_overlap}");
     }
     if views.len() < 2 {
         return Err(merge::MergeError::TooFewViews(views.len()).into());
@@ -301,12 +320,17 @@ fn merge_command(
     }
     let opts = crate::register::RegisterOptions {
         voxel_mm: voxel,
+        min_overlap,
         ..Default::default()
     };
-    let results = merge::register_views(&loaded, &opts, |k| {
+    let mut results = merge::register_views(&loaded, &opts, |k| {
         pb.set_message(format!("registered view {k} of {}", loaded.len() - 1));
         pb.tick();
     })?;
+    let closure = merge::refine_views(&loaded, &mut results, &opts, |round| {
+        pb.set_message(format!("refining all views together: round {}", round + 1));
+        pb.tick();
+    });
     pb.finish_and_clear();
     std::fs::create_dir_all(out)
         .with_context(|| format!("cannot create the output folder {}", out.display()))?;
@@ -320,6 +344,7 @@ fn merge_command(
         &merge::views_ply(&loaded, &results, &frame),
     )?;
     let mut report = merge::report(&loaded, &results);
+    report += &merge::closure_line(&closure);
     let pb = progress_bar(quiet);
     pb.set_message("fusing the views into one mesh");
     pb.enable_steady_tick(std::time::Duration::from_millis(200));
@@ -327,21 +352,32 @@ fn merge_command(
         points,
         normals,
         colours,
+        surface,
     } = merge::fusion_input(&loaded, &results);
     let mut model = crate::fuse::fuse(&points, &normals, fuse_cell).context("fusing the views")?;
+    if !keep_unseen {
+        let removed = crate::fuse::trim_unseen(&mut model, &points, 3.0 * fuse_cell);
+        report += &format!(
+            "trimmed {removed} faces farther than {:.1} mm from every point (surface no view saw; --keep-unseen keeps it)\n",
+            3.0 * fuse_cell
+        );
+    }
+    crate::fuse::colour_from(&mut model, &points, &surface);
+    if !model.colours.is_empty() {
+        report += "model coloured per vertex from the views (the nearest point's colour)\n";
+    }
     pb.finish_and_clear();
     let c = crate::fuse::check(&model);
     report += &format!(
-        "model: {} vertices, {} faces, {}, {} component(s), volume {:.0} mm³\n",
+        "model: {} vertices, {} faces, {}, {} component(s)\n",
         model.vertices.len(),
         model.faces.len(),
         if c.watertight {
-            "watertight".to_string()
+            format!("watertight, volume {:.0} mm³", c.volume_mm3)
         } else {
-            format!("{} open edges", c.open_edges)
+            format!("{} open edges (no volume)", c.open_edges)
         },
         c.components,
-        c.volume_mm3
     );
     model.into_frame(frame);
     // Pictures: the registered views in their colours (front and side), the model from four sides.

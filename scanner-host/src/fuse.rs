@@ -6,7 +6,7 @@
 //! sides closes; where no view saw it, the surface may run to the grid's edge and stay open.
 //! Checked after: edges in exactly two faces, components, the enclosed volume.
 
-use kiddo::{KdTree, SquaredEuclidean};
+use kiddo::SquaredEuclidean;
 use scanner_core::nalgebra::{Point3, Vector3};
 
 use crate::mesh::Mesh;
@@ -66,10 +66,7 @@ pub fn fuse(
     if nx.saturating_mul(ny).saturating_mul(nz) > MAX_CELLS {
         return Err(FuseError::TooLarge(nx, ny, nz));
     }
-    let mut tree: KdTree<f64, 3> = KdTree::new();
-    for (i, p) in points.iter().enumerate() {
-        tree.add(&[p.x, p.y, p.z], i as u64);
-    }
+    let tree = crate::register::tree(points);
     let at = |i: usize, j: usize, k: usize| lo + Vector3::new(i as f64, j as f64, k as f64) * cell;
     // The signed distance along the nearest point's normal (positive outside). Far from every
     // point the sign may flip in places no view saw; the largest component of the surface is
@@ -213,14 +210,55 @@ pub fn fuse(
     Ok(m)
 }
 
+/// Removes the surface no view saw: faces with a vertex farther than `max_dist` mm from every
+/// point (where the fusion's sign ran on into empty space), then all but the largest piece left.
+/// Returns the number of faces removed. The mesh is then open where the views left gaps.
+pub fn trim_unseen(m: &mut Mesh, points: &[Point3<f64>], max_dist: f64) -> usize {
+    let tree = crate::register::tree(points);
+    let seen: Vec<bool> = m
+        .vertices
+        .iter()
+        .map(|v| {
+            let v = v.cast::<f64>();
+            !tree
+                .nearest_n_within::<SquaredEuclidean>(
+                    &[v.x, v.y, v.z],
+                    max_dist * max_dist,
+                    std::num::NonZero::<usize>::MIN,
+                    false,
+                )
+                .is_empty()
+        })
+        .collect();
+    let before = m.faces.len();
+    m.faces.retain(|f| f.iter().all(|&i| seen[i as usize]));
+    keep_largest_component(m);
+    m.normals = vertex_normals(m);
+    before - m.faces.len()
+}
+
+/// Colours each vertex of `m` with the colour of the nearest of `points` (`colours`, one per
+/// point); nothing when there are no colours.
+pub fn colour_from(m: &mut Mesh, points: &[Point3<f64>], colours: &[[u8; 3]]) {
+    if colours.len() != points.len() || colours.is_empty() {
+        return;
+    }
+    let tree = crate::register::tree(points);
+    m.colours = m
+        .vertices
+        .iter()
+        .map(|v| {
+            let v = v.cast::<f64>();
+            colours[tree.nearest_one::<SquaredEuclidean>(&[v.x, v.y, v.z]).item as usize]
+        })
+        .collect();
+}
+
 /// Indices of the points that are not isolated: whose 8th nearest neighbour is within 4 times
 /// the median of that distance (stray points far from the surface would make surfaces of
 /// their own).
 pub fn inliers(points: &[Point3<f64>]) -> Vec<usize> {
-    let mut tree: KdTree<f64, 3> = KdTree::new();
-    for (i, p) in points.iter().enumerate() {
-        tree.add(&[p.x, p.y, p.z], i as u64);
-    }
+    let tree = crate::register::tree(points);
     let d8: Vec<f64> = points
         .iter()
         .map(|p| {

@@ -43,6 +43,7 @@ pub mod link;
 pub mod merge;
 pub mod mesh;
 pub mod outputs;
+pub mod refine;
 pub mod register;
 
 pub use cli::{Args, Command, OutputArgs, run};

@@ -1,6 +1,6 @@
-//! `merge`: several sweeps of one object, turned between them, registered into one frame and
-//! fused into one mesh ([`crate::fuse`]); issue 17, a first version (no joint refinement of all
-//! views yet).
+//! `merge`: several sweeps of one object, turned between them, registered into one frame (a
+//! chain of pairwise registrations, then all views refined together, [`crate::refine`]) and
+//! fused into one mesh ([`crate::fuse`]).
 //! Each view is a receive output folder or a journal/recording; each is gridded and meshed as
 //! `replay` does, and its mesh's vertices and normals are registered onto its neighbours.
 
@@ -70,6 +70,8 @@ pub struct View {
     pub cloud: Cloud,
     /// Its session header.
     pub header: Header,
+    /// The surface's colour at each point (empty: the scan carried no colour).
+    pub colours: Vec<[u8; 3]>,
 }
 
 /// The journal inside a receive output folder, or the file itself.
@@ -108,7 +110,7 @@ pub fn load_view(k: usize, path: &Path, cell: crate::grid::Cell) -> Result<View,
         grid,
         f64::from(header.camera.fx),
         &MeshOptions::default(),
-        false,
+        c.colour(),
     );
     Ok(View {
         path: path.to_path_buf(),
@@ -117,6 +119,7 @@ pub fn load_view(k: usize, path: &Path, cell: crate::grid::Cell) -> Result<View,
             normals: m.normals.iter().map(|n| n.cast()).collect(),
         },
         header: *header,
+        colours: m.colours,
     })
 }
 
@@ -194,6 +197,60 @@ pub fn register_views(
         progress(k);
     }
     Ok(out)
+}
+
+/// The loop closure before and after [`refine_views`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Closure {
+    /// Before the joint refinement (`None`: no view closes a loop with view 0).
+    pub before: Option<crate::refine::LoopError>,
+    /// After it.
+    pub after: Option<crate::refine::LoopError>,
+}
+
+/// Refines all views' poses together ([`crate::refine`]) from the chain [`register_views`]
+/// found, pairs within `voxel_mm`; returns the loop closure before and after.
+pub fn refine_views(
+    views: &[View],
+    results: &mut [ViewResult],
+    o: &RegisterOptions,
+    progress: impl FnMut(usize),
+) -> Closure {
+    use crate::refine::{loop_error, refine};
+    const ROUNDS: usize = 8;
+    let clouds: Vec<&Cloud> = views.iter().map(|v| &v.cloud).collect();
+    let poses: Vec<Isometry3<f64>> = results.iter().map(|r| r.pose).collect();
+    // Views registered onto view 0 itself close no loop through it.
+    let direct: Vec<usize> = (0..results.len())
+        .filter(|&k| results[k].onto == Some(0))
+        .collect();
+    let closure = |p: &[Isometry3<f64>]| loop_error(&clouds, p, &direct, o.voxel_mm, o.min_overlap);
+    let before = closure(&poses);
+    let joint = refine(&clouds, &poses, o.voxel_mm, ROUNDS, progress);
+    for (r, p) in results.iter_mut().zip(&joint) {
+        r.pose = *p;
+    }
+    Closure {
+        before,
+        after: closure(&joint),
+    }
+}
+
+/// The report's loop-closure line.
+pub fn closure_line(c: &Closure) -> String {
+    let show = |e: &Option<crate::refine::LoopError>| match e {
+        Some(e) => format!("{:.3}° {:.3} mm", e.rotation_deg, e.translation_mm),
+        None => "—".into(),
+    };
+    match (c.before, c.after) {
+        (None, None) => "loop closure: no view besides those registered onto view 0 overlaps view 0 (no loop to close)\n".into(),
+        (b, a) => format!(
+            "loop closure (view {} onto view 0 directly against its pose): {} before the joint refinement, {} after\n",
+            b.or(a).map_or(0, |e| e.view),
+            show(&b),
+            show(&a)
+        ),
+    }
 }
 
 /// Distinct colours for views, in order.
@@ -304,16 +361,34 @@ pub struct FusionInput {
     pub normals: Vec<scanner_core::nalgebra::Vector3<f64>>,
     /// Their views' colours.
     pub colours: Vec<[u8; 3]>,
+    /// The surface's colour at each point (empty unless every view carried colour).
+    pub surface: Vec<[u8; 3]>,
 }
 
 /// [`registered_points`] without isolated points, with their view colours.
 pub fn fusion_input(views: &[View], results: &[ViewResult]) -> FusionInput {
     let (points, normals) = registered_points(views, results);
     let colours = view_colours(views);
+    let surface: Vec<[u8; 3]> = if views
+        .iter()
+        .all(|v| v.colours.len() == v.cloud.points.len())
+    {
+        views
+            .iter()
+            .flat_map(|v| v.colours.iter().copied())
+            .collect()
+    } else {
+        Vec::new()
+    };
     let keep = crate::fuse::inliers(&points);
     FusionInput {
         points: keep.iter().map(|&i| points[i]).collect(),
         normals: keep.iter().map(|&i| normals[i]).collect(),
         colours: keep.iter().map(|&i| colours[i]).collect(),
+        surface: if surface.is_empty() {
+            surface
+        } else {
+            keep.iter().map(|&i| surface[i]).collect()
+        },
     }
 }

@@ -90,7 +90,8 @@ pub struct Registration {
     pub rms_mm: f64,
 }
 
-fn tree(points: &[Point3<f64>]) -> KdTree<f64, 3> {
+/// A k-d tree of `points`, items their indices.
+pub(crate) fn tree(points: &[Point3<f64>]) -> KdTree<f64, 3> {
     let mut t: KdTree<f64, 3> = KdTree::new();
     for (i, p) in points.iter().enumerate() {
         t.add(&[p.x, p.y, p.z], i as u64);
@@ -255,8 +256,9 @@ fn overlap(src: &[Point3<f64>], dst: &KdTree<f64, 3>, pose: &Isometry3<f64>, tol
 }
 
 /// Coarse registration of `src` onto `dst` (both thinned): descriptor matches, then RANSAC over
-/// triples whose edge lengths agree; the motion that brings the most points within 1.5 voxels.
-fn coarse(src: &Cloud, dst: &Cloud, o: &RegisterOptions) -> (Isometry3<f64>, f64) {
+/// triples whose edge lengths agree; the few distinct motions that bring the most points within
+/// 1.5 voxels, each with that share over all points, best first.
+fn coarse(src: &Cloud, dst: &Cloud, o: &RegisterOptions) -> Vec<(Isometry3<f64>, f64)> {
     let radius = 5.0 * o.voxel_mm;
     let (fs, fd) = (fpfh(src, radius), fpfh(dst, radius));
     let mut ftree: KdTree<f32, FPFH_LEN> = KdTree::new();
@@ -277,7 +279,7 @@ fn coarse(src: &Cloud, dst: &Cloud, o: &RegisterOptions) -> (Isometry3<f64>, f64
         rng ^= rng << 17;
         (rng % n as u64) as usize
     };
-    let mut best = (Isometry3::identity(), 0.0);
+    let mut best: Vec<(Isometry3<f64>, f64)> = Vec::with_capacity(HYPOTHESES + 1);
     // Each trial scores a subsample; the best few are scored on all points.
     let sample: Vec<Point3<f64>> = src.points.iter().step_by(4).copied().collect();
     for _ in 0..o.trials {
@@ -295,12 +297,40 @@ fn coarse(src: &Cloud, dst: &Cloud, o: &RegisterOptions) -> (Isometry3<f64>, f64
         }
         let pose = kabsch(&a, &b);
         let score = overlap(&sample, &dst_tree, &pose, tol);
-        if score > best.1 {
-            best = (pose, score);
-        }
+        keep_best(&mut best, pose, score, o.voxel_mm);
     }
-    let full = overlap(&src.points, &dst_tree, &best.0, tol);
-    (best.0, full)
+    best.into_iter()
+        .map(|(pose, _)| (pose, overlap(&src.points, &dst_tree, &pose, tol)))
+        .collect()
+}
+
+/// Source points paired in the fine fit.
+const FINE_POINTS: usize = 10_000;
+
+/// Coarse hypotheses kept for refinement: a wrong match can outscore the right one on the thinned
+/// clouds (noisy normals blur the descriptors), and the refinement tells them apart.
+const HYPOTHESES: usize = 6;
+
+/// Keeps the [`HYPOTHESES`] best-scoring distinct motions in `best` (sorted, best first); a
+/// motion within 2° and 2 voxels of a kept one replaces it only when it scores higher.
+fn keep_best(best: &mut Vec<(Isometry3<f64>, f64)>, pose: Isometry3<f64>, score: f64, voxel: f64) {
+    if best.len() == HYPOTHESES && score <= best[HYPOTHESES - 1].1 {
+        return;
+    }
+    let near = best.iter().position(|(p, _)| {
+        let d = p.inverse() * pose;
+        d.rotation.angle() < 2f64.to_radians() && d.translation.vector.norm() < 2.0 * voxel
+    });
+    match near {
+        Some(i) if best[i].1 >= score => return,
+        Some(i) => {
+            best.remove(i);
+        }
+        None => {}
+    }
+    let at = best.partition_point(|(_, s)| *s >= score);
+    best.insert(at, (pose, score));
+    best.truncate(HYPOTHESES);
 }
 
 /// Point-to-plane ICP from `init`, pairs within `max_dist` mm; returns the motion, the overlap
@@ -386,7 +416,9 @@ pub fn register(
             });
         }
     }
-    let (init, found) = coarse(&s, &d, o);
+    let hypotheses = coarse(&s, &d, o);
+    let dtree = tree(&d.points);
+    let found = hypotheses.iter().map(|h| h.1).fold(0.0, f64::max);
     if found < o.min_overlap {
         return Err(RegisterError::NoOverlap {
             overlap_percent: 100.0 * found,
@@ -394,8 +426,23 @@ pub fn register(
             min_percent: 100.0 * o.min_overlap,
         });
     }
-    let coarse_fit = icp(&s, &d, init, 2.0 * o.voxel_mm, 30);
-    let fine = icp(src, dst, coarse_fit.pose, o.voxel_mm, 30);
+    // Each hypothesis refined on the thinned clouds; the one that then fits most points, within
+    // a third of a voxel, wins.
+    let coarse_fit = hypotheses
+        .iter()
+        .filter(|h| h.1 >= o.min_overlap)
+        .map(|h| icp(&s, &d, h.0, 2.0 * o.voxel_mm, 30))
+        .map(|f| (overlap(&s.points, &dtree, &f.pose, o.voxel_mm / 3.0), f))
+        .max_by(|a, b| a.0.total_cmp(&b.0))
+        .map(|(_, f)| f)
+        .unwrap_or_else(|| icp(&s, &d, hypotheses[0].0, 2.0 * o.voxel_mm, 30));
+    // The fine fit pairs at most FINE_POINTS of the source (evenly spaced) with the whole target.
+    let step = src.points.len().div_ceil(FINE_POINTS).max(1);
+    let sparse = Cloud {
+        points: src.points.iter().step_by(step).copied().collect(),
+        normals: src.normals.iter().step_by(step).copied().collect(),
+    };
+    let fine = icp(&sparse, dst, coarse_fit.pose, o.voxel_mm, 30);
     // The refined fit must still cover the share asked: a wrong match that happened to score
     // in the coarse stage (two views of opposite sides) is refused here.
     if fine.overlap < o.min_overlap {

@@ -46,6 +46,9 @@ fn three_scanned_views_register_with_the_rigs_rotations() {
                 k,
                 "--calibration",
                 "cal.toml",
+                "--format",
+                "rgb",
+                "--colour",
                 "--out",
                 &format!("v{k}.stream"),
                 "-q",
@@ -78,6 +81,21 @@ fn three_scanned_views_register_with_the_rigs_rotations() {
     assert!(
         out.contains("model: ") && d.join("model/model.stl").exists(),
         "{out}"
+    );
+    // Coloured per vertex from the views' colours (the bunny's albedo, lit), in the PLY read
+    // back by an independent reader (tobj reads the OBJ's vertex colours).
+    assert!(out.contains("model coloured per vertex"), "{out}");
+    let (models, _) = tobj::load_obj(d.join("model/model.obj"), &tobj::LoadOptions::default())
+        .expect("the model's OBJ reads back");
+    let mesh = &models[0].mesh;
+    assert_eq!(mesh.vertex_color.len(), mesh.positions.len());
+    let mean_red =
+        mesh.vertex_color.iter().step_by(3).sum::<f32>() / (mesh.vertex_color.len() / 3) as f32;
+    let mean_blue = mesh.vertex_color.iter().skip(2).step_by(3).sum::<f32>()
+        / (mesh.vertex_color.len() / 3) as f32;
+    assert!(
+        mean_red > 0.1 && mean_red > mean_blue,
+        "the bunny's albedo is warm (0.75, 0.7, 0.65): red {mean_red}, blue {mean_blue}"
     );
     // The rotation of each view from view 0, against the truth.
     for (line, k) in out.lines().skip(2).take(2).zip([1usize, 6]) {

@@ -1,0 +1,157 @@
+//! Speed of a 360° merge (issue 17's target: 8 views of 50 000 points each registered and fused
+//! in ≤ 10 s on one core): `cargo bench -p scanner-host --bench merge` (run it pinned,
+//! `taskset -c 1`). The stages `scanner-host merge` runs after reading the views — the chain of
+//! pairwise registrations without a guess, the joint refinement, the outlier filter and the
+//! fusion — on eight synthetic views of a lumpy closed surface (about 60 mm across) turned by 45°
+//! about the vertical, each view the half of the surface that faces its camera, 50 000 points
+//! with exact normals. Prints each stage's time and each view's error against the truth.
+
+use std::time::Instant;
+
+use scanner_core::nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
+use scanner_host::fuse::{check, fuse, inliers};
+use scanner_host::refine::refine;
+use scanner_host::register::{Cloud, RegisterOptions, register};
+
+const VIEWS: usize = 8;
+const POINTS: usize = 50_000;
+
+/// Bumps on the surface: (azimuth °, elevation °, height, width) — different on every side, so
+/// that no view looks like another.
+const BUMPS: [(f64, f64, f64, f64); 6] = [
+    (0.0, 10.0, 0.35, 0.25),
+    (70.0, -25.0, 0.25, 0.35),
+    (150.0, 30.0, 0.4, 0.2),
+    (220.0, -5.0, 0.3, 0.3),
+    (290.0, 40.0, 0.2, 0.25),
+    (330.0, -40.0, 0.3, 0.2),
+];
+
+/// The surface's radius in the direction `d` (unit): a sphere of 30 mm with lumps and bumps.
+fn radius(d: &Vector3<f64>) -> f64 {
+    let bumps: f64 = BUMPS
+        .iter()
+        .map(|&(az, el, h, w)| {
+            let (az, el) = (az.to_radians(), el.to_radians());
+            let c = Vector3::new(el.cos() * az.sin(), el.sin(), el.cos() * az.cos());
+            h * (-(d - c).norm_squared() / (w * w)).exp()
+        })
+        .sum();
+    30.0 * (1.0 + 0.1 * (3.0 * d.x).sin() * (2.0 * d.y).cos() + bumps)
+}
+
+/// The surface point and outward normal in direction `d` (normal by central differences).
+fn surface(d: &Vector3<f64>) -> (Point3<f64>, Vector3<f64>) {
+    let at = |v: Vector3<f64>| {
+        let v = v.normalize();
+        v * radius(&v)
+    };
+    let p = at(*d);
+    // two tangents
+    let a = if d.x.abs() < 0.9 {
+        Vector3::x()
+    } else {
+        Vector3::y()
+    };
+    let (t1, t2) = (d.cross(&a).normalize(), d.cross(&d.cross(&a)).normalize());
+    let h = 1e-4;
+    let du = at(d + t1 * h) - at(d - t1 * h);
+    let dv = at(d + t2 * h) - at(d - t2 * h);
+    let mut n = du.cross(&dv).normalize();
+    if n.dot(&p) < 0.0 {
+        n = -n;
+    }
+    (Point3::from(p), n)
+}
+
+/// The object's pose in view `k`'s camera: turned by 45° k about the vertical, 500 mm ahead.
+fn pose(k: usize) -> Isometry3<f64> {
+    Translation3::new(0.0, 0.0, 500.0)
+        * UnitQuaternion::from_axis_angle(&Vector3::y_axis(), (45.0 * k as f64).to_radians())
+}
+
+/// View `k`: the points the camera at the origin sees (normal facing it), in its frame.
+fn view(k: usize) -> Cloud {
+    let pose = pose(k);
+    let mut c = Cloud::default();
+    // a Fibonacci sphere of directions, dense enough that the visible half holds POINTS
+    let n = 2 * POINTS + 20_000;
+    let golden = std::f64::consts::PI * (3.0 - 5f64.sqrt());
+    for i in 0..n {
+        if c.points.len() == POINTS {
+            break;
+        }
+        let y = 1.0 - 2.0 * (i as f64 + 0.5) / n as f64;
+        let r = (1.0 - y * y).sqrt();
+        let t = golden * i as f64;
+        let (p, nrm) = surface(&Vector3::new(r * t.cos(), y, r * t.sin()));
+        let (p, nrm) = (pose * p, pose * nrm);
+        if nrm.dot(&-p.coords.normalize()) > 0.15 {
+            c.points.push(p);
+            c.normals.push(nrm);
+        }
+    }
+    c
+}
+
+fn main() {
+    let t = Instant::now();
+    let clouds: Vec<Cloud> = (0..VIEWS).map(view).collect();
+    println!(
+        "{VIEWS} views of {} points each (made in {:.1} s)",
+        clouds[0].points.len(),
+        t.elapsed().as_secs_f64()
+    );
+    let o = RegisterOptions::default();
+    let t0 = Instant::now();
+    let mut poses = vec![Isometry3::identity()];
+    for k in 1..VIEWS {
+        let r = register(&clouds[k], &clouds[k - 1], &o).expect("neighbouring views register");
+        poses.push(poses[k - 1] * r.pose);
+    }
+    let t_chain = t0.elapsed().as_secs_f64();
+    let refs: Vec<&Cloud> = clouds.iter().collect();
+    let t1 = Instant::now();
+    let poses = refine(&refs, &poses, o.voxel_mm, 8, |_| {});
+    let t_joint = t1.elapsed().as_secs_f64();
+    let t2 = Instant::now();
+    let (mut points, mut normals) = (Vec::new(), Vec::new());
+    for (c, p) in clouds.iter().zip(&poses) {
+        points.extend(c.points.iter().map(|q| p * q));
+        normals.extend(c.normals.iter().map(|n| p * n));
+    }
+    let keep = inliers(&points);
+    let points: Vec<Point3<f64>> = keep.iter().map(|&i| points[i]).collect();
+    let normals: Vec<Vector3<f64>> = keep.iter().map(|&i| normals[i]).collect();
+    let t_filter = t2.elapsed().as_secs_f64();
+    let t3 = Instant::now();
+    let mesh = fuse(&points, &normals, 1.0).expect("fusion");
+    let t_fuse = t3.elapsed().as_secs_f64();
+    let total = t0.elapsed().as_secs_f64();
+    let c = check(&mesh);
+    println!("| stage | seconds |\n|---|---|");
+    println!(
+        "| registration, {} pairs without a guess | {t_chain:.2} |",
+        VIEWS - 1
+    );
+    println!("| joint refinement, 8 rounds | {t_joint:.2} |");
+    println!("| outlier filter ({} points) | {t_filter:.2} |", keep.len());
+    println!(
+        "| fusion, 1 mm cells ({} vertices, {}, {} component(s)) | {t_fuse:.2} |",
+        mesh.vertices.len(),
+        if c.watertight { "watertight" } else { "open" },
+        c.components
+    );
+    println!("| **total** (target ≤ 10 s) | **{total:.2}** |");
+    let worst = (1..VIEWS)
+        .map(|k| {
+            let truth = pose(0) * pose(k).inverse();
+            let d = truth.inverse() * poses[k];
+            (d.rotation.angle().to_degrees(), d.translation.vector.norm())
+        })
+        .fold((0.0f64, 0.0f64), |a, b| (a.0.max(b.0), a.1.max(b.1)));
+    println!(
+        "worst view against the truth: {:.4}° {:.3} mm",
+        worst.0, worst.1
+    );
+}
