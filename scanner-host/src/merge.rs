@@ -39,6 +39,16 @@ pub enum MergeError {
         /// Its path.
         path: PathBuf,
     },
+    /// A view's scan sent no point (the laser never seen on the board, or every frame skipped).
+    #[error("view {view} ({}): the scan holds no point ({frames} frames received): nothing to register", path.display())]
+    NoPoints {
+        /// Which view.
+        view: usize,
+        /// Its path.
+        path: PathBuf,
+        /// Frames in its stream.
+        frames: u64,
+    },
     /// Views from different cameras or calibrations cannot share a frame.
     #[error(
         "view {view} ({}) was scanned with another camera or image size than view 0: merge views of one calibrated set-up",
@@ -106,6 +116,13 @@ pub fn load_view(k: usize, path: &Path, cell: crate::grid::Cell) -> Result<View,
             path: path.to_path_buf(),
         });
     };
+    if c.counts().points == 0 {
+        return Err(MergeError::NoPoints {
+            view: k,
+            path: path.to_path_buf(),
+            frames: c.counts().decode.frames,
+        });
+    }
     let m = mesh::build(
         grid,
         f64::from(header.camera.fx),

@@ -1,7 +1,7 @@
 //! `scanner-host merge` through the real binaries: the head scans the rig's bunny in three views
 //! (turned 60° about the vertical, laid on its side), the host receives each, and `merge`
 //! registers them with no guess; the rotations it finds match the rig's truth. Bad input: one
-//! view, a folder that is not a scan, views from another camera.
+//! view, a folder that is not a scan, views from another camera, a scan without points.
 
 use std::path::Path;
 
@@ -151,4 +151,38 @@ fn three_scanned_views_register_with_the_rigs_rotations() {
         &["merge", "v0", "small.stream", "--out", "m3"],
     );
     assert!(!ok && err.contains("another camera"), "{err}");
+    // A view whose scan sent no point (the laser off for the whole sweep).
+    std::fs::write(
+        d.join("dark.toml"),
+        text.replace("[laser]", "[laser]\npower = 0.0"),
+    )
+    .unwrap();
+    let (ok, _, err) = run(
+        d,
+        "scanner-device",
+        &[
+            "scan",
+            "--source",
+            "rig",
+            "--scene",
+            "dark.toml",
+            "--calibration",
+            "cal.toml",
+            "--frames",
+            "20",
+            "--out",
+            "dark.stream",
+            "-q",
+        ],
+    );
+    assert!(ok, "{err}");
+    let (ok, _, err) = run(
+        d,
+        "scanner-host",
+        &["merge", "v0", "dark.stream", "--out", "m4"],
+    );
+    assert!(
+        !ok && err.contains("view 1 (dark.stream): the scan holds no point"),
+        "{err}"
+    );
 }
