@@ -7,7 +7,7 @@ use crate::source::SourceError;
 use scanner_core::Camera;
 use scanner_core::geometry::Board;
 use scanner_core::pipeline::{Head, HeadConfig};
-use scanner_core::wire::{self, Controls, Header, Message, Points, Skip, Status};
+use scanner_core::wire::{self, Controls, Header, Message, Planes, Points, Skip, Status};
 
 use crate::link::Link;
 use crate::source::{FrameSource, OwnedFrame};
@@ -176,6 +176,8 @@ pub struct Session {
     last_us: u64,
     frames_since_header: u32,
     frames_since_status: u32,
+    /// The laser planes fitted since the last status: count, RMS sum and largest, mm.
+    planes: (u32, f64, f32),
 }
 
 impl Session {
@@ -226,6 +228,7 @@ impl Session {
             last_us: 0,
             frames_since_header: 0,
             frames_since_status: 0,
+            planes: (0, 0.0, 0.0),
         })
     }
 
@@ -255,6 +258,23 @@ impl Session {
             self.status.bytes += n as u64;
         }
         Ok(sent.is_some())
+    }
+
+    /// Sends how well the laser planes since the last status fitted (dropped if the link is
+    /// busy: the next one covers its own frames), and starts the next count.
+    fn send_planes(&mut self, link: &mut Link) -> Result<()> {
+        let (n, sum, max) = std::mem::take(&mut self.planes);
+        if n > 0 {
+            let um = |mm: f64| (mm * 1000.0).round().clamp(0.0, f64::from(u32::MAX)) as u32;
+            let p = Planes {
+                scan_id: self.opts.scan_id,
+                planes: n,
+                rms_mean_um: um(sum / f64::from(n)),
+                rms_max_um: um(f64::from(max)),
+            };
+            self.send(link, &Message::Planes(p), false)?;
+        }
+        Ok(())
     }
 
     /// Reports the camera's controls after each header from now on (a source that is no camera
@@ -307,6 +327,9 @@ impl Session {
         let outcome = match (frame.view(), self.reference.view()) {
             (Ok(f), Ok(r)) => match self.head.process(&f, Some(&r)) {
                 Ok(out) => {
+                    self.planes.0 += 1;
+                    self.planes.1 += f64::from(out.plane_rms);
+                    self.planes.2 = self.planes.2.max(out.plane_rms);
                     let n = scanner_core::wire::points::encode(out.points, &mut self.xyz)
                         .map_err(SessionError::Encode)?;
                     let msg = Message::Points(Points {
@@ -345,6 +368,7 @@ impl Session {
             self.send_header(link)?;
         }
         if self.frames_since_status >= self.opts.status_every {
+            self.send_planes(link)?;
             let s = Message::Status(self.status());
             self.send(link, &s, false)?;
             self.frames_since_status = 0;
@@ -370,6 +394,7 @@ impl Session {
                 (Some(why), None)
             }
         };
+        self.send_planes(link)?;
         let before = self.status.bytes;
         self.send(link, &Message::Status(s), true)?;
         let bytes = self.status.bytes;

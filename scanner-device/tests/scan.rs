@@ -46,7 +46,7 @@ fn decode(bytes: &[u8]) -> Decoded {
                 frames.insert(p.frame, v);
             }
             Message::Status(s) => last = Some(s),
-            Message::Controls(_) => {}
+            Message::Controls(_) | Message::Planes(_) => {}
         });
     }
     (frames, headers, last, d.stats())

@@ -1,6 +1,7 @@
 //! The command line: `receive`, `replay`, `ports`.
 
 use std::io::Read;
+use std::net::SocketAddr;
 use std::path::PathBuf;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -12,7 +13,9 @@ use clap::{Parser, Subcommand};
 use crate::collect::{CollectOptions, Collector, Journal};
 use crate::grid::Cell;
 use crate::link::Input;
-use crate::outputs::{FrameChoice, OutputOptions, Summary, replay_into, write_outputs};
+use crate::live::LiveView;
+use crate::mesh::MeshFrame;
+use crate::outputs::{FrameChoice, OutputOptions, Summary, mesh_of, replay_into, write_outputs};
 
 /// Command line of the host tool.
 #[derive(Debug, Parser)]
@@ -70,6 +73,16 @@ pub enum Command {
         /// journal already holds a scan is refused, so that two sessions never mix by accident).
         #[arg(long)]
         append: bool,
+        /// Show the scan live in a web browser: serves a page on ADDR:PORT (default
+        /// 127.0.0.1 and a free port, printed). Another address than loopback (e.g.
+        /// `0.0.0.0:8080`, to watch from a phone) prints a warning and needs the random token in
+        /// the printed address.
+        #[arg(long, value_name = "ADDR:PORT", num_args = 0..=1, default_missing_value = "127.0.0.1:0")]
+        view: Option<SocketAddr>,
+        /// With --view: how long the page stays up after the scan, with the mesh and the files
+        /// to download, seconds (default: until Ctrl-C).
+        #[arg(long, value_name = "SECS", requires = "view")]
+        view_for: Option<f64>,
         /// Outputs.
         #[command(flatten)]
         out: OutputArgs,
@@ -168,7 +181,43 @@ fn check_journal(input: &Input, journal: &std::path::Path, append: bool) -> Resu
     Ok(())
 }
 
-fn receive(input: &Input, until_done: bool, append: bool, o: &OutputArgs) -> Result<Summary> {
+/// A live view that goes on serving the finished scan.
+struct Lingering {
+    view: LiveView,
+    stop: Arc<AtomicBool>,
+    for_secs: Option<f64>,
+}
+
+/// Starts the live view and says where it is.
+fn start_view(addr: SocketAddr) -> Result<LiveView> {
+    let v = LiveView::start(addr)?;
+    if v.is_public() {
+        crate::errln!(
+            "warning: the live view is served on {addr}, reachable from other machines on the network; the token in its address is the only key"
+        );
+    }
+    crate::errln!("live view: {}", v.url());
+    Ok(v)
+}
+
+/// Hands the frames accepted since the last call to the live view.
+fn publish(c: &mut Collector, v: &mut LiveView) {
+    if !v.has_frame()
+        && let Some(board) = c.header().and_then(|h| h.board().ok())
+    {
+        v.set_frame(MeshFrame::board(&board));
+    }
+    for (pts, rgb) in c.take_watched() {
+        v.points(&pts, &rgb);
+    }
+}
+
+fn receive(
+    input: &Input,
+    (until_done, append): (bool, bool),
+    (view, view_for): (Option<SocketAddr>, Option<f64>),
+    o: &OutputArgs,
+) -> Result<(Summary, Option<Lingering>)> {
     std::fs::create_dir_all(&o.out)
         .with_context(|| format!("cannot create the output folder {}", o.out.display()))?;
     let journal_path = o.out.join("journal.stream");
@@ -179,6 +228,10 @@ fn receive(input: &Input, until_done: bool, append: bool, o: &OutputArgs) -> Res
         let stop = stop.clone();
         // A second handler cannot be installed in the same process (tests): ignore that.
         let _ = ctrlc::set_handler(move || stop.store(true, Ordering::SeqCst));
+    }
+    let mut view = view.map(start_view).transpose()?;
+    if view.is_some() {
+        c.watch();
     }
     let mut input = input.open()?;
     if let Some(name) = &input.device {
@@ -195,7 +248,12 @@ fn receive(input: &Input, until_done: bool, append: bool, o: &OutputArgs) -> Res
         }
         match input.reader.read(&mut buf) {
             Ok(0) => break "input ended",
-            Ok(n) => c.feed(&buf[..n])?,
+            Ok(n) => {
+                c.feed(&buf[..n])?;
+                if let Some(v) = &mut view {
+                    publish(&mut c, v);
+                }
+            }
             Err(e)
                 if e.kind() == std::io::ErrorKind::TimedOut
                     || e.kind() == std::io::ErrorKind::Interrupted => {}
@@ -217,6 +275,9 @@ fn receive(input: &Input, until_done: bool, append: bool, o: &OutputArgs) -> Res
                 k.decode.rejected()
             ));
             pb.tick();
+            if let Some(v) = &view {
+                v.status(&k);
+            }
             last_draw = Instant::now();
         }
     };
@@ -226,7 +287,18 @@ fn receive(input: &Input, until_done: bool, append: bool, o: &OutputArgs) -> Res
     if !o.quiet {
         crate::errln!("{ended}; journal: {}", journal_path.display());
     }
-    Ok(write_outputs(&c, &o.out, &o.output_options())?)
+    let summary = write_outputs(&c, &o.out, &o.output_options())?;
+    let lingering = view.map(|v| {
+        v.finish(&c.counts(), mesh_of(&c, &o.output_options()), &o.out, ended);
+        // A Ctrl-C that ended the scan does not end the page: the next one does.
+        stop.store(false, Ordering::SeqCst);
+        Lingering {
+            view: v,
+            stop,
+            for_secs: view_for,
+        }
+    });
+    Ok((summary, lingering))
 }
 
 /// Runs the host tool with parsed arguments.
@@ -260,8 +332,28 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
             input,
             until_done,
             append,
+            view,
+            view_for,
             out,
-        }) => receive(input, *until_done, *append, out)?,
+        }) => {
+            let (summary, lingering) =
+                receive(input, (*until_done, *append), (*view, *view_for), out)?;
+            crate::outln!("{}", summary.text().trim_end());
+            if let Some(l) = lingering {
+                match l.for_secs {
+                    Some(s) => crate::errln!(
+                        "the live view shows the finished scan at {} for {s} s",
+                        l.view.url()
+                    ),
+                    None => crate::errln!(
+                        "the live view shows the finished scan at {}; Ctrl-C to quit",
+                        l.view.url()
+                    ),
+                }
+                l.view.linger(&l.stop, l.for_secs);
+            }
+            return Ok(());
+        }
         Some(Command::Merge {
             views,
             out,

@@ -6,7 +6,8 @@ use std::collections::{BTreeMap, BTreeSet, VecDeque};
 
 use scanner_core::nalgebra::Point3;
 use scanner_core::wire::{
-    Controls, DecodeStats, Decoder, Header, MAX_ENCODED, Message, SKIP_REASONS, Status, points,
+    Controls, DecodeStats, Decoder, Header, MAX_ENCODED, Message, Planes, SKIP_REASONS, Status,
+    points,
 };
 use scanner_core::{Camera, GeomError};
 
@@ -89,6 +90,8 @@ pub struct Counts {
     pub status: BTreeMap<u32, Status>,
     /// The camera controls of each scan, as its head reported them.
     pub controls: BTreeMap<u32, Controls>,
+    /// The latest laser-plane fit of each scan, as its head reported it.
+    pub planes: BTreeMap<u32, Planes>,
     /// Capture time span of the points, µs (first, last).
     pub time_us: Option<(u64, u64)>,
 }
@@ -130,7 +133,13 @@ struct State {
     error: Option<CollectError>,
     points: Vec<Point3<f32>>,
     seen: BTreeSet<(u32, u32)>,
+    /// Each accepted frame's points and colours since the last [`Collector::take_watched`]
+    /// (only while watched).
+    watched: Option<Vec<Watched>>,
 }
+
+/// One accepted frame's points (camera frame, mm) and colours (empty: none), for a live view.
+pub type Watched = (Vec<Point3<f32>>, Vec<[u8; 3]>);
 
 impl Collector {
     /// A collector, journaling to `journal` if given.
@@ -156,6 +165,20 @@ impl Collector {
     /// The grid (once a header has arrived).
     pub fn grid(&self) -> Option<&Grid> {
         self.state.grid.as_ref()
+    }
+
+    /// Keeps each accepted frame's points for [`Collector::take_watched`] from now on.
+    pub fn watch(&mut self) {
+        self.state.watched.get_or_insert_with(Vec::new);
+    }
+
+    /// The frames accepted since the last call (empty unless [`Collector::watch`]ed).
+    pub fn take_watched(&mut self) -> Vec<Watched> {
+        self.state
+            .watched
+            .as_mut()
+            .map(std::mem::take)
+            .unwrap_or_default()
     }
 
     /// Whether points carried colour.
@@ -213,6 +236,7 @@ impl State {
             error: None,
             points: Vec::with_capacity(4096),
             seen: BTreeSet::new(),
+            watched: None,
         }
     }
 
@@ -239,6 +263,10 @@ impl State {
             Message::Controls(k) => {
                 self.counts.scans.insert(k.scan_id);
                 self.counts.controls.insert(k.scan_id, *k);
+            }
+            Message::Planes(p) => {
+                self.counts.scans.insert(p.scan_id);
+                self.counts.planes.insert(p.scan_id, *p);
             }
             Message::Points(p) => {
                 if !self.seen.insert((p.scan_id, p.frame)) {
@@ -274,6 +302,9 @@ impl State {
                 let rgb: Vec<[u8; 3]> = p.rgb.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect();
                 if !rgb.is_empty() {
                     self.colour = true;
+                }
+                if let Some(w) = &mut self.watched {
+                    w.push((self.points.clone(), rgb.clone()));
                 }
                 if self.grid.is_some() {
                     let points = std::mem::take(&mut self.points);

@@ -11,6 +11,7 @@
 //!   atomically;
 //! - [`register`], [`merge`] and [`fuse`]: several views of one object registered into one
 //!   frame and fused into one mesh (`merge`);
+//! - [`live`]: the live view in a web browser (`receive --view`);
 //! - [`cli`]: the command line (the only place `anyhow` is used).
 #![deny(missing_docs)]
 
@@ -40,6 +41,7 @@ pub mod fuse;
 pub mod grid;
 pub mod journal;
 pub mod link;
+pub mod live;
 pub mod merge;
 pub mod mesh;
 pub mod outputs;

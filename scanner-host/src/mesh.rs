@@ -63,6 +63,14 @@ impl MeshFrame {
         }
     }
 
+    /// A point in camera coordinates, in this frame.
+    pub fn point(&self, p: &Point3<f32>) -> Point3<f32> {
+        match self {
+            MeshFrame::Camera => *p,
+            MeshFrame::Board { rotation, origin } => Point3::from(rotation * (p - origin)),
+        }
+    }
+
     /// One line saying which frame, for file headers and the summary.
     pub fn describe(&self) -> String {
         match self {
@@ -96,9 +104,9 @@ impl Mesh {
         if self.frame != MeshFrame::Camera {
             return;
         }
-        if let MeshFrame::Board { rotation, origin } = frame {
+        if let MeshFrame::Board { rotation, .. } = frame {
             for v in &mut self.vertices {
-                *v = Point3::from(rotation * (*v - origin));
+                *v = frame.point(v);
             }
             for n in &mut self.normals {
                 *n = rotation * *n;

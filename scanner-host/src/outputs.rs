@@ -4,11 +4,12 @@
 use std::io::Read;
 use std::path::Path;
 
-use scanner_core::wire::{Control, Skip};
+use scanner_core::wire::{Control, Header, Skip};
 
 use crate::collect::{CollectError, Collector, Counts};
 use crate::export::{self, ExportError};
-use crate::mesh::{self, MeshFrame, MeshOptions};
+use crate::grid::Grid;
+use crate::mesh::{self, Mesh, MeshFrame, MeshOptions};
 
 /// Why the outputs could not be made.
 #[derive(Debug, thiserror::Error)]
@@ -202,11 +203,7 @@ pub fn write_outputs(
         export::write_atomic(&dir.join("summary.txt"), e.to_string().as_bytes())?;
         return Err(e);
     };
-    let opts = MeshOptions {
-        min_count: out.min_count,
-        ..MeshOptions::default()
-    };
-    let m = mesh::build(grid, f64::from(header.camera.fx), &opts, c.colour());
+    let m = camera_mesh(grid, header, c.colour(), out);
     // The pictures are the camera's view; then the meshes, in their frame, streamed to their
     // files (the mesh is never held twice in memory).
     export::write_atomic_with(&dir.join("depth.png"), |w| {
@@ -242,6 +239,20 @@ pub fn write_outputs(
     };
     export::write_atomic(&dir.join("summary.txt"), summary.text().as_bytes())?;
     Ok(summary)
+}
+
+/// The mesh of a collection's grid, in camera coordinates (the one [`write_outputs`] writes;
+/// `None` before a header arrived).
+pub fn mesh_of(c: &Collector, out: &OutputOptions) -> Option<Mesh> {
+    Some(camera_mesh(c.grid()?, c.header()?, c.colour(), out))
+}
+
+fn camera_mesh(grid: &Grid, header: &Header, colour: bool, out: &OutputOptions) -> Mesh {
+    let opts = MeshOptions {
+        min_count: out.min_count,
+        ..MeshOptions::default()
+    };
+    mesh::build(grid, f64::from(header.camera.fx), &opts, colour)
 }
 
 /// Feeds a whole file (a journal or a recording) into a collector.

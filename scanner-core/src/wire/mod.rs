@@ -407,6 +407,20 @@ impl fmt::Display for Controls {
     }
 }
 
+/// How well the laser planes of the frames since the last status fitted the board's stripe
+/// (sent before each [`Status`]): the operator's check that the sweep is clean.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+pub struct Planes {
+    /// Scan id.
+    pub scan_id: u32,
+    /// Laser planes fitted (frames whose plane passed its check).
+    pub planes: u32,
+    /// Their mean RMS of the board's stripe points about the plane, µm.
+    pub rms_mean_um: u32,
+    /// The largest of those RMS, µm.
+    pub rms_max_um: u32,
+}
+
 /// A message.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub enum Message<'a> {
@@ -419,6 +433,8 @@ pub enum Message<'a> {
     Status(Status),
     /// The camera controls (after each header).
     Controls(Controls),
+    /// The laser planes' fit since the last status (before each status).
+    Planes(Planes),
 }
 
 /// Why encoding or decoding failed.
