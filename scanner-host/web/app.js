@@ -23,6 +23,7 @@ const camera = new THREE.PerspectiveCamera(45, 1, 1, 50000);
 camera.position.set(0, 150, 900);
 const controls = new OrbitControls(camera, canvas);
 controls.enableDamping = true;
+controls.addEventListener('start', () => { userMoved = true; });
 
 const vertexShader = `
   attribute vec3 rgb;
@@ -74,8 +75,13 @@ const last = pointLayer(HIGHLIGHT, 4, 0.6);
 let received = 0;
 let colourMode = 0;
 let hasColour = false;
-const box = new THREE.Box3();
+// A reservoir sample of the points: the depth colours' range and the framing come from its
+// percentiles, so that a few stray points neither wash out the colours nor shrink the object.
+const SAMPLE = 4096;
+const sample = [];
+let seen = 0;
 let fitted = 0;
+let userMoved = false;
 let meshShown = false;
 
 // Keeps every second drawn point.
@@ -117,8 +123,11 @@ function addPoints(buf) {
     cloud.rgb[3 * k] = rgb[3 * i];
     cloud.rgb[3 * k + 1] = rgb[3 * i + 1];
     cloud.rgb[3 * k + 2] = rgb[3 * i + 2];
-    box.expandByPoint(new THREE.Vector3(xyz[3 * i], xyz[3 * i + 1], xyz[3 * i + 2]));
+    seen++;
+    const j = sample.length < SAMPLE ? sample.length : Math.floor(Math.random() * seen);
+    if (j < SAMPLE) sample[j] = [xyz[3 * i], xyz[3 * i + 1], xyz[3 * i + 2]];
   }
+  const box = robustBox(sample);
   upload(cloud);
   // The latest batch, highlighted.
   const m = Math.min(count, HIGHLIGHT);
@@ -130,10 +139,11 @@ function addPoints(buf) {
     layer.material.uniforms.zmin.value = box.min.z;
     layer.material.uniforms.zmax.value = box.max.z;
   }
-  // Frame the object while the first points come in.
-  if (fitted < 5 && received > 2000 * (fitted + 1)) {
+  // Frame the object as it grows, until the user takes the view in hand.
+  const size = box.getSize(new THREE.Vector3()).length();
+  if (!userMoved && received > 500 && Math.abs(size - fitted) > 0.15 * fitted) {
     fit(box);
-    fitted++;
+    fitted = size;
   }
   $('points').textContent = fmt(received);
   $('stored').textContent = fmt(cloud.n);
@@ -141,12 +151,27 @@ function addPoints(buf) {
   document.body.dataset.stored = String(cloud.n);
 }
 
+// The box of the sample's 2nd to 98th percentiles on each axis.
+function robustBox(points) {
+  const b = new THREE.Box3();
+  if (points.length === 0) return b;
+  const lo = [], hi = [];
+  for (let a = 0; a < 3; a++) {
+    const v = points.map((p) => p[a]).sort((x, y) => x - y);
+    lo.push(v[Math.floor(0.02 * (v.length - 1))]);
+    hi.push(v[Math.ceil(0.98 * (v.length - 1))]);
+  }
+  b.min.set(lo[0], lo[1], lo[2]);
+  b.max.set(hi[0], hi[1], hi[2]);
+  return b;
+}
+
 function fit(b) {
   if (b.isEmpty()) return;
   const centre = b.getCenter(new THREE.Vector3());
   const size = b.getSize(new THREE.Vector3()).length();
   controls.target.copy(centre);
-  camera.position.copy(centre).add(new THREE.Vector3(0, 0.35 * size, 1.3 * size));
+  camera.position.copy(centre).add(new THREE.Vector3(0, 0.4 * size, 1.9 * size));
   camera.near = Math.max(0.1, size / 1000);
   camera.far = size * 100;
   camera.updateProjectionMatrix();
@@ -226,8 +251,11 @@ function showMesh(buf) {
   scene.add(sun);
   cloud.points.visible = false;
   last.points.visible = false;
-  geometry.computeBoundingBox();
-  fit(geometry.boundingBox);
+  const pos = geometry.attributes.position.array;
+  const some = [];
+  const step = Math.max(1, Math.floor(nv / SAMPLE));
+  for (let i = 0; i < nv; i += step) some.push([pos[3 * i], pos[3 * i + 1], pos[3 * i + 2]]);
+  if (!userMoved) fit(robustBox(some));
   meshShown = true;
   document.body.dataset.mesh = 'shown';
 }
@@ -267,6 +295,10 @@ function resize() {
   const h = window.innerHeight;
   renderer.setSize(w, h, false);
   camera.aspect = w / Math.max(h, 1);
+  // On a wide screen the object is centred in the space right of the panel.
+  const panel = w > 700 ? $('panel').offsetWidth + 8 : 0;
+  if (panel > 0) camera.setViewOffset(w, h, -panel / 2, 0, w, h);
+  else camera.clearViewOffset();
   camera.updateProjectionMatrix();
 }
 window.addEventListener('resize', resize);

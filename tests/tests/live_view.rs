@@ -1,0 +1,755 @@
+//! The live view (`receive --view`) in a real browser, and its server's rules.
+//!
+//! The browser tests drive a headless Chromium over the DevTools protocol (a WebSocket: the
+//! page is loaded, a DOM counter the page keeps is read, screenshots are taken) while a rig scan
+//! is written into the host's pseudo-terminal at a steady pace. They need Debian's `chromium`
+//! (`scripts/setup` installs it; `CHROMIUM=path` names another). Without it they fail, naming
+//! what is missing, unless `SCANNER_SKIP_BROWSER=1` is set, which they then print loudly.
+
+use std::io::{BufRead, BufReader, Read, Write};
+use std::net::TcpStream;
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Stdio};
+use std::sync::mpsc::{Receiver, channel};
+use std::time::{Duration, Instant};
+
+use scanner_core::nalgebra::Point3;
+use scanner_host::live::LiveView;
+use serde_json::{Value, json};
+use tungstenite::stream::MaybeTlsStream;
+
+fn bin(name: &str) -> PathBuf {
+    scanner_tests::workspace_bin(name)
+}
+
+// ---------------------------------------------------------------------------------------------
+// A headless Chromium over the DevTools protocol.
+
+struct Browser {
+    child: Child,
+    ws: tungstenite::WebSocket<MaybeTlsStream<TcpStream>>,
+    session: String,
+    next: u64,
+    _profile: tempfile::TempDir,
+}
+
+/// The browser, or `None` when the run says it may go without one (printed loudly).
+fn chromium() -> Option<PathBuf> {
+    let named = std::env::var_os("CHROMIUM").map(PathBuf::from);
+    let path = std::env::var_os("PATH").unwrap_or_default();
+    let dirs: Vec<PathBuf> = std::env::split_paths(&path).collect();
+    let found = named.or_else(|| {
+        ["chromium", "chromium-browser", "google-chrome"]
+            .iter()
+            .flat_map(|n| dirs.iter().map(move |d| d.join(n)))
+            .find(|p| p.exists())
+    });
+    match found {
+        Some(p) => Some(p),
+        None if std::env::var_os("SCANNER_SKIP_BROWSER").is_some() => {
+            eprintln!(
+                "!!! NOT CHECKED: no Chromium on this machine (SCANNER_SKIP_BROWSER set): the live view was not tested in a browser"
+            );
+            None
+        }
+        None => panic!(
+            "the live-view tests need a headless Chromium: run scripts/setup (installs Debian's chromium), set CHROMIUM=/path/to/chromium, or set SCANNER_SKIP_BROWSER=1 to go without (reported)"
+        ),
+    }
+}
+
+impl Browser {
+    fn launch(exe: &Path) -> Browser {
+        let profile = tempfile::tempdir().unwrap();
+        let mut child = Command::new(exe)
+            .args([
+                "--headless=new",
+                "--no-sandbox",
+                "--use-angle=swiftshader",
+                "--enable-unsafe-swiftshader",
+                "--disable-background-networking",
+                "--disable-component-update",
+                "--disable-sync",
+                "--disable-quic",
+                "--disable-dev-shm-usage",
+                "--no-first-run",
+                "--window-size=1000,700",
+                "--remote-debugging-port=0",
+            ])
+            .arg(format!("--user-data-dir={}", profile.path().display()))
+            .arg("about:blank")
+            .stdout(Stdio::null())
+            .stderr(Stdio::piped())
+            .spawn()
+            .expect("Chromium starts");
+        let lines = lines_of(child.stderr.take().unwrap());
+        let url = wait_line(&lines, "DevTools listening on ", Duration::from_secs(60))
+            .expect("Chromium printed its DevTools address");
+        let (mut ws, _) = tungstenite::connect(url.trim()).expect("DevTools WebSocket");
+        if let MaybeTlsStream::Plain(s) = ws.get_mut() {
+            s.set_read_timeout(Some(Duration::from_secs(60))).unwrap();
+        }
+        let mut b = Browser {
+            child,
+            ws,
+            session: String::new(),
+            next: 0,
+            _profile: profile,
+        };
+        let target = b.call("Target.createTarget", json!({"url": "about:blank"}));
+        let id = target["targetId"].as_str().unwrap().to_string();
+        let attached = b.call(
+            "Target.attachToTarget",
+            json!({"targetId": id, "flatten": true}),
+        );
+        b.session = attached["sessionId"].as_str().unwrap().to_string();
+        b
+    }
+
+    fn call(&mut self, method: &str, params: Value) -> Value {
+        self.next += 1;
+        let id = self.next;
+        let mut m = json!({"id": id, "method": method, "params": params});
+        if !self.session.is_empty() {
+            m["sessionId"] = self.session.clone().into();
+        }
+        self.ws
+            .send(tungstenite::Message::text(m.to_string()))
+            .unwrap();
+        loop {
+            let msg = self.ws.read().expect("DevTools answers");
+            let Ok(text) = msg.to_text() else { continue };
+            let v: Value = serde_json::from_str(text).unwrap();
+            if v["id"] == id {
+                assert!(v["error"].is_null(), "{method}: {}", v["error"]);
+                return v["result"].clone();
+            }
+        }
+    }
+
+    fn navigate(&mut self, url: &str) {
+        self.call("Page.navigate", json!({"url": url}));
+    }
+
+    fn eval(&mut self, expr: &str) -> Value {
+        let r = self.call(
+            "Runtime.evaluate",
+            json!({"expression": expr, "returnByValue": true}),
+        );
+        r["result"]["value"].clone()
+    }
+
+    /// Polls `expr` until it is true; its last value otherwise.
+    fn wait_for(&mut self, expr: &str, timeout: Duration) -> bool {
+        let t0 = Instant::now();
+        while t0.elapsed() < timeout {
+            if self.eval(expr) == Value::Bool(true) {
+                return true;
+            }
+            std::thread::sleep(Duration::from_millis(100));
+        }
+        false
+    }
+
+    fn screenshot(&mut self) -> image::RgbImage {
+        use base64::Engine as _;
+        let r = self.call("Page.captureScreenshot", json!({"format": "png"}));
+        let png = base64::engine::general_purpose::STANDARD
+            .decode(r["data"].as_str().unwrap())
+            .unwrap();
+        image::load_from_memory(&png).unwrap().to_rgb8()
+    }
+}
+
+impl Drop for Browser {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
+/// A reader's lines, as they come.
+fn lines_of(r: impl Read + Send + 'static) -> Receiver<String> {
+    let (tx, rx) = channel();
+    std::thread::spawn(move || {
+        for line in BufReader::new(r).lines() {
+            let Ok(line) = line else { return };
+            if tx.send(line).is_err() {
+                return;
+            }
+        }
+    });
+    rx
+}
+
+/// The rest of the first line that starts with `prefix`.
+fn wait_line(lines: &Receiver<String>, prefix: &str, timeout: Duration) -> Option<String> {
+    let t0 = Instant::now();
+    while let Some(left) = timeout.checked_sub(t0.elapsed()) {
+        let line = lines.recv_timeout(left).ok()?;
+        if let Some(rest) = line.find(prefix).map(|i| &line[i + prefix.len()..]) {
+            return Some(rest.to_string());
+        }
+    }
+    None
+}
+
+// ---------------------------------------------------------------------------------------------
+// The scan: a rig sweep recorded once, then written into the host's pseudo-terminal at a pace.
+
+/// A sphere and the bunny in front of the demo board, 400×300, recorded to a stream file.
+fn recorded_scan(dir: &Path) -> PathBuf {
+    let bunny = Path::new(env!("CARGO_MANIFEST_DIR")).join("../scanner-device/scenes/bunny.obj");
+    std::fs::copy(bunny, dir.join("bunny.obj")).unwrap();
+    let text = "width = 400\nheight = 300\n\n[laser]\nframes = 160\n\n\
+         [[objects]]\nshape = \"sphere\"\ncentre = [-110.0, 20.0, 540.0]\nradius = 45.0\n\n\
+         [[objects]]\nshape = \"mesh\"\npath = \"bunny.obj\"\ncentre = [40.0, 25.0, 520.0]\nheight_mm = 100.0\nyaw_deg = 20.0\n";
+    std::fs::write(dir.join("scene.toml"), text).unwrap();
+    let rig = scanner_rig::Rig::new(scanner_rig::Scene::from_toml_in(text, dir).unwrap()).unwrap();
+    rig.truth_calibration()
+        .save(&dir.join("calibration.toml"))
+        .unwrap();
+    let stream = dir.join("scan.stream");
+    let (ok, _, err) = scanner_tests::run(
+        bin("scanner-device").to_str().unwrap(),
+        &[
+            "scan",
+            "--source",
+            "rig",
+            "--scene",
+            dir.join("scene.toml").to_str().unwrap(),
+            "--calibration",
+            dir.join("calibration.toml").to_str().unwrap(),
+            "--format",
+            "rgb",
+            "--colour",
+            "--scan-id",
+            "7",
+            "--quiet",
+            "--out",
+            stream.to_str().unwrap(),
+        ],
+    );
+    assert!(ok, "{err}");
+    stream
+}
+
+/// `receive pty --until-done --view` into `out`: the host, its stderr's lines, the page's
+/// address and the device end of its link.
+fn live_host(out: &Path, extra: &[&str]) -> (Child, Receiver<String>, String, String) {
+    let mut child = Command::new(bin("scanner-host"))
+        .args(["receive", "pty", "--until-done", "--quiet", "--out"])
+        .arg(out)
+        .args(extra)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let lines = lines_of(child.stderr.take().unwrap());
+    let url =
+        wait_line(&lines, "live view: ", Duration::from_secs(20)).expect("the page's address");
+    let port = wait_line(&lines, "device end of the link: ", Duration::from_secs(20))
+        .expect("the link's device end");
+    (child, lines, url, port)
+}
+
+/// Writes `stream` into the serial device `port` in `chunks` pieces, `gap` apart (a head that
+/// streams over several seconds).
+fn stream_into(
+    port: &str,
+    stream: &Path,
+    chunks: usize,
+    gap: Duration,
+) -> std::thread::JoinHandle<()> {
+    let bytes = std::fs::read(stream).unwrap();
+    let port = port.to_string();
+    std::thread::spawn(move || {
+        let mut p = serialport::new(&port, 921_600)
+            .timeout(Duration::from_secs(10))
+            .open_native()
+            .expect("the device end opens");
+        for piece in bytes.chunks(bytes.len().div_ceil(chunks)) {
+            p.write_all(piece).unwrap();
+            p.flush().unwrap();
+            std::thread::sleep(gap);
+        }
+    })
+}
+
+/// The same recording received without a live view, for comparison.
+fn reference_outputs(stream: &Path, out: &Path) {
+    let (ok, _, err) = scanner_tests::run(
+        bin("scanner-host").to_str().unwrap(),
+        &[
+            "receive",
+            stream.to_str().unwrap(),
+            "--until-done",
+            "--quiet",
+            "--out",
+            out.to_str().unwrap(),
+        ],
+    );
+    assert!(ok, "{err}");
+}
+
+const COMPARED: [&str; 7] = [
+    "scan.obj",
+    "scan.ply",
+    "scan.stl",
+    "depth.png",
+    "preview.png",
+    "summary.txt",
+    "journal.stream",
+];
+
+fn assert_same_outputs(a: &Path, b: &Path) {
+    for f in COMPARED {
+        let (x, y) = (
+            std::fs::read(a.join(f)).unwrap(),
+            std::fs::read(b.join(f)).unwrap(),
+        );
+        assert!(
+            x == y,
+            "{f} differs between {} and {}",
+            a.display(),
+            b.display()
+        );
+    }
+}
+
+/// Stops a lingering host with Ctrl-C (SIGINT) and checks it ends well.
+fn interrupt(mut child: Child) {
+    let pid = child.id().to_string();
+    assert!(
+        Command::new("kill")
+            .args(["-INT", &pid])
+            .status()
+            .unwrap()
+            .success()
+    );
+    let t0 = Instant::now();
+    loop {
+        if let Some(st) = child.try_wait().unwrap() {
+            assert!(st.success(), "the host ended with {st}");
+            return;
+        }
+        assert!(
+            t0.elapsed() < Duration::from_secs(20),
+            "the host did not stop on Ctrl-C"
+        );
+        std::thread::sleep(Duration::from_millis(50));
+    }
+}
+
+/// Pixels of the 3-D view that are not its background, right of the panel.
+fn object_pixels(img: &image::RgbImage) -> usize {
+    let bg = [0x1d_i32, 0x21, 0x28];
+    img.enumerate_pixels()
+        .filter(|(x, _, _)| *x >= 420)
+        .filter(|(_, _, p)| {
+            p.0.iter()
+                .zip(bg)
+                .map(|(a, b)| (i32::from(*a) - b).abs())
+                .sum::<i32>()
+                > 40
+        })
+        .count()
+}
+
+/// Where the test's screenshots go: `LIVE_VIEW_SHOTS=folder` keeps them (the README's pictures
+/// are made so); a temporary folder otherwise.
+fn shots_dir(tmp: &Path) -> PathBuf {
+    std::env::var_os("LIVE_VIEW_SHOTS").map_or_else(|| tmp.to_path_buf(), PathBuf::from)
+}
+
+/// The page has opened its stream.
+const CONNECTED: &str = "document.getElementById('state').textContent !== 'connecting…'";
+
+#[test]
+fn the_page_shows_the_scan_as_it_streams_then_offers_the_mesh() {
+    let Some(exe) = chromium() else { return };
+    let dir = tempfile::tempdir().unwrap();
+    let stream = recorded_scan(dir.path());
+    let live = dir.path().join("live");
+    let (host, _lines, url, port) = live_host(&live, &["--view"]);
+    assert!(
+        url.starts_with("http://127.0.0.1:"),
+        "loopback by default: {url}"
+    );
+    let mut b = Browser::launch(&exe);
+    b.navigate(&url);
+    assert!(
+        b.wait_for(CONNECTED, Duration::from_secs(30)),
+        "the page connected to its stream"
+    );
+    // About 6 s of streaming.
+    let writer = stream_into(&port, &stream, 60, Duration::from_millis(100));
+    assert!(
+        b.wait_for(
+            "Number(document.body.dataset.points) >= 3000",
+            Duration::from_secs(60)
+        ),
+        "the page counted points while they came: {}",
+        b.eval("document.body.dataset.points || '0'")
+    );
+    // Still streaming: the scan is shown as it happens, not after.
+    let state = b.eval("document.getElementById('state').textContent");
+    let fps = b.eval("Number(document.getElementById('fps').textContent)");
+    let mid = b.screenshot();
+    let points_mid = b.eval("Number(document.body.dataset.points)");
+    writer.join().unwrap();
+    assert_eq!(state, "receiving", "the points came before the scan ended");
+    assert!(
+        fps.as_f64().is_some_and(|f| f > 0.0),
+        "the status panel shows the frame rate: {fps}"
+    );
+    let lit = object_pixels(&mid);
+    assert!(
+        lit > 300,
+        "the screenshot shows the points ({lit} non-background pixels)"
+    );
+
+    // The end: the mesh replaces the points, the files are offered.
+    assert!(
+        b.wait_for(
+            "document.body.dataset.mesh === 'shown'",
+            Duration::from_secs(60)
+        ),
+        "the finished mesh is shown"
+    );
+    let downloads = b.eval("Number(document.body.dataset.downloads)");
+    assert_eq!(
+        downloads, 6,
+        "scan.obj/ply/stl, depth.png, preview.png, summary.txt offered"
+    );
+    let received = b
+        .eval("Number(document.body.dataset.points)")
+        .as_u64()
+        .unwrap();
+    let summary = std::fs::read_to_string(live.join("summary.txt")).unwrap();
+    let sent: u64 = summary
+        .split("points ")
+        .nth(1)
+        .and_then(|s| s.split_whitespace().next())
+        .and_then(|s| s.parse().ok())
+        .unwrap();
+    assert_eq!(
+        received, sent,
+        "every point reached the page ({points_mid} of them mid-scan)"
+    );
+    let done = b.screenshot();
+    assert!(object_pixels(&done) > 1000, "the mesh is drawn");
+    let shots = shots_dir(dir.path());
+    std::fs::create_dir_all(&shots).unwrap();
+    mid.save(shots.join("live-view-streaming.png")).unwrap();
+    done.save(shots.join("live-view-done.png")).unwrap();
+    // A download is the file itself.
+    let body = http_get(&url, "/files/scan.obj");
+    assert_eq!(body.0, 200);
+    assert_eq!(body.1, std::fs::read(live.join("scan.obj")).unwrap());
+    interrupt(host);
+
+    // The same bytes without the live view: identical outputs and journal.
+    let plain = dir.path().join("plain");
+    reference_outputs(&stream, &plain);
+    assert_same_outputs(&live, &plain);
+}
+
+#[test]
+fn the_page_keeps_up_with_300_000_points_a_second_in_bounded_memory() {
+    let Some(exe) = chromium() else { return };
+    // 300 000 points a second for 4 s into a page that draws at most 200 000.
+    let v = LiveView::start("127.0.0.1:0".parse().unwrap()).unwrap();
+    let mut b = Browser::launch(&exe);
+    b.navigate(&format!("{}?cap=200000", v.url()));
+    assert!(b.wait_for(CONNECTED, Duration::from_secs(30)));
+    let pts: Vec<Point3<f32>> = (0..3000)
+        .map(|i| Point3::new((i % 60) as f32, (i / 60) as f32, 500.0 + (i % 7) as f32))
+        .collect();
+    let (mut sent, t0) = (0u64, Instant::now());
+    for k in 1..=400u32 {
+        v.points(&pts, &[]);
+        sent += pts.len() as u64;
+        // Paced by the clock, not by the sleeps: 3 000 points every 10 ms.
+        let due = Duration::from_millis(10) * k;
+        if let Some(wait) = due.checked_sub(t0.elapsed()) {
+            std::thread::sleep(wait);
+        }
+    }
+    let offered = t0.elapsed();
+    assert!(
+        b.wait_for(
+            &format!("Number(document.body.dataset.points) === {sent}"),
+            Duration::from_secs(60)
+        ),
+        "the page received all {sent} points: {}",
+        b.eval("document.body.dataset.points")
+    );
+    let all = t0.elapsed();
+    println!(
+        "{sent} points offered in {:.2} s ({:.0}/s); all on the page after {:.2} s",
+        offered.as_secs_f64(),
+        sent as f64 / offered.as_secs_f64(),
+        all.as_secs_f64()
+    );
+    let stored = b
+        .eval("Number(document.body.dataset.stored)")
+        .as_u64()
+        .unwrap();
+    assert!(
+        (100_000..=200_000).contains(&stored),
+        "drawn points thinned to the cap: {stored}"
+    );
+    assert_eq!(v.dropped(), 0, "no view update dropped at this rate");
+    let heap = b.eval("performance.memory ? performance.memory.usedJSHeapSize : 0");
+    println!("page: {stored} points drawn of {sent}; JS heap {heap} bytes");
+}
+
+// ---------------------------------------------------------------------------------------------
+// The server's rules, through raw connections.
+
+/// Sends `request` raw and returns the status code and body.
+fn raw(addr: &str, request: &[u8]) -> (u16, Vec<u8>) {
+    let mut s = TcpStream::connect(addr).unwrap();
+    s.set_read_timeout(Some(Duration::from_secs(10))).unwrap();
+    let _ = s.write_all(request);
+    let mut answer = Vec::new();
+    let _ = s.read_to_end(&mut answer);
+    let text = String::from_utf8_lossy(&answer);
+    let code = text
+        .split_whitespace()
+        .nth(1)
+        .and_then(|c| c.parse().ok())
+        .unwrap_or(0);
+    let body = answer
+        .windows(4)
+        .position(|w| w == b"\r\n\r\n")
+        .map_or_else(Vec::new, |i| answer[i + 4..].to_vec());
+    (code, body)
+}
+
+fn host_port(url: &str) -> String {
+    url.trim_start_matches("http://")
+        .split('/')
+        .next()
+        .unwrap()
+        .to_string()
+}
+
+fn http_get(url: &str, path: &str) -> (u16, Vec<u8>) {
+    let addr = host_port(url);
+    raw(
+        &addr,
+        format!("GET {path} HTTP/1.1\r\nHost: {addr}\r\n\r\n").as_bytes(),
+    )
+}
+
+#[test]
+fn only_this_scans_data_is_served_and_bad_requests_are_refused() {
+    let v = LiveView::start("127.0.0.1:0".parse().unwrap()).unwrap();
+    let url = v.url().to_string();
+    let addr = host_port(&url);
+    let (code, page) = http_get(&url, "/");
+    assert_eq!(code, 200);
+    assert!(String::from_utf8_lossy(&page).contains("Live scan"));
+    assert_eq!(http_get(&url, "/vendor/three.module.min.js").0, 200);
+    let (code, licence) = http_get(&url, "/vendor/three-LICENSE.txt");
+    assert_eq!(code, 200);
+    assert!(
+        String::from_utf8_lossy(&licence)
+            .to_lowercase()
+            .contains("three.js authors")
+    );
+    // The finished scan: a folder with the outputs and a file that is no output.
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(dir.path().join("scan.obj"), "v 0 0 0\n").unwrap();
+    std::fs::write(dir.path().join("journal.stream"), "private").unwrap();
+    assert_eq!(
+        http_get(&url, "/files/scan.obj").0,
+        404,
+        "nothing before the scan ends"
+    );
+    assert_eq!(http_get(&url, "/mesh.bin").0, 404);
+    v.finish(&Default::default(), None, dir.path(), "input ended");
+    let t0 = Instant::now();
+    while http_get(&url, "/files/scan.obj").0 != 200 {
+        assert!(
+            t0.elapsed() < Duration::from_secs(10),
+            "the finished scan is offered"
+        );
+        std::thread::sleep(Duration::from_millis(50));
+    }
+    assert_eq!(http_get(&url, "/files/scan.obj").1, b"v 0 0 0\n");
+    for path in [
+        "/files/journal.stream",
+        "/files/../journal.stream",
+        "/files/%2e%2e/journal.stream",
+        "/../../etc/passwd",
+        "/files//etc/passwd",
+        "/etc/passwd",
+        "/app.js/../../Cargo.toml",
+    ] {
+        assert_eq!(http_get(&url, path).0, 404, "{path}");
+    }
+    let post = format!("POST / HTTP/1.1\r\nHost: {addr}\r\nContent-Length: 5\r\n\r\nhello");
+    assert_eq!(raw(&addr, post.as_bytes()).0, 405);
+    let body = format!("GET / HTTP/1.1\r\nHost: {addr}\r\nContent-Length: 5\r\n\r\nhello");
+    assert_eq!(raw(&addr, body.as_bytes()).0, 413);
+    let long_target = format!("GET /{} HTTP/1.1\r\nHost: {addr}\r\n\r\n", "a".repeat(3000));
+    assert_eq!(raw(&addr, long_target.as_bytes()).0, 414);
+    let huge_head = format!(
+        "GET / HTTP/1.1\r\nHost: {addr}\r\nX-Filler: {}\r\n\r\n",
+        "b".repeat(20_000)
+    );
+    assert_eq!(raw(&addr, huge_head.as_bytes()).0, 431);
+    assert_eq!(raw(&addr, b"\x16\x03\x01 not http at all\r\n\r\n").0, 400);
+    assert_eq!(http_get(&url, "/live").0, 400, "/live is a WebSocket only");
+}
+
+#[test]
+fn another_address_than_loopback_needs_the_token() {
+    let v = LiveView::start("0.0.0.0:0".parse().unwrap()).unwrap();
+    assert!(v.is_public());
+    let url = v.url().to_string();
+    let (_, token) = url.split_once("?t=").expect("a token in the address");
+    assert!(token.len() >= 32, "128 random bits: {token}");
+    let port = url.rsplit(':').next().unwrap().split('/').next().unwrap();
+    let local = format!("http://127.0.0.1:{port}/");
+    assert_eq!(http_get(&local, "/").0, 403, "no token");
+    assert_eq!(http_get(&local, "/?t=0123").0, 403, "a wrong token");
+    let mut wrong = token.to_string();
+    wrong.replace_range(0..1, if token.starts_with('0') { "1" } else { "0" });
+    assert_eq!(
+        http_get(&local, &format!("/?t={wrong}")).0,
+        403,
+        "one digit off"
+    );
+    assert_eq!(
+        http_get(&local, "/vendor/three.module.min.js").0,
+        403,
+        "every path needs it"
+    );
+    let (code, page) = http_get(&local, &format!("/?t={token}"));
+    assert_eq!(code, 200);
+    assert!(
+        String::from_utf8_lossy(&page).contains(&format!("app.js?t={token}")),
+        "the page's own requests carry the token"
+    );
+    let ws = format!(
+        "GET /live HTTP/1.1\r\nHost: x\r\nUpgrade: websocket\r\nConnection: Upgrade\r\nSec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\nSec-WebSocket-Version: 13\r\n\r\n"
+    );
+    assert_eq!(
+        raw(&format!("127.0.0.1:{port}"), ws.as_bytes()).0,
+        403,
+        "the stream too"
+    );
+
+    // Through the binary: the warning.
+    let dir = tempfile::tempdir().unwrap();
+    let mut child = Command::new(bin("scanner-host"))
+        .args([
+            "receive",
+            "-",
+            "--quiet",
+            "--view",
+            "0.0.0.0:0",
+            "--view-for",
+            "0",
+            "--out",
+        ])
+        .arg(dir.path().join("out"))
+        .stdin(Stdio::null())
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut err = String::new();
+    child
+        .stderr
+        .take()
+        .unwrap()
+        .read_to_string(&mut err)
+        .unwrap();
+    let _ = child.wait();
+    assert!(
+        err.contains("warning: the live view is served on 0.0.0.0"),
+        "{err}"
+    );
+    assert!(err.contains("?t="), "{err}");
+}
+
+#[test]
+fn a_flood_of_connections_is_bounded_and_survived() {
+    let v = LiveView::start("127.0.0.1:0".parse().unwrap()).unwrap();
+    let url = v.url().to_string();
+    let addr = host_port(&url);
+    // 100 connections that say nothing hold the slots…
+    let idle: Vec<TcpStream> = (0..100)
+        .map(|_| TcpStream::connect(&addr).unwrap())
+        .collect();
+    std::thread::sleep(Duration::from_millis(300));
+    // …so one more is closed unanswered,
+    let (code, _) = http_get(&url, "/");
+    assert_eq!(code, 0, "past the bound a connection is closed at once");
+    // and once they go, the page is served again.
+    drop(idle);
+    let t0 = Instant::now();
+    while http_get(&url, "/").0 != 200 {
+        assert!(
+            t0.elapsed() < Duration::from_secs(10),
+            "the server recovers"
+        );
+        std::thread::sleep(Duration::from_millis(50));
+    }
+}
+
+#[test]
+fn fifty_connections_at_once_leave_the_scan_untouched() {
+    let dir = tempfile::tempdir().unwrap();
+    let stream = recorded_scan(dir.path());
+    let live = dir.path().join("live");
+    let (host, _lines, url, port) = live_host(&live, &["--view", "--view-for", "0"]);
+    let addr = host_port(&url);
+    let writer = stream_into(&port, &stream, 30, Duration::from_millis(100));
+    // 50 at once: pages that never read, plain requests, idle sockets and garbage.
+    let mut held = Vec::new();
+    let mut pages = Vec::new();
+    for i in 0..50 {
+        match i % 4 {
+            0 => {
+                if let Ok((ws, _)) = tungstenite::connect(format!("ws://{addr}/live")) {
+                    pages.push(ws);
+                }
+            }
+            1 => {
+                let mut s = TcpStream::connect(&addr).unwrap();
+                let _ = s.write_all(format!("GET / HTTP/1.1\r\nHost: {addr}\r\n\r\n").as_bytes());
+                held.push(s);
+            }
+            2 => held.push(TcpStream::connect(&addr).unwrap()),
+            _ => {
+                let mut s = TcpStream::connect(&addr).unwrap();
+                let _ = s.write_all(&[0xff; 4096]);
+                held.push(s);
+            }
+        }
+    }
+    writer.join().unwrap();
+    let mut child = host;
+    let t0 = Instant::now();
+    let status = loop {
+        if let Some(st) = child.try_wait().unwrap() {
+            break st;
+        }
+        assert!(
+            t0.elapsed() < Duration::from_secs(60),
+            "the receive completed"
+        );
+        std::thread::sleep(Duration::from_millis(50));
+    };
+    assert!(status.success());
+    drop((held, pages));
+    let plain = dir.path().join("plain");
+    reference_outputs(&stream, &plain);
+    assert_same_outputs(&live, &plain);
+}
