@@ -3,7 +3,6 @@
 use std::io::Read;
 use std::net::SocketAddr;
 use std::path::PathBuf;
-use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
@@ -122,6 +121,13 @@ pub enum Command {
         /// the model is open where the views left gaps).
         #[arg(long)]
         keep_unseen: bool,
+        /// Show the registered views and the fused model in a web browser (as for receive).
+        #[arg(long, value_name = "ADDR:PORT", num_args = 0..=1, default_missing_value = "127.0.0.1:0")]
+        view: Option<SocketAddr>,
+        /// With --view: how long the page stays up after the merge, seconds (default: until
+        /// Ctrl-C).
+        #[arg(long, value_name = "SECS", requires = "view")]
+        view_for: Option<f64>,
         /// No progress display.
         #[arg(long, short)]
         quiet: bool,
@@ -181,11 +187,40 @@ fn check_journal(input: &Input, journal: &std::path::Path, append: bool) -> Resu
     Ok(())
 }
 
-/// A live view that goes on serving the finished scan.
-struct Lingering {
-    view: LiveView,
-    stop: Arc<AtomicBool>,
-    for_secs: Option<f64>,
+/// Refuses a `--view-for` that is no duration.
+fn check_view_for(secs: Option<f64>) -> Result<()> {
+    match secs {
+        Some(s) if !(s.is_finite() && (0.0..=31_536_000.0).contains(&s)) => {
+            anyhow::bail!("--view-for must be 0 to 31536000 seconds (a year), found {s}")
+        }
+        _ => Ok(()),
+    }
+}
+
+/// Keeps the live view up after the work: `for_secs`, or until Ctrl-C.
+fn linger(v: &LiveView, for_secs: Option<f64>) {
+    match for_secs {
+        Some(s) => crate::errln!("the live view shows the result at {} for {s} s", v.url()),
+        None => crate::errln!(
+            "the live view shows the result at {}; Ctrl-C to quit",
+            v.url()
+        ),
+    }
+    // A Ctrl-C that ended the work does not end the page: the next one does.
+    let stop = interrupted();
+    stop.store(false, Ordering::SeqCst);
+    v.linger(stop, for_secs);
+}
+
+/// Set by Ctrl-C (and SIGTERM); the handler is installed once per process.
+fn interrupted() -> &'static AtomicBool {
+    static STOP: AtomicBool = AtomicBool::new(false);
+    static INSTALL: std::sync::Once = std::sync::Once::new();
+    INSTALL.call_once(|| {
+        // Another handler already installed in this process (tests) leaves the flag unset.
+        let _ = ctrlc::set_handler(|| STOP.store(true, Ordering::SeqCst));
+    });
+    &STOP
 }
 
 /// Starts the live view and says where it is.
@@ -215,20 +250,16 @@ fn publish(c: &mut Collector, v: &mut LiveView) {
 fn receive(
     input: &Input,
     (until_done, append): (bool, bool),
-    (view, view_for): (Option<SocketAddr>, Option<f64>),
+    view: Option<SocketAddr>,
     o: &OutputArgs,
-) -> Result<(Summary, Option<Lingering>)> {
+) -> Result<(Summary, Option<LiveView>)> {
     std::fs::create_dir_all(&o.out)
         .with_context(|| format!("cannot create the output folder {}", o.out.display()))?;
     let journal_path = o.out.join("journal.stream");
     check_journal(input, &journal_path, append)?;
     let mut c = Collector::new(collect_options(o), Some(Journal::open(&journal_path)?));
-    let stop = Arc::new(AtomicBool::new(false));
-    {
-        let stop = stop.clone();
-        // A second handler cannot be installed in the same process (tests): ignore that.
-        let _ = ctrlc::set_handler(move || stop.store(true, Ordering::SeqCst));
-    }
+    let stop = interrupted();
+    stop.store(false, Ordering::SeqCst);
     let mut view = view.map(start_view).transpose()?;
     if view.is_some() {
         c.watch();
@@ -288,17 +319,16 @@ fn receive(
         crate::errln!("{ended}; journal: {}", journal_path.display());
     }
     let summary = write_outputs(&c, &o.out, &o.output_options())?;
-    let lingering = view.map(|v| {
-        v.finish(&c.counts(), mesh_of(&c, &o.output_options()), &o.out, ended);
-        // A Ctrl-C that ended the scan does not end the page: the next one does.
-        stop.store(false, Ordering::SeqCst);
-        Lingering {
-            view: v,
-            stop,
-            for_secs: view_for,
-        }
-    });
-    Ok((summary, lingering))
+    if let Some(v) = &view {
+        v.finish(
+            Some(&c.counts()),
+            mesh_of(&c, &o.output_options()),
+            &o.out,
+            &crate::outputs::DOWNLOADS,
+            ended,
+        );
+    }
+    Ok((summary, view))
 }
 
 /// Runs the host tool with parsed arguments.
@@ -336,21 +366,11 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
             view_for,
             out,
         }) => {
-            let (summary, lingering) =
-                receive(input, (*until_done, *append), (*view, *view_for), out)?;
+            check_view_for(*view_for)?;
+            let (summary, view) = receive(input, (*until_done, *append), *view, out)?;
             crate::outln!("{}", summary.text().trim_end());
-            if let Some(l) = lingering {
-                match l.for_secs {
-                    Some(s) => crate::errln!(
-                        "the live view shows the finished scan at {} for {s} s",
-                        l.view.url()
-                    ),
-                    None => crate::errln!(
-                        "the live view shows the finished scan at {}; Ctrl-C to quit",
-                        l.view.url()
-                    ),
-                }
-                l.view.linger(&l.stop, l.for_secs);
+            if let Some(v) = view {
+                linger(&v, *view_for);
             }
             return Ok(());
         }
@@ -362,15 +382,23 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
             fuse_cell,
             min_overlap,
             keep_unseen,
+            view,
+            view_for,
             quiet,
         }) => {
+            check_view_for(*view_for)?;
+            let view = view.map(start_view).transpose()?;
             merge_command(
                 views,
                 out,
                 *cell,
                 (*voxel, *fuse_cell, *min_overlap),
                 (*keep_unseen, *quiet),
+                view.as_ref(),
             )?;
+            if let Some(v) = view {
+                linger(&v, *view_for);
+            }
             return Ok(());
         }
         Some(Command::Replay { input, out }) => {
@@ -389,8 +417,14 @@ fn merge_command(
     cell: Cell,
     (voxel, fuse_cell, min_overlap): (f64, f64, f64),
     (keep_unseen, quiet): (bool, bool),
+    view: Option<&LiveView>,
 ) -> Result<()> {
     use crate::merge;
+    let stage = |text: &str| {
+        if let Some(v) = view {
+            v.stage(text);
+        }
+    };
     if !(voxel > 0.0 && voxel <= 50.0) {
         anyhow::bail!("--voxel must be more than 0 and at most 50 mm, found {voxel}");
     }
@@ -408,6 +442,7 @@ fn merge_command(
     for (k, p) in views.iter().enumerate() {
         pb.set_message(format!("reading view {k} ({})", p.display()));
         pb.tick();
+        stage(&format!("reading view {k} of {}", views.len()));
         loaded.push(merge::load_view(k, p, cell)?);
     }
     let opts = crate::register::RegisterOptions {
@@ -418,10 +453,12 @@ fn merge_command(
     let mut results = merge::register_views(&loaded, &opts, |k| {
         pb.set_message(format!("registered view {k} of {}", loaded.len() - 1));
         pb.tick();
+        stage(&format!("registered view {k} of {}", loaded.len() - 1));
     })?;
     let closure = merge::refine_views(&loaded, &mut results, &opts, |round| {
         pb.set_message(format!("refining all views together: round {}", round + 1));
         pb.tick();
+        stage(&format!("refining all views together: round {}", round + 1));
     });
     pb.finish_and_clear();
     std::fs::create_dir_all(out)
@@ -446,6 +483,15 @@ fn merge_command(
         colours,
         surface,
     } = merge::fusion_input(&loaded, &results);
+    if let Some(v) = view {
+        // The registered views in their colours (the board's frame, like the model) while the
+        // fusion runs.
+        for (pts, rgb) in points.chunks(8192).zip(colours.chunks(8192)) {
+            let pts: Vec<_> = pts.iter().map(|p| frame.point(&p.cast::<f32>())).collect();
+            v.points(&pts, rgb);
+        }
+        v.stage("fusing the views into one mesh");
+    }
     let mut model = crate::fuse::fuse(&points, &normals, fuse_cell).context("fusing the views")?;
     if !keep_unseen {
         let removed = crate::fuse::trim_unseen(&mut model, &points, 3.0 * fuse_cell);
@@ -502,5 +548,22 @@ fn merge_command(
         "wrote model.obj, model.ply, model.stl (one mesh, y up), model.png (from four sides), views.ply and views.png (each view in its colour) to {}",
         out.display()
     );
+    if let Some(v) = view {
+        v.finish(
+            None,
+            Some(model),
+            out,
+            &[
+                "model.obj",
+                "model.ply",
+                "model.stl",
+                "model.png",
+                "views.png",
+                "views.ply",
+                "merge-report.txt",
+            ],
+            "merged",
+        );
+    }
     Ok(())
 }

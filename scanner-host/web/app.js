@@ -178,9 +178,19 @@ function fit(b) {
   controls.update();
 }
 
+let colourChosen = false;
 function showStatus(s) {
   $('state').textContent = s.state === 'done' ? 'done (' + s.ended + ')' : s.state;
   $('state').className = 'figure' + (s.state === 'done' ? ' state-done' : '');
+  if (s.colouring === 'points' && !colourChosen) setColouring(1);
+  if (s.kind === 'merge') {
+    // merge: the views in their colours, then the model; no scan figures.
+    $('title').textContent = 'Merging views';
+    $('done-title').textContent = 'Model done';
+    $('scan-figures').hidden = true;
+    last.points.visible = false;
+    return;
+  }
   $('fps').textContent = s.fps > 0 ? s.fps.toFixed(1) : '–';
   $('pps').textContent = fmt(s.points_per_s);
   $('frames').textContent = fmt(s.frames);
@@ -260,9 +270,14 @@ function showMesh(buf) {
   document.body.dataset.mesh = 'shown';
 }
 
-$('colouring').addEventListener('change', (e) => {
-  colourMode = Number(e.target.value);
+function setColouring(mode) {
+  colourMode = mode;
+  $('colouring').value = String(mode);
   for (const layer of [cloud, last]) layer.material.uniforms.mode.value = colourMode;
+}
+$('colouring').addEventListener('change', (e) => {
+  colourChosen = true;
+  setColouring(Number(e.target.value));
 });
 
 let done = false;

@@ -4,6 +4,8 @@
 
 use std::process::Command;
 
+pub mod browser;
+
 /// Checks a binary of the workspace from the outside: `--info` succeeds and starts with its name
 /// and the unit convention, and an unknown flag is a usage error (exit code 2) that names the
 /// flag. `exe` is the binary's path (`env!("CARGO_BIN_EXE_…")` in the calling test).

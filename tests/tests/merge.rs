@@ -119,6 +119,7 @@ fn three_scanned_views_register_with_the_rigs_rotations() {
             "view {k}: {found}° found, {truth}° true\n{out}"
         );
     }
+    live_view_of_the_merge(d);
     // Bad input.
     let (ok, _, err) = run(d, "scanner-host", &["merge", "v0", "--out", "m1"]);
     assert!(!ok && err.contains("at least two views"), "{err}");
@@ -185,4 +186,77 @@ fn three_scanned_views_register_with_the_rigs_rotations() {
         !ok && err.contains("view 1 (dark.stream): the scan holds no point"),
         "{err}"
     );
+}
+
+/// `merge --view`: the page shows the registered views in their colours, then the model with
+/// its files; the outputs are those of the merge without the page.
+fn live_view_of_the_merge(d: &Path) {
+    use scanner_tests::browser::{Browser, chromium, lines_of, wait_line};
+    use std::process::{Command, Stdio};
+    use std::time::Duration;
+    let Some(exe) = chromium() else { return };
+    let mut child = Command::new(workspace_bin("scanner-host"))
+        .current_dir(d)
+        .args([
+            "merge",
+            "v0",
+            "v1",
+            "v6",
+            "--out",
+            "model-live",
+            "-q",
+            "--view",
+        ])
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let lines = lines_of(child.stderr.take().unwrap());
+    let url = wait_line(&lines, "live view: ", Duration::from_secs(20)).expect("the address");
+    let mut b = Browser::launch(&exe);
+    b.navigate(&url);
+    assert!(
+        b.wait_for(
+            "document.body.dataset.mesh === 'shown'",
+            Duration::from_secs(120)
+        ),
+        "the model is shown: state {}",
+        b.eval("document.getElementById('state').textContent")
+    );
+    // The views came first, in their own colours (the page switched to them).
+    let points = b.eval("Number(document.body.dataset.points)");
+    assert!(points.as_u64().unwrap() > 1000, "{points}");
+    assert_eq!(b.eval("document.getElementById('colouring').value"), "1");
+    assert_eq!(
+        b.eval("document.getElementById('title').textContent"),
+        "Merging views"
+    );
+    assert_eq!(b.eval("Number(document.body.dataset.downloads)"), 7);
+    let shot = b.screenshot();
+    if let Some(dir) = std::env::var_os("LIVE_VIEW_SHOTS") {
+        shot.save(Path::new(&dir).join("live-view-merge.png"))
+            .unwrap();
+    }
+    let pid = child.id().to_string();
+    assert!(
+        Command::new("kill")
+            .args(["-INT", &pid])
+            .status()
+            .unwrap()
+            .success()
+    );
+    assert!(child.wait().unwrap().success());
+    for f in [
+        "model.obj",
+        "model.ply",
+        "model.stl",
+        "views.ply",
+        "merge-report.txt",
+    ] {
+        assert!(
+            std::fs::read(d.join("model").join(f)).unwrap()
+                == std::fs::read(d.join("model-live").join(f)).unwrap(),
+            "{f} differs with --view"
+        );
+    }
 }

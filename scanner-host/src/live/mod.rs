@@ -276,13 +276,29 @@ impl LiveView {
         )));
     }
 
-    /// The scan is done: the mesh (camera frame, turned into the page's) and the output files
-    /// found in `dir` replace the points on the pages.
-    pub fn finish(&self, k: &Counts, mesh: Option<Mesh>, dir: &std::path::Path, ended: &str) {
+    /// A stage of a longer job (`merge`): one line for the page's state.
+    pub fn stage(&self, text: &str) {
+        self.offer(Update::Status(
+            serde_json::json!({"type": "status", "kind": "merge", "state": text, "colouring": "points"})
+                .to_string(),
+        ));
+    }
+
+    /// The job is done: the mesh (camera frame, turned into the page's; or already in the
+    /// page's) and the files `names` found in `dir` replace the points on the pages. `k`: the
+    /// receive's counts for the status panel (none for `merge`).
+    pub fn finish(
+        &self,
+        k: Option<&Counts>,
+        mesh: Option<Mesh>,
+        dir: &std::path::Path,
+        names: &[&'static str],
+        ended: &str,
+    ) {
         let secs = self.started.elapsed().as_secs_f64().max(1e-3);
         let mut files = Vec::new();
         let mut listed = Vec::new();
-        for name in crate::outputs::OUTPUT_FILES.iter().chain(&["summary.txt"]) {
+        for name in names {
             let path = dir.join(name);
             let Ok(meta) = std::fs::metadata(&path) else {
                 continue;
@@ -305,8 +321,11 @@ impl LiveView {
             }
             None => (Vec::new(), 0, 0),
         };
-        let mut status: serde_json::Value =
-            serde_json::from_str(&status_json(k, secs, self.dropped(), "done")).unwrap_or_default();
+        let mut status = match k {
+            Some(k) => serde_json::from_str(&status_json(k, secs, self.dropped(), "done"))
+                .unwrap_or_default(),
+            None => serde_json::json!({"kind": "merge", "state": "done"}),
+        };
         status["type"] = "done".into();
         status["ended"] = ended.into();
         status["files"] = listed.into();
