@@ -468,9 +468,7 @@ fn another_address_than_loopback_needs_the_token() {
         String::from_utf8_lossy(&page).contains(&format!("app.js?t={token}")),
         "the page's own requests carry the token"
     );
-    let ws = format!(
-        "GET /live HTTP/1.1\r\nHost: x\r\nUpgrade: websocket\r\nConnection: Upgrade\r\nSec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\nSec-WebSocket-Version: 13\r\n\r\n"
-    );
+    let ws = "GET /live HTTP/1.1\r\nHost: x\r\nUpgrade: websocket\r\nConnection: Upgrade\r\nSec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\nSec-WebSocket-Version: 13\r\n\r\n";
     assert_eq!(
         raw(&format!("127.0.0.1:{port}"), ws.as_bytes()).0,
         403,
