@@ -132,6 +132,39 @@ pub enum Command {
         #[arg(long, short)]
         quiet: bool,
     },
+    /// Check the scanner on an artefact of known size (after VDI/VDE 2634-2): sphere size and
+    /// form, two spheres' spacing, a plane's flatness, in mm and % of the distance, each passed
+    /// or failed against its tolerance; writes OUT/check-report.txt and check-residuals.png and
+    /// ends with an error when a figure fails.
+    Check {
+        /// The scan of the artefact: a receive output folder, a journal or a recording.
+        scan: PathBuf,
+        /// A sphere's nominal diameter, mm (give it twice for a bar of two spheres).
+        #[arg(long = "sphere", value_name = "MM")]
+        spheres: Vec<f64>,
+        /// The nominal distance between the two spheres' centres, mm.
+        #[arg(long, value_name = "MM")]
+        spacing: Option<f64>,
+        /// The flatness of the largest plane in the scan (the board itself, scanned with
+        /// `scanner-device scan --keep-board`).
+        #[arg(long)]
+        plane: bool,
+        /// Tolerance of the sphere size and spacing errors, ± % of the distance.
+        #[arg(long, value_name = "PCT", default_value_t = 0.05)]
+        size_tolerance: f64,
+        /// Tolerance of the sphere form error, % of the distance.
+        #[arg(long, value_name = "PCT", default_value_t = 0.15)]
+        form_tolerance: f64,
+        /// Tolerance of the flatness, % of the distance.
+        #[arg(long, value_name = "PCT", default_value_t = 0.08)]
+        flatness_tolerance: f64,
+        /// Grid cell (as for receive).
+        #[arg(long, default_value = "2px")]
+        cell: Cell,
+        /// Output folder.
+        #[arg(long, default_value = "check")]
+        out: PathBuf,
+    },
     /// List the serial ports.
     Ports,
 }
@@ -401,6 +434,24 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
             }
             return Ok(());
         }
+        Some(Command::Check {
+            scan,
+            spheres,
+            spacing,
+            plane,
+            size_tolerance,
+            form_tolerance,
+            flatness_tolerance,
+            cell,
+            out,
+        }) => {
+            let tolerances = crate::check::Tolerances {
+                size_pct: *size_tolerance,
+                form_pct: *form_tolerance,
+                flatness_pct: *flatness_tolerance,
+            };
+            return check_command(scan, spheres, *spacing, *plane, tolerances, *cell, out);
+        }
         Some(Command::Replay { input, out }) => {
             let mut c = Collector::new(collect_options(out), None);
             replay_into(&mut c, input)?;
@@ -563,6 +614,84 @@ fn merge_command(
                 "merge-report.txt",
             ],
             "merged",
+        );
+    }
+    Ok(())
+}
+
+fn check_command(
+    scan: &std::path::Path,
+    spheres: &[f64],
+    spacing: Option<f64>,
+    plane: bool,
+    tolerances: crate::check::Tolerances,
+    cell: Cell,
+    out: &std::path::Path,
+) -> Result<()> {
+    if spheres.len() > 2 {
+        anyhow::bail!("--sphere is given once or twice (a bar of two spheres), found {} times", spheres.len());
+    }
+    for d in spheres {
+        if !(1.0..=500.0).contains(d) {
+            anyhow::bail!("--sphere must be a diameter of 1 to 500 mm, found {d}");
+        }
+    }
+    if let Some(s) = spacing
+        && !(1.0..=5000.0).contains(&s)
+    {
+        anyhow::bail!("--spacing must be 1 to 5000 mm, found {s}");
+    }
+    for (name, t) in [
+        ("--size-tolerance", tolerances.size_pct),
+        ("--form-tolerance", tolerances.form_pct),
+        ("--flatness-tolerance", tolerances.flatness_pct),
+    ] {
+        if !(t > 0.0 && t <= 10.0) {
+            anyhow::bail!("{name} must be more than 0 and at most 10 %, found {t}");
+        }
+    }
+    let view = crate::merge::load_view(0, scan, cell).context("reading the scan")?;
+    let (points, normals) = (&view.cloud.points, &view.cloud.normals);
+    let report = crate::check::check(points, normals, spheres, spacing, plane, tolerances)?;
+    let (mut text, pass) = report.text();
+    // The residual picture: the checked points in the board's frame, coloured by residual.
+    let scale = report
+        .spheres
+        .iter()
+        .map(|s| s.form.rms)
+        .chain(report.plane.iter().map(|p| p.flatness.rms))
+        .fold(0.0, f64::max)
+        * 3.0;
+    let scale = scale.max(0.02);
+    let frame = view
+        .header
+        .board()
+        .map(|b| MeshFrame::board(&b))
+        .unwrap_or_default();
+    let (pts, colours): (Vec<_>, Vec<_>) = report
+        .residuals(points)
+        .map(|(p, r)| {
+            (
+                frame.point(&p.cast::<f32>()),
+                crate::check::residual_colour(r, scale),
+            )
+        })
+        .unzip();
+    text += &format!(
+        "check-residuals.png: the checked points from the front and the side, blue {:.3} mm inside … white 0 … red {:.3} mm outside\n",
+        -scale, scale
+    );
+    std::fs::create_dir_all(out)
+        .with_context(|| format!("cannot create the output folder {}", out.display()))?;
+    crate::export::write_atomic_with(&out.join("check-residuals.png"), |w| {
+        crate::export::write_png(&crate::export::points_png(&pts, &colours), w)
+    })?;
+    crate::export::write_atomic(&out.join("check-report.txt"), text.as_bytes())?;
+    crate::outln!("{}", text.trim_end());
+    if !pass {
+        anyhow::bail!(
+            "the check failed: see {} (a figure beyond its tolerance)",
+            out.join("check-report.txt").display()
         );
     }
     Ok(())

@@ -11,6 +11,7 @@
 //!   atomically;
 //! - [`register`], [`merge`] and [`fuse`]: several views of one object registered into one
 //!   frame and fused into one mesh (`merge`);
+//! - [`check`]: the acceptance check on a known artefact (spheres, a plane);
 //! - [`live`]: the live view in a web browser (`receive --view`);
 //! - [`cli`]: the command line (the only place `anyhow` is used).
 #![deny(missing_docs)]
@@ -34,6 +35,7 @@ macro_rules! errln {
     }};
 }
 
+pub mod check;
 pub mod cli;
 pub mod collect;
 pub mod export;
