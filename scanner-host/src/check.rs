@@ -527,22 +527,25 @@ impl Report {
         (s, all)
     }
 
-    /// Each checked point with its residual, mm (radial for spheres, along the normal for the
-    /// plane), for the residual picture.
-    pub fn residuals<'a>(
+    /// Each checked feature (the spheres, then the plane) as its points with their residuals,
+    /// mm (radial for a sphere, along the normal for the plane), for the residual picture.
+    pub fn features<'a>(
         &'a self,
         points: &'a [Point3<f64>],
-    ) -> impl Iterator<Item = (Point3<f64>, f64)> + 'a {
-        let spheres = self.spheres.iter().flat_map(move |r| {
-            r.points.iter().map(move |&i| {
+    ) -> impl Iterator<Item = Box<dyn Iterator<Item = (Point3<f64>, f64)> + 'a>> + 'a {
+        let spheres = self.spheres.iter().map(move |r| {
+            Box::new(r.points.iter().map(move |&i| {
                 let p = points[i];
                 (p, (p - r.sphere.centre).norm() - r.sphere.radius)
-            })
+            })) as Box<dyn Iterator<Item = _>>
         });
-        let plane = self.plane.iter().flat_map(move |r| {
-            r.points
-                .iter()
-                .map(move |&i| (points[i], r.plane.normal.dot(&points[i].coords) - r.plane.offset))
+        let plane = self.plane.iter().map(move |r| {
+            Box::new(r.points.iter().map(move |&i| {
+                (
+                    points[i],
+                    r.plane.normal.dot(&points[i].coords) - r.plane.offset,
+                )
+            })) as Box<dyn Iterator<Item = _>>
         });
         spheres.chain(plane)
     }
@@ -620,9 +623,20 @@ mod tests {
             ));
             nrm.push(Vector3::new(0.0, 0.0, -1.0));
         }
-        let r = check(&pts, &nrm, &[40.0, 40.0], Some(121.0), true, Tolerances::default()).unwrap();
+        let r = check(
+            &pts,
+            &nrm,
+            &[40.0, 40.0],
+            Some(121.0),
+            true,
+            Tolerances::default(),
+        )
+        .unwrap();
         let spacing = r.measured_spacing().unwrap();
-        assert!((spacing - (a.centre - b.centre).norm()).abs() < 0.05, "{spacing}");
+        assert!(
+            (spacing - (a.centre - b.centre).norm()).abs() < 0.05,
+            "{spacing}"
+        );
         for s in &r.spheres {
             assert!(s.size_error().abs() < 0.05, "{}", s.size_error());
             assert!(s.form.range() < 0.11, "{:?}", s.form);
@@ -632,7 +646,15 @@ mod tests {
         let (text, pass) = r.text();
         assert!(pass, "{text}");
         // A wrong nominal diameter fails, by name.
-        let r = check(&pts, &nrm, &[41.0, 40.0], None, false, Tolerances::default()).unwrap();
+        let r = check(
+            &pts,
+            &nrm,
+            &[41.0, 40.0],
+            None,
+            false,
+            Tolerances::default(),
+        )
+        .unwrap();
         let (text, pass) = r.text();
         assert!(!pass && text.contains("FAIL"), "{text}");
     }
@@ -650,7 +672,15 @@ mod tests {
             CheckError::Nothing
         );
         assert_eq!(
-            check(&pts, &nrm, &[40.0], Some(100.0), false, Tolerances::default()).unwrap_err(),
+            check(
+                &pts,
+                &nrm,
+                &[40.0],
+                Some(100.0),
+                false,
+                Tolerances::default()
+            )
+            .unwrap_err(),
             CheckError::SpacingNeedsTwo
         );
     }

@@ -629,7 +629,10 @@ fn check_command(
     out: &std::path::Path,
 ) -> Result<()> {
     if spheres.len() > 2 {
-        anyhow::bail!("--sphere is given once or twice (a bar of two spheres), found {} times", spheres.len());
+        anyhow::bail!(
+            "--sphere is given once or twice (a bar of two spheres), found {} times",
+            spheres.len()
+        );
     }
     for d in spheres {
         if !(1.0..=500.0).contains(d) {
@@ -668,23 +671,37 @@ fn check_command(
         .board()
         .map(|b| MeshFrame::board(&b))
         .unwrap_or_default();
-    let (pts, colours): (Vec<_>, Vec<_>) = report
-        .residuals(points)
-        .map(|(p, r)| {
-            (
-                frame.point(&p.cast::<f32>()),
-                crate::check::residual_colour(r, scale),
-            )
+    // One band per checked feature (each sphere, the plane), each from the front and the side.
+    let panels: Vec<image::RgbImage> = report
+        .features(points)
+        .map(|feature| {
+            let (pts, colours): (Vec<_>, Vec<_>) = feature
+                .map(|(p, r)| {
+                    (
+                        frame.point(&p.cast::<f32>()),
+                        crate::check::residual_colour(r, scale),
+                    )
+                })
+                .unzip();
+            crate::export::points_png(&pts, &colours)
         })
-        .unzip();
+        .collect();
+    let width = panels.iter().map(image::RgbImage::width).max().unwrap_or(1);
+    let height: u32 = panels.iter().map(image::RgbImage::height).sum();
+    let mut picture = image::RgbImage::new(width, height.max(1));
+    let mut y = 0;
+    for p in &panels {
+        image::imageops::replace(&mut picture, p, 0, i64::from(y));
+        y += p.height();
+    }
     text += &format!(
-        "check-residuals.png: the checked points from the front and the side, blue {:.3} mm inside … white 0 … red {:.3} mm outside\n",
+        "check-residuals.png: each checked feature (top to bottom as above) from the front and the side, blue {:.3} mm inside … white 0 … red {:.3} mm outside\n",
         -scale, scale
     );
     std::fs::create_dir_all(out)
         .with_context(|| format!("cannot create the output folder {}", out.display()))?;
     crate::export::write_atomic_with(&out.join("check-residuals.png"), |w| {
-        crate::export::write_png(&crate::export::points_png(&pts, &colours), w)
+        crate::export::write_png(&picture, w)
     })?;
     crate::export::write_atomic(&out.join("check-report.txt"), text.as_bytes())?;
     crate::outln!("{}", text.trim_end());

@@ -313,7 +313,10 @@ fn the_page_keeps_up_with_300_000_points_a_second_in_bounded_memory() {
     let t0 = Instant::now();
     let offered = offer_points(&v, 1_200_000, 300_000.0);
     assert!(
-        b.wait_for("Number(document.body.dataset.points) === 1200000", Duration::from_secs(60)),
+        b.wait_for(
+            "Number(document.body.dataset.points) === 1200000",
+            Duration::from_secs(60)
+        ),
         "the page received all points: {}",
         b.eval("document.body.dataset.points")
     );
@@ -334,14 +337,19 @@ fn the_page_keeps_up_with_300_000_points_a_second_in_bounded_memory() {
         b.eval("document.body.dataset.points")
     );
     let received = b.eval("Number(document.body.dataset.points)");
-    let stored = b.eval("Number(document.body.dataset.stored)").as_u64().unwrap();
+    let stored = b
+        .eval("Number(document.body.dataset.stored)")
+        .as_u64()
+        .unwrap();
     assert!(
         (500_000..=1_000_000).contains(&stored),
         "drawn points thinned to the page's cap: {stored}"
     );
     assert_eq!(v.dropped(), 0, "no view update dropped at these rates");
     let heap = b.eval("performance.memory ? performance.memory.usedJSHeapSize : 0");
-    println!("page: {stored} points drawn of {received} received (5 001 000 offered); JS heap {heap} bytes");
+    println!(
+        "page: {stored} points drawn of {received} received (5 001 000 offered); JS heap {heap} bytes"
+    );
 }
 
 // ---------------------------------------------------------------------------------------------
