@@ -220,7 +220,7 @@ pub fn find_plane(points: &[Point3<f64>], band: f64) -> Option<(Plane, Vec<usize
             .filter(|&i| (p.normal.dot(&points[i].coords) - p.offset).abs() <= band)
             .collect()
     };
-    let mut draw = Draw(2634_2);
+    let mut draw = Draw(26342);
     let mut best: Option<(Plane, usize)> = None;
     for _ in 0..300 {
         let (a, b, c) = (
