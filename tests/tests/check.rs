@@ -27,7 +27,6 @@ fn figure(report: &str, line_has: &str, label: &str) -> f64 {
     line.split(label)
         .nth(1)
         .unwrap()
-        .trim()
         .split_whitespace()
         .next()
         .unwrap()
