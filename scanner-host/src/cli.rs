@@ -72,6 +72,12 @@ pub enum Command {
         /// journal already holds a scan is refused, so that two sessions never mix by accident).
         #[arg(long)]
         append: bool,
+        /// Each scan of this session is one view of an object turned between sweeps: at the
+        /// end the journal is split into OUT/view-1, view-2, … (each with its own outputs) and
+        /// the views are merged into OUT/model as `merge` does with its defaults. End the
+        /// session with Ctrl-C or the input's end (--until-done would stop after the first).
+        #[arg(long, conflicts_with = "until_done")]
+        merge: bool,
         /// Show the scan live in a web browser: serves a page on ADDR:PORT (default
         /// 127.0.0.1 and a free port, printed). Another address than loopback (e.g.
         /// `0.0.0.0:8080`, to watch from a phone) prints a warning and needs the random token in
@@ -108,14 +114,14 @@ pub enum Command {
         #[arg(long, default_value = "2px")]
         cell: Cell,
         /// Voxel size the views are thinned to for the coarse match, mm.
-        #[arg(long, default_value_t = 3.0)]
+        #[arg(long, default_value_t = crate::merge::VOXEL_MM)]
         voxel: f64,
         /// Grid cell of the fusion into one mesh, mm.
-        #[arg(long, default_value_t = 1.0)]
+        #[arg(long, default_value_t = crate::merge::FUSE_CELL_MM)]
         fuse_cell: f64,
         /// Least share of a view's points that must land on the view it is registered onto
         /// (0.1–0.9); lower it for views turned far apart, which share less.
-        #[arg(long, default_value_t = 0.4)]
+        #[arg(long, default_value_t = crate::merge::MIN_OVERLAP)]
         min_overlap: f64,
         /// Keep the surface the fusion closes where no view saw (by default it is trimmed, and
         /// the model is open where the views left gaps).
@@ -282,7 +288,7 @@ fn publish(c: &mut Collector, v: &mut LiveView) {
 
 fn receive(
     input: &Input,
-    (until_done, append): (bool, bool),
+    (until_done, append, merge): (bool, bool, bool),
     view: Option<SocketAddr>,
     o: &OutputArgs,
 ) -> Result<(Summary, Option<LiveView>)> {
@@ -352,7 +358,8 @@ fn receive(
         crate::errln!("{ended}; journal: {}", journal_path.display());
     }
     let summary = write_outputs(&c, &o.out, &o.output_options())?;
-    if let Some(v) = &view {
+    // (With --merge the page is given the merged model instead.)
+    if let Some(v) = view.as_ref().filter(|_| !merge) {
         v.finish(
             Some(&c.counts()),
             mesh_of(&c, &o.output_options()),
@@ -395,13 +402,17 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
             input,
             until_done,
             append,
+            merge,
             view,
             view_for,
             out,
         }) => {
             check_view_for(*view_for)?;
-            let (summary, view) = receive(input, (*until_done, *append), *view, out)?;
+            let (summary, view) = receive(input, (*until_done, *append, *merge), *view, out)?;
             crate::outln!("{}", summary.text().trim_end());
+            if *merge {
+                merge_sweeps(out, view.as_ref())?;
+            }
             if let Some(v) = view {
                 linger(&v, *view_for);
             }
@@ -460,6 +471,34 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
     };
     crate::outln!("{}", summary.text().trim_end());
     Ok(())
+}
+
+/// `receive --merge`: the session's journal split into one view per scan, each view's
+/// outputs, and the merge of the views into OUT/model.
+fn merge_sweeps(o: &OutputArgs, view: Option<&LiveView>) -> Result<()> {
+    let folders = crate::merge::split_scans(&o.out.join("journal.stream"), &o.out)?;
+    for f in &folders {
+        let mut c = Collector::new(collect_options(o), None);
+        replay_into(&mut c, &f.join("journal.stream"))?;
+        let s = write_outputs(&c, f, &o.output_options())?;
+        crate::outln!(
+            "{}: {}",
+            f.display(),
+            s.text().lines().next().unwrap_or_default()
+        );
+    }
+    merge_command(
+        &folders,
+        &o.out.join("model"),
+        o.cell,
+        (
+            crate::merge::VOXEL_MM,
+            crate::merge::FUSE_CELL_MM,
+            crate::merge::MIN_OVERLAP,
+        ),
+        (false, o.quiet),
+        view,
+    )
 }
 
 fn merge_command(

@@ -60,6 +60,18 @@ pub enum MergeError {
         /// Its path.
         path: PathBuf,
     },
+    /// A journal holds more scans than [`MAX_VIEWS`].
+    #[error("the journal holds more than {MAX_VIEWS} scans: split into views only up to that many")]
+    TooManyScans,
+    /// A journal could not be split into its scans.
+    #[error("splitting {} into its scans", path.display())]
+    Split {
+        /// The journal.
+        path: PathBuf,
+        /// Why.
+        #[source]
+        source: crate::journal::JournalError,
+    },
     /// A view registers onto none of the others.
     #[error("view {view} ({}) overlaps no other view; best try: {best}", path.display())]
     NoMatch {
@@ -82,6 +94,99 @@ pub struct View {
     pub header: Header,
     /// The surface's colour at each point (empty: the scan carried no colour).
     pub colours: Vec<[u8; 3]>,
+}
+
+/// The merge's default voxel for the coarse match, mm.
+pub const VOXEL_MM: f64 = 3.0;
+/// The merge's default fusion cell, mm.
+pub const FUSE_CELL_MM: f64 = 1.0;
+/// The merge's default least overlap of a view with the one it is registered onto.
+pub const MIN_OVERLAP: f64 = 0.4;
+
+/// Most scans a journal is split into ([`split_scans`]).
+pub const MAX_VIEWS: usize = 64;
+
+/// Splits a journal that holds several scans (sweeps with the object turned between them) into
+/// one journal per scan, in the order their first frames came: `dir/view-1/journal.stream`, …
+/// Every frame goes to its scan's journal unchanged. Returns the view folders.
+///
+/// # Errors
+/// The journal cannot be read, a view's journal cannot be written, or more than [`MAX_VIEWS`]
+/// scans.
+pub fn split_scans(journal: &Path, dir: &Path) -> Result<Vec<PathBuf>, MergeError> {
+    use crate::journal::{Journal, JournalError};
+    use std::io::Read;
+    let split = |source| MergeError::Split {
+        path: journal.to_path_buf(),
+        source,
+    };
+    let mut file = crate::link::open_file(journal).map_err(|e| MergeError::Read {
+        view: 0,
+        path: journal.to_path_buf(),
+        source: e.into(),
+    })?;
+    let mut decoder = Box::new(scanner_core::wire::Decoder::<
+        { scanner_core::wire::MAX_ENCODED },
+    >::new());
+    let mut views: Vec<(u32, PathBuf, Journal)> = Vec::new();
+    let mut failed: Option<MergeError> = None;
+    let mut buf = vec![0u8; 1 << 16];
+    loop {
+        let n = file.read(&mut buf).map_err(|source| MergeError::Read {
+            view: 0,
+            path: journal.to_path_buf(),
+            source: OutputError::Input {
+                path: journal.to_path_buf(),
+                source,
+            },
+        })?;
+        if n == 0 {
+            break;
+        }
+        decoder.feed(&buf[..n], |m| {
+            let Ok(msg) = m else { return };
+            if failed.is_some() {
+                return;
+            }
+            let id = msg.scan_id();
+            let k = match views.iter().position(|(s, _, _)| *s == id) {
+                Some(k) => k,
+                None if views.len() >= MAX_VIEWS => {
+                    failed = Some(MergeError::TooManyScans);
+                    return;
+                }
+                None => {
+                    let folder = dir.join(format!("view-{}", views.len() + 1));
+                    let opened = std::fs::create_dir_all(&folder)
+                        .map_err(|source| JournalError::Open {
+                            path: folder.clone(),
+                            source,
+                        })
+                        .and_then(|()| Journal::open(&folder.join("journal.stream")));
+                    match opened {
+                        Ok(j) => views.push((id, folder, j)),
+                        Err(e) => {
+                            failed = Some(split(e));
+                            return;
+                        }
+                    }
+                    views.len() - 1
+                }
+            };
+            if let Err(e) = views[k].2.append(&msg) {
+                failed = Some(split(e));
+            }
+        });
+        if let Some(e) = failed.take() {
+            return Err(e);
+        }
+    }
+    let mut folders = Vec::new();
+    for (_, folder, mut j) in views {
+        j.sync().map_err(split)?;
+        folders.push(folder);
+    }
+    Ok(folders)
 }
 
 /// The journal inside a receive output folder, or the file itself.

@@ -120,6 +120,7 @@ fn three_scanned_views_register_with_the_rigs_rotations() {
         );
     }
     live_view_of_the_merge(d);
+    one_session_of_three_sweeps(d);
     // Bad input.
     let (ok, _, err) = run(d, "scanner-host", &["merge", "v0", "--out", "m1"]);
     assert!(!ok && err.contains("at least two views"), "{err}");
@@ -259,4 +260,59 @@ fn live_view_of_the_merge(d: &Path) {
             "{f} differs with --view"
         );
     }
+}
+
+/// `receive --merge`: the three sweeps in one session (one stream after the other, as a head
+/// sends them when the object is turned between scans) are split into three views, each with
+/// the outputs its own receive gives, and merged into the model `merge` makes of them.
+fn one_session_of_three_sweeps(d: &Path) {
+    let mut all = Vec::new();
+    for k in ["0", "1", "6"] {
+        all.extend(std::fs::read(d.join(format!("v{k}.stream"))).unwrap());
+    }
+    std::fs::write(d.join("session.stream"), all).unwrap();
+    let (ok, out, err) = run(
+        d,
+        "scanner-host",
+        &[
+            "receive",
+            "session.stream",
+            "--merge",
+            "--out",
+            "session",
+            "-q",
+        ],
+    );
+    assert!(ok, "{out}\n{err}");
+    for (view, k) in [("view-1", "v0"), ("view-2", "v1"), ("view-3", "v6")] {
+        assert!(out.contains(view), "{out}");
+        for f in ["scan.obj", "journal.stream"] {
+            assert!(
+                std::fs::read(d.join("session").join(view).join(f)).unwrap()
+                    == std::fs::read(d.join(k).join(f)).unwrap(),
+                "{view}/{f} is not {k}/{f}"
+            );
+        }
+    }
+    assert!(!d.join("session/view-4").exists());
+    for f in ["model.obj", "model.ply", "model.stl", "views.ply"] {
+        assert!(
+            std::fs::read(d.join("session/model").join(f)).unwrap()
+                == std::fs::read(d.join("model").join(f)).unwrap(),
+            "session/model/{f} is not model/{f}"
+        );
+    }
+    let (ok, _, err) = run(
+        d,
+        "scanner-host",
+        &[
+            "receive",
+            "session.stream",
+            "--merge",
+            "--until-done",
+            "--out",
+            "x",
+        ],
+    );
+    assert!(!ok && err.contains("--until-done"), "{err}");
 }

@@ -437,6 +437,19 @@ pub enum Message<'a> {
     Planes(Planes),
 }
 
+impl Message<'_> {
+    /// The scan the message belongs to.
+    pub fn scan_id(&self) -> u32 {
+        match self {
+            Message::Header(h) => h.scan_id,
+            Message::Points(p) => p.scan_id,
+            Message::Status(s) => s.scan_id,
+            Message::Controls(k) => k.scan_id,
+            Message::Planes(p) => p.scan_id,
+        }
+    }
+}
+
 /// Why encoding or decoding failed.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum WireError {
