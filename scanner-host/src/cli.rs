@@ -123,6 +123,11 @@ pub enum Command {
         /// (0.1–0.9); lower it for views turned far apart, which share less.
         #[arg(long, default_value_t = crate::merge::MIN_OVERLAP)]
         min_overlap: f64,
+        /// A hint, never needed: the object was turned by DEG about the vertical (a turntable's
+        /// step, either way round) between consecutive views; tried beside the registration's own
+        /// guesses.
+        #[arg(long, value_name = "DEG", allow_negative_numbers = true)]
+        turntable: Option<f64>,
         /// Keep the surface the fusion closes where no view saw (by default it is trimmed, and
         /// the model is open where the views left gaps).
         #[arg(long)]
@@ -425,18 +430,26 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
             voxel,
             fuse_cell,
             min_overlap,
+            turntable,
             keep_unseen,
             view,
             view_for,
             quiet,
         }) => {
             check_view_for(*view_for)?;
+            if let Some(t) = turntable
+                && !(t.abs() > 0.0 && t.abs() <= 180.0)
+            {
+                anyhow::bail!(
+                    "--turntable must be a step of more than 0 and at most 180 degrees, found {t}"
+                );
+            }
             let view = view.map(start_view).transpose()?;
             merge_command(
                 views,
                 out,
                 *cell,
-                (*voxel, *fuse_cell, *min_overlap),
+                (*voxel, *fuse_cell, *min_overlap, *turntable),
                 (*keep_unseen, *quiet),
                 view.as_ref(),
             )?;
@@ -495,6 +508,7 @@ fn merge_sweeps(o: &OutputArgs, view: Option<&LiveView>) -> Result<()> {
             crate::merge::VOXEL_MM,
             crate::merge::FUSE_CELL_MM,
             crate::merge::MIN_OVERLAP,
+            None,
         ),
         (false, o.quiet),
         view,
@@ -505,7 +519,7 @@ fn merge_command(
     views: &[PathBuf],
     out: &std::path::Path,
     cell: Cell,
-    (voxel, fuse_cell, min_overlap): (f64, f64, f64),
+    (voxel, fuse_cell, min_overlap, turntable): (f64, f64, f64, Option<f64>),
     (keep_unseen, quiet): (bool, bool),
     view: Option<&LiveView>,
 ) -> Result<()> {
@@ -540,7 +554,7 @@ fn merge_command(
         min_overlap,
         ..Default::default()
     };
-    let mut results = merge::register_views(&loaded, &opts, |k| {
+    let mut results = merge::register_views(&loaded, &opts, turntable, |k| {
         pb.set_message(format!("registered view {k} of {}", loaded.len() - 1));
         pb.tick();
         stage(&format!("registered view {k} of {}", loaded.len() - 1));

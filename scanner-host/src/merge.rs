@@ -12,7 +12,7 @@ use scanner_core::wire::Header;
 use crate::collect::{CollectOptions, Collector};
 use crate::mesh::{self, MeshFrame, MeshOptions};
 use crate::outputs::{OutputError, replay_into};
-use crate::register::{Cloud, RegisterError, RegisterOptions, Registration, register};
+use crate::register::{Cloud, RegisterError, RegisterOptions, Registration, register_hinted};
 
 /// Why views cannot be merged.
 #[derive(Debug, thiserror::Error)]
@@ -266,6 +266,7 @@ pub struct ViewResult {
 pub fn register_views(
     views: &[View],
     o: &RegisterOptions,
+    turntable_deg: Option<f64>,
     mut progress: impl FnMut(usize),
 ) -> Result<Vec<ViewResult>, MergeError> {
     if views.len() < 2 {
@@ -289,7 +290,9 @@ pub fn register_views(
         let mut best_err = None;
         let mut found = None;
         for j in (0..k).rev() {
-            match register(&v.cloud, &views[j].cloud, o) {
+            let hints =
+                turntable_deg.map_or_else(Vec::new, |step| turntable_hints(views, k, j, step));
+            match register_hinted(&v.cloud, &views[j].cloud, o, &hints) {
                 Ok(fit) => {
                     found = Some((j, fit));
                     break;
@@ -319,6 +322,20 @@ pub fn register_views(
         progress(k);
     }
     Ok(out)
+}
+
+/// The motions a turntable suggests from view `k` onto view `j`, `step_deg` per view about the
+/// board's vertical (its crease): see [`crate::register::turntable_motions`].
+fn turntable_hints(views: &[View], k: usize, j: usize, step_deg: f64) -> Vec<Isometry3<f64>> {
+    let Ok(board) = views[0].header.board() else {
+        return Vec::new();
+    };
+    let MeshFrame::Board { rotation, .. } = MeshFrame::board(&board) else {
+        return Vec::new();
+    };
+    let up = rotation.row(1).transpose().cast();
+    let angle = step_deg * (k - j) as f64;
+    crate::register::turntable_motions(&up, &views[k].cloud, &views[j].cloud, angle).to_vec()
 }
 
 /// The loop closure before and after [`refine_views`].

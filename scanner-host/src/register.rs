@@ -394,6 +394,29 @@ pub fn icp(
     result
 }
 
+/// The motions of `src` onto `dst` if the object turned by `angle_deg` about the axis `up`
+/// between them, either way round; the axis's place is not known, so each rotation is paired
+/// with the translation that brings the clouds' centroids together (the refinement then finds
+/// the rest).
+pub fn turntable_motions(
+    up: &Vector3<f64>,
+    src: &Cloud,
+    dst: &Cloud,
+    angle_deg: f64,
+) -> [Isometry3<f64>; 2] {
+    use scanner_core::nalgebra::{Translation3, Unit, UnitQuaternion};
+    let axis = Unit::new_normalize(*up);
+    let centroid = |c: &Cloud| {
+        c.points.iter().fold(Vector3::zeros(), |a, p| a + p.coords) / c.points.len().max(1) as f64
+    };
+    let (cs, cd) = (centroid(src), centroid(dst));
+    let a = angle_deg.to_radians();
+    [a, -a].map(|a| {
+        let r = UnitQuaternion::from_axis_angle(&axis, a);
+        Isometry3::from_parts(Translation3::from(cd - r * cs), r)
+    })
+}
+
 /// Registers `src` onto `dst` without an initial guess: coarse by descriptors and RANSAC on the
 /// clouds thinned to `voxel_mm`, then point-to-plane ICP on the full clouds.
 ///
@@ -404,6 +427,20 @@ pub fn register(
     src: &Cloud,
     dst: &Cloud,
     o: &RegisterOptions,
+) -> Result<Registration, RegisterError> {
+    register_hinted(src, dst, o, &[])
+}
+
+/// [`register`] with `hints`: motions (e.g. from a turntable's known step) scored and refined
+/// beside the descriptors' own hypotheses, never instead of them.
+///
+/// # Errors
+/// As [`register`].
+pub fn register_hinted(
+    src: &Cloud,
+    dst: &Cloud,
+    o: &RegisterOptions,
+    hints: &[Isometry3<f64>],
 ) -> Result<Registration, RegisterError> {
     const MIN_POINTS: usize = 50;
     let (s, d) = (thin(src, o.voxel_mm), thin(dst, o.voxel_mm));
@@ -416,8 +453,17 @@ pub fn register(
             });
         }
     }
-    let hypotheses = coarse(&s, &d, o);
     let dtree = tree(&d.points);
+    let mut hypotheses = coarse(&s, &d, o);
+    // A hint's translation is rough (the axis's place is not known): it is pulled in by a wide
+    // ICP on the thinned clouds before it is scored like the others.
+    for h in hints {
+        let pulled = icp(&s, &d, *h, 4.0 * o.voxel_mm, 30).pose;
+        hypotheses.push((
+            pulled,
+            overlap(&s.points, &dtree, &pulled, 1.5 * o.voxel_mm),
+        ));
+    }
     let found = hypotheses.iter().map(|h| h.1).fold(0.0, f64::max);
     if found < o.min_overlap {
         return Err(RegisterError::NoOverlap {

@@ -121,6 +121,46 @@ fn three_scanned_views_register_with_the_rigs_rotations() {
     }
     live_view_of_the_merge(d);
     one_session_of_three_sweeps(d);
+    // The turntable hint (60° steps about the vertical) changes nothing where the registration
+    // finds the views by itself; a step that is no step is refused.
+    let (ok, hinted, err) = run(
+        d,
+        "scanner-host",
+        &[
+            "merge",
+            "v0",
+            "v1",
+            "--turntable",
+            "60",
+            "--out",
+            "mt",
+            "-q",
+        ],
+    );
+    assert!(ok, "{err}");
+    let rotation = |report: &str| -> f64 {
+        report
+            .lines()
+            .nth(2)
+            .unwrap()
+            .rsplit('|')
+            .next()
+            .unwrap()
+            .trim()
+            .trim_end_matches('°')
+            .parse()
+            .unwrap()
+    };
+    assert!(
+        (rotation(&hinted) - rotation(&out)).abs() < 0.05,
+        "{hinted}\n{out}"
+    );
+    let (ok, _, err) = run(
+        d,
+        "scanner-host",
+        &["merge", "v0", "v1", "--turntable", "0"],
+    );
+    assert!(!ok && err.contains("--turntable must be"), "{err}");
     // Bad input.
     let (ok, _, err) = run(d, "scanner-host", &["merge", "v0", "--out", "m1"]);
     assert!(!ok && err.contains("at least two views"), "{err}");

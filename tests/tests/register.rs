@@ -77,6 +77,36 @@ fn views_turned_by_large_angles_register_without_a_guess() {
 }
 
 #[test]
+fn a_turntable_hint_registers_alone_and_is_never_required() {
+    use scanner_host::register::{register_hinted, turntable_motions};
+    let scene = bunny_views();
+    let (target, pose0) = view_cloud(&scene, 0);
+    let (source, pose1) = view_cloud(&scene, 1);
+    let truth = pose0 * pose1.inverse();
+    // Without descriptors (no RANSAC trials) nothing is found…
+    let blind = RegisterOptions {
+        trials: 0,
+        ..RegisterOptions::default()
+    };
+    assert!(register(&source, &target, &blind).is_err());
+    // …but the turntable's 60° step about the board's vertical (−y here) is enough…
+    let up = scanner_core::nalgebra::Vector3::new(0.0, -1.0, 0.0);
+    let hints = turntable_motions(&up, &source, &target, 60.0);
+    let r = register_hinted(&source, &target, &blind, &hints).expect("the hint registers");
+    let (rot, trans) = angle_deg(&truth, &r.pose);
+    println!("hint alone: {rot:.4}° {trans:.3} mm");
+    assert!(rot < 0.05 && trans < 0.4, "off by {rot}° and {trans} mm");
+    // …and a wrong step beside the descriptors' own guesses does not mislead them.
+    let wrong = turntable_motions(&up, &source, &target, 100.0);
+    let r = register_hinted(&source, &target, &RegisterOptions::default(), &wrong).unwrap();
+    let (rot, trans) = angle_deg(&truth, &r.pose);
+    assert!(
+        rot < 0.05 && trans < 0.4,
+        "a wrong hint: off by {rot}° and {trans} mm"
+    );
+}
+
+#[test]
 fn views_of_opposite_sides_are_reported_not_merged() {
     let scene = bunny_views();
     let (target, _) = view_cloud(&scene, 0);
