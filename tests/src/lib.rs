@@ -174,3 +174,25 @@ pub fn workspace_bin(name: &str) -> std::path::PathBuf {
     );
     exe
 }
+
+/// Stops a child the way Ctrl-C does (SIGINT) and checks that it ends well within 20 s.
+///
+/// # Panics
+/// When it does not (a test helper).
+pub fn interrupt(mut child: std::process::Child) {
+    let pid = child.id().to_string();
+    let sent = Command::new("kill").args(["-INT", &pid]).status();
+    assert!(sent.is_ok_and(|s| s.success()), "kill -INT {pid}");
+    let t0 = std::time::Instant::now();
+    loop {
+        if let Some(st) = child.try_wait().expect("the child's status") {
+            assert!(st.success(), "the child ended with {st}");
+            return;
+        }
+        assert!(
+            t0.elapsed() < std::time::Duration::from_secs(20),
+            "the child did not stop on Ctrl-C"
+        );
+        std::thread::sleep(std::time::Duration::from_millis(50));
+    }
+}

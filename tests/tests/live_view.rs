@@ -16,6 +16,7 @@ use std::time::{Duration, Instant};
 use scanner_core::nalgebra::Point3;
 use scanner_host::live::LiveView;
 use scanner_tests::browser::{Browser, chromium, lines_of, wait_line};
+use scanner_tests::interrupt;
 
 fn bin(name: &str) -> PathBuf {
     scanner_tests::workspace_bin(name)
@@ -119,18 +120,11 @@ fn reference_outputs(stream: &Path, out: &Path) {
     assert!(ok, "{err}");
 }
 
-const COMPARED: [&str; 7] = [
-    "scan.obj",
-    "scan.ply",
-    "scan.stl",
-    "depth.png",
-    "preview.png",
-    "summary.txt",
-    "journal.stream",
-];
-
 fn assert_same_outputs(a: &Path, b: &Path) {
-    for f in COMPARED {
+    for f in scanner_host::outputs::DOWNLOADS
+        .iter()
+        .chain(&["journal.stream"])
+    {
         let (x, y) = (
             std::fs::read(a.join(f)).unwrap(),
             std::fs::read(b.join(f)).unwrap(),
@@ -141,30 +135,6 @@ fn assert_same_outputs(a: &Path, b: &Path) {
             a.display(),
             b.display()
         );
-    }
-}
-
-/// Stops a lingering host with Ctrl-C (SIGINT) and checks it ends well.
-fn interrupt(mut child: Child) {
-    let pid = child.id().to_string();
-    assert!(
-        Command::new("kill")
-            .args(["-INT", &pid])
-            .status()
-            .unwrap()
-            .success()
-    );
-    let t0 = Instant::now();
-    loop {
-        if let Some(st) = child.try_wait().unwrap() {
-            assert!(st.success(), "the host ended with {st}");
-            return;
-        }
-        assert!(
-            t0.elapsed() < Duration::from_secs(20),
-            "the host did not stop on Ctrl-C"
-        );
-        std::thread::sleep(Duration::from_millis(50));
     }
 }
 

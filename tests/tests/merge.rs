@@ -11,6 +11,17 @@ fn run(dir: &Path, bin: &str, args: &[&str]) -> (bool, String, String) {
     scanner_tests::run_in(&workspace_bin(bin), dir, args)
 }
 
+/// The rotation from view 0 on a view's line of the merge report (its last column).
+fn rotation(line: &str) -> f64 {
+    line.rsplit('|')
+        .next()
+        .unwrap()
+        .trim()
+        .trim_end_matches('°')
+        .parse()
+        .unwrap()
+}
+
 #[test]
 fn three_scanned_views_register_with_the_rigs_rotations() {
     let t = tempfile::tempdir().unwrap();
@@ -99,14 +110,7 @@ fn three_scanned_views_register_with_the_rigs_rotations() {
     );
     // The rotation of each view from view 0, against the truth.
     for (line, k) in out.lines().skip(2).take(2).zip([1usize, 6]) {
-        let found: f64 = line
-            .rsplit('|')
-            .next()
-            .unwrap()
-            .trim()
-            .trim_end_matches('°')
-            .parse()
-            .unwrap();
+        let found = rotation(line);
         let truth = (scene.view(0).unwrap().object_pose
             * scene.view(k).unwrap().object_pose.inverse())
         .rotation
@@ -138,21 +142,9 @@ fn three_scanned_views_register_with_the_rigs_rotations() {
         ],
     );
     assert!(ok, "{err}");
-    let rotation = |report: &str| -> f64 {
-        report
-            .lines()
-            .nth(2)
-            .unwrap()
-            .rsplit('|')
-            .next()
-            .unwrap()
-            .trim()
-            .trim_end_matches('°')
-            .parse()
-            .unwrap()
-    };
     assert!(
-        (rotation(&hinted) - rotation(&out)).abs() < 0.05,
+        (rotation(hinted.lines().nth(2).unwrap()) - rotation(out.lines().nth(2).unwrap())).abs()
+            < 0.05,
         "{hinted}\n{out}"
     );
     let (ok, _, err) = run(
@@ -278,15 +270,7 @@ fn live_view_of_the_merge(d: &Path) {
         shot.save(Path::new(&dir).join("live-view-merge.png"))
             .unwrap();
     }
-    let pid = child.id().to_string();
-    assert!(
-        Command::new("kill")
-            .args(["-INT", &pid])
-            .status()
-            .unwrap()
-            .success()
-    );
-    assert!(child.wait().unwrap().success());
+    scanner_tests::interrupt(child);
     for f in [
         "model.obj",
         "model.ply",
