@@ -369,7 +369,7 @@ fn receive(
             Some(&c.counts()),
             mesh_of(&c, &o.output_options()),
             &o.out,
-            &crate::outputs::DOWNLOADS,
+            &crate::outputs::OUTPUT_FILES,
             ended,
         );
     }

@@ -138,23 +138,15 @@ impl Summary {
     }
 }
 
-/// What the live view offers for download when a receive ends.
-pub const DOWNLOADS: [&str; 6] = [
+/// The files [`write_outputs`] makes, `summary.txt` last (also what the live view offers for
+/// download when a receive ends).
+pub const OUTPUT_FILES: [&str; 6] = [
     "scan.obj",
     "scan.ply",
     "scan.stl",
     "depth.png",
     "preview.png",
     "summary.txt",
-];
-
-/// The files [`write_outputs`] makes besides `summary.txt`.
-pub const OUTPUT_FILES: [&str; 5] = [
-    "scan.obj",
-    "scan.ply",
-    "scan.stl",
-    "depth.png",
-    "preview.png",
 ];
 
 /// Which frame the meshes are written in.

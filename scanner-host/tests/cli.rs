@@ -76,15 +76,10 @@ fn receive_from_stdin_with_garbage_then_replay_the_journal() {
             .unwrap()
     };
     assert_eq!(count(" bad CRC") + count(" bad COBS"), 2, "{text}");
-    for f in [
-        "scan.obj",
-        "scan.ply",
-        "scan.stl",
-        "depth.png",
-        "preview.png",
-        "summary.txt",
-        "journal.stream",
-    ] {
+    for f in scanner_host::outputs::OUTPUT_FILES
+        .into_iter()
+        .chain(["journal.stream"])
+    {
         assert!(out.join(f).exists(), "{f}");
     }
     // Replaying the journal rebuilds the same mesh.

@@ -112,14 +112,7 @@ fn a_recorded_scan_becomes_a_mesh_on_the_true_surface() {
     let out = dir.path().join("out");
     let s = write_outputs(&c, &out, &CAMERA).unwrap();
     println!("{}", s.text());
-    for f in [
-        "scan.obj",
-        "scan.ply",
-        "scan.stl",
-        "depth.png",
-        "preview.png",
-        "summary.txt",
-    ] {
+    for f in scanner_host::outputs::OUTPUT_FILES {
         assert!(out.join(f).exists(), "{f} missing");
     }
     // The PLY's vertices and faces; the OBJ has the same (its text, and through tobj).

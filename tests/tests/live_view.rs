@@ -121,7 +121,7 @@ fn reference_outputs(stream: &Path, out: &Path) {
 }
 
 fn assert_same_outputs(a: &Path, b: &Path) {
-    for f in scanner_host::outputs::DOWNLOADS
+    for f in scanner_host::outputs::OUTPUT_FILES
         .iter()
         .chain(&["journal.stream"])
     {
@@ -391,7 +391,7 @@ fn only_this_scans_data_is_served_and_bad_requests_are_refused() {
         None,
         None,
         dir.path(),
-        &scanner_host::outputs::DOWNLOADS,
+        &scanner_host::outputs::OUTPUT_FILES,
         "input ended",
     );
     let t0 = Instant::now();
