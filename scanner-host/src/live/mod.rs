@@ -3,7 +3,7 @@
 //! Data flows one way: the receive loop hands each frame's points and a status line to a
 //! [`LiveView`] without ever waiting (a bounded channel, `try_send`: a full channel drops a view
 //! update, never a frame); a hub thread gathers them into the page's history (bounded: thinned
-//! by half whenever it passes [`HISTORY_POINTS`]); the [`server`] sends the history and what
+//! by half whenever it passes [`HISTORY_POINTS`]); the `server` module sends the history and what
 //! follows to each page over a WebSocket in compact binary batches, and serves the page, the
 //! embedded three.js and, when the scan ends, the mesh and the output files (held in memory:
 //! no path from a request reaches the file system).
