@@ -28,10 +28,21 @@ pub struct HeadConfig {
     pub method: PlaneMethod,
     /// A plane whose board points scatter more than this (RMS, mm) fails the check.
     pub max_plane_rms: f32,
+    /// A plane whose normal's standard uncertainty ([`FrameOutput::plane_tilt`]) exceeds this
+    /// (radians) fails the check: the stripe's board points are too few or too bunched (a
+    /// stripe barely past the crease on one side) to fix the plane, however well they fit.
+    pub max_plane_tilt: f32,
     /// Keep the stripe's board points too (normally only the object's are sent).
     pub keep_board: bool,
     /// Colour each point from the reference frame.
     pub colour: bool,
+    /// A point counts as on the board within this many of its sensitivities (mm per pixel of
+    /// stripe error) of a board plane, when that exceeds `limits.board_tol`.
+    pub board_tol_px: f32,
+    /// The last point of a continuous run is dropped when its stripe is weaker than this
+    /// fraction of its neighbour's: a pixel across the object's silhouette (0 keeps them).
+    /// Applies with `continuity` only.
+    pub silhouette: f32,
     /// Continuity: a point is kept only when a neighbouring line's point lies within this many
     /// pixel footprints of it (plus 1 mm) in 3-D. Points between an object's edge and the board
     /// behind it (the stripe blurred across the occlusion: "flying pixels") have none. 0 keeps
@@ -40,10 +51,14 @@ pub struct HeadConfig {
 }
 
 impl HeadConfig {
-    /// Defaults for a stripe configuration: least squares, plane RMS ≤ 1 mm, object points only,
+    /// Defaults for a stripe configuration: least squares, plane RMS ≤ 1 mm and tilt uncertainty
+    /// ≤ 0.05° (at a lever of 0.4 × the distance, 0.035 % of it), object points only,
     /// no colour; points within 3 mm of a board plane count as board (the stripe where it
     /// crosses a dark printed marker is off by a couple of millimetres: without this margin those
-    /// board points would be sent as object points).
+    /// board points would be sent as object points), or within two pixels' worth of depth where
+    /// that is more (beyond about 900 mm at 1600×1200, where a pixel of stripe error is several
+    /// millimetres: the marker's shift of the stripe, or three noise σ of a weak one, would
+    /// otherwise send board points as object points; measured in the accuracy report).
     pub fn new(stripe: StripeConfig) -> Self {
         HeadConfig {
             stripe,
@@ -54,8 +69,11 @@ impl HeadConfig {
             },
             method: PlaneMethod::LeastSquares,
             max_plane_rms: 1.0,
+            max_plane_tilt: 0.05 * core::f32::consts::PI / 180.0,
             keep_board: false,
             colour: false,
+            board_tol_px: 2.0,
+            silhouette: 0.85,
             continuity: 6.0,
         }
     }
@@ -72,6 +90,10 @@ pub struct FrameOutput<'a> {
     pub plane: [f32; 4],
     /// RMS of the board points about the plane, mm.
     pub plane_rms: f32,
+    /// Standard uncertainty of the plane's normal, radians ([`LaserQuality::tilt`]).
+    ///
+    /// [`LaserQuality::tilt`]: crate::geometry::LaserQuality::tilt
+    pub plane_tilt: f32,
     /// Valid stripe lines.
     pub stripe_lines: usize,
 }
@@ -91,12 +113,15 @@ pub struct Head<const W: usize> {
     rgb: Vec<[u8; 3], W>,
 }
 
-/// A valid stripe pixel, its ray, and (once the plane is known) its 3-D point.
+/// A valid stripe pixel, its ray, and (once the plane is known) its 3-D point and how far that
+/// point moves per pixel of stripe error along the line, mm.
 #[derive(Debug, Clone, Copy)]
 struct StripePixel {
     px: Point2<f32>,
     ray: Vector3<f32>,
     point: Option<Point3<f32>>,
+    sensitivity: f32,
+    peak: u16,
 }
 
 impl<const W: usize> Head<W> {
@@ -145,7 +170,11 @@ impl<const W: usize> Head<W> {
         );
         let fit = laser_plane(&self.board, &self.cfg, &self.left, &self.right)?;
         let plane = fit.plane;
-        triangulate(&plane, &self.cfg.limits, &mut self.stripe);
+        let step = match self.cfg.stripe.axis {
+            Axis::Columns => Vector3::new(0.0, 1.0 / self.camera.fy(), 0.0),
+            Axis::Rows => Vector3::new(1.0 / self.camera.fx(), 0.0, 0.0),
+        };
+        triangulate(&plane, &self.cfg.limits, step, &mut self.stripe);
         self.keep(reference);
         let nv = plane.normal();
         Ok(FrameOutput {
@@ -153,12 +182,18 @@ impl<const W: usize> Head<W> {
             rgb: if self.cfg.colour { &self.rgb } else { &[] },
             plane: [nv.x, nv.y, nv.z, plane.offset()],
             plane_rms: fit.quality.rms,
+            plane_tilt: fit.quality.tilt,
             stripe_lines: self.stripe.len(),
         })
     }
 
     /// The object points worth sending: continuous with a neighbouring line's (no flying
     /// pixels), off the board (unless board points are kept), quantised; with their colour.
+    ///
+    /// A point is on the board within `board_tol` mm or `board_tol_px` of its own sensitivity
+    /// (how far it moves per pixel of stripe error), whichever is larger: at long range a
+    /// pixel is several millimetres of depth, and a fixed margin would send the stripe's noise
+    /// on the board as object points.
     fn keep(&mut self, reference: Option<&Frame<'_>>) {
         self.out.clear();
         self.rgb.clear();
@@ -181,11 +216,22 @@ impl<const W: usize> Head<W> {
                         dl <= 2.0 && (q - p).norm() <= cfg.continuity * footprint * dl + 1.0
                     })
                 };
-                if !((i > 0 && near(i - 1)) || (i + 1 < n && near(i + 1))) {
+                let (before, after) = (i > 0 && near(i - 1), i + 1 < n && near(i + 1));
+                if !(before || after) {
+                    continue;
+                }
+                // The last line of a run (one side continues, the other jumps or ends) may
+                // straddle the silhouette: partly the object, partly what lies behind. Its
+                // light is then weaker than its neighbour's, and its ray, through the pixel's
+                // centre, misses the lit part by up to half a footprint.
+                let j = if before { i - 1 } else { i + 1 };
+                if before != after && f32::from(s.peak) < cfg.silhouette * f32::from(stripe[j].peak)
+                {
                     continue;
                 }
             }
-            match self.board.locate(&p, cfg.limits.board_tol) {
+            let tol = cfg.limits.board_tol.max(cfg.board_tol_px * s.sensitivity);
+            match self.board.locate(&p, tol) {
                 Ok(Surface::Object) => {}
                 Ok(_) if cfg.keep_board => {}
                 _ => continue,
@@ -235,6 +281,8 @@ fn board_points<const W: usize>(
                 px,
                 ray,
                 point: None,
+                sensitivity: 0.0,
+                peak: p.peak,
             })
             .is_err()
         {
@@ -276,23 +324,32 @@ fn laser_plane(
         GeomError::PlaneThroughCamera => Skip::PlaneThroughCamera,
         _ => Skip::PoorPlane,
     })?;
-    if !(fit.quality.rms <= cfg.max_plane_rms) {
+    if !(fit.quality.rms <= cfg.max_plane_rms && fit.quality.tilt <= cfg.max_plane_tilt) {
         return Err(Skip::PoorPlane);
     }
     Ok(fit)
 }
 
-/// Each stripe ray's point on the laser plane (within range).
+/// Each stripe ray's point on the laser plane (within range), and its sensitivity: with the ray
+/// `r` (z = 1) meeting the plane `n·x = c` at `t r`, a pixel along the line moves the ray by
+/// `step` (the inverse focal length along that image axis, lens distortion neglected) and the
+/// point by `t (step − r (n·step)/(n·r))`.
 fn triangulate<const W: usize>(
     plane: &Plane<f32>,
     limits: &Limits<f32>,
+    step: Vector3<f32>,
     stripe: &mut Vec<StripePixel, W>,
 ) {
+    let n = plane.normal();
     for s in stripe.iter_mut() {
         s.point = plane
             .intersect_ray(&s.ray, limits.min_sin)
             .ok()
             .filter(|p| p.coords.norm() <= limits.max_range);
+        if let Some(p) = s.point {
+            let t = p.z / s.ray.z;
+            s.sensitivity = (step - s.ray * (n.dot(&step) / n.dot(&s.ray))).norm() * t;
+        }
     }
 }
 

@@ -465,3 +465,70 @@ proptest! {
         }
     }
 }
+
+/// The laser plane's tilt uncertainty is honest: with noisy board points, the normal's actual
+/// error stays within 3 reported σ, and a stripe that is short on one side (the late frames of a
+/// sweep, where it barely reaches past the crease) reports a far larger uncertainty — enough for
+/// the head's default limit to refuse it — although its points fit just as well.
+#[test]
+fn a_short_stripe_gives_an_uncertain_plane() {
+    let truth = Plane::new(Vector3::new(0.0, 1.0, -0.2), 100.0).unwrap();
+    // a small deterministic normal generator (xorshift + Box–Muller)
+    let mut state = 0x2545_F491_4F6C_DD1Du64;
+    let mut uniform = move || {
+        state ^= state << 13;
+        state ^= state >> 7;
+        state ^= state << 17;
+        ((state >> 11) as f64 + 0.5) / (1u64 << 53) as f64
+    };
+    let mut normal = move || {
+        let (a, b) = (uniform(), uniform());
+        (-2.0 * a.ln()).sqrt() * (2.0 * core::f64::consts::PI * b).cos()
+    };
+    let sigma = 0.3;
+    let mut side = |sign: f64, from: f64, step: f64, n: usize| -> Vec<Point3<f64>> {
+        (0..n)
+            .map(|k| {
+                let x = sign * (from + step * k as f64);
+                let z = 1000.0 - x.abs();
+                Point3::new(x, 0.2 * z - 100.0 + sigma * normal(), z)
+            })
+            .collect()
+    };
+    let cfg = LaserFitConfig::default();
+    let limit = scanner_core::pipeline::HeadConfig::new(scanner_core::stripe::StripeConfig::new(
+        scanner_core::stripe::Method::Dim,
+        scanner_core::stripe::Axis::Columns,
+    ))
+    .max_plane_tilt;
+    let mut medians = Vec::new();
+    for (name, from, step) in [("long", 40.0, 40.0), ("short", 5.0, 5.0)] {
+        let (mut tilts, mut within) = (Vec::new(), 0);
+
+        let trials = 300;
+        for _ in 0..trials {
+            let left = side(-1.0, 40.0, 40.0, 12);
+            let right = side(1.0, from, step, 10);
+            let fit =
+                laser::least_squares(&left, &right, &cfg).unwrap_or_else(|e| panic!("{name}: {e}"));
+            let n = fit.plane.normal();
+            let err = n.angle(truth.normal()).min(n.angle(&-truth.normal()));
+            // the reported σ is the worse of the two tilt directions; the error combines both
+            if err <= 3.0 * core::f64::consts::SQRT_2 * fit.quality.tilt {
+                within += 1;
+            }
+            tilts.push(fit.quality.tilt);
+        }
+        tilts.sort_by(f64::total_cmp);
+
+        let median = tilts[trials / 2];
+        println!(
+            "{name}: median tilt σ {:.4}°, {within}/{trials} errors within 3σ",
+            median.to_degrees()
+        );
+        assert!(within * 100 >= trials * 95, "{name}: {within}/{trials}");
+        medians.push(median);
+    }
+    assert!(medians[1] >= 5.0 * medians[0], "{medians:?}");
+    assert!(medians[0] < f64::from(limit) && medians[1] > f64::from(limit));
+}

@@ -108,6 +108,42 @@ fn every_rejection_reason() {
 }
 
 #[test]
+fn a_stripe_cut_by_an_edge_is_dropped_and_a_dark_speck_is_not() {
+    // A stripe of σ 2.5 px over every column; over columns 20..32 the light sheet has passed a
+    // surface's border: only the tail beyond 1.3σ falls on it (narrow, weak, its centre pulled
+    // 4 px away from the sheet's). Columns 50 and 51: the stripe on a dark speck (narrow and
+    // weak too, but only two lines).
+    let (f, r) = build(|x, y| {
+        let full = 200.0 * gauss(y, 30.0, 2.5);
+        if (20..32).contains(&x) {
+            if (y as f64) >= 33.25 { full } else { 0.0 }
+        } else if (50..52).contains(&x) {
+            40.0 * gauss(y, 30.0, 1.0)
+        } else {
+            full
+        }
+    });
+    let s = statuses(&f, &r);
+    for (x, st) in s.iter().enumerate() {
+        let want = if (20..32).contains(&x) {
+            Status::Cut
+        } else {
+            Status::Valid
+        };
+        assert_eq!(*st, want, "column {x}");
+    }
+    // 0 turns the check off
+    let mut ex = extractor();
+    let cfg = StripeConfig {
+        cut_width: 0.0,
+        ..StripeConfig::new(Method::Dim, Axis::Columns)
+    };
+    let res = ex.extract(&gray(&f), Some(&gray(&r)), &cfg).unwrap();
+    assert!(res.points[20..32].iter().all(|p| p.status == Status::Valid));
+    assert_eq!(Status::Cut.to_string(), "cut by an edge");
+}
+
+#[test]
 fn formats_agree() {
     let s = synthetic(2.0, 150.0, 2.0, 11);
     let mut ex = extractor();
@@ -485,6 +521,13 @@ fn bad_input_is_named() {
         ),
         Err(StripeError::BadConfig(_))
     ));
+    for cut_width in [1.0, -0.1, f32::NAN] {
+        assert_eq!(
+            ex.extract(&f, Some(&f), &StripeConfig { cut_width, ..dim })
+                .unwrap_err(),
+            StripeError::BadConfig("need 0 ≤ cut_width < 1")
+        );
+    }
     for e in [
         StripeError::NoReference,
         StripeError::BadConfig("x"),

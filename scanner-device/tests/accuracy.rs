@@ -8,7 +8,14 @@ fn the_quick_accuracy_report_is_within_loose_bounds() {
     let camera = scanner_rig::report::calibrate_camera(w, h);
     let mut rows = Vec::new();
     for d in [400.0, 1600.0] {
-        rows.extend(scanner_rig::report::run_distance(&camera, w, h, d, 30));
+        rows.extend(scanner_rig::report::run_distance(
+            &camera,
+            w,
+            h,
+            d,
+            30,
+            scanner_rig::report::Light::Normal,
+        ));
     }
     println!("{}", scanner_rig::report::table(&rows));
     for r in &rows {
@@ -20,6 +27,10 @@ fn the_quick_accuracy_report_is_within_loose_bounds() {
                 r.diameter_mm.iter().all(|&e| pct(e) <= 0.2) && pct(r.spacing_mm) <= 0.2,
                 "{r:?}"
             );
+            // the head keeps what a plain centroid with the true plane finds, and the board's
+            // tolerance grows with the pixel's depth: few board points sent as object points
+            assert!(r.coverage_pct >= 90.0, "{r:?}");
+            assert!(r.board_sent.0 * 200 <= r.points, "{r:?}");
         } else {
             assert!(pct(r.mean_mm) <= 0.15, "{r:?}");
         }

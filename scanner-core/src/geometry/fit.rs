@@ -25,6 +25,10 @@ pub struct PlaneFit<T: Real> {
     pub max: T,
     /// Number of points.
     pub count: usize,
+    /// Square root of the scatter's middle eigenvalue, mm: the points' extent along the plane's
+    /// narrower in-plane direction, times √count. A residual σ over it is the standard
+    /// uncertainty of the normal's tilt towards that direction, radians.
+    pub spread: T,
 }
 
 /// A fitted line with its residuals.
@@ -131,6 +135,7 @@ where
         rms: (sum2 / T::lit(s.count as f64)).sqrt(),
         max,
         count: s.count,
+        spread: s.values[1].sqrt(),
     })
 }
 

@@ -54,6 +54,87 @@ fn settled(sig: &[u16], rough: usize) -> bool {
     let peak = sig[rough.min(n - 1)].max(lo);
     u32::from(hi) <= u32::from(lo) + u32::from(peak - lo) / 20
 }
+/// Bins of [`mark_cut`]'s medians: widths in quarter pixels up to 32 px (wider ones count in the
+/// last bin), peaks in eighths of an octave over the whole `u16` range.
+const CUT_BINS: usize = 128;
+
+/// Fewest neighbouring narrow, weak lines that [`mark_cut`] takes for a cut: the light sheet
+/// passing a border runs along it, while a dark speck on a surface weakens a line or three.
+const CUT_RUN: usize = 4;
+
+/// The eighth-octave bin of a peak (0 and 1 in bin 0; within 9 % of its value).
+fn octave_bin(v: u16) -> usize {
+    if v == 0 {
+        return 0;
+    }
+    let octave = 15 - v.leading_zeros() as usize;
+    let eighth = if octave >= 3 {
+        usize::from(v >> (octave - 3)) & 7
+    } else {
+        usize::from(v << (3 - octave)) & 7
+    };
+    8 * octave + eighth
+}
+
+/// The smallest value of an eighth-octave bin.
+fn octave_value(bin: usize) -> f32 {
+    let (octave, eighth) = (bin / 8, bin % 8);
+    (8 + eighth) as f32 * libm::exp2f(octave as f32) / 8.0
+}
+
+/// Marks valid lines that are both narrower than `fraction` of the median width of the frame's
+/// valid lines and weaker than half their median peak [`Status::Cut`]: the tail of the light
+/// sheet on a surface whose border it has passed. Narrow alone is not enough (a real stripe's
+/// width varies with speckle), nor weak alone (a dark surface).
+fn mark_cut(points: &mut [StripePoint], fraction: f32) {
+    if !(fraction > 0.0) {
+        return;
+    }
+    let width_bin = |p: &StripePoint| ((p.width * 4.0) as usize).min(CUT_BINS - 1);
+    let peak_bin = |p: &StripePoint| octave_bin(p.peak);
+    let mut widths = [0u32; CUT_BINS];
+    let mut peaks = [0u32; CUT_BINS];
+    let mut n = 0u32;
+    for p in points.iter().filter(|p| p.status == Status::Valid) {
+        widths[width_bin(p)] += 1;
+        peaks[peak_bin(p)] += 1;
+        n += 1;
+    }
+    if n == 0 {
+        return;
+    }
+    let width = fraction * (quantile(&widths, n, 0.5) as f32 + 0.5) / 4.0;
+    let peak = 0.5 * octave_value(quantile(&peaks, n, 0.5));
+    let suspect =
+        |p: &StripePoint| p.status == Status::Valid && p.width < width && f32::from(p.peak) < peak;
+    // runs of at least CUT_RUN suspect lines (the gaps of invalid lines inside a run bridged)
+    let mut i = 0;
+    while i < points.len() {
+        if !suspect(&points[i]) {
+            i += 1;
+            continue;
+        }
+        let (start, mut end, mut count) = (i, i, 0);
+        while i < points.len() && (suspect(&points[i]) || points[i].status != Status::Valid) {
+            if suspect(&points[i]) {
+                end = i;
+                count += 1;
+            }
+            i += 1;
+        }
+        if count >= CUT_RUN {
+            for p in points[start..=end].iter_mut().filter(|p| suspect(p)) {
+                *p = StripePoint {
+                    centre: 0.0,
+                    status: Status::Cut,
+                    ..*p
+                };
+            }
+        }
+        i = end + 1;
+    }
+}
+
 /// The automatic thresholds sample every this many rows.
 pub const SAMPLE_STEP: usize = 32;
 
@@ -105,6 +186,9 @@ pub struct StripeConfig {
     pub separation: u16,
     /// Half size of the window read around each peak, pixels (≤ [`MAX_HALF_WINDOW`]).
     pub half_window: usize,
+    /// A valid line narrower than this fraction of the median width of the frame's valid lines,
+    /// and weaker than half their median peak, is [`Status::Cut`] (0 keeps every line).
+    pub cut_width: f32,
 }
 
 impl StripeConfig {
@@ -126,6 +210,7 @@ impl StripeConfig {
             ambiguity: 0.5,
             separation: 10,
             half_window: 24,
+            cut_width: 0.5,
         }
     }
 }
@@ -149,11 +234,15 @@ pub enum Status {
     TooNarrow,
     /// The profile passed every check but the estimator found no centre in it.
     BadProfile,
+    /// Much narrower than the frame's other stripe lines: the stripe cut by an edge (the light
+    /// sheet falling off a surface's border, so that only part of its profile lies on the
+    /// surface, with its centre pulled inwards).
+    Cut,
 }
 
 impl Status {
     /// Every status, in a fixed order (for tables and counters).
-    pub const ALL: [Status; 7] = [
+    pub const ALL: [Status; 8] = [
         Status::Valid,
         Status::NoStripe,
         Status::Ambiguous,
@@ -161,6 +250,7 @@ impl Status {
         Status::TooWide,
         Status::TooNarrow,
         Status::BadProfile,
+        Status::Cut,
     ];
 }
 
@@ -174,6 +264,7 @@ impl fmt::Display for Status {
             Self::TooWide => "too wide",
             Self::TooNarrow => "too narrow",
             Self::BadProfile => "no fit",
+            Self::Cut => "cut by an edge",
         })
     }
 }
@@ -421,6 +512,7 @@ impl<const W: usize> Extractor<W> {
             self.out[line] =
                 self.judge(&io, cfg, line, length, threshold, (&mut sig, &mut clipped));
         }
+        mark_cut(&mut self.out[..lines], cfg.cut_width);
         Ok(Extraction {
             points: &self.out[..lines],
             first_line: match cfg.axis {
@@ -899,6 +991,9 @@ fn checked<const W: usize>(
     }
     if !(cfg.min_width >= 0.0 && cfg.max_width >= cfg.min_width) {
         return Err(StripeError::BadConfig("need 0 ≤ min_width ≤ max_width"));
+    }
+    if !(cfg.cut_width >= 0.0 && cfg.cut_width < 1.0) {
+        return Err(StripeError::BadConfig("need 0 ≤ cut_width < 1"));
     }
     if !(cfg.ambiguity > 0.0) {
         return Err(StripeError::BadConfig("ambiguity must be positive"));
