@@ -32,6 +32,10 @@ pub struct Window<'a> {
     pub clipped: &'a [bool],
     /// Index of the rough centre (3×1 mask maximum).
     pub rough: usize,
+    /// Light less than this above the background is taken for noise by [`Shape::spread`] (0:
+    /// only its 15 %-of-the-height level applies). On a faint stripe 15 % of the height is about
+    /// one noise σ, and the noise samples above it made a halo of nothing.
+    pub noise: f32,
 }
 
 /// Largest window an estimator handles.
@@ -166,7 +170,7 @@ impl Window<'_> {
         }
         let height = raw(peak_index) - bg(peak_index);
         let (mut m0, mut m1, mut m2) = (0f32, 0f32, 0f32);
-        let level = 0.15 * height;
+        let level = (0.15 * height).max(self.noise);
         // Samples above half the height outside the half-maximum run: a second hump.
         let (lo_run, hi_run) = (half_max.0 - 0.5, half_max.1 + 0.5);
         let (mut stray, mut stray_top) = (0usize, 0u16);
@@ -338,6 +342,7 @@ mod tests {
             signal: s,
             clipped,
             rough,
+            noise: 0.0,
         }
     }
 

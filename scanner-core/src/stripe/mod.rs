@@ -738,6 +738,11 @@ impl<const W: usize> Extractor<W> {
             signal: &sig[..n],
             clipped: &clipped[..n],
             rough: rough - start,
+            // the DIM threshold is six noise σ (at least): half of it is three
+            noise: match cfg.method {
+                Method::Dim => f32::from(threshold) / 2.0,
+                Method::Lim => 0.0,
+            },
         };
         let shape = window.shape();
         point.peak = sig[shape.peak_index];
