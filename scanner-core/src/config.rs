@@ -8,11 +8,15 @@ pub const MAX_LINES: usize = 4096;
 pub const MAX_XYZ_BYTES_PER_POINT: usize = 15;
 /// Bytes a point's colour takes on the wire.
 pub const RGB_BYTES_PER_POINT: usize = 3;
+/// Bytes a point's standard uncertainty takes on the wire.
+pub const UNCERTAINTY_BYTES_PER_POINT: usize = 1;
 /// Room for a message's fields besides its points (ids, time, plane, counts, lengths), bytes.
 pub const MESSAGE_OVERHEAD: usize = 256;
-/// Largest message before COBS, bytes: a frame of [`MAX_LINES`] points with colour fits.
-pub const MAX_FRAME: usize =
-    MAX_LINES * (MAX_XYZ_BYTES_PER_POINT + RGB_BYTES_PER_POINT) + MESSAGE_OVERHEAD;
+/// Largest message before COBS, bytes: a frame of [`MAX_LINES`] points with colour and
+/// uncertainty fits.
+pub const MAX_FRAME: usize = MAX_LINES
+    * (MAX_XYZ_BYTES_PER_POINT + RGB_BYTES_PER_POINT + UNCERTAINTY_BYTES_PER_POINT)
+    + MESSAGE_OVERHEAD;
 /// Most markers (or corners) of one plane or view the pose and calibration fits take.
 pub const MAX_MARKERS: usize = 256;
 

@@ -12,7 +12,10 @@ use nalgebra::{Point2, Point3, Vector3};
 use crate::geometry::{Board, LaserFitConfig, LaserPlane, Limits, Plane, Surface, laser};
 use crate::stripe::{Axis, Extraction, Extractor, Frame, PixelFormat, StripeConfig, StripeError};
 pub use crate::wire::PlaneMethod;
-use crate::wire::{Skip, points::quantise};
+use crate::wire::{
+    Skip,
+    points::{quantise, uncertainty_code},
+};
 use crate::{Camera, GeomError};
 
 /// Settings of the head.
@@ -86,6 +89,10 @@ pub struct FrameOutput<'a> {
     pub points: &'a [[i32; 3]],
     /// Their colours (empty without colour).
     pub rgb: &'a [[u8; 3]],
+    /// Their standard uncertainties, coded ([`uncertainty_code`]): the stripe centre's (from its
+    /// height over the noise and its width) through the point's sensitivity, and the laser
+    /// plane's (offset and tilt) along the ray, in quadrature.
+    pub uncertainty: &'a [u8],
     /// The laser plane `[nx, ny, nz, d]`.
     pub plane: [f32; 4],
     /// RMS of the board points about the plane, mm.
@@ -111,16 +118,20 @@ pub struct Head<const W: usize> {
     right: Vec<Point3<f32>, W>,
     out: Vec<[i32; 3], W>,
     rgb: Vec<[u8; 3], W>,
+    uncertainty: Vec<u8, W>,
 }
 
-/// A valid stripe pixel, its ray, and (once the plane is known) its 3-D point and how far that
-/// point moves per pixel of stripe error along the line, mm.
+/// A valid stripe pixel, its ray, and (once the plane is known) its 3-D point, how far that
+/// point moves per pixel of stripe error along the line (mm), and its standard uncertainty (mm).
 #[derive(Debug, Clone, Copy)]
 struct StripePixel {
     px: Point2<f32>,
     ray: Vector3<f32>,
     point: Option<Point3<f32>>,
     sensitivity: f32,
+    /// The centre's standard uncertainty, pixels.
+    sigma_px: f32,
+    uncertainty: f32,
     peak: u16,
 }
 
@@ -137,6 +148,7 @@ impl<const W: usize> Head<W> {
             right: Vec::new(),
             out: Vec::new(),
             rgb: Vec::new(),
+            uncertainty: Vec::new(),
         }
     }
 
@@ -174,12 +186,13 @@ impl<const W: usize> Head<W> {
             Axis::Columns => Vector3::new(0.0, 1.0 / self.camera.fy(), 0.0),
             Axis::Rows => Vector3::new(1.0 / self.camera.fx(), 0.0, 0.0),
         };
-        triangulate(&plane, &self.cfg.limits, step, &mut self.stripe);
+        triangulate(&fit, &self.cfg.limits, step, &mut self.stripe);
         self.keep(reference);
         let nv = plane.normal();
         Ok(FrameOutput {
             points: &self.out,
             rgb: if self.cfg.colour { &self.rgb } else { &[] },
+            uncertainty: &self.uncertainty,
             plane: [nv.x, nv.y, nv.z, plane.offset()],
             plane_rms: fit.quality.rms,
             plane_tilt: fit.quality.tilt,
@@ -197,6 +210,7 @@ impl<const W: usize> Head<W> {
     fn keep(&mut self, reference: Option<&Frame<'_>>) {
         self.out.clear();
         self.rgb.clear();
+        self.uncertainty.clear();
         let (cfg, stripe) = (&self.cfg, &self.stripe);
         let line_of = |px: &Point2<f32>| match cfg.stripe.axis {
             Axis::Columns => px.x,
@@ -243,6 +257,7 @@ impl<const W: usize> Head<W> {
             if self.out.push([x, y, z]).is_err() {
                 break;
             }
+            let _ = self.uncertainty.push(uncertainty_code(s.uncertainty));
             if cfg.colour {
                 let c = reference.map_or([0; 3], |r| colour_at(r, &s.px));
                 let _ = self.rgb.push(c);
@@ -282,6 +297,8 @@ fn board_points<const W: usize>(
                 ray,
                 point: None,
                 sensitivity: 0.0,
+                sigma_px: p.sigma,
+                uncertainty: f32::INFINITY,
                 peak: p.peak,
             })
             .is_err()
@@ -330,16 +347,19 @@ fn laser_plane(
     Ok(fit)
 }
 
-/// Each stripe ray's point on the laser plane (within range), and its sensitivity: with the ray
-/// `r` (z = 1) meeting the plane `n·x = c` at `t r`, a pixel along the line moves the ray by
-/// `step` (the inverse focal length along that image axis, lens distortion neglected) and the
-/// point by `t (step − r (n·step)/(n·r))`.
+/// Each stripe ray's point on the laser plane (within range), its sensitivity and its
+/// uncertainty. With the ray `r` (z = 1) meeting the plane `n·x = c` at `t r`, a pixel along the
+/// line moves the ray by `step` (the inverse focal length along that image axis, lens distortion
+/// neglected) and the point by `t (step − r (n·step)/(n·r))`: the sensitivity, times the centre's
+/// uncertainty in pixels, is the stripe's share. The plane's share: a shift `δ` of the plane
+/// along its normal moves the point along the ray by `δ / |n·r̂|`.
 fn triangulate<const W: usize>(
-    plane: &Plane<f32>,
+    fit: &LaserPlane<f32>,
     limits: &Limits<f32>,
     step: Vector3<f32>,
     stripe: &mut Vec<StripePixel, W>,
 ) {
+    let plane: &Plane<f32> = &fit.plane;
     let n = plane.normal();
     for s in stripe.iter_mut() {
         s.point = plane
@@ -348,7 +368,11 @@ fn triangulate<const W: usize>(
             .filter(|p| p.coords.norm() <= limits.max_range);
         if let Some(p) = s.point {
             let t = p.z / s.ray.z;
+            let along = libm::fabsf(n.dot(&s.ray)) / s.ray.norm();
             s.sensitivity = (step - s.ray * (n.dot(&step) / n.dot(&s.ray))).norm() * t;
+            let stripe_part = s.sensitivity * s.sigma_px;
+            let plane_part = fit.quality.at(&p) / along;
+            s.uncertainty = libm::sqrtf(stripe_part * stripe_part + plane_part * plane_part);
         }
     }
 }

@@ -82,6 +82,7 @@ fn every_message_round_trips_and_points_average_few_bytes() {
     let n = points::encode(&pts, &mut xyz).unwrap();
     xyz.truncate(n);
     let rgb: Vec<u8> = (0..3 * pts.len()).map(|i| (i % 251) as u8).collect();
+    let sigma: Vec<u8> = (0..pts.len()).map(|i| (i % 97) as u8 + 60).collect();
     let msgs = [
         Message::Header(header()),
         Message::Points(Points {
@@ -92,6 +93,7 @@ fn every_message_round_trips_and_points_average_few_bytes() {
             count: pts.len() as u32,
             xyz: &xyz,
             rgb: &rgb,
+            uncertainty: &sigma,
         }),
         Message::Status(Status {
             scan_id: 1,
@@ -124,10 +126,11 @@ fn every_message_round_trips_and_points_average_few_bytes() {
     let mut back = Vec::new();
     points::decode(&xyz, pts.len(), |p| back.push(p)).unwrap();
     assert_eq!(back, pts);
-    let framed = frame_bytes(&msgs[1]).len() as f64 - rgb.len() as f64;
+    let framed = frame_bytes(&msgs[1]).len() as f64 - rgb.len() as f64 - sigma.len() as f64;
     let per_point = framed / pts.len() as f64;
     println!(
-        "xyz {} bytes for {} points; framed without colour {per_point:.2} B/point",
+        "xyz {} bytes for {} points; framed without colour and uncertainty {per_point:.2} B/point \
+         (+1 B/point for the uncertainty)",
         xyz.len(),
         pts.len()
     );
@@ -172,7 +175,7 @@ fn another_version_is_refused_by_name() {
     assert!(seen[0].contains("UnknownVersion(9)"));
     assert_eq!(
         WireError::UnknownVersion(9).to_string(),
-        "unknown protocol version 9 (this build reads 1)"
+        "unknown protocol version 9 (this build reads 1 and 2)"
     );
 }
 
@@ -286,4 +289,95 @@ fn wire_enums_and_blocks_are_checked_at_the_parse() {
     assert!(bad.board().is_err());
     assert_eq!(EndReason::try_from(2u8), Ok(EndReason::Stopped));
     assert!(EndReason::try_from(3u8).is_err());
+}
+
+/// A message's postcard bytes.
+fn body_of(msg: &Message) -> Vec<u8> {
+    let mut buf = vec![0u8; 4096];
+    let n = postcard::to_slice(msg, &mut buf).unwrap().len();
+    buf.truncate(n);
+    buf
+}
+
+/// A frame as a version-1 head wrote it: the version byte, `body` (postcard), the CRC, COBS and
+/// both delimiters.
+fn frame_v1(body: &[u8]) -> Vec<u8> {
+    let mut raw = vec![1u8];
+    raw.extend_from_slice(body);
+    let crc = crc::Crc::<u32>::new(&crc::CRC_32_ISO_HDLC).checksum(&raw);
+    raw.extend_from_slice(&crc.to_le_bytes());
+    let mut out = vec![0u8; raw.len() + raw.len() / 254 + 3];
+    let n = cobs::encode(&raw, &mut out[1..]);
+    out.truncate(n + 2);
+    out[0] = 0;
+    out[n + 1] = 0;
+    out
+}
+
+#[test]
+fn version_1_frames_are_still_read_and_their_points_carry_no_uncertainty() {
+    // The documented sizes of the largest frame.
+    assert_eq!(scanner_core::wire::MAX_FRAME, 78_080);
+    assert_eq!(scanner_core::wire::MAX_ENCODED, 78_390);
+    let pts = stripe(50);
+    let mut xyz = vec![0u8; 15 * pts.len()];
+    let n = points::encode(&pts, &mut xyz).unwrap();
+    let v2 = Message::Points(Points {
+        scan_id: 7,
+        frame: 3,
+        time_us: 99,
+        plane: [0.0, 0.8, 0.6, -90.0],
+        count: pts.len() as u32,
+        xyz: &xyz[..n],
+        rgb: &[],
+        uncertainty: &[],
+    });
+    // Version 1's Points is version 2's without the last field: the empty slice's length byte.
+    let body = body_of(&v2);
+    assert_eq!(body.last(), Some(&0));
+    let mut stream = frame_v1(&body[..body.len() - 1]);
+    stream.extend(frame_v1(&body_of(&Message::Header(header()))));
+    let (seen, stats) = decode_all(&stream, 5);
+    assert_eq!(stats.frames, 2, "{seen:?}");
+    assert_eq!(seen[0], format!("{:?}", Ok::<_, WireError>(v2)));
+    assert_eq!(
+        seen[1],
+        format!("{:?}", Ok::<_, WireError>(Message::Header(header())))
+    );
+    // A version-1 Points frame that already carries the new field is not version 1's: refused.
+    let (_, stats) = decode_all(&frame_v1(&body), 5);
+    assert_eq!((stats.frames, stats.bad_payload), (0, 1));
+    // And an uncertainty of the wrong length is refused as inconsistent points.
+    let wrong = Message::Points(Points {
+        uncertainty: &[5, 6],
+        ..match v2 {
+            Message::Points(p) => p,
+            _ => unreachable!(),
+        }
+    });
+    let (_, stats) = decode_all(&frame_bytes(&wrong), 7);
+    assert_eq!((stats.frames, stats.bad_payload), (0, 1));
+}
+
+#[test]
+fn the_uncertainty_code_spans_a_micrometre_to_63_mm_in_steps_of_4_percent() {
+    use points::{uncertainty_code, uncertainty_mm};
+    assert_eq!(uncertainty_code(0.001), 0);
+    assert_eq!(uncertainty_code(0.0001), 0, "below the range: clamped");
+    assert_eq!(uncertainty_code(1e6), 255, "above the range: clamped");
+    for bad in [0.0, -1.0, f32::NAN, f32::INFINITY] {
+        assert_eq!(uncertainty_code(bad), 255, "{bad}: unknown, the largest");
+    }
+    for c in 0..=255u8 {
+        assert_eq!(uncertainty_code(uncertainty_mm(c)), c);
+    }
+    // within half a step (2.2 %) over the range
+    for k in 0..400 {
+        let mm = 0.0011 * 1.03f32.powi(k);
+        if mm > 60.0 {
+            break;
+        }
+        let back = uncertainty_mm(uncertainty_code(mm));
+        assert!((back / mm - 1.0).abs() <= 0.022, "{mm} → {back}");
+    }
 }

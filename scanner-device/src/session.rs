@@ -340,6 +340,7 @@ impl Session {
                         count: out.points.len() as u32,
                         xyz: &self.xyz[..n],
                         rgb: out.rgb.as_flattened(),
+                        uncertainty: out.uncertainty,
                     });
                     let count = out.points.len() as u64;
                     on_points(number, out.points);

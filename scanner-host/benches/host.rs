@@ -57,6 +57,7 @@ fn stream(frames: u32) -> Vec<u8> {
             })
             .collect();
         let len = points::encode(&pts, &mut xyz).unwrap();
+        let sigma = [points::uncertainty_code(0.05); 1600];
         let msg = Message::Points(Points {
             scan_id: 1,
             frame: f,
@@ -65,6 +66,7 @@ fn stream(frames: u32) -> Vec<u8> {
             count: 1600,
             xyz: &xyz[..len],
             rgb: &[],
+            uncertainty: &sigma,
         });
         let n = wire::encode(&msg, &mut scratch, &mut out).unwrap();
         s.extend_from_slice(&out[..n]);
@@ -121,7 +123,7 @@ fn main() {
             let mut g = Grid::new(cam, 1600, 1200, cell, 1200.0, 2.0).unwrap();
             let t = Instant::now();
             for p in &pts {
-                g.insert(p, None);
+                g.insert(p, None, Some(0.05));
             }
             best = best.min(t.elapsed().as_secs_f64());
             black_box(g.filled());

@@ -57,6 +57,7 @@ fn main() {
             .collect();
         let n = points::encode(&q, &mut xyz).expect("points");
         let rgb = vec![200u8; 3 * q.len()];
+        let sigma = vec![points::uncertainty_code(0.05); q.len()];
         let msg = Message::Points(Points {
             scan_id: 1,
             frame,
@@ -65,6 +66,7 @@ fn main() {
             count: q.len() as u32,
             xyz: &xyz[..n],
             rgb: &rgb,
+            uncertainty: &sigma,
         });
         feed(&msg, &mut c_);
     }

@@ -113,6 +113,7 @@ impl Counts {
 struct Pending {
     points: Vec<Point3<f32>>,
     rgb: Vec<[u8; 3]>,
+    uncertainty: Vec<f32>,
 }
 
 /// Bytes in, grid out: the decoder, and what it feeds.
@@ -128,6 +129,7 @@ struct State {
     header: Option<Header>,
     grid: Option<Grid>,
     colour: bool,
+    uncertainty: bool,
     pending: VecDeque<Pending>,
     counts: Counts,
     error: Option<CollectError>,
@@ -186,6 +188,11 @@ impl Collector {
         self.state.colour
     }
 
+    /// Whether points carried their standard uncertainty (heads since wire version 2).
+    pub fn uncertainty(&self) -> bool {
+        self.state.uncertainty
+    }
+
     /// Feeds bytes in any chunks.
     ///
     /// # Errors
@@ -231,6 +238,7 @@ impl State {
             header: None,
             grid: None,
             colour: false,
+            uncertainty: false,
             pending: VecDeque::new(),
             counts: Counts::default(),
             error: None,
@@ -303,12 +311,20 @@ impl State {
                 if !rgb.is_empty() {
                     self.colour = true;
                 }
+                let uncertainty: Vec<f32> = p
+                    .uncertainty
+                    .iter()
+                    .map(|&c| points::uncertainty_mm(c))
+                    .collect();
+                if !uncertainty.is_empty() {
+                    self.uncertainty = true;
+                }
                 if let Some(w) = &mut self.watched {
                     w.push((self.points.clone(), rgb.clone()));
                 }
                 if self.grid.is_some() {
                     let points = std::mem::take(&mut self.points);
-                    self.insert(&points, &rgb);
+                    self.insert(&points, &rgb, &uncertainty);
                     self.points = points;
                 } else {
                     if self.pending.len() >= self.opts.pending_max {
@@ -318,6 +334,7 @@ impl State {
                     self.pending.push_back(Pending {
                         points: self.points.clone(),
                         rgb,
+                        uncertainty,
                     });
                 }
             }
@@ -347,15 +364,15 @@ impl State {
         self.header = Some(*h);
         self.grid = Some(grid);
         while let Some(p) = self.pending.pop_front() {
-            self.insert(&p.points, &p.rgb);
+            self.insert(&p.points, &p.rgb, &p.uncertainty);
         }
         Ok(())
     }
 
-    fn insert(&mut self, pts: &[Point3<f32>], rgb: &[[u8; 3]]) {
+    fn insert(&mut self, pts: &[Point3<f32>], rgb: &[[u8; 3]], uncertainty: &[f32]) {
         let Some(grid) = &mut self.grid else { return };
         for (i, p) in pts.iter().enumerate() {
-            if grid.insert(p, rgb.get(i).copied()) {
+            if grid.insert(p, rgb.get(i).copied(), uncertainty.get(i).copied()) {
                 self.counts.gridded += 1;
             }
         }

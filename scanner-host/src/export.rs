@@ -128,13 +128,24 @@ pub fn ply(mesh: &Mesh) -> Vec<u8> {
 /// The writer's error.
 pub fn write_ply(mesh: &Mesh, w: &mut impl std::io::Write) -> std::io::Result<()> {
     let colour = !mesh.colours.is_empty();
+    // `quality`: MeshLab's and CloudCompare's name for a per-vertex scalar; here the vertex's
+    // standard uncertainty, mm.
+    let quality = !mesh.quality.is_empty() && mesh.quality.len() == mesh.vertices.len();
     let mut h = format!(
-        "ply\nformat binary_little_endian 1.0\ncomment scanner-host: mm, {}\nelement vertex {}\nproperty float x\nproperty float y\nproperty float z\nproperty float nx\nproperty float ny\nproperty float nz\n",
+        "ply\nformat binary_little_endian 1.0\ncomment scanner-host: mm, {}{}\nelement vertex {}\nproperty float x\nproperty float y\nproperty float z\nproperty float nx\nproperty float ny\nproperty float nz\n",
         mesh.frame.describe(),
+        if quality {
+            "\ncomment quality: the vertex's standard uncertainty, mm"
+        } else {
+            ""
+        },
         mesh.vertices.len()
     );
     if colour {
         h += "property uchar red\nproperty uchar green\nproperty uchar blue\n";
+    }
+    if quality {
+        h += "property float quality\n";
     }
     let _ = write!(
         h,
@@ -148,6 +159,9 @@ pub fn write_ply(mesh: &Mesh, w: &mut impl std::io::Write) -> std::io::Result<()
         }
         if colour {
             w.write_all(&mesh.colours[i])?;
+        }
+        if quality {
+            w.write_all(&mesh.quality[i].to_le_bytes())?;
         }
     }
     for f in &mesh.faces {

@@ -6,8 +6,10 @@
 //! camera, cells of n×n pixels — a perspective grid, the paper's) or millimetres
 //! (`Cell::Mm(s)`: cells of s×s mm in the camera's x–y plane — an orthographic grid).
 //!
-//! The robust mean: each cell keeps two running clusters (Welford) of its samples by distance from
-//! the camera; a sample joins a cluster within `max(3σ, outlier_mm)` of it (σ once it has three
+//! The robust mean: each cell keeps two running clusters (Welford, weighted) of its samples by
+//! distance from the camera. A sample that carries its standard uncertainty `u` (the head sends
+//! it) weighs `1/u²`, so a cell's mean leans on its better samples and its own uncertainty is
+//! `1/√Σ(1/u²)` ([`CellState::uncertainty`]); samples without weigh alike; a sample joins a cluster within `max(3σ, outlier_mm)` of it (σ once it has three
 //! samples), else it is rejected. The cluster with more samples is the cell's surface: a cell on
 //! an object's outline, which sees the object and the board behind it, takes the better-supported
 //! depth instead of averaging the two.
@@ -110,6 +112,8 @@ pub struct CellState {
     range: f32,
     /// Mean colour.
     pub rgb: [f32; 3],
+    /// Sum of the samples' weights (`1/u²`, u in mm; 1 each for samples without uncertainty).
+    weight: f32,
     /// The other cluster: samples at another depth (a cell on an object's outline sees the
     /// object and the board behind it). Whichever has more samples is the cell's surface.
     alt: Cluster,
@@ -123,6 +127,7 @@ struct Cluster {
     m2: f32,
     range: f32,
     rgb: [f32; 3],
+    weight: f32,
 }
 
 impl CellState {
@@ -133,12 +138,29 @@ impl CellState {
             m2: self.m2,
             range: self.range,
             rgb: self.rgb,
+            weight: self.weight,
         }
     }
 
     fn set_main(&mut self, c: Cluster) {
-        (self.count, self.mean, self.m2, self.range, self.rgb) =
-            (c.count, c.mean, c.m2, c.range, c.rgb);
+        (
+            self.count,
+            self.mean,
+            self.m2,
+            self.range,
+            self.rgb,
+            self.weight,
+        ) = (c.count, c.mean, c.m2, c.range, c.rgb, c.weight);
+    }
+
+    /// The standard uncertainty of the cell's mean, mm, when its samples carried theirs:
+    /// `1/√Σ(1/u²)` (independent samples). Meaningless for samples without (then 1/√count).
+    pub fn uncertainty(&self) -> f32 {
+        if self.weight > 0.0 {
+            1.0 / self.weight.sqrt()
+        } else {
+            f32::INFINITY
+        }
     }
 }
 
@@ -147,25 +169,30 @@ impl Cluster {
     /// has three) and never closer than `floor`.
     fn accepts(&self, range: f32, floor: f32) -> bool {
         let tol = if self.count >= 3 {
-            (3.0 * (self.m2 / (self.count - 1) as f32).sqrt()).max(floor)
+            // the weighted variance, unbiased for equal weights
+            let n = self.count as f32;
+            let var = self.m2 / self.weight * n / (n - 1.0);
+            (3.0 * var.sqrt()).max(floor)
         } else {
             floor
         };
         (range - self.range).abs() <= tol
     }
 
-    fn add(&mut self, p: &Point3<f32>, range: f32, rgb: Option<[u8; 3]>) {
+    /// Adds a sample of weight `w` (West's weighted Welford update).
+    fn add(&mut self, p: &Point3<f32>, range: f32, rgb: Option<[u8; 3]>, w: f32) {
         self.count += 1;
-        let n = self.count as f32;
+        self.weight += w;
+        let k = w / self.weight;
         let d = range - self.range;
-        self.range += d / n;
-        self.m2 += d * (range - self.range);
+        self.range += d * k;
+        self.m2 += w * d * (range - self.range);
         for (m, v) in self.mean.iter_mut().zip(p.iter()) {
-            *m += (v - *m) / n;
+            *m += (v - *m) * k;
         }
         if let Some(c) = rgb {
             for (m, v) in self.rgb.iter_mut().zip(c) {
-                *m += (f32::from(v) - *m) / n;
+                *m += (f32::from(v) - *m) * k;
             }
         }
     }
@@ -269,23 +296,33 @@ impl Grid {
             .then_some((fx as usize, fy as usize))
     }
 
-    /// Adds a point (with its colour, if any); returns `false` if it fell outside or was
-    /// rejected as an outlier.
-    pub fn insert(&mut self, p: &Point3<f32>, rgb: Option<[u8; 3]>) -> bool {
+    /// Adds a point (with its colour and its standard uncertainty in mm, if any); returns
+    /// `false` if it fell outside or was rejected as an outlier. An uncertainty that is not
+    /// positive and finite counts as none.
+    pub fn insert(
+        &mut self,
+        p: &Point3<f32>,
+        rgb: Option<[u8; 3]>,
+        uncertainty: Option<f32>,
+    ) -> bool {
         let Some((c, r)) = self.locate(p) else {
             self.outside += 1;
             return false;
+        };
+        let w = match uncertainty {
+            Some(u) if u > 0.0 && u.is_finite() => 1.0 / (u * u),
+            _ => 1.0,
         };
         let cell = &mut self.cells[r * self.cols + c];
         let range = p.coords.norm();
         let mut main = cell.main();
         if main.count == 0 || main.accepts(range, self.outlier_mm) {
-            main.add(p, range, rgb);
+            main.add(p, range, rgb, w);
             cell.set_main(main);
             return true;
         }
         if cell.alt.count == 0 || cell.alt.accepts(range, self.outlier_mm) {
-            cell.alt.add(p, range, rgb);
+            cell.alt.add(p, range, rgb, w);
             if cell.alt.count > main.count {
                 // The other depth has more support: it is the cell's surface.
                 let alt = cell.alt;

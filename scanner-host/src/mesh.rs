@@ -16,6 +16,9 @@ pub struct Mesh {
     pub normals: Vec<Vector3<f32>>,
     /// Vertex colours (empty without colour).
     pub colours: Vec<[u8; 3]>,
+    /// Vertex standard uncertainties, mm (empty when the points carried none): the PLY's
+    /// `quality`.
+    pub quality: Vec<f32>,
     /// Triangles, counter-clockwise seen from the camera.
     pub faces: Vec<[u32; 3]>,
     /// Grid cell of each vertex (column, row).

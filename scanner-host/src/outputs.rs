@@ -205,7 +205,7 @@ pub fn write_outputs(
         export::write_atomic(&dir.join("summary.txt"), e.to_string().as_bytes())?;
         return Err(e);
     };
-    let m = camera_mesh(grid, header, c.colour(), out);
+    let m = camera_mesh(grid, header, (c.colour(), c.uncertainty()), out);
     // The pictures are the camera's view; then the meshes, in their frame, streamed to their
     // files (the mesh is never held twice in memory).
     export::write_atomic_with(&dir.join("depth.png"), |w| {
@@ -246,15 +246,34 @@ pub fn write_outputs(
 /// The mesh of a collection's grid, in camera coordinates (the one [`write_outputs`] writes;
 /// `None` before a header arrived).
 pub fn mesh_of(c: &Collector, out: &OutputOptions) -> Option<Mesh> {
-    Some(camera_mesh(c.grid()?, c.header()?, c.colour(), out))
+    Some(camera_mesh(
+        c.grid()?,
+        c.header()?,
+        (c.colour(), c.uncertainty()),
+        out,
+    ))
 }
 
-fn camera_mesh(grid: &Grid, header: &Header, colour: bool, out: &OutputOptions) -> Mesh {
+/// The mesh with the cells' colours and uncertainties where the points carried them.
+fn camera_mesh(
+    grid: &Grid,
+    header: &Header,
+    (colour, uncertainty): (bool, bool),
+    out: &OutputOptions,
+) -> Mesh {
     let opts = MeshOptions {
         min_count: out.min_count,
         ..MeshOptions::default()
     };
-    mesh::build(grid, f64::from(header.camera.fx), &opts, colour)
+    let mut m = mesh::build(grid, f64::from(header.camera.fx), &opts, colour);
+    if uncertainty {
+        m.quality = m
+            .cells
+            .iter()
+            .map(|&(c, r)| grid.at(c as usize, r as usize).uncertainty())
+            .collect();
+    }
+    m
 }
 
 /// Feeds a whole file (a journal or a recording) into a collector.

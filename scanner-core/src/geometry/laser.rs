@@ -55,7 +55,7 @@ impl<T: Real> Default for LaserFitConfig<T> {
 
 /// How well the stripe's board points agree with the laser plane.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct LaserQuality<T> {
+pub struct LaserQuality<T: Real> {
     /// RMS distance of the used points from the plane, mm.
     pub rms: T,
     /// Largest distance of a used point from the plane, mm.
@@ -72,6 +72,23 @@ pub struct LaserQuality<T> {
     /// ([`PlaneFit::spread`](super::PlaneFit::spread)). Large when one side's stripe is short
     /// or its points bunch together, however well they fit.
     pub tilt: T,
+    /// The residual σ behind `tilt`, mm: the standard uncertainty of a board point about the
+    /// plane (never below `inlier_tol`).
+    pub sigma: T,
+    /// Centroid of the used points, mm: the plane's tilt turns it about here, so a point's
+    /// uncertainty from the plane grows with its distance from it ([`LaserQuality::at`]).
+    pub centroid: Point3<T>,
+}
+
+impl<T: Real> LaserQuality<T> {
+    /// The standard uncertainty the plane gives a point `p` on it, along the plane's normal, mm:
+    /// its offset's (`sigma / √used`) and its tilt's (`tilt` times the distance from the
+    /// centroid) in quadrature.
+    pub fn at(&self, p: &Point3<T>) -> T {
+        let offset = self.sigma / T::lit(self.used.max(1) as f64).sqrt();
+        let turn = self.tilt * (p - self.centroid).norm();
+        (offset * offset + turn * turn).sqrt()
+    }
 }
 
 /// A laser plane with its quality.
@@ -111,23 +128,24 @@ fn check_view<T: Real>(
     Ok(())
 }
 
-/// The tilt uncertainty of a plane over `pts` (see [`LaserQuality::tilt`]), with the points'
-/// residual RMS `rms` about it.
+/// The uncertainty of a plane over `pts` (see [`LaserQuality::tilt`]), with the points'
+/// residual RMS `rms` about it: `(tilt, sigma, centroid)`.
 fn tilt<'a, T: Real>(
     pts: impl Iterator<Item = &'a Point3<T>> + Clone,
     rms: T,
     used: usize,
     cfg: &LaserFitConfig<T>,
-) -> Result<T, GeomError> {
-    let spread = fit_plane(pts.copied())?.spread;
+) -> Result<(T, T, Point3<T>), GeomError> {
+    let fit = fit_plane(pts.copied())?;
     // the unbiased σ: three parameters came from the same points
     let dof = T::lit(used as f64 / (used.max(4) - 3) as f64);
     let sigma = (rms * dof.sqrt()).max(cfg.inlier_tol);
-    Ok(if spread > T::zero() {
-        sigma / spread
+    let tilt = if fit.spread > T::zero() {
+        sigma / fit.spread
     } else {
         T::lit(f64::INFINITY)
-    })
+    };
+    Ok((tilt, sigma, fit.centroid))
 }
 
 /// `1.4826 ×` the median absolute residual about `plane` of the points within `within` of it
@@ -208,6 +226,7 @@ pub fn paper<T: Real>(
         .filter(within(&mn.line, mn_tol))
         .chain(right.iter().filter(within(&qr.line, qr_tol)));
     let (rms, max, used) = residuals(&plane, inliers.clone());
+    let (tilt, sigma, centroid) = tilt(inliers, rms, used, cfg)?;
     Ok(LaserPlane {
         plane,
         quality: LaserQuality {
@@ -216,7 +235,9 @@ pub fn paper<T: Real>(
             used,
             rejected: left.len() + right.len() - used,
             st_gap: Some((s - t).norm()),
-            tilt: tilt(inliers, rms, used, cfg)?,
+            tilt,
+            sigma,
+            centroid,
         },
     })
 }
@@ -380,6 +401,7 @@ pub fn least_squares<T: Real>(
     // of the points within three times the final tolerance counts too (the object's pixels
     // among the board points, often more than half of them late in a sweep, lie further off).
     let robust = mad_sigma(&plane, left, right, T::lit(3.0) * tol);
+    let (tilt, sigma, centroid) = tilt(used_points, rms.max(robust), used, cfg)?;
     Ok(LaserPlane {
         plane,
         quality: LaserQuality {
@@ -388,7 +410,9 @@ pub fn least_squares<T: Real>(
             used,
             rejected: left.len() + right.len() - used,
             st_gap: None,
-            tilt: tilt(used_points, rms.max(robust), used, cfg)?,
+            tilt,
+            sigma,
+            centroid,
         },
     })
 }

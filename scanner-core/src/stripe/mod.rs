@@ -279,6 +279,8 @@ pub struct StripePoint {
     pub peak: u16,
     /// Full width at half maximum, pixels.
     pub width: f32,
+    /// Standard uncertainty of `centre`, pixels ([`centre_sigma`]); 0 unless valid.
+    pub sigma: f32,
     /// Valid, or why not.
     pub status: Status,
 }
@@ -288,8 +290,35 @@ impl StripePoint {
         centre: 0.0,
         peak: 0,
         width: 0.0,
+        sigma: 0.0,
         status: Status::NoStripe,
     };
+}
+
+/// How far the centroid's error exceeds the Cramér–Rao bound of a Gaussian profile
+/// ([`centre_sigma`]), measured on the synthetic bench (`scanner-core/tests/stripe.rs`: the RMS
+/// error of the valid unclipped centres over the RMS of their bounds, DIM, peaks 30–250 DN,
+/// σ 1–4 px) and checked on the rig's scans (`scanner-device/tests/uncertainty.rs`).
+pub const CENTROID_EFFICIENCY: f32 = 1.3;
+
+/// Smallest centre uncertainty given, pixels: what an 8-bit profile's quantisation and its
+/// departure from the model leave on a strong stripe (the bench's p95 for peaks ≥ 130 DN).
+pub const CENTRE_FLOOR: f32 = 0.02;
+
+/// The standard uncertainty of a stripe centre, pixels: the Cramér–Rao bound of the position of
+/// a Gaussian profile of full width `fwhm` and height `height` (signal units) in white noise of
+/// standard deviation `noise` (signal units), `σ_c = noise / height · √(2 s / √π)` with
+/// `s = fwhm / 2.3548` — times [`CENTROID_EFFICIENCY`], never below [`CENTRE_FLOOR`].
+///
+/// The bound comes from the Fisher information of the position,
+/// `Σ (h · g'(x))² / noise² ≈ h² √π / (2 s noise²)` for `g` the unit Gaussian of σ `s`.
+pub fn centre_sigma(height: f32, fwhm: f32, noise: f32) -> f32 {
+    if !(height > 0.0 && fwhm > 0.0 && noise >= 0.0) {
+        return f32::INFINITY;
+    }
+    let s = fwhm / 2.3548;
+    let bound = noise / height * libm::sqrtf(2.0 * s / libm::sqrtf(core::f32::consts::PI));
+    (CENTROID_EFFICIENCY * bound).max(CENTRE_FLOOR)
 }
 
 /// What [`Extractor::extract`] found.
@@ -301,6 +330,10 @@ pub struct Extraction<'a> {
     pub first_line: usize,
     /// The automatic threshold, in signal units.
     pub threshold: u16,
+    /// The frame's noise σ, DN of the change (DIM: measured below the mode of the signed change,
+    /// at least a sixth of the threshold's margin; LIM: a sixth of the threshold above the
+    /// background's bright tail, a rough figure).
+    pub noise: f32,
 }
 
 impl Extraction<'_> {
@@ -483,15 +516,15 @@ impl<const W: usize> Extractor<W> {
         };
         // Thresholds come from sampled rows before the pass, so that the pass can ignore the
         // background: 3×1 sums below `floor` cannot make a stripe or a rival (see `track`).
-        let (threshold, floor) = match cfg.method {
+        let (threshold, floor, dim_noise) = match cfg.method {
             Method::Dim => {
-                let t = dim_threshold(&io);
-                (t, t.saturating_mul(2))
+                let (t, noise) = dim_threshold(&io);
+                (t, t.saturating_mul(2), noise)
             }
             Method::Lim => {
                 // a line counts as lit when the mean of its 3×1 mask exceeds the tail
                 let tail = u16::from(lim_background(&io));
-                (tail, 3 * (tail + 1))
+                (tail, 3 * (tail + 1), 0.0)
             }
         };
         match cfg.axis {
@@ -501,16 +534,25 @@ impl<const W: usize> Extractor<W> {
             Axis::Columns => self.track_columns(&io, cfg.separation, floor),
             Axis::Rows => self.track_rows(&io, cfg.separation, floor),
         }
-        let threshold = match cfg.method {
-            Method::Dim => threshold,
-            Method::Lim => lim_threshold(threshold, &self.best[..lines]),
+        let (threshold, noise) = match cfg.method {
+            Method::Dim => (threshold, dim_noise),
+            Method::Lim => {
+                let t = lim_threshold(threshold, &self.best[..lines]);
+                (t, (f32::from(t) - f32::from(threshold)).max(1.0) / 6.0)
+            }
         };
         // window scratch, reused for every line (overwritten before it is read)
         let mut sig = [0u16; MAX_WINDOW];
         let mut clipped = [false; MAX_WINDOW];
         for line in 0..lines {
-            self.out[line] =
-                self.judge(&io, cfg, line, length, threshold, (&mut sig, &mut clipped));
+            self.out[line] = self.judge(
+                &io,
+                cfg,
+                line,
+                length,
+                (threshold, noise),
+                (&mut sig, &mut clipped),
+            );
         }
         mark_cut(&mut self.out[..lines], cfg.cut_width);
         Ok(Extraction {
@@ -520,6 +562,7 @@ impl<const W: usize> Extractor<W> {
                 Axis::Rows => roi.y,
             },
             threshold,
+            noise,
         })
     }
 
@@ -711,7 +754,7 @@ impl<const W: usize> Extractor<W> {
         cfg: &StripeConfig,
         line: usize,
         length: usize,
-        threshold: u16,
+        (threshold, noise): (u16, f32),
         scratch: (&mut [u16; MAX_WINDOW], &mut [bool; MAX_WINDOW]),
     ) -> StripePoint {
         let mut point = StripePoint::NONE;
@@ -784,6 +827,14 @@ impl<const W: usize> Extractor<W> {
                     Axis::Rows => io.roi.x,
                 };
                 point.centre = (origin + start) as f32 + c;
+                // the noise in signal units at the peak: a squared signal `Δ²/9` moves by
+                // `2Δ/9 = ⅔√signal` per DN of change
+                let noise = if io.kind.squared() {
+                    2.0 / 3.0 * libm::sqrtf(shape.height.max(1.0)) * noise
+                } else {
+                    noise
+                };
+                point.sigma = centre_sigma(shape.height, shape.fwhm, noise);
             }
             _ => point.status = Status::BadProfile,
         }
@@ -880,7 +931,9 @@ impl Io<'_, '_> {
 /// the real photographs), the 99th percentile of the drops, mirrored. A Gaussian's is 2.6 σ, so
 /// on clean frames the six σ decide; the price is that a shadow over more than 1 % of the frame
 /// raises the threshold towards its depth (lock the exposure, keep the ambient light steady).
-fn dim_threshold(io: &Io<'_, '_>) -> u16 {
+/// Returns the threshold (signal units) and the noise σ of the change (DN: a sixth of the
+/// margin above the mode, so the heavier tail counts when it decides).
+fn dim_threshold(io: &Io<'_, '_>) -> (u16, f32) {
     let mut hist = [0u32; 511];
     let Roi {
         x,
@@ -914,7 +967,7 @@ fn dim_threshold(io: &Io<'_, '_>) -> u16 {
         // the squared change of the laser's channel, `Δ² / 9`
         noise * noise / 9.0
     };
-    libm::ceilf(level).clamp(3.0, 7225.0) as u16
+    (libm::ceilf(level).clamp(3.0, 7225.0) as u16, noise / 6.0)
 }
 
 /// Columns sampled by the LIM threshold: every this many.

@@ -25,8 +25,9 @@ use serde::{Deserialize, Serialize};
 use crate::geometry::{Board, Plane};
 use crate::{Camera, Distortion, GeomError, Real};
 
-/// Protocol version, the first byte of every frame.
-pub const VERSION: u8 = 1;
+/// Protocol version, the first byte of every frame. Version 2 added
+/// [`Points::uncertainty`]; frames of version 1 are still read (their points carry none).
+pub const VERSION: u8 = 2;
 /// Size of one wire unit of length, mm (0.01 mm).
 pub const UNIT_MM: f32 = 0.01;
 /// Largest frame before COBS, bytes ([`crate::config::MAX_FRAME`]).
@@ -312,6 +313,9 @@ pub struct Points<'a> {
     /// Colour, 3 bytes (RGB) per point, or empty.
     #[serde(borrow)]
     pub rgb: &'a [u8],
+    /// Standard uncertainty, one byte per point ([`points::uncertainty_code`]), or empty.
+    #[serde(borrow)]
+    pub uncertainty: &'a [u8],
 }
 
 /// Counters of the head.
@@ -480,7 +484,7 @@ impl fmt::Display for WireError {
             Self::BadCrc => f.write_str("CRC mismatch"),
             Self::UnknownVersion(v) => write!(
                 f,
-                "unknown protocol version {v} (this build reads {VERSION})"
+                "unknown protocol version {v} (this build reads 1 and {VERSION})"
             ),
             Self::BadPayload => f.write_str("payload is not a valid message"),
             Self::BadPoints => f.write_str("point data inconsistent with its count"),
@@ -532,16 +536,28 @@ pub fn decode_frame(frame: &mut [u8]) -> Result<Message<'_>, WireError> {
     if CRC.checksum(body) != want {
         return Err(WireError::BadCrc);
     }
-    if body[0] != VERSION {
-        return Err(WireError::UnknownVersion(body[0]));
-    }
+    let body_len = body.len();
+    let message = match body[0] {
+        VERSION => &frame[1..body_len],
+        // Version 1's messages are version 2's but for `Points`, which ended after `rgb`: an
+        // empty `uncertainty` (one zero byte, written over the checked CRC) makes it one.
+        1 if frame.get(1) == Some(&1) => {
+            frame[body_len] = 0;
+            &frame[1..=body_len]
+        }
+        1 => &frame[1..body_len],
+        v => return Err(WireError::UnknownVersion(v)),
+    };
     let (msg, rest): (Message, _) =
-        postcard::take_from_bytes(&body[1..]).map_err(|_| WireError::BadPayload)?;
+        postcard::take_from_bytes(message).map_err(|_| WireError::BadPayload)?;
     if !rest.is_empty() {
         return Err(WireError::BadPayload);
     }
     if let Message::Points(p) = &msg {
         if !(p.rgb.is_empty() || p.rgb.len() == 3 * p.count as usize) {
+            return Err(WireError::BadPoints);
+        }
+        if !(p.uncertainty.is_empty() || p.uncertainty.len() == p.count as usize) {
             return Err(WireError::BadPoints);
         }
         // Every coordinate takes at least one byte.

@@ -107,3 +107,22 @@ pub fn decode(data: &[u8], count: usize, mut f: impl FnMut([i32; 3])) -> Result<
         Err(WireError::BadPoints)
     }
 }
+
+/// Codes per octave of [`uncertainty_code`]: one code is a step of 2^(1/16), 4.4 %.
+const CODES_PER_OCTAVE: f32 = 16.0;
+
+/// A point's standard uncertainty (mm) as its wire byte: `round(16 · log₂(u / 1 µm))`, clamped
+/// to 0…255 (1 µm to 63 mm in steps of 4.4 %). Not finite or not positive: 255 (unknown, as
+/// large as the code says).
+pub fn uncertainty_code(mm: f32) -> u8 {
+    let um = mm * 1000.0;
+    if !(um.is_finite() && um > 0.0) {
+        return u8::MAX;
+    }
+    libm::roundf(CODES_PER_OCTAVE * libm::log2f(um)).clamp(0.0, 255.0) as u8
+}
+
+/// The standard uncertainty a wire byte stands for, mm ([`uncertainty_code`]'s inverse).
+pub fn uncertainty_mm(code: u8) -> f32 {
+    libm::exp2f(f32::from(code) / CODES_PER_OCTAVE) / 1000.0
+}
