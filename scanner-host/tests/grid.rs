@@ -76,7 +76,11 @@ fn a_cell_weighs_its_samples_by_their_uncertainty() {
     let (c, r) = g.locate(&p).unwrap();
     let cell = g.at(c, r);
     let want = 700.0 + 4.0 / 104.0;
-    assert!((cell.mean[2] - want).abs() < 1e-3, "{} vs {want}", cell.mean[2]);
+    assert!(
+        (cell.mean[2] - want).abs() < 1e-3,
+        "{} vs {want}",
+        cell.mean[2]
+    );
     // the mean's uncertainty: 1/√(100 + 4)
     assert!((cell.uncertainty() - 1.0 / 104f32.sqrt()).abs() < 1e-4);
     // without uncertainties the two would weigh alike

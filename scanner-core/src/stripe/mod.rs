@@ -296,10 +296,11 @@ impl StripePoint {
 }
 
 /// How far the centroid's error exceeds the Cramér–Rao bound of a Gaussian profile
-/// ([`centre_sigma`]), measured on the synthetic bench (`scanner-core/tests/stripe.rs`: the RMS
-/// error of the valid unclipped centres over the RMS of their bounds, DIM, peaks 30–250 DN,
-/// σ 1–4 px) and checked on the rig's scans (`scanner-device/tests/uncertainty.rs`).
-pub const CENTROID_EFFICIENCY: f32 = 1.3;
+/// ([`centre_sigma`]): the RMS error of the valid centres over the RMS of their bounds on the
+/// synthetic bench is 1.15–1.6, 1.37 overall (DIM, σ 1–4 px, peaks 20–130 DN; `--example
+/// centre_uncertainty`, asserted in `scanner-core/tests/stripe.rs`); checked on the rig's scans
+/// (`scanner-device/tests/uncertainty.rs`).
+pub const CENTROID_EFFICIENCY: f32 = 1.2;
 
 /// Smallest centre uncertainty given, pixels: what an 8-bit profile's quantisation and its
 /// departure from the model leave on a strong stripe (the bench's p95 for peaks ≥ 130 DN).
@@ -959,7 +960,8 @@ fn dim_threshold(io: &Io<'_, '_>) -> (u16, f32) {
     below[0] = hist[mode];
     let n: u32 = below.iter().sum();
     let sigma = (1.4826 * quantile(&below, n, 0.5) as f32).max(0.5);
-    let noise = (6.0 * sigma).max(quantile(&below, n, 0.99) as f32);
+    let q99 = quantile(&below, n, 0.99) as f32;
+    let noise = (6.0 * sigma).max(q99);
     let centre = (mode as i32 - 255).max(0) as f32;
     let level = if !io.kind.squared() {
         centre + noise
@@ -967,7 +969,29 @@ fn dim_threshold(io: &Io<'_, '_>) -> (u16, f32) {
         // the squared change of the laser's channel, `Δ² / 9`
         noise * noise / 9.0
     };
-    (libm::ceilf(level).clamp(3.0, 7225.0) as u16, noise / 6.0)
+    // The noise the centres' uncertainty is stated with: the median interpolated within its
+    // 1-DN bin (the threshold's whole-bin median overstates a σ of 2 DN by up to 40 %), or the
+    // heavier tail's sixth where that decides the threshold.
+    let stated = (1.4826 * median_within_bins(&below, n))
+        .max(q99 / 6.0)
+        .max(0.3);
+    (libm::ceilf(level).clamp(3.0, 7225.0) as u16, stated)
+}
+
+/// The median of absolute changes binned by their rounded value (bin 0 holds `[0, 0.5)`, bin
+/// `k` holds `[k − 0.5, k + 0.5)`), interpolated linearly within its bin.
+fn median_within_bins(hist: &[u32], n: u32) -> f32 {
+    let half = n as f32 / 2.0;
+    let mut acc = 0.0;
+    for (k, &h) in hist.iter().enumerate() {
+        let h = h as f32;
+        if h > 0.0 && acc + h >= half {
+            let f = (half - acc) / h;
+            return if k == 0 { 0.5 * f } else { k as f32 - 0.5 + f };
+        }
+        acc += h;
+    }
+    hist.len() as f32
 }
 
 /// Columns sampled by the LIM threshold: every this many.
