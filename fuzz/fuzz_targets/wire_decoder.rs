@@ -1,4 +1,5 @@
-//! The stream decoder and resynchroniser, and the point coding, on any bytes in any chunks.
+//! The stream decoder and resynchroniser (versions 1 and 2), and the point coding, on any bytes
+//! in any chunks.
 #![no_main]
 use libfuzzer_sys::fuzz_target;
 use scanner_core::wire::{Decoder, Message, points};
@@ -12,6 +13,11 @@ fuzz_target!(|data: &[u8]| {
             frames += 1;
             if let Ok(Message::Points(p)) = m {
                 let _ = points::decode(p.xyz, p.count as usize, |_| {});
+                // a decoded frame's uncertainty is empty or one byte per point
+                assert!(p.uncertainty.is_empty() || p.uncertainty.len() == p.count as usize);
+                for &c in p.uncertainty {
+                    assert!(points::uncertainty_mm(c) > 0.0);
+                }
             }
         });
     }

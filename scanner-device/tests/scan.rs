@@ -96,8 +96,10 @@ fn the_stream_in_a_file_decodes_to_exactly_the_heads_points() {
         report.status.points,
         report.bytes_per_point().expect("points were sent")
     );
+    // about 3.5 bytes for the coordinates (framing and headers included), one for the
+    // point's uncertainty
     assert!(
-        report.bytes_per_point().expect("points were sent") <= 4.0,
+        report.bytes_per_point().expect("points were sent") <= 5.0,
         "{}",
         report.bytes_per_point().expect("points were sent")
     );

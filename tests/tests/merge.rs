@@ -142,10 +142,17 @@ fn three_scanned_views_register_with_the_rigs_rotations() {
         ],
     );
     assert!(ok, "{err}");
+    // against the same two views merged without the hint
+    let (ok, plain, err) = run(
+        d,
+        "scanner-host",
+        &["merge", "v0", "v1", "--out", "mp", "-q"],
+    );
+    assert!(ok, "{err}");
     assert!(
-        (rotation(hinted.lines().nth(2).unwrap()) - rotation(out.lines().nth(2).unwrap())).abs()
+        (rotation(hinted.lines().nth(2).unwrap()) - rotation(plain.lines().nth(2).unwrap())).abs()
             < 0.05,
-        "{hinted}\n{out}"
+        "{hinted}\n{plain}"
     );
     let (ok, _, err) = run(
         d,
