@@ -4,47 +4,31 @@
 //! the board, where the rig's truth says the sheet's centre lies in an object's shadow). The head
 //! counts such short runs next to board points as board (`HeadConfig::board_fringe`).
 
-use scanner_core::nalgebra::Point3;
-use scanner_core::pipeline::{Head, HeadConfig};
-use scanner_core::stripe::{Axis, Frame, Method, PixelFormat, StripeConfig};
-use scanner_core::wire::points::dequantise;
+use scanner_core::pipeline::HeadConfig;
+use scanner_core::stripe::{Axis, Method, StripeConfig};
 use scanner_rig::{Rig, report};
 
 /// Points sent nearer a board sheet than any object (with their distance off the board, mm),
 /// and object points within 0.1 % of the distance of their surface.
 fn scan(rig: &Rig, board_fringe: usize) -> (Vec<f64>, usize) {
     let scene = rig.scene();
-    let (w, h) = (scene.width as usize, scene.height as usize);
     let d = scene.board.distance;
-    let cal = rig.truth_calibration();
-    let mut head = Box::new(Head::<2048>::new(
-        cal.camera().unwrap().cast(),
-        cal.board().unwrap().unwrap().cast(),
-        HeadConfig {
-            board_fringe,
-            ..HeadConfig::new(StripeConfig::new(Method::Dim, Axis::Columns))
-        },
-    ));
-    let refg = rig.reference().to_format(PixelFormat::Gray8);
-    let rf = Frame::packed(&refg, w, h, PixelFormat::Gray8).unwrap();
     let planes = rig.board_planes();
     let (mut board, mut good) = (Vec::new(), 0);
-    for k in 0..scene.laser.frames {
-        let data = rig.frame(k).unwrap().to_format(PixelFormat::Gray8);
-        let f = Frame::packed(&data, w, h, PixelFormat::Gray8).unwrap();
-        let Ok(o) = head.process(&f, Some(&rf)) else {
-            continue;
-        };
-        for q in o.points {
-            let p = Point3::from(q.map(|v| f64::from(dequantise(v))));
+    let cfg = HeadConfig {
+        board_fringe,
+        ..HeadConfig::new(StripeConfig::new(Method::Dim, Axis::Columns))
+    };
+    report::scan_truth(rig, cfg, |_, pts| {
+        for (p, _) in pts {
             let off_board = planes
                 .iter()
-                .map(|pl| pl.signed_distance(&p).abs())
+                .map(|pl| pl.signed_distance(p).abs())
                 .fold(f64::INFINITY, f64::min);
             let off_object = scene
                 .objects
                 .iter()
-                .filter_map(|o| o.shape.distance(&p))
+                .filter_map(|o| o.shape.distance(p))
                 .fold(f64::INFINITY, f64::min);
             if off_board < off_object {
                 board.push(off_board);
@@ -52,7 +36,7 @@ fn scan(rig: &Rig, board_fringe: usize) -> (Vec<f64>, usize) {
                 good += 1;
             }
         }
-    }
+    });
     (board, good)
 }
 

@@ -4,52 +4,34 @@
 //! profile in the stripe extractor, the silhouette pixel in the head) against the same head
 //! without one or both, with the rig's true calibration (so that only the stripe differs).
 
-use scanner_core::nalgebra::Point3;
-use scanner_core::pipeline::{Head, HeadConfig};
-use scanner_core::stripe::{Axis, Frame, Method, PixelFormat, StripeConfig};
-use scanner_core::wire::points::dequantise;
+use scanner_core::pipeline::HeadConfig;
+use scanner_core::stripe::{Axis, Method, StripeConfig};
 use scanner_rig::{Rig, Shape, report};
 
 /// Every point's distance to the nearest true surface, and whether it lies on the plate's outer
 /// 3 % rim.
 fn scan(rig: &Rig, cut_width: f32, silhouette: f32) -> Vec<(f64, bool)> {
     let scene = rig.scene();
-    let (w, h) = (scene.width as usize, scene.height as usize);
-    let cal = rig.truth_calibration();
-    let camera = cal.camera().unwrap();
-    let board = cal.board().unwrap().unwrap();
-    let mut head = Box::new(Head::<2048>::new(
-        camera.cast(),
-        board.cast(),
-        HeadConfig {
-            silhouette,
-            ..HeadConfig::new(StripeConfig {
-                cut_width,
-                ..StripeConfig::new(Method::Dim, Axis::Columns)
-            })
-        },
-    ));
+    let cfg = HeadConfig {
+        silhouette,
+        ..HeadConfig::new(StripeConfig {
+            cut_width,
+            ..StripeConfig::new(Method::Dim, Axis::Columns)
+        })
+    };
     let Shape::Rectangle { centre, axes, half } = scene.objects[2].shape.clone() else {
         panic!("the report scene's third object is the plate");
     };
-    let refg = rig.reference().to_format(PixelFormat::Gray8);
-    let rf = Frame::packed(&refg, w, h, PixelFormat::Gray8).unwrap();
     let mut out = Vec::new();
-    for k in 0..scene.laser.frames {
-        let data = rig.frame(k).unwrap().to_format(PixelFormat::Gray8);
-        let f = Frame::packed(&data, w, h, PixelFormat::Gray8).unwrap();
-        let Ok(o) = head.process(&f, Some(&rf)) else {
-            continue;
-        };
-        for q in o.points {
-            let p = Point3::from(q.map(|v| f64::from(dequantise(v))));
+    report::scan_truth(rig, cfg, |_, pts| {
+        for (p, _) in pts {
             let v = p - centre;
             let u = [0, 1].map(|k| v.dot(&axes[k]).abs() / half[k]);
             let on_plate = v.dot(&axes[0].cross(&axes[1])).abs() < 0.01 * scene.board.distance;
             let rim = on_plate && u.iter().all(|&x| x <= 1.06) && u.iter().any(|&x| x >= 0.94);
-            out.push((rig.surface_distance(&p), rim));
+            out.push((rig.surface_distance(p), rim));
         }
-    }
+    });
     out
 }
 

@@ -9,35 +9,18 @@
 //! the distance to the nearest surface. The rig's true calibration is used, so that calibration
 //! error (not part of a point's stated uncertainty) does not enter.
 
-use scanner_core::nalgebra::Point3;
-use scanner_core::pipeline::{Head, HeadConfig};
-use scanner_core::stripe::{Axis, Frame, Method, PixelFormat, StripeConfig};
-use scanner_core::wire::points::{dequantise, uncertainty_mm};
+use scanner_core::pipeline::HeadConfig;
+use scanner_core::stripe::{Axis, Method, StripeConfig};
+use scanner_core::wire::points::uncertainty_mm;
 use scanner_rig::{Rig, report};
 
 /// Every point's (error, stated uncertainty), mm.
 fn scan(rig: &Rig) -> Vec<(f64, f64)> {
-    let scene = rig.scene();
-    let (w, h) = (scene.width as usize, scene.height as usize);
-    let cal = rig.truth_calibration();
-    let mut head = Box::new(Head::<2048>::new(
-        cal.camera().unwrap().cast(),
-        cal.board().unwrap().unwrap().cast(),
-        HeadConfig::new(StripeConfig::new(Method::Dim, Axis::Columns)),
-    ));
-    let refg = rig.reference().to_format(PixelFormat::Gray8);
-    let rf = Frame::packed(&refg, w, h, PixelFormat::Gray8).unwrap();
     let mut out = Vec::new();
-    for k in 0..scene.laser.frames {
-        let data = rig.frame(k).unwrap().to_format(PixelFormat::Gray8);
-        let f = Frame::packed(&data, w, h, PixelFormat::Gray8).unwrap();
-        let Ok(o) = head.process(&f, Some(&rf)) else {
-            continue;
-        };
-        assert_eq!(o.uncertainty.len(), o.points.len(), "one per point");
-        for (q, &u) in o.points.iter().zip(o.uncertainty) {
-            let p = Point3::from(q.map(|v| f64::from(dequantise(v))));
-            let nearest = rig.surface_distance(&p);
+    let cfg = HeadConfig::new(StripeConfig::new(Method::Dim, Axis::Columns));
+    report::scan_truth(rig, cfg, |_, pts| {
+        for (p, u) in pts {
+            let nearest = rig.surface_distance(p);
             let along = rig
                 .cast(&p.coords.normalize())
                 .map_or(f64::INFINITY, |hit| (p.coords.norm() - hit.t).abs());
@@ -46,9 +29,9 @@ fn scan(rig: &Rig) -> Vec<(f64, f64)> {
             } else {
                 nearest
             };
-            out.push((e, f64::from(uncertainty_mm(u))));
+            out.push((e, f64::from(uncertainty_mm(*u))));
         }
-    }
+    });
     out
 }
 

@@ -475,3 +475,42 @@ pub fn table(rows: &[Row]) -> String {
     }
     s
 }
+
+/// Runs a head built with the rig's true calibration and `cfg` over every laser frame of `rig`
+/// (gray, with the rig's laser-off reference), handing `each` the frame number and the points
+/// (mm, camera frame) with their coded uncertainties of each frame that gave points: the edge,
+/// fringe and uncertainty tests measure the head this way, with only the stripe left to err.
+pub fn scan_truth(rig: &Rig, cfg: HeadConfig, mut each: impl FnMut(usize, &[(Point3<f64>, u8)])) {
+    let scene = rig.scene();
+    let (w, h) = (scene.width as usize, scene.height as usize);
+    let cal = rig.truth_calibration();
+    let mut head = Box::new(Head::<4096>::new(
+        cal.camera().expect("the rig's camera").cast(),
+        cal.board()
+            .expect("the rig's board")
+            .expect("two planes")
+            .cast(),
+        cfg,
+    ));
+    let reference = rig.reference().to_format(PixelFormat::Gray8);
+    let rf = Frame::packed(&reference, w, h, PixelFormat::Gray8).expect("reference");
+    let mut pts = Vec::new();
+    for k in 0..scene.laser.frames {
+        let data = rig
+            .frame(k)
+            .expect("a rig frame")
+            .to_format(PixelFormat::Gray8);
+        let f = Frame::packed(&data, w, h, PixelFormat::Gray8).expect("frame");
+        let Ok(o) = head.process(&f, Some(&rf)) else {
+            continue;
+        };
+        pts.clear();
+        pts.extend(
+            o.points
+                .iter()
+                .zip(o.uncertainty)
+                .map(|(q, &u)| (Point3::from(q.map(|v| f64::from(dequantise(v)))), u)),
+        );
+        each(k, &pts);
+    }
+}
