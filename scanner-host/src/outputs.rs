@@ -72,6 +72,9 @@ pub struct Summary {
     pub outliers: u64,
     /// The meshes' frame, described.
     pub frame: String,
+    /// The vertices' standard uncertainty (the PLY's `quality`), mm: median and 95th
+    /// percentile; `None` when the points carried none (a head before wire version 2).
+    pub uncertainty: Option<(f32, f32)>,
 }
 
 impl Summary {
@@ -124,6 +127,12 @@ impl Summary {
             }
         }
         s += &format!("meshes in the {}\n", self.frame);
+        s += &match self.uncertainty {
+            Some((median, p95)) => format!(
+                "vertex uncertainty (scan.ply quality): median {median:.3} mm, 95 % below {p95:.3} mm\n"
+            ),
+            None => "the points carried no uncertainty (a head before wire version 2): scan.ply has no quality\n".into(),
+        };
         let skipped = c.skipped();
         for r in Skip::ALL {
             if skipped[r as usize] > 0 {
@@ -238,9 +247,20 @@ pub fn write_outputs(
         coverage: grid.filled() as f64 / (grid.cols * grid.rows) as f64,
         outliers: grid.rejected(),
         frame: m.frame.describe(),
+        uncertainty: quantiles(&m.quality),
     };
     export::write_atomic(&dir.join("summary.txt"), summary.text().as_bytes())?;
     Ok(summary)
+}
+
+/// The median and 95th percentile of `v` (`None` when empty).
+fn quantiles(v: &[f32]) -> Option<(f32, f32)> {
+    let mut s: Vec<f32> = v.iter().copied().filter(|x| x.is_finite()).collect();
+    if s.is_empty() {
+        return None;
+    }
+    s.sort_by(f32::total_cmp);
+    Some((s[s.len() / 2], s[(s.len() * 95 / 100).min(s.len() - 1)]))
 }
 
 /// The mesh of a collection's grid, in camera coordinates (the one [`write_outputs`] writes;

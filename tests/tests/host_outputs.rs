@@ -239,6 +239,12 @@ fn a_recorded_scan_becomes_a_mesh_on_the_true_surface() {
         median(worse)
     );
     assert!(median(better) < median(worse));
+    assert!(
+        s.text()
+            .contains("vertex uncertainty (scan.ply quality): median "),
+        "{}",
+        s.text()
+    );
     // Faces face the camera.
     for f in &pf {
         let [a, b, c] = f.map(|i| Vector3::from(pv[i as usize]));
