@@ -87,6 +87,8 @@ pub struct Outcome {
     /// RMS and largest residual of the valid centres from the fitted quadratic, px.
     pub rms: f64,
     pub max: f64,
+    /// RMS of the valid centres' stated uncertainty (`StripePoint::sigma`), px.
+    pub stated_rms: f64,
     /// Glint rows, how many of them were rejected, and the largest distance of a valid centre
     /// there from the curve fitted outside the glint.
     pub glint_rows: usize,
@@ -131,6 +133,11 @@ pub fn analyse(case: &Case, estimator: Estimator) -> Outcome {
         .filter(|(y, _)| !in_glint(*y))
         .map(|(y, p)| (y as f64, f64::from(p.centre)))
         .collect();
+    let stated: Vec<f64> = res
+        .valid()
+        .filter(|(y, _)| !in_glint(*y))
+        .map(|(_, p)| f64::from(p.sigma))
+        .collect();
     let curve = fit_quadratic(&pts);
     let res_px: Vec<f64> = pts.iter().map(|&(y, x)| (x - curve(y)).abs()).collect();
     let rows = (0..res.points.len())
@@ -160,6 +167,7 @@ pub fn analyse(case: &Case, estimator: Estimator) -> Outcome {
         valid: pts.len(),
         rms: (res_px.iter().map(|r| r * r).sum::<f64>() / res_px.len() as f64).sqrt(),
         max: res_px.iter().copied().fold(0.0, f64::max),
+        stated_rms: (stated.iter().map(|r| r * r).sum::<f64>() / stated.len().max(1) as f64).sqrt(),
         glint_rows,
         glint_rejected,
         glint_max_off,
