@@ -128,10 +128,11 @@ pub enum Command {
         /// guesses.
         #[arg(long, value_name = "DEG", allow_negative_numbers = true)]
         turntable: Option<f64>,
-        /// Keep the surface the fusion closes where no view saw (by default it is trimmed, and
-        /// the model is open where the views left gaps).
+        /// Remove the surface no view saw (farther than three fusion cells from every point):
+        /// by default the fusion closes it smoothly (by the points' winding number) and the
+        /// model is watertight; trimmed, it is open where the views left gaps.
         #[arg(long)]
-        keep_unseen: bool,
+        trim_unseen: bool,
         /// Show the registered views and the fused model in a web browser (as for receive).
         #[arg(long, value_name = "ADDR:PORT", num_args = 0..=1, default_missing_value = "127.0.0.1:0")]
         view: Option<SocketAddr>,
@@ -431,7 +432,7 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
             fuse_cell,
             min_overlap,
             turntable,
-            keep_unseen,
+            trim_unseen,
             view,
             view_for,
             quiet,
@@ -450,7 +451,7 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
                 out,
                 *cell,
                 (*voxel, *fuse_cell, *min_overlap, *turntable),
-                (*keep_unseen, *quiet),
+                (*trim_unseen, *quiet),
                 view.as_ref(),
             )?;
             if let Some(v) = view {
@@ -520,7 +521,7 @@ fn merge_command(
     out: &std::path::Path,
     cell: Cell,
     (voxel, fuse_cell, min_overlap, turntable): (f64, f64, f64, Option<f64>),
-    (keep_unseen, quiet): (bool, bool),
+    (trim_unseen, quiet): (bool, bool),
     view: Option<&LiveView>,
 ) -> Result<()> {
     use crate::merge;
@@ -581,12 +582,8 @@ fn merge_command(
     let pb = progress_bar(quiet);
     pb.set_message("fusing the views into one mesh");
     pb.enable_steady_tick(std::time::Duration::from_millis(200));
-    let merge::FusionInput {
-        points,
-        normals,
-        colours,
-        surface,
-    } = merge::fusion_input(&loaded, &results);
+    let input = merge::fusion_input(&loaded, &results);
+    let (points, colours) = (&input.points, &input.colours);
     if let Some(v) = view {
         // The registered views in their colours (the board's frame, like the model) while the
         // fusion runs.
@@ -596,31 +593,10 @@ fn merge_command(
         }
         v.stage("fusing the views into one mesh");
     }
-    let mut model = crate::fuse::fuse(&points, &normals, fuse_cell).context("fusing the views")?;
-    if !keep_unseen {
-        let removed = crate::fuse::trim_unseen(&mut model, &points, 3.0 * fuse_cell);
-        report += &format!(
-            "trimmed {removed} faces farther than {:.1} mm from every point (surface no view saw; --keep-unseen keeps it)\n",
-            3.0 * fuse_cell
-        );
-    }
-    crate::fuse::colour_from(&mut model, &points, &surface);
-    if !model.colours.is_empty() {
-        report += "model coloured per vertex from the views (the nearest point's colour)\n";
-    }
+    let fused = merge::fuse_views(&input, fuse_cell, trim_unseen).context("fusing the views")?;
     pb.finish_and_clear();
-    let c = crate::fuse::check(&model);
-    report += &format!(
-        "model: {} vertices, {} faces, {}, {} component(s)\n",
-        model.vertices.len(),
-        model.faces.len(),
-        if c.watertight {
-            format!("watertight, volume {:.0} mm³", c.volume_mm3)
-        } else {
-            format!("{} open edges (no volume)", c.open_edges)
-        },
-        c.components,
-    );
+    report += &fused.report;
+    let mut model = fused.model;
     model.into_frame(frame);
     // Pictures: the registered views in their colours (front and side), the model from four sides.
     let mut views_cloud = crate::mesh::Mesh {
@@ -630,7 +606,7 @@ fn merge_command(
     views_cloud.into_frame(frame);
     crate::export::write_atomic_with(&out.join("views.png"), |w| {
         crate::export::write_png(
-            &crate::export::points_png(&views_cloud.vertices, &colours),
+            &crate::export::points_png(&views_cloud.vertices, colours),
             w,
         )
     })?;

@@ -49,6 +49,7 @@ pub mod mesh;
 pub mod outputs;
 pub mod refine;
 pub mod register;
+pub mod winding;
 
 pub use cli::{Args, Command, OutputArgs, run};
 pub use outputs::{FrameChoice, OutputOptions, Summary, replay_into, write_outputs};

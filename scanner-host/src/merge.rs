@@ -531,3 +531,67 @@ pub fn fusion_input(views: &[View], results: &[ViewResult]) -> FusionInput {
         },
     }
 }
+
+/// The fused model of [`fuse_views`] and what the report says of it.
+#[derive(Debug, Clone)]
+pub struct Fused {
+    /// The model, view 0's frame (camera coordinates).
+    pub model: crate::mesh::Mesh,
+    /// The share of its area no view saw (before any trimming).
+    pub unseen_share: f64,
+    /// The report's lines on the fusion.
+    pub report: String,
+}
+
+/// How far from every point the model's surface counts as unseen, in fusion cells.
+pub const UNSEEN_CELLS: f64 = 3.0;
+
+/// Fuses the views' points ([`fusion_input`]) with cells of `cell` mm: closed (watertight) by
+/// default, or with the surface no view saw removed (`trim_unseen`); coloured from the points
+/// when they carry colour.
+///
+/// # Errors
+/// [`crate::fuse::FuseError`] from the fusion.
+pub fn fuse_views(
+    input: &FusionInput,
+    cell: f64,
+    trim_unseen: bool,
+) -> Result<Fused, crate::fuse::FuseError> {
+    let mut model = crate::fuse::fuse(&input.points, &input.normals, cell)?;
+    let reach = UNSEEN_CELLS * cell;
+    let unseen = crate::fuse::unseen_faces(&model, &input.points, reach);
+    let unseen_share = crate::fuse::area_share(&model, &unseen);
+    let mut report = if trim_unseen {
+        let removed = crate::fuse::trim(&mut model, &unseen);
+        format!(
+            "trimmed {removed} faces ({:.1} % of the area) farther than {reach:.1} mm from every point: surface no view saw\n",
+            100.0 * unseen_share
+        )
+    } else {
+        format!(
+            "surface no view saw (farther than {reach:.1} mm from every point): {:.1} % of the area, closed by the points' winding number (--trim-unseen removes it)\n",
+            100.0 * unseen_share
+        )
+    };
+    crate::fuse::colour_from(&mut model, &input.points, &input.surface);
+    if !model.colours.is_empty() {
+        report += "model coloured per vertex from the views (the nearest point's colour)\n";
+    }
+    let c = crate::fuse::check(&model);
+    report += &format!(
+        "model: {} vertices, {} faces, {}, {} component(s)\n",
+        model.vertices.len(),
+        model.faces.len(),
+        if c.watertight {
+            format!("watertight, volume {:.0} mm³", c.volume_mm3)
+        } else {
+            format!("{} open edges (no volume)", c.open_edges)
+        },
+        c.components,
+    );
+    Ok(Fused {
+        model,
+        unseen_share,
+        report,
+    })
+}

@@ -38,6 +38,7 @@
 
 #![deny(missing_docs)]
 
+pub mod compare;
 mod file;
 pub mod mesh;
 pub mod report;

@@ -151,13 +151,53 @@ impl Mesh {
         Point3::from(sum / n)
     }
 
-    /// Distance from `p` to the nearest triangle, mm (every triangle is tried: for tests and
-    /// reports, not for rendering).
+    /// Distance from `p` to the nearest triangle, mm (through the hierarchy: a node is opened
+    /// only while its box is nearer than the nearest triangle found so far).
     pub fn distance(&self, p: &Point3<f64>) -> f64 {
-        self.triangles
-            .iter()
-            .map(|t| (closest_on_triangle(p, t) - p).norm())
-            .fold(f64::INFINITY, f64::min)
+        let box_distance2 = |n: &Node| {
+            (n.min - p.coords)
+                .sup(&(p.coords - n.max))
+                .sup(&Vector3::zeros())
+                .norm_squared()
+        };
+        let mut best2 = f64::INFINITY;
+        let mut stack = [0usize; 64];
+        let mut top = usize::from(!self.nodes.is_empty());
+        while top > 0 {
+            top -= 1;
+            let node = &self.nodes[stack[top]];
+            if box_distance2(node) >= best2 {
+                continue;
+            }
+            if node.count > 0 || top + 2 > stack.len() {
+                let (first, count) = if node.count > 0 {
+                    (node.first, node.count)
+                } else {
+                    (0, self.triangles.len())
+                };
+                for t in &self.triangles[first..first + count] {
+                    best2 = best2.min((closest_on_triangle(p, t) - p).norm_squared());
+                }
+            } else {
+                // the nearer child last, so that it is opened first
+                let (a, b) = (node.first, node.second);
+                let (near, far) = if box_distance2(&self.nodes[a]) <= box_distance2(&self.nodes[b])
+                {
+                    (a, b)
+                } else {
+                    (b, a)
+                };
+                stack[top] = far;
+                stack[top + 1] = near;
+                top += 2;
+            }
+        }
+        best2.sqrt()
+    }
+
+    /// The placed triangles.
+    pub fn triangles(&self) -> &[[Point3<f64>; 3]] {
+        &self.triangles
     }
 
     /// Number of triangles.
@@ -332,4 +372,37 @@ fn closest_on_triangle(p: &Point3<f64>, t: &[Point3<f64>; 3]) -> Point3<f64> {
     }
     let denom = 1.0 / (va + vb + vc);
     a + ab * (vb * denom) + ac * (vc * denom)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn distance_through_the_hierarchy_is_the_nearest_of_all_triangles() {
+        // A bumpy strip of triangles, and points around and far from it.
+        let z = |x: usize, y: usize| ((x * 7 + y * 13) % 5) as f64;
+        let mut tris = Vec::new();
+        for x in 0..20 {
+            for y in 0..20 {
+                let p = |a: usize, b: usize| Point3::new(a as f64, b as f64, z(a, b));
+                tris.push([p(x, y), p(x + 1, y), p(x + 1, y + 1)]);
+                tris.push([p(x, y), p(x + 1, y + 1), p(x, y + 1)]);
+            }
+        }
+        let mesh = Mesh::new(tris.clone());
+        for k in 0..300 {
+            let f = k as f64;
+            let p = Point3::new(
+                (f * 0.37).sin() * 15.0 + 10.0,
+                (f * 0.61).cos() * 15.0 + 10.0,
+                (f * 0.23).sin() * 8.0,
+            );
+            let brute = tris
+                .iter()
+                .map(|t| (closest_on_triangle(&p, t) - p).norm())
+                .fold(f64::INFINITY, f64::min);
+            assert!((mesh.distance(&p) - brute).abs() < 1e-12, "{p}");
+        }
+    }
 }

@@ -1,0 +1,159 @@
+//! Issue 17's figures of a 360° merge against the rig's truth: `cargo run --release -p
+//! scanner-tests --example merge_report -- OUT [SCENE]`, where OUT is the folder
+//! `scripts/scan-rig-360 OUT` wrote (its views `view0`, `view1`, … scanned at 1280×960 with a
+//! calibration from images) and SCENE the scene they were scanned from (default
+//! `scanner-device/scenes/bunny-360.toml`). The views are merged as `scripts/scan-rig-360` merges
+//! them (the library calls `scanner-host merge` makes) and measured:
+//! - every view's pose against the truth: rotation, and the displacement of the object's centre
+//!   (mm and % of the camera–board distance);
+//! - the fused mesh against the true mesh both ways over the surface the views saw: model → truth
+//!   from the model's seen faces (area-weighted samples), truth → model from samples of the true
+//!   surface within the unseen distance of a registered point (so holes count);
+//! - watertight, manifold vertices, components, volume against the true mesh's.
+//!
+//! Prints the table docs/reports.md quotes.
+
+use std::path::{Path, PathBuf};
+
+use scanner_core::nalgebra::{Isometry3, Point3};
+use scanner_host::merge;
+use scanner_rig::{Scene, Shape, compare};
+
+/// The surface within this distance of a registered point counts as seen, mm.
+const SEEN_MM: f64 = 1.5;
+
+fn main() {
+    if let Err(e) = run() {
+        eprintln!("merge_report: {e}");
+        std::process::exit(1);
+    }
+}
+
+fn run() -> Result<(), String> {
+    let mut args = std::env::args().skip(1);
+    let out =
+        PathBuf::from(args.next().ok_or(
+            "usage: merge_report OUT [SCENE] (OUT: the folder scripts/scan-rig-360 wrote)",
+        )?);
+    let scene_path = args.next().map_or_else(
+        || Path::new(env!("CARGO_MANIFEST_DIR")).join("../scanner-device/scenes/bunny-360.toml"),
+        PathBuf::from,
+    );
+    let text = std::fs::read_to_string(&scene_path)
+        .map_err(|e| format!("{}: {e}", scene_path.display()))?;
+    let scene = Scene::from_toml_in(&text, scene_path.parent().unwrap_or(Path::new(".")))
+        .map_err(|e| format!("{}: {e}", scene_path.display()))?;
+    let n = scene.view_count();
+    let cell: scanner_host::grid::Cell = "2px".parse().map_err(|e| format!("{e}"))?;
+    let t0 = std::time::Instant::now();
+    let mut views = Vec::new();
+    for k in 0..n {
+        views.push(
+            merge::load_view(k, &out.join(format!("view{k}")), cell).map_err(|e| format!("{e}"))?,
+        );
+    }
+    // As scripts/scan-rig-360 merges: 30 % overlap asked, the defaults otherwise.
+    let opts = scanner_host::register::RegisterOptions {
+        voxel_mm: merge::VOXEL_MM,
+        min_overlap: 0.3,
+        ..Default::default()
+    };
+    let mut results =
+        merge::register_views(&views, &opts, None, |_| {}).map_err(|e| format!("{e}"))?;
+    let closure = merge::refine_views(&views, &mut results, &opts, |_| {});
+    let input = merge::fusion_input(&views, &results);
+    let fused =
+        merge::fuse_views(&input, merge::FUSE_CELL_MM, false).map_err(|e| format!("{e}"))?;
+    let seconds = t0.elapsed().as_secs_f64();
+    let distance = scene.board.distance;
+    let pct = |mm: f64| 100.0 * mm / distance;
+
+    // The truth: the object as placed in view 0 (camera frame), and each view's pose into it.
+    let true_pose = |k: usize| -> Result<Isometry3<f64>, String> {
+        let p0 = scene.view(0).map_err(|e| format!("{e}"))?.object_pose;
+        let pk = scene.view(k).map_err(|e| format!("{e}"))?.object_pose;
+        Ok(p0 * pk.inverse())
+    };
+    let view0 = scene.view(0).map_err(|e| format!("{e}"))?;
+    let Some(Shape::Mesh(truth)) = view0.objects.first().map(|o| o.shape.clone()) else {
+        return Err("the scene's first object is not a mesh".into());
+    };
+    let centre = truth.centroid();
+    println!(
+        "{} views of {} from {} (camera–board distance {distance:.0} mm); merged in {seconds:.1} s",
+        n,
+        scene_path.display(),
+        out.display()
+    );
+    println!("view | points | rotation error | centre displaced");
+    let (mut worst_rot, mut worst_move) = (0.0f64, 0.0f64);
+    for (k, r) in results.iter().enumerate() {
+        let truth_k = true_pose(k)?;
+        let err = r.pose * truth_k.inverse();
+        let rot = err.rotation.angle().to_degrees();
+        let moved = (err * centre - centre).norm();
+        worst_rot = worst_rot.max(rot);
+        worst_move = worst_move.max(moved);
+        println!(
+            "{k} | {} | {rot:.4}° | {moved:.3} mm ({:.4} %)",
+            r.points,
+            pct(moved)
+        );
+    }
+    println!(
+        "worst view: {worst_rot:.4}° (target 0.05°), {worst_move:.3} mm = {:.4} % (target 0.05 %)",
+        pct(worst_move)
+    );
+    print!("{}", merge::closure_line(&closure));
+
+    // Model → truth over the seen faces; truth → model over the true surface the views saw.
+    // "Seen": within SEEN_MM of a registered point (the points lie about 1 mm apart), and, as a
+    // looser reading, within the fusion's unseen distance (3 cells), which takes in the
+    // closing patches along the gaps' rims.
+    println!(
+        "surface no view saw: {:.1} % of the model's area (closed by the winding number)",
+        100.0 * fused.unseen_share
+    );
+    let model = &fused.model;
+    let model_tris: Vec<[Point3<f64>; 3]> = model
+        .faces
+        .iter()
+        .map(|f| f.map(|i| model.vertices[i as usize].cast()))
+        .collect();
+    for reach in [SEEN_MM, merge::UNSEEN_CELLS * merge::FUSE_CELL_MM] {
+        let seen = compare::Seen::new(&input.points, reach);
+        let c = compare::compare(&model_tris, &truth, &seen, 0.5);
+        let line = |name: &str, d: &compare::Distances| {
+            println!(
+                "  {name}: {:.0} mm², mean {:.4} mm ({:.4} %), p99 {:.3} mm ({:.4} %), max {:.3} mm",
+                d.area_mm2,
+                d.mean,
+                pct(d.mean),
+                d.p99,
+                pct(d.p99),
+                d.max
+            );
+        };
+        println!("seen = within {reach:.1} mm of a registered point:");
+        line("model → truth", &c.to_truth);
+        line("truth → model", &c.to_model);
+        println!(
+            "  both ways: mean {:.4} % (target 0.03 %), p99 {:.4} % (target 0.15 %)",
+            pct(c.to_truth.mean.max(c.to_model.mean)),
+            pct(c.to_truth.p99.max(c.to_model.p99))
+        );
+    }
+    let c = scanner_host::fuse::check(model);
+    let true_volume = compare::volume(truth.triangles());
+    println!(
+        "mesh: {} vertices, {} faces; open edges {}, non-manifold vertices {}, components {}; volume {:.0} mm³ against {true_volume:.0} mm³ true ({:+.2} %, target ±0.5 %)",
+        model.vertices.len(),
+        model.faces.len(),
+        c.open_edges,
+        c.nonmanifold_vertices,
+        c.components,
+        c.volume_mm3,
+        100.0 * (c.volume_mm3 / true_volume - 1.0)
+    );
+    Ok(())
+}
