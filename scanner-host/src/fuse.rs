@@ -46,8 +46,10 @@ const NEIGHBOURS: usize = 8;
 /// Grid points within this many cells of a point (and over it) take its signed distance.
 const BAND: f64 = 2.0;
 
-/// Most grid points of a fusion (256³: 16.8 M, 200 MB with its values).
-pub const MAX_CELLS: usize = 256 * 256 * 256;
+/// Most grid points of a fusion (512³). The fine grid is never stored whole — two slices of
+/// it at a time (2 MB at most) — and the coarse grid holds one point in 64 (17 MB at most); the
+/// rest of the memory is the points' trees and the mesh.
+pub const MAX_CELLS: usize = 512 * 512 * 512;
 
 /// Quality of a fused mesh.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -78,6 +80,16 @@ pub fn fuse(
     if points.len() < 100 {
         return Err(FuseError::TooFewPoints(points.len()));
     }
+    // One point per half cell (the mean of those in it): finer detail than that the grid cannot
+    // show, and dense views (50 000 points on a fist-sized object) would only slow every search.
+    let thinned = crate::register::thin(
+        &crate::register::Cloud {
+            points: points.to_vec(),
+            normals: normals.to_vec(),
+        },
+        cell / 2.0,
+    );
+    let (points, normals) = (&thinned.points[..], &thinned.normals[..]);
     let mut lo = points[0];
     let mut hi = points[0];
     for p in points {
@@ -95,40 +107,8 @@ pub fn fuse(
     let area = crate::winding::areas(points, &tree);
     let winding = Winding::new(points, normals, &area);
     let at = |i: usize, j: usize, k: usize| lo + Vector3::new(i as f64, j as f64, k as f64) * cell;
-    let idx = |i: usize, j: usize, k: usize| (k * ny + j) * nx + i;
     // Where no view saw, the value is the winding number's (½ − w) scaled to about a cell.
     let closing = |w: f64| ((0.5 - w) * 2.0 * cell) as f32;
-    // A grid point takes the signed distance along the nearest point's normal (positive
-    // outside) when it lies over that point: within BAND cells of it and off its normal by less
-    // than a cell and twice the points' spacing. Elsewhere — far from every point, or beside
-    // the rim of a seen patch, where the tangent planes would run on as sheets — the sign is
-    // the winding number's, which closes the holes.
-    let field = |q: Point3<f64>| {
-        let m = tree.nearest_one::<SquaredEuclidean>(&[q.x, q.y, q.z]);
-        let p = m.item as usize;
-        let s = (q - points[p]).dot(&normals[p]);
-        let lateral2 = m.distance - s * s;
-        let reach = cell + 2.0 * area[p].sqrt();
-        if m.distance <= (BAND * cell).powi(2) && lateral2 <= reach * reach {
-            // The mean of the nearest points' signed distances (those facing the nearest's way),
-            // weighted by a Gaussian of their distance: views a little apart and noisy points
-            // average instead of taking turns (the nearest alone left pits and bumps).
-            let (mut sum, mut wsum) = (0.0, 0.0);
-            let h2 = (area[p].sqrt() * 2.0 + 0.5 * cell).powi(2);
-            for nb in tree.nearest_n::<SquaredEuclidean>(&[q.x, q.y, q.z], NEIGHBOURS) {
-                let i = nb.item as usize;
-                if normals[i].dot(&normals[p]) < 0.5 {
-                    continue;
-                }
-                let w = (-nb.distance / h2).exp();
-                sum += w * (q - points[i]).dot(&normals[i]);
-                wsum += w;
-            }
-            (sum / wsum) as f32
-        } else {
-            closing(winding.at(&q))
-        }
-    };
     // Far from the points a coarse grid (every `COARSE`th point) gives the winding number,
     // interpolated: nearest-point searches and winding sums far from the surface are the slow
     // part, and nothing there needs a finer value.
@@ -158,6 +138,46 @@ pub fn fuse(
         let x11 = lerp(w(a, b + 1, c + 1), w(a + 1, b + 1, c + 1), fx);
         f64::from(lerp(lerp(x00, x10, fy), lerp(x01, x11, fy), fz))
     };
+    // A coarse cube whose corners are all clearly inside or all clearly outside: no surface
+    // crosses it, and the interpolated winding number serves.
+    let settled = |a: usize, b: usize, c: usize| {
+        let w = CORNERS.map(|(x, y, z)| coarse_w[((c + z) * cy + b + y) * cx + a + x]);
+        w.iter().all(|&v| v < 0.2) || w.iter().all(|&v| v > 0.8)
+    };
+    // A grid point takes the signed distance along the nearest point's normal (positive
+    // outside) when it lies over that point: within BAND cells of it and off its normal by less
+    // than a cell and twice the points' spacing. Elsewhere — far from every point, or beside
+    // the rim of a seen patch, where the tangent planes would run on as sheets — the sign is
+    // the winding number's, which closes the holes.
+    let field = |i: usize, j: usize, k: usize| {
+        let q = at(i, j, k);
+        let m = tree.nearest_one::<SquaredEuclidean>(&[q.x, q.y, q.z]);
+        let p = m.item as usize;
+        let s = (q - points[p]).dot(&normals[p]);
+        let lateral2 = m.distance - s * s;
+        let reach = cell + 2.0 * area[p].sqrt();
+        if m.distance <= (BAND * cell).powi(2) && lateral2 <= reach * reach {
+            // The mean of the nearest points' signed distances (those facing the nearest's way),
+            // weighted by a Gaussian of their distance: views a little apart and noisy points
+            // average instead of taking turns (the nearest alone left pits and bumps).
+            let (mut sum, mut wsum) = (0.0, 0.0);
+            let h2 = (area[p].sqrt() * 2.0 + 0.5 * cell).powi(2);
+            for nb in tree.nearest_n::<SquaredEuclidean>(&[q.x, q.y, q.z], NEIGHBOURS) {
+                let i = nb.item as usize;
+                if normals[i].dot(&normals[p]) < 0.5 {
+                    continue;
+                }
+                let w = (-nb.distance / h2).exp();
+                sum += w * (q - points[i]).dot(&normals[i]);
+                wsum += w;
+            }
+            (sum / wsum) as f32
+        } else if settled(i / COARSE, j / COARSE, k / COARSE) {
+            closing(coarse_at(i, j, k))
+        } else {
+            closing(winding.at(&q))
+        }
+    };
     // A coarse cube whose eight corners are all this far from every point holds no grid point
     // within BAND cells of a point, and no seen surface: its winding number interpolates.
     let far = ((BAND + COARSE as f64) * cell) as f32;
@@ -166,31 +186,36 @@ pub fn fuse(
             .iter()
             .all(|&(x, y, z)| coarse_d[((c + z) * cy + b + y) * cx + a + x] > far)
     };
-    let mut sdf = vec![0f32; nx * ny * nz];
-    for k in 0..nz {
+    // One slice of the grid at a time (the field of slice k, the outermost two layers of the
+    // grid set outside so that every surface closes inside it), two slices held: the fine grid
+    // is never stored whole.
+    let slice = |k: usize| -> Vec<f32> {
+        let mut out = Vec::with_capacity(nx * ny);
+        let edge = |x: usize, n: usize| x < 2 || x + 2 >= n;
         for j in 0..ny {
             for i in 0..nx {
-                sdf[idx(i, j, k)] = if far_cube(i / COARSE, j / COARSE, k / COARSE) {
+                let v = if far_cube(i / COARSE, j / COARSE, k / COARSE) {
                     closing(coarse_at(i, j, k))
                 } else {
-                    field(at(i, j, k))
+                    field(i, j, k)
                 };
+                out.push(if edge(i, nx) || edge(j, ny) || edge(k, nz) {
+                    v.max(cell as f32)
+                } else {
+                    v
+                });
             }
         }
+        out
+    };
+    let mut march = Tetrahedra::new((nx, ny));
+    let mut lower = slice(0);
+    for k in 1..nz {
+        let upper = slice(k);
+        march.layer(&lower, &upper, k - 1, at);
+        lower = upper;
     }
-    // The outermost two layers outside, so that every surface closes inside the grid.
-    for k in 0..nz {
-        for j in 0..ny {
-            for i in 0..nx {
-                let edge = |x: usize, n: usize| x < 2 || x + 2 >= n;
-                if edge(i, nx) || edge(j, ny) || edge(k, nz) {
-                    let v = &mut sdf[idx(i, j, k)];
-                    *v = v.max(cell as f32);
-                }
-            }
-        }
-    }
-    let mut m = tetrahedra(&sdf, (nx, ny, nz), at);
+    let mut m = march.mesh;
     keep_largest_component(&mut m);
     if check(&m).volume_mm3 < 0.0 {
         for f in &mut m.faces {
@@ -213,24 +238,46 @@ const TETRAHEDRA: [[usize; 4]; 6] = [
     [0, 4, 6, 7],
 ];
 
-/// The zero surface of `sdf` (grid points `n`, positive outside, placed by `at`) by marching
-/// tetrahedra: the surface of a field linear over each tetrahedron, which is a closed manifold
-/// wherever the grid's edge is outside (no ambiguous case, unlike cubes or surface nets). One
-/// vertex per grid edge that the surface crosses; faces turned towards the positive side.
-fn tetrahedra(
-    sdf: &[f32],
-    (nx, ny, nz): (usize, usize, usize),
-    at: impl Fn(usize, usize, usize) -> Point3<f64>,
-) -> Mesh {
-    let grid_index = |i: usize, j: usize, k: usize| (k * ny + j) * nx + i;
-    let mut m = Mesh::default();
-    let mut vertex_of: std::collections::HashMap<(usize, usize), u32> =
-        std::collections::HashMap::new();
-    for k in 0..nz - 1 {
+/// The zero surface of a field on a grid (positive outside) by marching tetrahedra, one layer
+/// of cubes at a time: the surface of a field linear over each tetrahedron, which is a closed
+/// manifold wherever the grid's edge is outside (no ambiguous case, unlike cubes or surface
+/// nets). One vertex per grid edge that the surface crosses; faces turned towards the positive
+/// side.
+struct Tetrahedra {
+    /// Grid points per slice along x and y.
+    dims: (usize, usize),
+    /// The vertex on each crossed grid edge of the current layer's slices (by the edge's grid
+    /// point indices).
+    vertex_of: std::collections::HashMap<(usize, usize), u32>,
+    mesh: Mesh,
+}
+
+impl Tetrahedra {
+    fn new(dims: (usize, usize)) -> Self {
+        Tetrahedra {
+            dims,
+            vertex_of: std::collections::HashMap::new(),
+            mesh: Mesh::default(),
+        }
+    }
+
+    /// The cubes between slice `k` (`lower`) and slice `k + 1` (`upper`), grid points placed by
+    /// `at`.
+    fn layer(
+        &mut self,
+        lower: &[f32],
+        upper: &[f32],
+        k: usize,
+        at: impl Fn(usize, usize, usize) -> Point3<f64>,
+    ) {
+        let (nx, ny) = self.dims;
+        let grid_index = |i: usize, j: usize, k: usize| (k * ny + j) * nx + i;
+        let value = |i: usize, j: usize, c: usize| if c == 0 { lower } else { upper }[j * nx + i];
+        let (m, vertex_of) = (&mut self.mesh, &mut self.vertex_of);
         for j in 0..ny - 1 {
             for i in 0..nx - 1 {
                 let g = CORNERS.map(|(a, b, c)| grid_index(i + a, j + b, k + c));
-                let val = g.map(|x| sdf[x]);
+                let val = CORNERS.map(|(a, b, c)| value(i + a, j + b, c));
                 let outside = val.map(|x| x > 0.0);
                 if outside.iter().all(|&o| o) || outside.iter().all(|&o| !o) {
                     continue;
@@ -280,8 +327,10 @@ fn tetrahedra(
                 m.faces.extend(faces);
             }
         }
+        // Edges with an end in slice k are not met again.
+        let next = (k + 1) * nx * ny;
+        vertex_of.retain(|&(a, _), _| a >= next);
     }
-    m
 }
 
 /// Marks the faces no view saw: those with a vertex farther than `max_dist` mm from every

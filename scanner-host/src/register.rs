@@ -101,27 +101,19 @@ pub(crate) fn tree(points: &[Point3<f64>]) -> KdTree<f64, 3> {
 
 /// Thins a cloud to one point per `voxel` mm cube (the mean of the points and normals in it).
 pub fn thin(c: &Cloud, voxel: f64) -> Cloud {
-    let mut cells: std::collections::HashMap<[i64; 3], (Vector3<f64>, Vector3<f64>, f64)> =
-        std::collections::HashMap::new();
-    for (p, n) in c.points.iter().zip(&c.normals) {
+    crate::merge::thin_view(c, &[], voxel).0
+}
+
+/// The indices of `points` grouped by the `voxel` mm cube they lie in, cubes in a fixed order.
+pub fn voxel_groups(points: &[Point3<f64>], voxel: f64) -> Vec<Vec<u32>> {
+    let mut cells: std::collections::HashMap<[i64; 3], Vec<u32>> = std::collections::HashMap::new();
+    for (i, p) in points.iter().enumerate() {
         let key = [p.x, p.y, p.z].map(|v| (v / voxel).floor() as i64);
-        let e = cells
-            .entry(key)
-            .or_insert((Vector3::zeros(), Vector3::zeros(), 0.0));
-        e.0 += p.coords;
-        e.1 += n;
-        e.2 += 1.0;
+        cells.entry(key).or_default().push(i as u32);
     }
     let mut keys: Vec<_> = cells.into_iter().collect();
     keys.sort_by_key(|(k, _)| *k);
-    let mut out = Cloud::default();
-    for (_, (p, n, w)) in keys {
-        if n.norm() > 1e-9 {
-            out.points.push(Point3::from(p / w));
-            out.normals.push(n.normalize());
-        }
-    }
-    out
+    keys.into_iter().map(|(_, v)| v).collect()
 }
 
 /// Unit normals from the `k` nearest neighbours (the direction of least spread), turned to face
