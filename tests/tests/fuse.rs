@@ -7,11 +7,12 @@ use scanner_core::nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Ve
 use scanner_host::fuse::{area_share, check, fuse, unseen_faces};
 use scanner_rig::{Rig, Scene, SurfaceId};
 
-/// The demo's sphere (centre, radius) and its true lit points and normals from views turned by
-/// `turns` (axis, degrees) about its centre, in one frame.
-fn sphere_views(
-    turns: &[(Vector3<f64>, f64)],
-) -> (Point3<f64>, f64, Vec<Point3<f64>>, Vec<Vector3<f64>>) {
+/// The demo's sphere (centre, radius) and its true lit points and normals from several views.
+type SphereViews = (Point3<f64>, f64, Vec<Point3<f64>>, Vec<Vector3<f64>>);
+
+/// The true lit points and normals of the demo's sphere from views turned by `turns` (axis,
+/// degrees) about its centre, in one frame.
+fn sphere_views(turns: &[(Vector3<f64>, f64)]) -> SphereViews {
     let mut scene = Scene::demo(640, 480);
     scene.objects.truncate(1);
     scene.laser.frames = 180; // stripes about 2 mm apart on the sphere
