@@ -1,6 +1,6 @@
 //! Fusion of registered views into one closed mesh (issue 17): a field on a regular grid whose
 //! zero surface is the model, cut by marching tetrahedra (a closed manifold by construction), of
-//! which the largest piece is kept. Near the points (within [`BAND`] cells, over a point) the
+//! which the largest piece is kept with any others of some size ([`MIN_PIECE`]). Near the points (within [`BAND`] cells, over a point) the
 //! field is the signed distance along the nearest point's normal (positive outside): precise
 //! where the views saw the surface. Elsewhere its sign is the points' generalized winding
 //! number's ([`crate::winding`]): inside where it exceeds ½, which closes the gaps the views left
@@ -41,6 +41,10 @@ const CORNERS: [(usize, usize, usize); 8] = [
 
 /// Empty grid cells around the points.
 const MARGIN: usize = 5;
+/// Pieces of the fused surface apart from the largest are kept when they have at least this
+/// share of its faces: specks of noise go, a part seen from one side only that the fusion could
+/// not join (an ear seen from the front alone) stays, as a piece of its own.
+const MIN_PIECE: f64 = 0.02;
 /// Points averaged for a grid point's signed distance.
 const NEIGHBOURS: usize = 8;
 /// Grid points within this many cells of a point (and over it) take its signed distance.
@@ -216,7 +220,7 @@ pub fn fuse(
         lower = upper;
     }
     let mut m = march.mesh;
-    keep_largest_component(&mut m);
+    keep_pieces(&mut m, MIN_PIECE);
     if check(&m).volume_mm3 < 0.0 {
         for f in &mut m.faces {
             f.swap(1, 2);
@@ -375,8 +379,8 @@ pub fn area_share(m: &Mesh, marked: &[bool]) -> f64 {
     if all > 0.0 { part / all } else { 0.0 }
 }
 
-/// Removes the faces marked in `marked` (from [`unseen_faces`]), then all but the largest piece
-/// left. Returns the number of faces removed. The mesh is then open where the views left gaps.
+/// Removes the faces marked in `marked` (from [`unseen_faces`]), then the specks left (pieces
+/// under [`MIN_PIECE`] of the largest). Returns the number of faces removed. The mesh is then open where the views left gaps.
 pub fn trim(m: &mut Mesh, marked: &[bool]) -> usize {
     let before = m.faces.len();
     let mut k = 0;
@@ -384,7 +388,7 @@ pub fn trim(m: &mut Mesh, marked: &[bool]) -> usize {
         k += 1;
         !marked[k - 1]
     });
-    keep_largest_component(m);
+    keep_pieces(m, MIN_PIECE);
     m.normals = vertex_normals(m);
     before - m.faces.len()
 }
@@ -427,8 +431,9 @@ pub fn inliers(points: &[Point3<f64>]) -> Vec<usize> {
         .collect()
 }
 
-/// Keeps the faces of the largest connected component (by faces) and the vertices they use.
-fn keep_largest_component(m: &mut Mesh) {
+/// Keeps the connected pieces with at least `min_share` of the largest one's faces, and the
+/// vertices they use.
+fn keep_pieces(m: &mut Mesh, min_share: f64) {
     let n = m.vertices.len();
     let mut parent: Vec<u32> = (0..n as u32).collect();
     for f in &m.faces {
@@ -443,17 +448,16 @@ fn keep_largest_component(m: &mut Mesh) {
     for f in &m.faces {
         *size.entry(root(&mut parent, f[0])).or_insert(0usize) += 1;
     }
-    let Some((&best, _)) = size
-        .iter()
-        .max_by_key(|(r, s)| (**s, std::cmp::Reverse(**r)))
-    else {
-        return;
+    let largest = size.values().copied().max().unwrap_or(0);
+    let keep = |r: u32| {
+        size.get(&r)
+            .is_some_and(|&s| s as f64 >= min_share * largest as f64)
     };
     let mut new_index = vec![u32::MAX; n];
     let mut vertices = Vec::new();
     let mut faces = Vec::new();
     for f in &m.faces {
-        if root(&mut parent, f[0]) != best {
+        if !keep(root(&mut parent, f[0])) {
             continue;
         }
         faces.push(f.map(|i| {

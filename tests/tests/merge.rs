@@ -87,12 +87,14 @@ fn three_scanned_views_register_with_the_rigs_rotations() {
     assert!(ok, "{err}");
     println!("{out}");
     assert!(d.join("model/views.ply").exists() && d.join("model/merge-report.txt").exists());
-    // The fused model is written and described (three front views leave the back unseen: the
-    // report says whether the mesh closed).
+    // The fused model is written, closed over what the three views left unseen (the bunny's
+    // back and underside), and described.
     assert!(
-        out.contains("model: ") && d.join("model/model.stl").exists(),
+        out.contains("model: ") && out.contains("watertight") && d.join("model/model.stl").exists(),
         "{out}"
     );
+    assert!(out.contains("surface no view saw"), "{out}");
+    model_against_the_truth(d, &scene, &[0, 1, 6]);
     // Coloured per vertex from the views' colours (the bunny's albedo, lit), in the PLY read
     // back by an independent reader (tobj reads the OBJ's vertex colours).
     assert!(out.contains("model coloured per vertex"), "{out}");
@@ -230,6 +232,88 @@ fn three_scanned_views_register_with_the_rigs_rotations() {
 
 /// `merge --view`: the page shows the registered views in their colours, then the model with
 /// its files; the outputs are those of the merge without the page.
+/// The merged model, read back by an independent reader (tobj), is watertight by its own edge
+/// count, and lies on the true bunny where the views saw it (the truth's lit points of the
+/// views, moved into view 0 by the true poses): both ways, area-weighted.
+fn model_against_the_truth(d: &Path, scene: &scanner_rig::Scene, views: &[usize]) {
+    use scanner_core::nalgebra::Point3;
+    let (models, _) = tobj::load_obj(d.join("model/model.obj"), &tobj::LoadOptions::default())
+        .expect("the model's OBJ reads back");
+    let mesh = &models[0].mesh;
+    let mut edges = std::collections::HashMap::new();
+    for f in mesh.indices.chunks(3) {
+        for k in 0..3 {
+            let (a, b) = (f[k], f[(k + 1) % 3]);
+            *edges.entry((a.min(b), a.max(b))).or_insert(0u32) += 1;
+        }
+    }
+    assert!(
+        edges.values().all(|&c| c == 2),
+        "{} of {} edges not in exactly two faces",
+        edges.values().filter(|&&c| c != 2).count(),
+        edges.len()
+    );
+    // The model is in the board's frame (y up); the truth in view 0's camera frame.
+    let view0 = scanner_host::merge::load_view(0, &d.join("v0"), "2px".parse().unwrap()).unwrap();
+    let frame = scanner_host::mesh::MeshFrame::board(&view0.header.board().unwrap());
+    let to_board = |p: &Point3<f64>| frame.point(&p.cast::<f32>()).cast::<f64>();
+    let v0 = scene.view(0).unwrap();
+    let scanner_rig::Shape::Mesh(truth) = &v0.objects[0].shape else {
+        panic!("the bunny is a mesh")
+    };
+    let truth = scanner_rig::mesh::Mesh::new(
+        truth
+            .triangles()
+            .iter()
+            .map(|t| t.map(|p| to_board(&p)))
+            .collect(),
+    );
+    let mut seen = Vec::new();
+    for &k in views {
+        let v = scene.view(k).unwrap();
+        let into_view0 = v0.object_pose * v.object_pose.inverse();
+        let rig = scanner_rig::Rig::new(v).unwrap();
+        for f in 0..rig.scene().laser.frames {
+            for t in rig.truth(f).unwrap().into_iter().flatten() {
+                if matches!(t.surface, scanner_rig::SurfaceId::Object(_)) {
+                    seen.push(to_board(&(into_view0 * t.point)));
+                }
+            }
+        }
+    }
+    let p = &mesh.positions;
+    let model: Vec<[Point3<f64>; 3]> = mesh
+        .indices
+        .chunks(3)
+        .map(|f| {
+            [f[0], f[1], f[2]].map(|i| {
+                let i = 3 * i as usize;
+                Point3::new(p[i], p[i + 1], p[i + 2]).cast::<f64>()
+            })
+        })
+        .collect();
+    let c = scanner_rig::compare::compare(
+        &model,
+        &truth,
+        &scanner_rig::compare::Seen::new(&seen, 1.5),
+        0.5,
+    );
+    let pct = |mm: f64| 100.0 * mm / scene.board.distance;
+    println!(
+        "model → truth {:.0} mm²: mean {:.4} %, p99 {:.4} %; truth → model {:.0} mm²: mean {:.4} %, p99 {:.4} %",
+        c.to_truth.area_mm2,
+        pct(c.to_truth.mean),
+        pct(c.to_truth.p99),
+        c.to_model.area_mm2,
+        pct(c.to_model.mean),
+        pct(c.to_model.p99)
+    );
+    assert!(
+        c.to_truth.area_mm2 > 5000.0 && c.to_model.area_mm2 > 5000.0,
+        "{c:?}"
+    );
+}
+
 fn live_view_of_the_merge(d: &Path) {
     use scanner_tests::browser::{Browser, chromium, lines_of, wait_line};
     use std::process::{Command, Stdio};
