@@ -101,8 +101,8 @@ pub enum Command {
         out: OutputArgs,
     },
     /// Register several sweeps of one object, turned between them, into one frame and fuse them
-    /// into one closed mesh (views: receive output folders or journals): writes model.obj/ply/stl
-    /// (y up), views.ply (each view in its colour) and merge-report.txt.
+    /// into one closed mesh (views: receive output folders or journals): writes
+    /// model.obj/ply/stl/3mf (y up), views.ply (each view in its colour) and merge-report.txt.
     Merge {
         /// The views, in the order they were scanned (each overlapping an earlier one).
         #[arg(required = true)]
@@ -622,10 +622,13 @@ fn merge_command(
     crate::export::write_atomic_with(&out.join("model.stl"), |w| {
         crate::export::write_stl(&model, w)
     })?;
+    crate::export::write_atomic_with(&out.join("model.3mf"), |w| {
+        crate::export::write_3mf(&model, w)
+    })?;
     crate::export::write_atomic(&out.join("merge-report.txt"), report.as_bytes())?;
     crate::outln!("{}", report.trim_end());
     crate::outln!(
-        "wrote model.obj, model.ply, model.stl (one mesh, y up), model.png (from four sides), views.ply and views.png (each view in its colour) to {}",
+        "wrote model.obj, model.ply, model.stl, model.3mf (one mesh, y up), model.png (from four sides), views.ply and views.png (each view in its colour) to {}",
         out.display()
     );
     if let Some(v) = view {
@@ -637,6 +640,7 @@ fn merge_command(
                 "model.obj",
                 "model.ply",
                 "model.stl",
+                "model.3mf",
                 "model.png",
                 "views.png",
                 "views.ply",

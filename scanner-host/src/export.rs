@@ -203,6 +203,60 @@ pub fn write_stl(mesh: &Mesh, w: &mut impl std::io::Write) -> std::io::Result<()
     Ok(())
 }
 
+/// Writes `mesh` as 3MF (the 3D Consortium's format that slicers read): a ZIP package holding
+/// the content types, the package relationship and `3D/3dmodel.model` with one object of the
+/// mesh's vertices and triangles in millimetres (stored, not compressed; no colour).
+///
+/// # Errors
+/// The writer's error, or the package's.
+pub fn write_3mf(
+    mesh: &Mesh,
+    w: &mut (impl std::io::Write + std::io::Seek),
+) -> std::io::Result<()> {
+    use std::fmt::Write as _;
+    use std::io::Write as _;
+    let mut model = String::with_capacity(64 * (mesh.vertices.len() + mesh.faces.len()) + 512);
+    model.push_str(
+        "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n<model unit=\"millimeter\" xml:lang=\"en-US\" xmlns=\"http://schemas.microsoft.com/3dmanufacturing/core/2015/02\">\n<resources>\n<object id=\"1\" type=\"model\">\n<mesh>\n<vertices>\n",
+    );
+    for v in &mesh.vertices {
+        let _ = writeln!(model, "<vertex x=\"{}\" y=\"{}\" z=\"{}\"/>", v.x, v.y, v.z);
+    }
+    model.push_str("</vertices>\n<triangles>\n");
+    for f in &mesh.faces {
+        let _ = writeln!(
+            model,
+            "<triangle v1=\"{}\" v2=\"{}\" v3=\"{}\"/>",
+            f[0], f[1], f[2]
+        );
+    }
+    model.push_str(
+        "</triangles>\n</mesh>\n</object>\n</resources>\n<build>\n<item objectid=\"1\"/>\n</build>\n</model>\n",
+    );
+    let parts: [(&str, &str); 3] = [
+        (
+            "[Content_Types].xml",
+            "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n<Types xmlns=\"http://schemas.openxmlformats.org/package/2006/content-types\"><Default Extension=\"rels\" ContentType=\"application/vnd.openxmlformats-package.relationships+xml\"/><Default Extension=\"model\" ContentType=\"application/vnd.ms-package.3dmanufacturing-3dmodel+xml\"/></Types>\n",
+        ),
+        (
+            "_rels/.rels",
+            "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n<Relationships xmlns=\"http://schemas.openxmlformats.org/package/2006/relationships\"><Relationship Target=\"/3D/3dmodel.model\" Id=\"rel0\" Type=\"http://schemas.microsoft.com/3dmanufacturing/2013/01/3dmodel\"/></Relationships>\n",
+        ),
+        ("3D/3dmodel.model", &model),
+    ];
+    let mut zip = zip::ZipWriter::new(w);
+    let options = zip::write::SimpleFileOptions::default()
+        .compression_method(zip::CompressionMethod::Stored)
+        .large_file(model.len() > u32::MAX as usize / 2);
+    for (name, text) in parts {
+        zip.start_file(name, options)
+            .map_err(std::io::Error::other)?;
+        zip.write_all(text.as_bytes())?;
+    }
+    zip.finish().map_err(std::io::Error::other)?;
+    Ok(())
+}
+
 /// Fills the triangle with corners `p` (pixels) by `colour(w)` where `w` are barycentric weights.
 fn fill_triangle(img: &mut RgbImage, p: [(f32, f32); 3], colour: impl Fn([f32; 3]) -> Rgb<u8>) {
     let (w, h) = (img.width() as i64, img.height() as i64);

@@ -253,6 +253,35 @@ fn model_against_the_truth(d: &Path, scene: &scanner_rig::Scene, views: &[usize]
         edges.values().filter(|&&c| c != 2).count(),
         edges.len()
     );
+    // The 3MF holds the same mesh: its package read by the `zip` crate, its model's vertices
+    // and triangles counted and checked against the OBJ's.
+    let mut package =
+        zip::ZipArchive::new(std::fs::File::open(d.join("model/model.3mf")).unwrap()).unwrap();
+    for part in ["[Content_Types].xml", "_rels/.rels"] {
+        assert!(package.by_name(part).is_ok(), "3MF without {part}");
+    }
+    let mut xml = String::new();
+    std::io::Read::read_to_string(&mut package.by_name("3D/3dmodel.model").unwrap(), &mut xml)
+        .unwrap();
+    assert!(xml.contains("unit=\"millimeter\""));
+    let attr = |tag: &str, key: &str| -> Vec<f64> {
+        xml.split(tag)
+            .skip(1)
+            .map(|e| {
+                let v = e.split(&format!("{key}=\"")).nth(1).unwrap();
+                v[..v.find('"').unwrap()].parse().unwrap()
+            })
+            .collect()
+    };
+    let xs = attr("<vertex ", "x");
+    let v1 = attr("<triangle ", "v1");
+    assert_eq!(xs.len() * 3, mesh.positions.len());
+    assert_eq!(v1.len() * 3, mesh.indices.len());
+    assert!(
+        xs.iter()
+            .zip(mesh.positions.iter().step_by(3))
+            .all(|(a, b)| (a - f64::from(*b)).abs() < 1e-3)
+    );
     // The model is in the board's frame (y up); the truth in view 0's camera frame.
     let view0 = scanner_host::merge::load_view(0, &d.join("v0"), "2px".parse().unwrap()).unwrap();
     let frame = scanner_host::mesh::MeshFrame::board(&view0.header.board().unwrap());
@@ -355,7 +384,7 @@ fn live_view_of_the_merge(d: &Path) {
         b.eval("document.getElementById('title').textContent"),
         "Merging views"
     );
-    assert_eq!(b.eval("Number(document.body.dataset.downloads)"), 7);
+    assert_eq!(b.eval("Number(document.body.dataset.downloads)"), 8);
     let shot = b.screenshot();
     if let Some(dir) = std::env::var_os("LIVE_VIEW_SHOTS") {
         shot.save(Path::new(&dir).join("live-view-merge.png"))
@@ -366,6 +395,7 @@ fn live_view_of_the_merge(d: &Path) {
         "model.obj",
         "model.ply",
         "model.stl",
+        "model.3mf",
         "views.ply",
         "merge-report.txt",
     ] {
@@ -410,7 +440,13 @@ fn one_session_of_three_sweeps(d: &Path) {
         }
     }
     assert!(!d.join("session/view-4").exists());
-    for f in ["model.obj", "model.ply", "model.stl", "views.ply"] {
+    for f in [
+        "model.obj",
+        "model.ply",
+        "model.stl",
+        "model.3mf",
+        "views.ply",
+    ] {
         assert!(
             std::fs::read(d.join("session/model").join(f)).unwrap()
                 == std::fs::read(d.join("model").join(f)).unwrap(),

@@ -495,6 +495,7 @@ fn media_type(name: &str) -> &'static str {
         Some("txt") => "text/plain; charset=utf-8",
         Some("obj") => "model/obj",
         Some("stl") => "model/stl",
+        Some("3mf") => "model/3mf",
         _ => "application/octet-stream",
     }
 }
