@@ -1,12 +1,13 @@
 //! Fusion of registered views into one closed mesh (issue 17): a field on a regular grid whose
-//! zero surface is the model, cut by marching tetrahedra (a closed manifold by construction), of
-//! which the largest piece is kept with any others of some size ([`MIN_PIECE`]). Near the points (within [`BAND`] cells, over a point) the
-//! field is the signed distance along the nearest point's normal (positive outside): precise
-//! where the views saw the surface. Elsewhere its sign is the points' generalized winding
-//! number's ([`crate::winding`]): inside where it exceeds ½, which closes the gaps the views left
-//! with a smooth patch instead of letting tangent planes run on as sheets. Checked after: edges
-//! in exactly two faces, components, the enclosed volume; [`unseen_faces`] says which surface
-//! no view saw (for the report, or [`trim`]).
+//! zero surface is the model, cut by marching tetrahedra (a closed manifold by construction); the
+//! largest piece is kept with any others of some size ([`MIN_PIECE`]). Near the points (within
+//! [`BAND`] cells, over a point) the field is the signed distance along the nearest points'
+//! normals (positive outside): precise where the views saw the surface. Elsewhere its sign is the
+//! points' generalized winding number's ([`crate::winding`]): inside where it exceeds ½, which
+//! closes the gaps the views left with a smooth patch instead of letting tangent planes run on
+//! as sheets. Checked after: edges in exactly two faces, fans around vertices, components, the
+//! enclosed volume; [`unseen_faces`] says which surface no view saw (for the report, or
+//! [`trim`]).
 
 use kiddo::SquaredEuclidean;
 use scanner_core::nalgebra::{Point3, Vector3};
@@ -44,11 +45,11 @@ const MARGIN: usize = 5;
 /// Pieces of the fused surface apart from the largest are kept when they have at least this
 /// share of its faces: specks of noise go, a part seen from one side only that the fusion could
 /// not join (an ear seen from the front alone) stays, as a piece of its own.
-const MIN_PIECE: f64 = 0.02;
+pub const MIN_PIECE: f64 = 0.02;
 /// Points averaged for a grid point's signed distance.
 const NEIGHBOURS: usize = 8;
 /// Grid points within this many cells of a point (and over it) take its signed distance.
-const BAND: f64 = 2.0;
+pub const BAND: f64 = 2.0;
 
 /// Most grid points of a fusion (512³). The fine grid is never stored whole — two slices of
 /// it at a time (2 MB at most) — and the coarse grid holds one point in 64 (17 MB at most); the
@@ -380,7 +381,8 @@ pub fn area_share(m: &Mesh, marked: &[bool]) -> f64 {
 }
 
 /// Removes the faces marked in `marked` (from [`unseen_faces`]), then the specks left (pieces
-/// under [`MIN_PIECE`] of the largest). Returns the number of faces removed. The mesh is then open where the views left gaps.
+/// under [`MIN_PIECE`] of the largest). Returns the number of faces removed. The mesh is then
+/// open where the views left gaps.
 pub fn trim(m: &mut Mesh, marked: &[bool]) -> usize {
     let before = m.faces.len();
     let mut k = 0;

@@ -9,8 +9,8 @@
 //! - [`mesh`]: triangles from neighbouring cells;
 //! - [`export`] and [`outputs`]: OBJ, PLY, STL, depth and preview pictures, the summary, written
 //!   atomically;
-//! - [`register`], [`merge`] and [`fuse`]: several views of one object registered into one
-//!   frame and fused into one mesh (`merge`);
+//! - [`register`], [`refine`], [`merge`], [`fuse`] and [`winding`]: several views of one object
+//!   registered into one frame and fused into one mesh (`merge`);
 //! - [`check`]: the acceptance check on a known artefact (spheres, a plane);
 //! - [`live`]: the live view in a web browser (`receive --view`);
 //! - [`cli`]: the command line (the only place `anyhow` is used).

@@ -1,7 +1,7 @@
 //! Registration of two views of one object (issue 17's first stage): without an initial guess,
 //! by matching local shape descriptors (FPFH, Rusu et al. 2009) with RANSAC, then refined by
-//! point-to-plane ICP. Neighbour searches go through a k-d tree (`kiddo`). The fusion of many
-//! views into one mesh is not built yet.
+//! point-to-plane ICP. Neighbour searches go through a k-d tree (`kiddo`). The views are then
+//! refined together ([`crate::refine`]) and fused ([`crate::fuse`]).
 //!
 //! Clouds are in millimetres, each in its own view's camera frame; a registration is the rigid
 //! motion that takes the source view's points onto the target view's.

@@ -18,7 +18,7 @@ const LEAF: usize = 16;
 /// `AREA_K + 1` points. Wide enough to span several stripes of a sweep: with 8 the rig's
 /// sphere (stripes 2 mm apart, points 0.3 mm apart along them) summed to 86 % of its area and
 /// its winding number inside to 0.86; with 32, 99 %.
-const AREA_K: usize = 32;
+pub const AREA_K: usize = 32;
 
 /// Each point's share of the surface, mm²: the disc to its [`AREA_K`]th neighbour shared by the
 /// points in it (so where views overlap, their points share the area instead of counting twice).
