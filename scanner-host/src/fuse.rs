@@ -18,8 +18,10 @@ use crate::winding::Winding;
 /// Why the fusion failed.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum FuseError {
-    /// Too few points to reconstruct from.
-    #[error("{0} points: at least 100 are needed for a surface")]
+    /// Too few points to reconstruct from (after thinning to half a cell, those with a normal).
+    #[error(
+        "{0} points with a normal after thinning to half a cell: at least 100 are needed for a surface"
+    )]
     TooFewPoints(usize),
     /// The grid would be too large.
     #[error(
@@ -95,6 +97,9 @@ pub fn fuse(
         cell / 2.0,
     );
     let (points, normals) = (&thinned.points[..], &thinned.normals[..]);
+    if points.len() < 100 {
+        return Err(FuseError::TooFewPoints(points.len()));
+    }
     let mut lo = points[0];
     let mut hi = points[0];
     for p in points {
@@ -570,5 +575,69 @@ pub fn check(m: &Mesh) -> MeshCheck {
         nonmanifold_vertices: nonmanifold_vertices(m),
         components,
         volume_mm3,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn degenerate_input_is_refused_not_fused() {
+        let points: Vec<Point3<f64>> = (0..500)
+            .map(|i| Point3::new(f64::from(i % 20), f64::from(i / 20), 0.0))
+            .collect();
+        // Too few points.
+        assert_eq!(
+            fuse(&points[..50], &vec![Vector3::z(); 50], 1.0),
+            Err(FuseError::TooFewPoints(50))
+        );
+        // No normals (all zero): nothing left after thinning.
+        assert_eq!(
+            fuse(&points, &vec![Vector3::zeros(); 500], 1.0),
+            Err(FuseError::TooFewPoints(0))
+        );
+        // A grid too large for the cell.
+        let far = [points.clone(), vec![Point3::new(1.0e4, 1.0e4, 1.0e4)]].concat();
+        let mut normals = vec![Vector3::z(); 500];
+        normals.push(Vector3::z());
+        assert!(matches!(
+            fuse(&far, &normals, 1.0),
+            Err(FuseError::TooLarge(..))
+        ));
+        // Every point at one place: one point after thinning.
+        let same = vec![Point3::new(1.0, 2.0, 3.0); 500];
+        assert_eq!(
+            fuse(&same, &vec![Vector3::z(); 500], 1.0),
+            Err(FuseError::TooFewPoints(1))
+        );
+    }
+
+    #[test]
+    fn a_flat_patch_closes_into_one_thin_watertight_piece() {
+        // A 30 mm square seen from one side only: the fusion gives it a thickness (the signed
+        // distance behind it) and closes it, rather than leaving a sheet.
+        let mut points = Vec::new();
+        for i in 0..60 {
+            for j in 0..60 {
+                points.push(Point3::new(f64::from(i) * 0.5, f64::from(j) * 0.5, 0.0));
+            }
+        }
+        let normals = vec![Vector3::z(); points.len()];
+        let m = fuse(&points, &normals, 1.0).unwrap();
+        let c = check(&m);
+        assert!(
+            c.watertight && c.nonmanifold_vertices == 0 && c.components == 1,
+            "{c:?}"
+        );
+        assert!(c.volume_mm3 > 0.0, "{c:?}");
+        // Its front stays on the patch's plane.
+        let front = m
+            .vertices
+            .iter()
+            .filter(|v| v.x > 5.0 && v.x < 25.0 && v.y > 5.0 && v.y < 25.0 && v.z > -0.5)
+            .map(|v| v.z.abs())
+            .fold(0.0f32, f32::max);
+        assert!(front < 0.05, "front {front} mm off the plane");
     }
 }

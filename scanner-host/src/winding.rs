@@ -165,12 +165,12 @@ impl Winding {
             let n = &self.nodes[stack[top] as usize];
             let d = n.centre - q;
             let r2 = d.norm_squared();
-            if r2 > (BETA * n.radius).powi(2) {
+            if r2 > (BETA * n.radius).powi(2).max(1e-12) {
                 sum += n.dipole.dot(&d) / (r2 * r2.sqrt());
             } else if n.child == 0 || top + 2 > stack.len() {
                 for i in n.start as usize..n.end as usize {
                     let d = self.points[i] - q;
-                    let r2 = d.norm_squared().max(self.disc2[i]);
+                    let r2 = d.norm_squared().max(self.disc2[i]).max(1e-12);
                     sum += self.weighted[i].dot(&d) / (r2 * r2.sqrt());
                 }
             } else {
