@@ -593,7 +593,13 @@ fn merge_command(
         }
         v.stage("fusing the views into one mesh");
     }
-    let fused = merge::fuse_views(&input, fuse_cell, trim_unseen).context("fusing the views")?;
+    let fused = merge::fuse_views(&input, fuse_cell, trim_unseen, |done, all| {
+        pb.set_message(format!(
+            "fusing the views into one mesh: {} %",
+            100 * done / all.max(1)
+        ));
+    })
+    .context("fusing the views")?;
     pb.finish_and_clear();
     report += &fused.report;
     let mut model = fused.model;

@@ -53,8 +53,12 @@ pub fn write_atomic_with(
         .filter(|p| !p.as_os_str().is_empty())
         .unwrap_or(Path::new("."));
     let write = || -> std::io::Result<()> {
-        let mut w =
-            std::io::BufWriter::with_capacity(1 << 20, tempfile::NamedTempFile::new_in(dir)?);
+        let mut temp = tempfile::Builder::new();
+        // Made as any new file is (0666 less the umask), not tempfile's private 0600: the
+        // outputs are the user's to share.
+        #[cfg(unix)]
+        temp.permissions(std::os::unix::fs::PermissionsExt::from_mode(0o666));
+        let mut w = std::io::BufWriter::with_capacity(1 << 20, temp.tempfile_in(dir)?);
         fill(&mut w)?;
         let f = w
             .into_inner()
@@ -577,4 +581,22 @@ pub fn points_png(points: &[Point3<f32>], colours: &[[u8; 3]]) -> RgbImage {
         }
     }
     img
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[cfg(unix)]
+    #[test]
+    fn outputs_get_the_mode_of_any_new_file() {
+        use std::os::unix::fs::PermissionsExt;
+        let dir = tempfile::tempdir().unwrap();
+        let plain = dir.path().join("plain");
+        std::fs::File::create(&plain).unwrap();
+        let ours = dir.path().join("ours.txt");
+        write_atomic(&ours, b"x").unwrap();
+        let mode = |p: &Path| std::fs::metadata(p).unwrap().permissions().mode() & 0o777;
+        assert_eq!(mode(&ours), mode(&plain));
+    }
 }

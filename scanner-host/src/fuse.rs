@@ -84,6 +84,19 @@ pub fn fuse(
     normals: &[Vector3<f64>],
     cell: f64,
 ) -> Result<Mesh, FuseError> {
+    fuse_with(points, normals, cell, |_, _| {})
+}
+
+/// [`fuse`], telling `progress` each slice of the grid done (slices done, slices in all).
+///
+/// # Errors
+/// [`FuseError`] for too few points or a grid too large.
+pub fn fuse_with(
+    points: &[Point3<f64>],
+    normals: &[Vector3<f64>],
+    cell: f64,
+    mut progress: impl FnMut(usize, usize),
+) -> Result<Mesh, FuseError> {
     if points.len() < 100 {
         return Err(FuseError::TooFewPoints(points.len()));
     }
@@ -224,6 +237,7 @@ pub fn fuse(
         let upper = slice(k);
         march.layer(&lower, &upper, k - 1, at);
         lower = upper;
+        progress(k + 1, nz);
     }
     let mut m = march.mesh;
     keep_pieces(&mut m, MIN_PIECE);

@@ -588,7 +588,7 @@ pub const UNSEEN_CELLS: f64 = 3.0;
 
 /// Fuses the views' points ([`fusion_input`]) with cells of `cell` mm: closed (watertight) by
 /// default, or with the surface no view saw removed (`trim_unseen`); coloured from the points
-/// when they carry colour.
+/// when they carry colour. `progress` sees the grid's slices done and in all.
 ///
 /// # Errors
 /// [`crate::fuse::FuseError`] from the fusion.
@@ -596,8 +596,9 @@ pub fn fuse_views(
     input: &FusionInput,
     cell: f64,
     trim_unseen: bool,
+    progress: impl FnMut(usize, usize),
 ) -> Result<Fused, crate::fuse::FuseError> {
-    let mut model = crate::fuse::fuse(&input.points, &input.normals, cell)?;
+    let mut model = crate::fuse::fuse_with(&input.points, &input.normals, cell, progress)?;
     let reach = UNSEEN_CELLS * cell;
     let unseen = crate::fuse::unseen_faces(&model, &input.points, reach);
     let unseen_share = crate::fuse::area_share(&model, &unseen);
