@@ -48,7 +48,9 @@ const MARGIN: usize = 5;
 /// share of its faces: specks of noise go, a part seen from one side only that the fusion could
 /// not join (an ear seen from the front alone) stays, as a piece of its own.
 pub const MIN_PIECE: f64 = 0.02;
-/// Points averaged for a grid point's signed distance.
+/// Points averaged for a grid point's signed distance. More smooth more: 24 took the 1280×960
+/// demo's mesh p99 against the truth from 0.216 to 0.194 %, but the 640×480 merge test's means
+/// from 0.020 / 0.022 % to 0.025 / 0.028 % and the sphere's from 0.010 to 0.024 mm.
 const NEIGHBOURS: usize = 8;
 /// Grid points within this many cells of a point (and over it) take its signed distance.
 pub const BAND: f64 = 2.0;
