@@ -343,6 +343,27 @@ fn model_against_the_truth(d: &Path, scene: &scanner_rig::Scene, views: &[usize]
     );
 }
 
+/// The files `merge` writes for the model (beside its report and pictures).
+const MODEL_FILES: [&str; 5] = [
+    "model.obj",
+    "model.ply",
+    "model.stl",
+    "model.3mf",
+    "views.ply",
+];
+
+/// Each of `files` is byte for byte the same in folders `a` and `b`.
+fn same_files(a: &Path, b: &Path, files: &[&str]) {
+    for f in files {
+        assert!(
+            std::fs::read(a.join(f)).unwrap() == std::fs::read(b.join(f)).unwrap(),
+            "{} differs from {}",
+            a.join(f).display(),
+            b.join(f).display()
+        );
+    }
+}
+
 fn live_view_of_the_merge(d: &Path) {
     use scanner_tests::browser::{Browser, chromium, lines_of, wait_line};
     use std::process::{Command, Stdio};
@@ -391,20 +412,11 @@ fn live_view_of_the_merge(d: &Path) {
             .unwrap();
     }
     scanner_tests::interrupt(child);
-    for f in [
-        "model.obj",
-        "model.ply",
-        "model.stl",
-        "model.3mf",
-        "views.ply",
-        "merge-report.txt",
-    ] {
-        assert!(
-            std::fs::read(d.join("model").join(f)).unwrap()
-                == std::fs::read(d.join("model-live").join(f)).unwrap(),
-            "{f} differs with --view"
-        );
-    }
+    same_files(
+        &d.join("model"),
+        &d.join("model-live"),
+        &[MODEL_FILES.as_slice(), &["merge-report.txt"]].concat(),
+    );
 }
 
 /// `receive --merge`: the three sweeps in one session (one stream after the other, as a head
@@ -440,19 +452,7 @@ fn one_session_of_three_sweeps(d: &Path) {
         }
     }
     assert!(!d.join("session/view-4").exists());
-    for f in [
-        "model.obj",
-        "model.ply",
-        "model.stl",
-        "model.3mf",
-        "views.ply",
-    ] {
-        assert!(
-            std::fs::read(d.join("session/model").join(f)).unwrap()
-                == std::fs::read(d.join("model").join(f)).unwrap(),
-            "session/model/{f} is not model/{f}"
-        );
-    }
+    same_files(&d.join("session/model"), &d.join("model"), &MODEL_FILES);
     let (ok, _, err) = run(
         d,
         "scanner-host",
