@@ -242,12 +242,9 @@ pub fn fuse_with(
         progress(k + 1, nz);
     }
     let mut m = march.mesh;
+    // Faces already face outside (each cut is turned towards its outside corners): no flip by
+    // the volume's sign, which the full check would compute a second time.
     keep_pieces(&mut m, MIN_PIECE);
-    if check(&m).volume_mm3 < 0.0 {
-        for f in &mut m.faces {
-            f.swap(1, 2);
-        }
-    }
     m.normals = vertex_normals(&m);
     Ok(m)
 }
