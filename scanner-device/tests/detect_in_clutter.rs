@@ -290,6 +290,7 @@ fn board_markers_under_a_webcams_lens_with_clutter_and_an_occluder() {
         assert!(deg < 0.2, "sheet {k}: normal {deg}°");
         // Every marker fully in view and not under the arm is used; the one the arm covers is
         // not.
+        assert!(deg < 0.05, "sheet {k}: normal {deg}°");
         for (i, m) in s.markers.iter().enumerate() {
             let surface = [SurfaceId::Left, SurfaceId::Right][k];
             let truth_m = markers
@@ -297,12 +298,16 @@ fn board_markers_under_a_webcams_lens_with_clutter_and_an_occluder() {
                 .find(|t| t.surface == surface && t.index == i)
                 .unwrap();
             if truth_m.visible {
-                assert!(
-                    m.residual.is_some(),
-                    "sheet {k} marker {i} visible but not used"
-                );
+                // A marker in full view is used, unless the arm beside it moved its found
+                // centre off the disc's (here the right sheet's marker 3, 0.2 px: its sheet's
+                // normal 0.077° off with it, 0.014° without).
                 let px = m.pixel.unwrap();
-                assert!((px - truth_m.disc_px).norm() < 0.3, "sheet {k} marker {i}");
+                let off = (px - truth_m.disc_px).norm();
+                assert!(
+                    m.residual.is_some() || (m.dropped && off > 0.1),
+                    "sheet {k} marker {i} visible, found {off} px off, but not used"
+                );
+                assert!(off < 0.3, "sheet {k} marker {i}");
             }
         }
     }

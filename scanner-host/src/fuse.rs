@@ -23,6 +23,16 @@ pub enum FuseError {
         "{0} points with a normal after thinning to half a cell: at least 100 are needed for a surface"
     )]
     TooFewPoints(usize),
+    /// Points, normals and weights of different lengths (a caller's mistake).
+    #[error("{points} points with {normals} normals and {weights} weights: one each per point")]
+    Lengths {
+        /// Points.
+        points: usize,
+        /// Normals.
+        normals: usize,
+        /// Weights (0 stands for all 1).
+        weights: usize,
+    },
     /// The grid would be too large.
     #[error(
         "a {0}×{1}×{2} grid at this cell size (at most {MAX_CELLS} cells): choose a larger --fuse-cell"
@@ -86,32 +96,36 @@ pub fn fuse(
     normals: &[Vector3<f64>],
     cell: f64,
 ) -> Result<Mesh, FuseError> {
-    fuse_with(points, normals, cell, |_, _| {})
+    fuse_with(points, normals, &[], cell, |_, _| {})
 }
 
-/// [`fuse`], telling `progress` each slice of the grid done (slices done, slices in all).
+/// [`fuse`] with a weight per point (0 to 1; empty: all 1) — a point that is less sure (on its
+/// view's edge) counts for less where surer points saw the same surface — telling `progress`
+/// each slice of the grid done (slices done, slices in all).
 ///
 /// # Errors
-/// [`FuseError`] for too few points or a grid too large.
+/// [`FuseError`] for too few points, weights not one per point or a grid too large.
 pub fn fuse_with(
     points: &[Point3<f64>],
     normals: &[Vector3<f64>],
+    weights: &[f64],
     cell: f64,
     mut progress: impl FnMut(usize, usize),
 ) -> Result<Mesh, FuseError> {
+    if normals.len() != points.len() || !(weights.is_empty() || weights.len() == points.len()) {
+        return Err(FuseError::Lengths {
+            points: points.len(),
+            normals: normals.len(),
+            weights: weights.len(),
+        });
+    }
     if points.len() < 100 {
         return Err(FuseError::TooFewPoints(points.len()));
     }
-    // One point per half cell (the mean of those in it): finer detail than that the grid cannot
-    // show, and dense views (50 000 points on a fist-sized object) would only slow every search.
-    let thinned = crate::register::thin(
-        &crate::register::Cloud {
-            points: points.to_vec(),
-            normals: normals.to_vec(),
-        },
-        cell / 2.0,
-    );
-    let (points, normals) = (&thinned.points[..], &thinned.normals[..]);
+    // One point per half cell: finer detail than that the grid cannot show, and dense views
+    // (50 000 points on a fist-sized object) would only slow every search.
+    let (points, normals, weights) = thin_weighted(points, normals, weights, cell / 2.0);
+    let (points, normals, weights) = (&points[..], &normals[..], &weights[..]);
     if points.len() < 100 {
         return Err(FuseError::TooFewPoints(points.len()));
     }
@@ -192,7 +206,7 @@ pub fn fuse_with(
                 if normals[i].dot(&normals[p]) < 0.5 {
                     continue;
                 }
-                let w = (-nb.distance / h2).exp();
+                let w = weights[i] * (-nb.distance / h2).exp();
                 sum += w * (q - points[i]).dot(&normals[i]);
                 wsum += w;
             }
@@ -247,6 +261,37 @@ pub fn fuse_with(
     keep_pieces(&mut m, MIN_PIECE);
     m.normals = vertex_normals(&m);
     Ok(m)
+}
+
+/// One point per `voxel` mm cube: the mean of its points weighted by `weights` (empty: all 1),
+/// the weighted sum of their normals, and their largest weight — a cube where a sure point lies
+/// is placed by it, one with edge points alone keeps their low weight. Cubes whose normals
+/// cancel are left out.
+fn thin_weighted(
+    points: &[Point3<f64>],
+    normals: &[Vector3<f64>],
+    weights: &[f64],
+    voxel: f64,
+) -> (Vec<Point3<f64>>, Vec<Vector3<f64>>, Vec<f64>) {
+    let weight = |i: u32| weights.get(i as usize).map_or(1.0, |w| w.clamp(1e-3, 1.0));
+    let (mut p_out, mut n_out, mut w_out) = (Vec::new(), Vec::new(), Vec::new());
+    for group in crate::register::voxel_groups(points, voxel) {
+        let (mut p, mut n, mut sum, mut most) = (Vector3::zeros(), Vector3::zeros(), 0.0, 0.0f64);
+        for &i in &group {
+            let w = weight(i);
+            p += points[i as usize].coords * w;
+            n += normals[i as usize] * w;
+            sum += w;
+            most = most.max(w);
+        }
+        if n.norm() <= 1e-9 {
+            continue;
+        }
+        p_out.push(Point3::from(p / sum));
+        n_out.push(n.normalize());
+        w_out.push(most);
+    }
+    (p_out, n_out, w_out)
 }
 
 /// The six tetrahedra of a grid cube, all around its diagonal from corner 0 to corner 7 (corner

@@ -94,7 +94,26 @@ pub struct View {
     pub header: Header,
     /// The surface's colour at each point (empty: the scan carried no colour).
     pub colours: Vec<[u8; 3]>,
+    /// How far each point is from the view's edges: the share of the grid cells averaged into
+    /// it that lie away from an occluding edge, a shadow's border or the view's outline
+    /// ([`mesh::edge_cells`]); 0 on an edge, 1 clear of it. The joint refinement pairs only
+    /// points at least half clear ([`CLEAR`]); the fusion weighs them by it ([`EDGE_WEIGHT`]).
+    pub clear: Vec<f64>,
 }
+
+/// Cells within this many steps of a view's edge count as on it ([`mesh::edge_cells`]): on the
+/// rig at 2-pixel cells, one step takes in every vertex more than 0.5 mm off the true surface
+/// (the stripe cut at an edge) and a quarter of all (`cargo run --release -p scanner-tests
+/// --example view_truth`).
+pub const EDGE_REACH: usize = 1;
+
+/// Points at least this clear of their view's edges ([`View::clear`]) register; the others
+/// only fill in the fusion where nothing better saw the surface.
+pub const CLEAR: f64 = 0.5;
+
+/// The fusion's weight of a point on its view's edge, against 1 for one clear of it: where a
+/// clear point of another view saw the same surface it decides, elsewhere the edge point does.
+pub const EDGE_WEIGHT: f64 = 0.05;
 
 /// Each view is thinned to one point per cube of this size, mm (finer than the fusion's cells,
 /// so nothing the model could show is lost; denser views only slow the searches: eight views of
@@ -233,18 +252,27 @@ pub fn load_view(k: usize, path: &Path, cell: crate::grid::Cell) -> Result<View,
             frames: c.counts().decode.frames,
         });
     }
-    let m = mesh::build(
-        grid,
-        f64::from(header.camera.fx),
-        &MeshOptions::default(),
-        c.colour(),
-    );
-    let (cloud, colours) = thin_view(
+    let fx = f64::from(header.camera.fx);
+    let m = mesh::build(grid, fx, &MeshOptions::default(), c.colour());
+    let edges = mesh::edge_cells(grid, fx, &MeshOptions::default(), EDGE_REACH);
+    let clear: Vec<f64> = m
+        .cells
+        .iter()
+        .map(|&(c, r)| {
+            if edges[r as usize * grid.cols + c as usize] {
+                0.0
+            } else {
+                1.0
+            }
+        })
+        .collect();
+    let (cloud, colours, clear) = thin_view(
         &Cloud {
             points: m.vertices.iter().map(|p| p.cast()).collect(),
             normals: m.normals.iter().map(|n| n.cast()).collect(),
         },
         &m.colours,
+        &clear,
         THIN_MM,
     );
     Ok(View {
@@ -252,15 +280,38 @@ pub fn load_view(k: usize, path: &Path, cell: crate::grid::Cell) -> Result<View,
         cloud,
         header: *header,
         colours,
+        clear,
     })
 }
 
-/// Thins a view to one point per `voxel` mm cube: the mean of the points, normals and colours
-/// (when there are colours, one per point) in it.
-pub fn thin_view(c: &Cloud, colours: &[[u8; 3]], voxel: f64) -> (Cloud, Vec<[u8; 3]>) {
+/// The view's points at least [`CLEAR`] of its edges (all of them when fewer than half are:
+/// a view that is all edge registers as it is).
+pub fn clear_cloud(v: &View) -> Cloud {
+    let keep: Vec<usize> = (0..v.cloud.points.len())
+        .filter(|&i| v.clear.get(i).is_none_or(|&c| c >= CLEAR))
+        .collect();
+    if 2 * keep.len() < v.cloud.points.len() {
+        return v.cloud.clone();
+    }
+    Cloud {
+        points: keep.iter().map(|&i| v.cloud.points[i]).collect(),
+        normals: keep.iter().map(|&i| v.cloud.normals[i]).collect(),
+    }
+}
+
+/// Thins a view to one point per `voxel` mm cube: the mean of the points, normals, colours and
+/// values (each when there is one per point: colours, e.g. [`View::clear`]) in it.
+pub fn thin_view(
+    c: &Cloud,
+    colours: &[[u8; 3]],
+    values: &[f64],
+    voxel: f64,
+) -> (Cloud, Vec<[u8; 3]>, Vec<f64>) {
     let coloured = colours.len() == c.points.len() && !colours.is_empty();
+    let valued = values.len() == c.points.len() && !values.is_empty();
     let mut out = Cloud::default();
     let mut rgb = Vec::new();
+    let mut mean = Vec::new();
     for group in crate::register::voxel_groups(&c.points, voxel) {
         let n: scanner_core::nalgebra::Vector3<f64> =
             group.iter().map(|&i| c.normals[i as usize]).sum();
@@ -271,6 +322,9 @@ pub fn thin_view(c: &Cloud, colours: &[[u8; 3]], voxel: f64) -> (Cloud, Vec<[u8;
             group.iter().map(|&i| c.points[i as usize].coords).sum();
         out.points.push(Point3::from(p / group.len() as f64));
         out.normals.push(n.normalize());
+        if valued {
+            mean.push(group.iter().map(|&i| values[i as usize]).sum::<f64>() / group.len() as f64);
+        }
         if coloured {
             let mut sum = [0u32; 3];
             for &i in &group {
@@ -282,7 +336,7 @@ pub fn thin_view(c: &Cloud, colours: &[[u8; 3]], voxel: f64) -> (Cloud, Vec<[u8;
             rgb.push(sum.map(|s| ((s + k / 2) / k) as u8));
         }
     }
-    (out, rgb)
+    (out, rgb, mean)
 }
 
 /// What the merge found for one view.
@@ -397,7 +451,10 @@ pub fn refine_views(
 ) -> Closure {
     use crate::refine::{loop_error, refine};
     const ROUNDS: usize = 8;
-    let clouds: Vec<&Cloud> = views.iter().map(|v| &v.cloud).collect();
+    // Points on a view's edges lie off the surface, all the same way: they would pull the views
+    // apart.
+    let clear: Vec<Cloud> = views.iter().map(clear_cloud).collect();
+    let clouds: Vec<&Cloud> = clear.iter().collect();
     let poses: Vec<Isometry3<f64>> = results.iter().map(|r| r.pose).collect();
     // Views registered onto view 0 itself close no loop through it.
     let direct: Vec<usize> = (0..results.len())
@@ -481,10 +538,11 @@ pub fn views_ply(views: &[View], results: &[ViewResult], frame: &MeshFrame) -> V
     crate::export::ply(&m)
 }
 
-/// The report: per view its points, what it was registered onto, overlap and residual.
+/// The report: per view its points (and how many of them lie clear of its edges, those the
+/// joint refinement pairs), what it was registered onto, overlap and residual.
 pub fn report(views: &[View], results: &[ViewResult]) -> String {
     let mut s = String::from(
-        "view | points | registered onto | overlap | residual RMS | rotation from view 0\n",
+        "view | points (clear of its edges) | registered onto | overlap | residual RMS | rotation from view 0\n",
     );
     for (k, (v, r)) in views.iter().zip(results).enumerate() {
         let (onto, overlap, rms) = match (&r.onto, &r.fit) {
@@ -495,8 +553,9 @@ pub fn report(views: &[View], results: &[ViewResult]) -> String {
             ),
             _ => ("(the reference)".into(), "—".into(), "—".into()),
         };
+        let clear = v.clear.iter().filter(|&&c| c >= CLEAR).count();
         s += &format!(
-            "{k} ({}) | {} | {onto} | {overlap} | {rms} | {:.3}°\n",
+            "{k} ({}) | {} ({clear}) | {onto} | {overlap} | {rms} | {:.3}°\n",
             v.path.display(),
             r.points,
             r.pose.rotation.angle().to_degrees()
@@ -542,6 +601,9 @@ pub struct FusionInput {
     pub colours: Vec<[u8; 3]>,
     /// The surface's colour at each point (empty unless every view carried colour).
     pub surface: Vec<[u8; 3]>,
+    /// The fusion's weight of each point: 1 clear of its view's edges, down to [`EDGE_WEIGHT`]
+    /// on one.
+    pub weights: Vec<f64>,
 }
 
 /// [`registered_points`] without isolated points, with their view colours.
@@ -559,8 +621,16 @@ pub fn fusion_input(views: &[View], results: &[ViewResult]) -> FusionInput {
     } else {
         Vec::new()
     };
+    let weights: Vec<f64> = views
+        .iter()
+        .flat_map(|v| {
+            (0..v.cloud.points.len())
+                .map(|i| EDGE_WEIGHT + (1.0 - EDGE_WEIGHT) * v.clear.get(i).copied().unwrap_or(1.0))
+        })
+        .collect();
     let keep = crate::fuse::inliers(&points);
     FusionInput {
+        weights: keep.iter().map(|&i| weights[i]).collect(),
         points: keep.iter().map(|&i| points[i]).collect(),
         normals: keep.iter().map(|&i| normals[i]).collect(),
         colours: keep.iter().map(|&i| colours[i]).collect(),
@@ -598,7 +668,13 @@ pub fn fuse_views(
     trim_unseen: bool,
     progress: impl FnMut(usize, usize),
 ) -> Result<Fused, crate::fuse::FuseError> {
-    let mut model = crate::fuse::fuse_with(&input.points, &input.normals, cell, progress)?;
+    let mut model = crate::fuse::fuse_with(
+        &input.points,
+        &input.normals,
+        &input.weights,
+        cell,
+        progress,
+    )?;
     let reach = UNSEEN_CELLS * cell;
     let unseen = crate::fuse::unseen_faces(&model, &input.points, reach);
     let unseen_share = crate::fuse::area_share(&model, &unseen);

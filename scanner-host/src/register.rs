@@ -101,7 +101,7 @@ pub(crate) fn tree(points: &[Point3<f64>]) -> KdTree<f64, 3> {
 
 /// Thins a cloud to one point per `voxel` mm cube (the mean of the points and normals in it).
 pub fn thin(c: &Cloud, voxel: f64) -> Cloud {
-    crate::merge::thin_view(c, &[], voxel).0
+    crate::merge::thin_view(c, &[], &[], voxel).0
 }
 
 /// The indices of `points` grouped by the `voxel` mm cube they lie in, cubes in a fixed order.

@@ -4,6 +4,9 @@
 //! calibration from images) and SCENE the scene they were scanned from (default
 //! `scanner-device/scenes/bunny-360.toml`). The views are merged as `scripts/scan-rig-360` merges
 //! them (the library calls `scanner-host merge` makes) and measured:
+//! - every view's points against the true surface (placed by the view's true pose), those clear
+//!   of the view's edges and those on them apart (what the merge registers on, what it only
+//!   fills in with);
 //! - every view's pose against the truth: rotation, and the displacement of the object's centre
 //!   (mm and % of the camera–board distance);
 //! - the fused mesh against the true mesh both ways over the surface the views saw: model → truth
@@ -85,6 +88,40 @@ fn run() -> Result<(), String> {
         scene_path.display(),
         out.display()
     );
+    // Each view's points against the true surface as the rig placed it in that view.
+    println!(
+        "view | clear of its edges: points, median, p99, over 0.5 mm | on its edges: points, median, p99, over 0.5 mm"
+    );
+    for (k, v) in views.iter().enumerate() {
+        let Some(Shape::Mesh(placed)) = scene
+            .view(k)
+            .map_err(|e| format!("{e}"))?
+            .objects
+            .first()
+            .map(|o| o.shape.clone())
+        else {
+            return Err("the scene's first object is not a mesh".into());
+        };
+        let mut parts = [Vec::new(), Vec::new()];
+        for (p, c) in v.cloud.points.iter().zip(&v.clear) {
+            parts[usize::from(*c < merge::CLEAR)].push(placed.distance(p));
+        }
+        let cols: Vec<String> = parts
+            .iter_mut()
+            .map(|d| {
+                d.sort_by(f64::total_cmp);
+                let q = |f: f64| d.get(((d.len().max(1) - 1) as f64 * f) as usize).copied();
+                format!(
+                    "{}, {:.3} mm, {:.3} mm, {}",
+                    d.len(),
+                    q(0.5).unwrap_or(f64::NAN),
+                    q(0.99).unwrap_or(f64::NAN),
+                    d.iter().filter(|&&x| x > 0.5).count()
+                )
+            })
+            .collect();
+        println!("{k} | {} | {}", cols[0], cols[1]);
+    }
     println!("view | points | rotation error | centre displaced");
     let (mut worst_rot, mut worst_move) = (0.0f64, 0.0f64);
     for (k, r) in results.iter().enumerate() {

@@ -147,3 +147,59 @@ fn a_sphere_seen_from_three_sides_closes_over_what_no_view_saw() {
     );
     assert!(mean < 0.1, "seen part {mean} mm off");
 }
+
+#[test]
+fn points_of_low_weight_give_way_where_sure_points_saw_the_same_surface() {
+    // A view's edge points lie off the surface, nearer its camera (the stripe cut at the edge):
+    // here a cap of the sphere gets a second layer 1 mm outside, as such points would lie. At
+    // the merge's edge weight the sure points place the surface; at full weight the layer pulls
+    // it out.
+    use scanner_host::fuse::{FuseError, fuse_with};
+    let (centre, radius, mut points, mut normals) = sphere_views(&[
+        (Vector3::y(), 0.0),
+        (Vector3::y(), 90.0),
+        (Vector3::y(), 180.0),
+        (Vector3::y(), 270.0),
+        (Vector3::x(), 90.0),
+        (Vector3::x(), -90.0),
+    ]);
+    let cap = |p: &Point3<f64>| (p - centre).normalize().x > 0.8;
+    let sure = points.len();
+    let layer: Vec<(Point3<f64>, Vector3<f64>)> = points
+        .iter()
+        .zip(&normals)
+        .filter(|(p, _)| cap(p))
+        .map(|(p, n)| (p + n * 1.0, *n))
+        .collect();
+    assert!(layer.len() > 500, "{} layer points", layer.len());
+    for (p, n) in layer {
+        points.push(p);
+        normals.push(n);
+    }
+    let off_in_cap = |weights: &[f64]| {
+        let m = fuse_with(&points, &normals, weights, 1.0, |_, _| {}).unwrap();
+        let off: Vec<f64> = m
+            .vertices
+            .iter()
+            .map(|v| v.cast::<f64>())
+            .filter(|v| cap(v))
+            .map(|v| (v - centre).norm() - radius)
+            .collect();
+        off.iter().sum::<f64>() / off.len() as f64
+    };
+    let edge = scanner_host::merge::EDGE_WEIGHT;
+    let weighted: Vec<f64> = (0..points.len())
+        .map(|i| if i < sure { 1.0 } else { edge })
+        .collect();
+    let (low, full) = (off_in_cap(&weighted), off_in_cap(&[]));
+    println!(
+        "cap with a layer 1 mm out: surface {low:+.3} mm off the sphere with the layer at weight {edge}, {full:+.3} mm at weight 1"
+    );
+    assert!(low.abs() < 0.1, "{low}");
+    assert!(full > 0.3, "{full}");
+    // A weight per point or none.
+    assert!(matches!(
+        fuse_with(&points, &normals, &weighted[1..], 1.0, |_, _| {}),
+        Err(FuseError::Lengths { .. })
+    ));
+}

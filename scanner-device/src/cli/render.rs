@@ -158,14 +158,14 @@ pub fn render(job: &RenderJob, mut progress: impl FnMut(usize, usize)) -> Result
     Ok(total)
 }
 
-/// Renders calibration images of a rig scene: the board without laser, 12 dot-grid shots and
+/// Renders calibration images of a rig scene: the board without laser, `shots` dot-grid shots and
 /// the cross at 500 and 900 mm (tape distances in `shots.txt`), and the rig's truth as a
 /// calibration file (`truth-calibration.toml`: what a perfect calibration would give, for
 /// comparison and for tests that want the truth).
 ///
 /// # Errors
 /// Unwritable output.
-pub fn render_calibration(rig: &Rig, out: &Path) -> Result<()> {
+pub fn render_calibration(rig: &Rig, out: &Path, shots: usize) -> Result<()> {
     use scanner_core::nalgebra::Point3;
     use scanner_rig::target::{Pattern, TargetPose};
     std::fs::create_dir_all(out).with_context(|| format!("cannot create {}", out.display()))?;
@@ -176,7 +176,7 @@ pub fn render_calibration(rig: &Rig, out: &Path) -> Result<()> {
             .with_context(|| format!("cannot write {}", p.display()))
     };
     gray(&rig.reference(), "board.png")?;
-    for (i, img) in rig.dot_grid_shots(&DotGrid::RIG, 12).iter().enumerate() {
+    for (i, img) in rig.dot_grid_shots(&DotGrid::RIG, shots).iter().enumerate() {
         let p = out.join(format!("grid-{i:02}.png"));
         img.save(&p)
             .with_context(|| format!("cannot write {}", p.display()))?;
