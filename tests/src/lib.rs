@@ -160,8 +160,12 @@ pub fn reset_peak() {
 
 /// A workspace binary next to the running test (`cargo test --workspace` builds them all).
 ///
+/// Cargo does not build another package's binaries for a single test target, so after an edit
+/// `cargo test -p scanner-tests --test merge` would run the binary of the last build: a binary
+/// older than a source file of its package or of `scanner-core` is refused as stale.
+///
 /// # Panics
-/// When the binary is not built: this is a test helper.
+/// When the binary is not built or is stale: this is a test helper.
 pub fn workspace_bin(name: &str) -> std::path::PathBuf {
     let mut p = std::env::current_exe().expect("test path");
     p.pop(); // deps
@@ -172,7 +176,55 @@ pub fn workspace_bin(name: &str) -> std::path::PathBuf {
         "{} not built: run the workspace's tests (`cargo test --workspace`)",
         exe.display()
     );
+    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .parent()
+        .expect("the workspace");
+    let built = std::fs::metadata(&exe)
+        .and_then(|m| m.modified())
+        .expect("the binary's time");
+    for dir in [root.join(name), root.join("scanner-core")] {
+        if let Some(newer) = newer_source(&dir, built) {
+            panic!(
+                "{} is older than {}: rebuild it (`cargo build -p {name}`, or run the workspace's tests)",
+                exe.display(),
+                newer.display()
+            );
+        }
+    }
     exe
+}
+
+/// Folders under a package that are not compiled into its binaries.
+const NOT_BUILT: [&str; 7] = [
+    "target", "tests", "benches", "examples", "scenes", "data", "fuzz",
+];
+
+/// A Rust source or manifest under `dir` (outside the folders in [`NOT_BUILT`]) changed after
+/// `time`.
+fn newer_source(dir: &std::path::Path, time: std::time::SystemTime) -> Option<std::path::PathBuf> {
+    let entries = std::fs::read_dir(dir).ok()?;
+    for e in entries.flatten() {
+        let path = e.path();
+        let Ok(kind) = e.file_type() else { continue };
+        if kind.is_dir() {
+            if path
+                .file_name()
+                .and_then(|n| n.to_str())
+                .is_some_and(|n| !NOT_BUILT.contains(&n))
+            {
+                if let Some(p) = newer_source(&path, time) {
+                    return Some(p);
+                }
+            }
+        } else if path.extension().is_some_and(|x| x == "rs" || x == "toml")
+            && e.metadata()
+                .and_then(|m| m.modified())
+                .is_ok_and(|m| m > time)
+        {
+            return Some(path);
+        }
+    }
+    None
 }
 
 /// Stops a child the way Ctrl-C does (SIGINT) and checks that it ends well within 20 s.

@@ -204,8 +204,9 @@ fn chain_and_joint(sigma: f64) -> (Loop, Loop, (f64, f64), (f64, f64)) {
     (before, after, wb, wa)
 }
 
-/// Exact stripe points: after the joint refinement every view is within the 0.05° and
-/// 0.05 % of the 800 mm distance (0.4 mm) of the truth, and the loop closes better.
+/// Exact stripe points: after the joint refinement every view is well within the 0.05°
+/// and 0.05 % of the 800 mm distance (0.4 mm) of the truth (one run: 0.0076° and 0.047 mm; 0.030°
+/// and 0.28 mm when views were moved one at a time), and the loop closes better.
 #[test]
 fn the_joint_refinement_closes_the_loop_of_views_around_the_object() {
     let (before, after, _, wa) = chain_and_joint(0.0);
@@ -217,12 +218,13 @@ fn the_joint_refinement_closes_the_loop_of_views_around_the_object() {
         after.translation_mm < 0.5 * before.translation_mm,
         "{before:?} → {after:?}"
     );
-    assert!(wa.0 < 0.05 && wa.1 < 0.4, "after: {wa:?}");
+    assert!(wa.0 < 0.025 && wa.1 < 0.2, "after: {wa:?}");
 }
 
 /// 0.15 mm of noise on every point (a single stripe at 640×480, no grid averaging): the chain's
 /// errors add up to a loop that misses by a quarter of a degree; the refinement closes most of it
-/// and moves no view away from the truth. (The 0.05° target is not met at this noise.)
+/// and moves no view away from the truth: the worst view 0.062° off in one run (0.12° when views
+/// were moved one at a time; the 0.05° target is not met at this noise).
 #[test]
 fn the_joint_refinement_spreads_a_noisy_chains_error_over_the_loop() {
     let (before, after, wb, wa) = chain_and_joint(0.15);
@@ -235,4 +237,5 @@ fn the_joint_refinement_spreads_a_noisy_chains_error_over_the_loop() {
         "{before:?} → {after:?}"
     );
     assert!(wa.0 <= wb.0 && wa.1 <= wb.1, "{wb:?} → {wa:?}");
+    assert!(wa.0 < 0.09, "after: {wa:?}");
 }

@@ -441,7 +441,9 @@ impl CalibrationFile {
 }
 
 /// Writes `bytes` to `path` through a temporary file in the same folder (`tempfile`) and a
-/// rename, so that a crash never leaves a half-written file in place of a good one.
+/// rename, so that a crash never leaves a half-written file in place of a good one. The file is
+/// made as any new file is (0666 less the umask), not with tempfile's private 0600: calibration
+/// files, shots and printable sheets are the user's to share.
 ///
 /// # Errors
 /// Any I/O error.
@@ -451,7 +453,10 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
         .parent()
         .filter(|p| !p.as_os_str().is_empty())
         .unwrap_or(Path::new("."));
-    let mut f = tempfile::NamedTempFile::new_in(dir)?;
+    let mut temp = tempfile::Builder::new();
+    #[cfg(unix)]
+    temp.permissions(std::os::unix::fs::PermissionsExt::from_mode(0o666));
+    let mut f = temp.tempfile_in(dir)?;
     f.write_all(bytes)?;
     f.as_file().sync_all()?;
     f.persist(path).map_err(|e| e.error)?;
@@ -513,5 +518,23 @@ fn regions(fit: &BoardFit, board: &BoardFile, camera: &Camera<f64>) -> Regions {
         left: outline(camera, &poses[0], (0.0, w), (-h / 2.0, h / 2.0)),
         right: outline(camera, &poses[1], (0.0, w), (-h / 2.0, h / 2.0)),
         object,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[cfg(unix)]
+    #[test]
+    fn files_get_the_mode_of_any_new_file() {
+        use std::os::unix::fs::PermissionsExt;
+        let dir = tempfile::tempdir().unwrap();
+        let plain = dir.path().join("plain");
+        std::fs::File::create(&plain).unwrap();
+        let ours = dir.path().join("calibration.toml");
+        write_atomic(&ours, b"x").unwrap();
+        let mode = |p: &Path| std::fs::metadata(p).unwrap().permissions().mode() & 0o777;
+        assert_eq!(mode(&ours), mode(&plain));
     }
 }
