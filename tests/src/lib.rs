@@ -206,15 +206,13 @@ fn newer_source(dir: &std::path::Path, time: std::time::SystemTime) -> Option<st
     for e in entries.flatten() {
         let path = e.path();
         let Ok(kind) = e.file_type() else { continue };
+        let built = path
+            .file_name()
+            .and_then(|n| n.to_str())
+            .is_some_and(|n| !NOT_BUILT.contains(&n));
         if kind.is_dir() {
-            if path
-                .file_name()
-                .and_then(|n| n.to_str())
-                .is_some_and(|n| !NOT_BUILT.contains(&n))
-            {
-                if let Some(p) = newer_source(&path, time) {
-                    return Some(p);
-                }
+            if built && let Some(p) = newer_source(&path, time) {
+                return Some(p);
             }
         } else if path.extension().is_some_and(|x| x == "rs" || x == "toml")
             && e.metadata()
