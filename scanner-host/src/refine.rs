@@ -6,7 +6,8 @@
 //! error is spread over all links at once instead of piling up at the last (moving one view at
 //! a time, Gauss–Seidel, takes about a round per link: on the seven-view demo eight such rounds
 //! left a view 0.28° off, where eight joint rounds end at the poses thirty reach). Pairs far off
-//! the others' surface count less (Cauchy's weights on the residuals' robust spread). Each view's k-d tree
+//! the others' surface count less (Cauchy's weights on the last round's robust spread of the
+//! residuals). Each view's k-d tree
 //! is built once in its own frame; a point is paired in every other view within the pairing
 //! distance. The merge passes the views' points clear of their edges only
 //! ([`crate::merge::clear_cloud`]).
@@ -17,7 +18,7 @@
 
 use kiddo::{KdTree, SquaredEuclidean};
 use scanner_core::nalgebra::{
-    DMatrix, DVector, Isometry3, Point3, Translation3, UnitQuaternion, Vector3, Vector6,
+    DMatrix, DVector, Isometry3, Matrix6, Point3, Translation3, UnitQuaternion, Vector3, Vector6,
 };
 
 use crate::register::Cloud;
@@ -87,74 +88,99 @@ fn partner(
     (n.dot(normal) >= MIN_NORMAL_COS).then(|| (pose * part.cloud.points[k], n))
 }
 
+/// What one step of the refinement gives.
+struct Step {
+    /// The new poses.
+    poses: Vec<Isometry3<f64>>,
+    /// Robust spread of the pairs' residuals (1.4826 × their median absolute value), mm.
+    spread: f64,
+}
+
+/// Bins of the residuals' histogram, from 0 to the pairing distance: the median to a 2 000th of
+/// it without holding the residuals (a merge of 64 views pairs up to 16 million).
+const SPREAD_BINS: usize = 2000;
+
 /// One Gauss–Newton step of all views' poses together (view 0 fixed): every view's sampled
 /// points paired with every other view's surface, both ways round, so that each pair of views
 /// pulls symmetrically (nearest points on a curved surface lie off each other's tangent planes,
 /// always on the same side: one-sided pairs would push the views apart), and one linear system
 /// for all motions — the loop's error is spread over all its links at once instead of a link per
-/// round. Pairs are weighed by Cauchy's function of their residual over the residuals' robust
-/// spread ([`ROBUST`] × 1.4826 × their median absolute value), so that a few points far off
-/// the others' surface (a stripe cut at an edge another view saw clear) pull little. Returns the
-/// new poses and the RMS residual of the pairs (`None`: too few pairs, or a view unconstrained).
-fn step(
-    parts: &[Part<'_>],
-    poses: &[Isometry3<f64>],
-    max_dist: f64,
-) -> Option<(Vec<Isometry3<f64>>, f64)> {
+/// round. Pairs are weighed by Cauchy's function of their residual over `scale` (infinite: all
+/// alike), so that a few points far off the others' surface (a stripe cut at an edge another
+/// view saw clear) pull little. A view without pairs stays where it is. `None`: too few pairs.
+fn step(parts: &[Part<'_>], poses: &[Isometry3<f64>], max_dist: f64, scale: f64) -> Option<Step> {
     let n = parts.len();
     let inverses: Vec<Isometry3<f64>> = poses.iter().map(Isometry3::inverse).collect();
-    // (point's view, surface's view, row, residual)
-    let mut pairs: Vec<(usize, usize, Vector6<f64>, f64)> = Vec::new();
-    for (i, from) in parts.iter().enumerate() {
-        for (j, to) in parts.iter().enumerate() {
-            if i == j {
-                continue;
-            }
-            for &s in &from.sample {
-                let q = poses[i] * from.cloud.points[s];
-                let normal = poses[i] * from.cloud.normals[s];
-                if let Some((pd, nd)) =
-                    partner(to, (&poses[j], &inverses[j]), &q, &normal, max_dist)
-                {
-                    let (row, r) = pair_row(&q, &pd, &nd);
-                    pairs.push((i, j, row, r));
-                }
-            }
-        }
-    }
-    if pairs.len() < 6 * n {
-        return None;
-    }
-    let mut abs: Vec<f64> = pairs.iter().map(|p| p.3.abs()).collect();
-    abs.sort_by(f64::total_cmp);
-    let scale = (ROBUST * 1.4826 * abs[abs.len() / 2]).max(1e-6);
     // Block of view k in the unknowns (view 0 has none).
     let block = |k: usize| k.checked_sub(1).map(|b| 6 * b);
     let free = 6 * (n - 1);
     let mut ata = DMatrix::<f64>::zeros(free, free);
     let mut atb = DVector::<f64>::zeros(free);
-    let mut sum2 = 0.0;
-    for (i, j, row, r) in &pairs {
-        sum2 += r * r;
-        let w = 1.0 / (1.0 + (r / scale).powi(2));
-        // The residual moves by row·δi − row·δj.
-        let rr = row * row.transpose() * w;
-        let rb = row * (r * w);
-        for (k, sign) in [(*i, 1.0), (*j, -1.0)] {
-            let Some(a) = block(k) else { continue };
-            let mut v = ata.fixed_view_mut::<6, 6>(a, a);
-            v += rr;
-            let mut v = atb.fixed_rows_mut::<6>(a);
-            v -= rb * sign;
-        }
-        if let (Some(a), Some(b)) = (block(*i), block(*j)) {
-            let mut v = ata.fixed_view_mut::<6, 6>(a, b);
-            v -= rr;
-            let mut v = ata.fixed_view_mut::<6, 6>(b, a);
-            v -= rr;
+    let mut histogram = vec![0u32; SPREAD_BINS];
+    let mut pairs = 0usize;
+    for (i, from) in parts.iter().enumerate() {
+        for (j, to) in parts.iter().enumerate() {
+            if i == j {
+                continue;
+            }
+            let (mut aii, mut bi) = (Matrix6::zeros(), Vector6::zeros());
+            for &s in &from.sample {
+                let q = poses[i] * from.cloud.points[s];
+                let normal = poses[i] * from.cloud.normals[s];
+                let Some((pd, nd)) = partner(to, (&poses[j], &inverses[j]), &q, &normal, max_dist)
+                else {
+                    continue;
+                };
+                let (row, r) = pair_row(&q, &pd, &nd);
+                let w = 1.0 / (1.0 + (r / scale).powi(2));
+                aii += row * row.transpose() * w;
+                bi += row * (r * w);
+                let bin = (r.abs() / max_dist * SPREAD_BINS as f64) as usize;
+                histogram[bin.min(SPREAD_BINS - 1)] += 1;
+                pairs += 1;
+            }
+            // The residual moves by row·δi − row·δj: the same block for both views, the
+            // opposite off their diagonal.
+            for (a, b) in [(block(i), block(i)), (block(j), block(j))] {
+                if let (Some(a), Some(b)) = (a, b) {
+                    let mut v = ata.fixed_view_mut::<6, 6>(a, b);
+                    v += aii;
+                }
+            }
+            if let (Some(a), Some(b)) = (block(i), block(j)) {
+                let mut v = ata.fixed_view_mut::<6, 6>(a, b);
+                v -= aii;
+                let mut v = ata.fixed_view_mut::<6, 6>(b, a);
+                v -= aii;
+            }
+            if let Some(a) = block(i) {
+                let mut v = atb.fixed_rows_mut::<6>(a);
+                v -= bi;
+            }
+            if let Some(b) = block(j) {
+                let mut v = atb.fixed_rows_mut::<6>(b);
+                v += bi;
+            }
         }
     }
+    if pairs < 6 * n {
+        return None;
+    }
+    // A view with no pair would leave the system singular: a touch of damping keeps it put
+    // (the others' diagonals are millions).
+    for d in 0..free {
+        ata[(d, d)] += 1e-6;
+    }
     let x = ata.cholesky()?.solve(&atb);
+    let mut seen = 0u32;
+    let median = histogram
+        .iter()
+        .position(|&c| {
+            seen += c;
+            2 * seen as usize >= pairs
+        })
+        .unwrap_or(SPREAD_BINS - 1);
+    let spread = 1.4826 * (median as f64 + 0.5) / SPREAD_BINS as f64 * max_dist;
     let moved = poses
         .iter()
         .enumerate()
@@ -169,7 +195,10 @@ fn step(
             }
         })
         .collect();
-    Some((moved, (sum2 / pairs.len() as f64).sqrt()))
+    Some(Step {
+        poses: moved,
+        spread,
+    })
 }
 
 /// The pairing distance of round `round` of `rounds`: from `max_dist` down to a third of it by
@@ -195,9 +224,12 @@ pub fn refine(
     if poses.len() < 2 {
         return poses;
     }
+    // The first round weighs all pairs alike; each later one by the spread of the last.
+    let mut scale = f64::INFINITY;
     for round in 0..rounds {
-        if let Some((moved, _)) = step(&parts, &poses, distance(max_dist, round, rounds)) {
-            poses = moved;
+        if let Some(s) = step(&parts, &poses, distance(max_dist, round, rounds), scale) {
+            poses = s.poses;
+            scale = ROBUST * s.spread;
         }
         progress(round);
     }
@@ -235,9 +267,13 @@ pub fn loop_error(
         }
         let pair = [Part::new(clouds[0]), Part::new(cloud)];
         let mut both = [Isometry3::identity(), *pose];
+        let mut scale = f64::INFINITY;
         for round in 0..ROUNDS {
-            match step(&pair, &both, distance(max_dist, round, ROUNDS)) {
-                Some((p, _)) => both = [p[0], p[1]],
+            match step(&pair, &both, distance(max_dist, round, ROUNDS), scale) {
+                Some(s) => {
+                    both = [s.poses[0], s.poses[1]];
+                    scale = ROBUST * s.spread;
+                }
                 None => break,
             }
         }

@@ -50,16 +50,19 @@ fn sphere_views(turns: &[(Vector3<f64>, f64)]) -> SphereViews {
     (centre, radius, points, normals)
 }
 
+/// Four turns about the vertical and two about the horizontal: every side seen.
+const SIX_SIDES: [(Vector3<f64>, f64); 6] = [
+    (Vector3::new(0.0, 1.0, 0.0), 0.0),
+    (Vector3::new(0.0, 1.0, 0.0), 90.0),
+    (Vector3::new(0.0, 1.0, 0.0), 180.0),
+    (Vector3::new(0.0, 1.0, 0.0), 270.0),
+    (Vector3::new(1.0, 0.0, 0.0), 90.0),
+    (Vector3::new(1.0, 0.0, 0.0), -90.0),
+];
+
 #[test]
 fn six_views_of_a_sphere_fuse_into_one_closed_surface_of_its_volume() {
-    let (centre, radius, points, normals) = sphere_views(&[
-        (Vector3::y(), 0.0),
-        (Vector3::y(), 90.0),
-        (Vector3::y(), 180.0),
-        (Vector3::y(), 270.0),
-        (Vector3::x(), 90.0),
-        (Vector3::x(), -90.0),
-    ]);
+    let (centre, radius, points, normals) = sphere_views(&SIX_SIDES);
     let off = points
         .iter()
         .map(|p| ((p - centre).norm() - radius).abs())
@@ -155,14 +158,7 @@ fn points_of_low_weight_give_way_where_sure_points_saw_the_same_surface() {
     // the merge's edge weight the sure points place the surface; at full weight the layer pulls
     // it out.
     use scanner_host::fuse::{FuseError, fuse_with};
-    let (centre, radius, mut points, mut normals) = sphere_views(&[
-        (Vector3::y(), 0.0),
-        (Vector3::y(), 90.0),
-        (Vector3::y(), 180.0),
-        (Vector3::y(), 270.0),
-        (Vector3::x(), 90.0),
-        (Vector3::x(), -90.0),
-    ]);
+    let (centre, radius, mut points, mut normals) = sphere_views(&SIX_SIDES);
     let cap = |p: &Point3<f64>| (p - centre).normalize().x > 0.8;
     let sure = points.len();
     let layer: Vec<(Point3<f64>, Vector3<f64>)> = points

@@ -239,3 +239,40 @@ fn the_joint_refinement_spreads_a_noisy_chains_error_over_the_loop() {
     assert!(wa.0 <= wb.0 && wa.1 <= wb.1, "{wb:?} → {wa:?}");
     assert!(wa.0 < 0.09, "after: {wa:?}");
 }
+
+/// A view that overlaps none of the others at its pose (here a copy of view 0 a metre away)
+/// leaves the joint solve of the others intact and stays where it is; the others still reach
+/// the truth.
+#[test]
+fn a_view_without_partners_stays_put_in_the_joint_refinement() {
+    use scanner_core::nalgebra::{Translation3, UnitQuaternion, Vector3};
+    use scanner_host::refine::refine;
+    let scene = bunny_views();
+    let (c0, p0) = view_cloud(&scene, 0);
+    let (c1, p1) = view_cloud(&scene, 1);
+    let far = Cloud {
+        points: c0
+            .points
+            .iter()
+            .map(|p| p + Vector3::new(0.0, 0.0, 1000.0))
+            .collect(),
+        normals: c0.normals.clone(),
+    };
+    let truth1 = p0 * p1.inverse();
+    // View 1 half a degree and a millimetre off; the far view anywhere.
+    let nudge = Translation3::new(1.0, 0.0, 0.0)
+        * UnitQuaternion::from_axis_angle(&Vector3::y_axis(), 0.5f64.to_radians());
+    let start = [
+        Isometry3::identity(),
+        nudge * truth1,
+        Isometry3::translation(5.0, 0.0, 0.0),
+    ];
+    let got = refine(&[&c0, &c1, &far], &start, 3.0, 8, |_| {});
+    let (rot, mm) = angle_deg(&truth1, &got[1]);
+    println!(
+        "view 1 after: {rot:.4}° {mm:.3} mm off; the far view moved {}",
+        (got[2].translation.vector - start[2].translation.vector).norm()
+    );
+    assert!(rot < 0.05 && mm < 0.4, "{rot}° {mm} mm");
+    assert!(angle_deg(&start[2], &got[2]).0 < 1e-9 && angle_deg(&start[2], &got[2]).1 < 1e-6);
+}
