@@ -119,7 +119,7 @@ fn three_scanned_views_register_with_the_rigs_rotations() {
         .angle()
         .to_degrees();
         // Scanned points at 640×480 (about 1 500 per view), registered on those clear of the
-        // views' edges: 0.031° and 0.018° off in one run (0.15° and 0.03° before the edges were
+        // views' edges: 0.030° and 0.018° off in one run (0.15° and 0.03° before the edges were
         // left out and the views refined together in one solve).
         assert!(
             (found - truth).abs() < 0.1,
