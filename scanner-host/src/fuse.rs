@@ -148,41 +148,7 @@ pub fn fuse_with(
     let at = |i: usize, j: usize, k: usize| lo + Vector3::new(i as f64, j as f64, k as f64) * cell;
     // Where no view saw, the value is the winding number's (½ − w) scaled to about a cell.
     let closing = |w: f64| ((0.5 - w) * 2.0 * cell) as f32;
-    // Far from the points a coarse grid (every `COARSE`th point) gives the winding number,
-    // interpolated: nearest-point searches and winding sums far from the surface are the slow
-    // part, and nothing there needs a finer value.
-    const COARSE: usize = 4;
-    let (cx, cy, cz) = (nx / COARSE + 2, ny / COARSE + 2, nz / COARSE + 2);
-    let mut coarse_d = vec![0f32; cx * cy * cz];
-    let mut coarse_w = vec![0f32; cx * cy * cz];
-    for k in 0..cz {
-        for j in 0..cy {
-            for i in 0..cx {
-                let q = at(COARSE * i, COARSE * j, COARSE * k);
-                let m = tree.nearest_one::<SquaredEuclidean>(&[q.x, q.y, q.z]);
-                coarse_d[(k * cy + j) * cx + i] = m.distance.sqrt() as f32;
-                coarse_w[(k * cy + j) * cx + i] = winding.at(&q) as f32;
-            }
-        }
-    }
-    let coarse_at = |i: usize, j: usize, k: usize| {
-        let (a, b, c) = (i / COARSE, j / COARSE, k / COARSE);
-        let f = |x: usize| (x % COARSE) as f32 / COARSE as f32;
-        let (fx, fy, fz) = (f(i), f(j), f(k));
-        let w = |a: usize, b: usize, c: usize| coarse_w[(c * cy + b) * cx + a];
-        let lerp = |x: f32, y: f32, t: f32| x + (y - x) * t;
-        let x00 = lerp(w(a, b, c), w(a + 1, b, c), fx);
-        let x10 = lerp(w(a, b + 1, c), w(a + 1, b + 1, c), fx);
-        let x01 = lerp(w(a, b, c + 1), w(a + 1, b, c + 1), fx);
-        let x11 = lerp(w(a, b + 1, c + 1), w(a + 1, b + 1, c + 1), fx);
-        f64::from(lerp(lerp(x00, x10, fy), lerp(x01, x11, fy), fz))
-    };
-    // A coarse cube whose corners are all clearly inside or all clearly outside: no surface
-    // crosses it, and the interpolated winding number serves.
-    let settled = |a: usize, b: usize, c: usize| {
-        let w = CORNERS.map(|(x, y, z)| coarse_w[((c + z) * cy + b + y) * cx + a + x]);
-        w.iter().all(|&v| v < 0.2) || w.iter().all(|&v| v > 0.8)
-    };
+    let coarse = Coarse::new((nx, ny, nz), &at, &tree, &winding);
     // A grid point takes the signed distance along the nearest point's normal (positive
     // outside) when it lies over that point: within BAND cells of it and off its normal by less
     // than a cell and twice the points' spacing. Elsewhere — far from every point, or beside
@@ -211,8 +177,8 @@ pub fn fuse_with(
                 wsum += w;
             }
             (sum / wsum) as f32
-        } else if settled(i / COARSE, j / COARSE, k / COARSE) {
-            closing(coarse_at(i, j, k))
+        } else if coarse.settled(i, j, k) {
+            closing(coarse.winding(i, j, k))
         } else {
             closing(winding.at(&q))
         }
@@ -220,11 +186,6 @@ pub fn fuse_with(
     // A coarse cube whose eight corners are all this far from every point holds no grid point
     // within BAND cells of a point, and no seen surface: its winding number interpolates.
     let far = ((BAND + COARSE as f64) * cell) as f32;
-    let far_cube = |a: usize, b: usize, c: usize| {
-        CORNERS
-            .iter()
-            .all(|&(x, y, z)| coarse_d[((c + z) * cy + b + y) * cx + a + x] > far)
-    };
     // One slice of the grid at a time (the field of slice k, the outermost two layers of the
     // grid set outside so that every surface closes inside it), two slices held: the fine grid
     // is never stored whole.
@@ -233,8 +194,8 @@ pub fn fuse_with(
         let edge = |x: usize, n: usize| x < 2 || x + 2 >= n;
         for j in 0..ny {
             for i in 0..nx {
-                let v = if far_cube(i / COARSE, j / COARSE, k / COARSE) {
-                    closing(coarse_at(i, j, k))
+                let v = if coarse.far(i, j, k, far) {
+                    closing(coarse.winding(i, j, k))
                 } else {
                     field(i, j, k)
                 };
@@ -261,6 +222,85 @@ pub fn fuse_with(
     keep_pieces(&mut m, MIN_PIECE);
     m.normals = vertex_normals(&m);
     Ok(m)
+}
+
+/// Grid points per coarse grid step: far from the points a coarse grid gives the winding
+/// number, interpolated (nearest-point searches and winding sums far from the surface are the
+/// slow part of a fusion, and nothing there needs a finer value).
+const COARSE: usize = 4;
+
+/// Every [`COARSE`]th grid point's distance to the nearest point and winding number.
+struct Coarse {
+    /// Coarse points per axis.
+    dims: (usize, usize, usize),
+    distance: Vec<f32>,
+    winding: Vec<f32>,
+}
+
+impl Coarse {
+    /// The coarse grid over a fine grid of `(nx, ny, nz)` points placed by `at`.
+    fn new(
+        (nx, ny, nz): (usize, usize, usize),
+        at: &impl Fn(usize, usize, usize) -> Point3<f64>,
+        tree: &kiddo::KdTree<f64, 3>,
+        winding: &Winding,
+    ) -> Coarse {
+        let dims = (nx / COARSE + 2, ny / COARSE + 2, nz / COARSE + 2);
+        let (cx, cy, cz) = dims;
+        let mut distance = vec![0f32; cx * cy * cz];
+        let mut w = vec![0f32; cx * cy * cz];
+        for k in 0..cz {
+            for j in 0..cy {
+                for i in 0..cx {
+                    let q = at(COARSE * i, COARSE * j, COARSE * k);
+                    let m = tree.nearest_one::<SquaredEuclidean>(&[q.x, q.y, q.z]);
+                    distance[(k * cy + j) * cx + i] = m.distance.sqrt() as f32;
+                    w[(k * cy + j) * cx + i] = winding.at(&q) as f32;
+                }
+            }
+        }
+        Coarse {
+            dims,
+            distance,
+            winding: w,
+        }
+    }
+
+    /// The values at the eight corners of the coarse cube holding fine grid point `(i, j, k)`.
+    fn corners(&self, values: &[f32], (i, j, k): (usize, usize, usize)) -> [f32; 8] {
+        let (cx, cy, _) = self.dims;
+        let (a, b, c) = (i / COARSE, j / COARSE, k / COARSE);
+        CORNERS.map(|(x, y, z)| values[((c + z) * cy + b + y) * cx + a + x])
+    }
+
+    /// The winding number at fine grid point `(i, j, k)`, interpolated.
+    fn winding(&self, i: usize, j: usize, k: usize) -> f64 {
+        let w = self.corners(&self.winding, (i, j, k));
+        let f = |x: usize| (x % COARSE) as f32 / COARSE as f32;
+        let (fx, fy, fz) = (f(i), f(j), f(k));
+        let lerp = |x: f32, y: f32, t: f32| x + (y - x) * t;
+        // CORNERS: x + 2y + 4z
+        let x00 = lerp(w[0], w[1], fx);
+        let x10 = lerp(w[2], w[3], fx);
+        let x01 = lerp(w[4], w[5], fx);
+        let x11 = lerp(w[6], w[7], fx);
+        f64::from(lerp(lerp(x00, x10, fy), lerp(x01, x11, fy), fz))
+    }
+
+    /// Whether the coarse cube holding `(i, j, k)` has its corners all clearly inside or all
+    /// clearly outside: no surface crosses it, and the interpolated winding number serves.
+    fn settled(&self, i: usize, j: usize, k: usize) -> bool {
+        let w = self.corners(&self.winding, (i, j, k));
+        w.iter().all(|&v| v < 0.2) || w.iter().all(|&v| v > 0.8)
+    }
+
+    /// Whether every corner of the coarse cube holding `(i, j, k)` lies farther than `far` from
+    /// every point.
+    fn far(&self, i: usize, j: usize, k: usize, far: f32) -> bool {
+        self.corners(&self.distance, (i, j, k))
+            .iter()
+            .all(|&d| d > far)
+    }
 }
 
 /// One point per `voxel` mm cube: the mean of its points weighted by `weights` (empty: all 1),
