@@ -298,3 +298,22 @@ fn a4_tiles_cover_every_marker_of_the_a3_sheets() {
         }
     }
 }
+
+#[test]
+fn render_calibration_takes_3_to_64_shots() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    for bad in ["2", "65", "-1", "many"] {
+        let shots = format!("--shots={bad}");
+        let (ok, _, err) = run(&["render-calibration", "--out", &p(d, ""), &shots]);
+        assert!(!ok && err.contains("--shots"), "--shots {bad}: {err}");
+    }
+    assert!(
+        std::fs::read_dir(d).unwrap().next().is_none(),
+        "nothing written on bad input"
+    );
+    let (ok, out, err) = run(&["render-calibration", "--out", &p(d, ""), "--shots", "3"]);
+    assert!(ok, "{err}");
+    assert!(out.contains("grid-00..02.png"), "{out}");
+    assert!(d.join("grid-02.png").exists() && !d.join("grid-03.png").exists());
+}

@@ -33,6 +33,14 @@ pub enum FuseError {
         /// Weights (0 stands for all 1).
         weights: usize,
     },
+    /// A weight that is not a number from 0 to 1.
+    #[error("point {index} has weight {weight}: weights are 0 to 1")]
+    Weight {
+        /// Which point.
+        index: usize,
+        /// Its weight.
+        weight: f64,
+    },
     /// The grid would be too large.
     #[error(
         "a {0}×{1}×{2} grid at this cell size (at most {MAX_CELLS} cells): choose a larger --fuse-cell"
@@ -104,7 +112,8 @@ pub fn fuse(
 /// each slice of the grid done (slices done, slices in all).
 ///
 /// # Errors
-/// [`FuseError`] for too few points, weights not one per point or a grid too large.
+/// [`FuseError`] for too few points, weights not one per point or outside 0–1 (NaN
+/// included), or a grid too large.
 pub fn fuse_with(
     points: &[Point3<f64>],
     normals: &[Vector3<f64>],
@@ -118,6 +127,13 @@ pub fn fuse_with(
             normals: normals.len(),
             weights: weights.len(),
         });
+    }
+    if let Some((index, &weight)) = weights
+        .iter()
+        .enumerate()
+        .find(|(_, w)| !(0.0..=1.0).contains(*w))
+    {
+        return Err(FuseError::Weight { index, weight });
     }
     if points.len() < 100 {
         return Err(FuseError::TooFewPoints(points.len()));
@@ -313,7 +329,9 @@ fn thin_weighted(
     weights: &[f64],
     voxel: f64,
 ) -> (Vec<Point3<f64>>, Vec<Vector3<f64>>, Vec<f64>) {
-    let weight = |i: u32| weights.get(i as usize).map_or(1.0, |w| w.clamp(1e-3, 1.0));
+    // A weight of 0 counts as a thousandth: the point still places the surface where it alone
+    // saw it.
+    let weight = |i: u32| weights.get(i as usize).map_or(1.0, |w| w.max(1e-3));
     let (mut p_out, mut n_out, mut w_out) = (Vec::new(), Vec::new(), Vec::new());
     for group in crate::register::voxel_groups(points, voxel) {
         let (mut p, mut n, mut sum, mut most) = (Vector3::zeros(), Vector3::zeros(), 0.0, 0.0f64);

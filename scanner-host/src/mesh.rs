@@ -156,13 +156,7 @@ pub fn build(grid: &Grid, fx: f64, opts: &MeshOptions, colour: bool) -> Mesh {
             }
         }
     }
-    // Expected distance between neighbouring cells at a point.
-    let spacing = |p: &Point3<f32>| -> f32 {
-        match grid.cell() {
-            Cell::Pixels(s) => (s * f64::from(p.z) / fx) as f32,
-            Cell::Mm(s) => s as f32,
-        }
-    };
+    let spacing = |p: &Point3<f32>| cell_spacing(grid, fx, p);
     let ok = |a: u32, b: u32, limit: f32| {
         (m.vertices[a as usize] - m.vertices[b as usize]).norm() <= limit
     };
@@ -235,6 +229,14 @@ pub fn build(grid: &Grid, fx: f64, opts: &MeshOptions, colour: bool) -> Mesh {
     m
 }
 
+/// Expected distance between neighbouring cells of `grid` at `p`, mm.
+fn cell_spacing(grid: &Grid, fx: f64, p: &Point3<f32>) -> f32 {
+    match grid.cell() {
+        Cell::Pixels(s) => (s * f64::from(p.z) / fx) as f32,
+        Cell::Mm(s) => s as f32,
+    }
+}
+
 /// Gaps between sweeps' stripes up to this many cells along a row or column are bridged when
 /// [`edge_cells`] looks for the view's edges: a sweep leaves rows of empty cells between its
 /// stripes that are not the surface's edge.
@@ -254,16 +256,10 @@ pub fn edge_cells(grid: &Grid, fx: f64, opts: &MeshOptions, reach: usize) -> Vec
     let (cols, rows) = (grid.cols, grid.rows);
     let filled = |c: usize, r: usize| grid.at(c, r).count >= opts.min_count.max(1);
     let point = |c: usize, r: usize| Point3::from(grid.at(c, r).mean);
-    let spacing = |p: &Point3<f32>| -> f32 {
-        match grid.cell() {
-            Cell::Pixels(s) => (s * f64::from(p.z) / fx) as f32,
-            Cell::Mm(s) => s as f32,
-        }
-    };
     // Two filled cells `steps` cells apart lie on one surface.
     let continuous = |a: (usize, usize), b: (usize, usize), steps: f32| {
         let (p, q) = (point(a.0, a.1), point(b.0, b.1));
-        (p - q).norm() <= opts.max_edge_cells * spacing(&p) * steps
+        (p - q).norm() <= opts.max_edge_cells * cell_spacing(grid, fx, &p) * steps
     };
     // An empty cell between two continuous filled cells at most EDGE_GAP_CELLS + 1 apart along
     // its column or its row.

@@ -7,10 +7,9 @@
 //! a time, Gauss–Seidel, takes about a round per link: on the seven-view demo eight such rounds
 //! left a view 0.28° off, where eight joint rounds end at the poses thirty reach). Pairs far off
 //! the others' surface count less (Cauchy's weights on the last round's robust spread of the
-//! residuals). Each view's k-d tree
-//! is built once in its own frame; a point is paired in every other view within the pairing
-//! distance. The merge passes the views' points clear of their edges only
-//! ([`crate::merge::clear_cloud`]).
+//! residuals). Each view's k-d tree is built once in its own frame; a point is paired in every
+//! other view within the pairing distance. The merge passes the views' points clear of their
+//! edges only ([`crate::merge::clear_cloud`]).
 //!
 //! The loop-closure error says how well it worked: a view that also overlaps view 0 directly is
 //! registered onto it by ICP from its pose, and the difference between that direct pose and its

@@ -176,6 +176,14 @@ pub fn workspace_bin(name: &str) -> std::path::PathBuf {
         "{} not built: run the workspace's tests (`cargo test --workspace`)",
         exe.display()
     );
+    // Checked once per binary and test process: the walk reads every source file's time.
+    static FRESH: std::sync::Mutex<Vec<String>> = std::sync::Mutex::new(Vec::new());
+    let mut fresh = FRESH
+        .lock()
+        .unwrap_or_else(std::sync::PoisonError::into_inner);
+    if fresh.iter().any(|n| n == name) {
+        return exe;
+    }
     let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
         .parent()
         .expect("the workspace");
@@ -191,6 +199,7 @@ pub fn workspace_bin(name: &str) -> std::path::PathBuf {
             );
         }
     }
+    fresh.push(name.to_string());
     exe
 }
 

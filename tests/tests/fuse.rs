@@ -193,9 +193,16 @@ fn points_of_low_weight_give_way_where_sure_points_saw_the_same_surface() {
     );
     assert!(low.abs() < 0.1, "{low}");
     assert!(full > 0.3, "{full}");
-    // A weight per point or none.
+    // A weight per point or none, each 0 to 1.
     assert!(matches!(
         fuse_with(&points, &normals, &weighted[1..], 1.0, |_, _| {}),
         Err(FuseError::Lengths { .. })
     ));
+    for bad in [f64::NAN, -0.1, 1.5, f64::INFINITY] {
+        let mut w = weighted.clone();
+        w[7] = bad;
+        let e = fuse_with(&points, &normals, &w, 1.0, |_, _| {}).unwrap_err();
+        assert!(matches!(e, FuseError::Weight { index: 7, .. }), "{e}");
+        assert!(e.to_string().contains("point 7"), "{e}");
+    }
 }
