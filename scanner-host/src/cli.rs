@@ -579,11 +579,29 @@ fn merge_command(
     )?;
     let mut report = merge::report(&loaded, &results);
     report += &merge::closure_line(&closure);
+    let input = merge::fusion_input(&loaded, &results);
+    let (points, colours) = (&input.points, &input.colours);
+    // The registered views in their colours (front and side), the board's frame like the model:
+    // written before the plausibility check, which they help to read.
+    let mut views_cloud = crate::mesh::Mesh {
+        vertices: points.iter().map(|p| p.cast()).collect(),
+        ..crate::mesh::Mesh::default()
+    };
+    views_cloud.into_frame(frame);
+    crate::export::write_atomic_with(&out.join("views.png"), |w| {
+        crate::export::write_png(
+            &crate::export::points_png(&views_cloud.vertices, colours),
+            w,
+        )
+    })?;
+    if let Err(e) = merge::check_closure(&closure, voxel) {
+        crate::export::write_atomic(&out.join("merge-report.txt"), report.as_bytes())?;
+        crate::outln!("{}", report.trim_end());
+        return Err(e.into());
+    }
     let pb = progress_bar(quiet);
     pb.set_message("fusing the views into one mesh");
     pb.enable_steady_tick(std::time::Duration::from_millis(200));
-    let input = merge::fusion_input(&loaded, &results);
-    let (points, colours) = (&input.points, &input.colours);
     if let Some(v) = view {
         // The registered views in their colours (the board's frame, like the model) while the
         // fusion runs.
@@ -604,18 +622,6 @@ fn merge_command(
     report += &fused.report;
     let mut model = fused.model;
     model.into_frame(frame);
-    // Pictures: the registered views in their colours (front and side), the model from four sides.
-    let mut views_cloud = crate::mesh::Mesh {
-        vertices: points.iter().map(|p| p.cast()).collect(),
-        ..crate::mesh::Mesh::default()
-    };
-    views_cloud.into_frame(frame);
-    crate::export::write_atomic_with(&out.join("views.png"), |w| {
-        crate::export::write_png(
-            &crate::export::points_png(&views_cloud.vertices, colours),
-            w,
-        )
-    })?;
     crate::export::write_atomic_with(&out.join("model.png"), |w| {
         crate::export::write_png(&crate::export::orbit_png(&model), w)
     })?;
