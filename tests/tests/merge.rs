@@ -1,7 +1,8 @@
 //! `scanner-host merge` through the real binaries: the head scans the rig's bunny in three views
 //! (turned 60° about the vertical, laid on its side), the host receives each, and `merge`
 //! registers them with no guess; the rotations it finds match the rig's truth. Bad input: one
-//! view, a folder that is not a scan, views from another camera, a scan without points.
+//! view, a folder that is not a scan, views from another camera, a scan without points. And a
+//! second object, a part of flat faces, where the merge must either find every view or refuse.
 
 use std::path::Path;
 
@@ -20,6 +21,91 @@ fn rotation(line: &str) -> f64 {
         .trim_end_matches('°')
         .parse()
         .unwrap()
+}
+
+/// The rig's part (`part.obj`, a twisted notched block of flat faces) in six views 60° apart
+/// about the vertical, scanned at 640×480 through the binaries: the merge either registers every
+/// view within 1° of the truth and writes the model, or refuses with the loop left open and
+/// writes no model — never a wrong model called watertight. In one run it refused: three views
+/// registered the wrong way round (173.5° found for 120°), the loop 0.74° and 6.2 mm open after
+/// the joint refinement (docs/reports.md: the registration's known failure on such parts).
+#[test]
+fn views_of_a_part_of_flat_faces_are_merged_right_or_refused() {
+    let t = tempfile::tempdir().unwrap();
+    let d = t.path();
+    let scenes = Path::new(env!("CARGO_MANIFEST_DIR")).join("../scanner-device/scenes");
+    let text = std::fs::read_to_string(scenes.join("part-360.toml"))
+        .unwrap()
+        .replace("width = 1280", "width = 640")
+        .replace("height = 960", "height = 480")
+        .replace("frames = 300", "frames = 200")
+        .replace(
+            "path = \"part.obj\"",
+            &format!("path = {:?}", scenes.join("part.obj").display().to_string()),
+        );
+    std::fs::write(d.join("s.toml"), &text).unwrap();
+    let scene = scanner_device::cli::render::load_scene(Some(&d.join("s.toml"))).unwrap();
+    scanner_rig::Rig::new(scene.clone())
+        .unwrap()
+        .truth_calibration()
+        .save(&d.join("cal.toml"))
+        .unwrap();
+    let views = ["0", "1", "2", "3", "4", "5"];
+    for k in views {
+        let stream = format!("v{k}.stream");
+        let args = [
+            "scan",
+            "--source",
+            "rig",
+            "--scene",
+            "s.toml",
+            "--view",
+            k,
+            "--calibration",
+            "cal.toml",
+            "--out",
+            &stream,
+            "-q",
+        ];
+        let (ok, _, err) = run(d, "scanner-device", &args);
+        assert!(ok, "scan view {k}: {err}");
+        let (ok, _, err) = run(
+            d,
+            "scanner-host",
+            &["receive", &stream, "--out", &format!("v{k}"), "-q"],
+        );
+        assert!(ok, "receive view {k}: {err}");
+    }
+    let dirs: Vec<String> = views.iter().map(|k| format!("v{k}")).collect();
+    let mut args = vec!["merge"];
+    args.extend(dirs.iter().map(String::as_str));
+    args.extend(["--out", "model", "--min-overlap", "0.3", "-q"]);
+    let (ok, out, err) = run(d, "scanner-host", &args);
+    println!("{out}{err}");
+    // What a refusal leaves, and what it does not.
+    assert!(d.join("model/views.png").exists() && d.join("model/merge-report.txt").exists());
+    if ok {
+        for (line, k) in out.lines().skip(2).take(views.len() - 1).zip(1..) {
+            let truth = (scene.view(0).unwrap().object_pose
+                * scene.view(k).unwrap().object_pose.inverse())
+            .rotation
+            .angle()
+            .to_degrees();
+            assert!(
+                (rotation(line) - truth).abs() < 1.0,
+                "view {k} merged {}° off:\n{out}",
+                rotation(line) - truth
+            );
+        }
+        assert!(d.join("model/model.obj").exists());
+    } else {
+        assert!(
+            err.contains("the views do not close into one object")
+                && err.contains("no model was written"),
+            "{err}"
+        );
+        assert!(!d.join("model/model.obj").exists() && !d.join("model/model.stl").exists());
+    }
 }
 
 #[test]
