@@ -10,6 +10,8 @@
 
 mod server;
 
+pub use server::{MAX_HEAD, MAX_TARGET, Route, route};
+
 use std::collections::VecDeque;
 use std::net::SocketAddr;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};

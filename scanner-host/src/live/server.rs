@@ -167,11 +167,96 @@ fn has_token(query: &str, token: &str) -> bool {
     })
 }
 
-fn header<'a>(req: &'a httparse::Request<'_, '_>, name: &str) -> Option<&'a str> {
+fn header<'b>(req: &httparse::Request<'_, 'b>, name: &str) -> Option<&'b str> {
     req.headers
         .iter()
         .find(|h| h.name.eq_ignore_ascii_case(name))
         .and_then(|h| std::str::from_utf8(h.value).ok())
+}
+
+/// What a request head asks for, decided from the head alone (no I/O, no state: fuzzed in
+/// `fuzz/fuzz_targets/live_request.rs`): one of the fixed routes, or a refusal with its status
+/// and reason.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum Route<'h> {
+    /// The page (`/`, `/index.html`).
+    Page,
+    /// The page's script.
+    App,
+    /// three.js.
+    Three,
+    /// three.js's orbit controls.
+    Orbit,
+    /// three.js's licence.
+    ThreeLicense,
+    /// The stream: a WebSocket upgrade with its key.
+    Live {
+        /// `Sec-WebSocket-Key`.
+        key: &'h str,
+    },
+    /// The finished scan's mesh.
+    Mesh,
+    /// One of the finished scan's files, by name.
+    File(&'h str),
+    /// Refused: the status and why.
+    Refuse(u16, String),
+}
+
+/// Decides what the request head `head` asks for; `token`, when set, must come as `t=` in the
+/// query.
+pub fn route<'h>(head: &'h [u8], token: Option<&str>) -> Route<'h> {
+    let refuse = |code, why: &str| Route::Refuse(code, why.to_string());
+    if head.len() > MAX_HEAD {
+        return Route::Refuse(431, format!("request head over {MAX_HEAD} bytes"));
+    }
+    let mut headers = [httparse::EMPTY_HEADER; 48];
+    let mut req = httparse::Request::new(&mut headers);
+    if !matches!(req.parse(head), Ok(httparse::Status::Complete(_))) {
+        return refuse(400, "not an HTTP request");
+    }
+    let (Some(method), Some(target)) = (req.method, req.path) else {
+        return refuse(400, "not an HTTP request");
+    };
+    if target.len() > MAX_TARGET {
+        return Route::Refuse(414, format!("request target over {MAX_TARGET} bytes"));
+    }
+    if method != "GET" {
+        return refuse(405, "only GET is served");
+    }
+    let body = header(&req, "content-length").is_some_and(|v| v.trim() != "0")
+        || header(&req, "transfer-encoding").is_some();
+    if body {
+        return refuse(413, "requests carry no body here");
+    }
+    let (path, query) = target.split_once('?').unwrap_or((target, ""));
+    if let Some(t) = token
+        && !has_token(query, t)
+    {
+        return refuse(
+            403,
+            "this page needs the token that scanner-host printed with its address",
+        );
+    }
+    match path {
+        "/" | "/index.html" => Route::Page,
+        "/app.js" => Route::App,
+        "/vendor/three.module.min.js" => Route::Three,
+        "/vendor/OrbitControls.js" => Route::Orbit,
+        "/vendor/three-LICENSE.txt" => Route::ThreeLicense,
+        "/live" => {
+            let upgrade =
+                header(&req, "upgrade").is_some_and(|v| v.eq_ignore_ascii_case("websocket"));
+            match header(&req, "sec-websocket-key").filter(|_| upgrade) {
+                Some(key) => Route::Live { key },
+                None => refuse(400, "/live is a WebSocket"),
+            }
+        }
+        "/mesh.bin" => Route::Mesh,
+        p => match p.strip_prefix("/files/") {
+            Some(name) => Route::File(name),
+            None => refuse(404, "nothing here"),
+        },
+    }
 }
 
 fn handle(mut s: TcpStream, shared: &Shared, pages: &Arc<AtomicUsize>) {
@@ -184,64 +269,31 @@ fn handle(mut s: TcpStream, shared: &Shared, pages: &Arc<AtomicUsize>) {
         }
         Err(HeadError::Io) => return,
     };
-    let mut headers = [httparse::EMPTY_HEADER; 48];
-    let mut req = httparse::Request::new(&mut headers);
-    if !matches!(req.parse(&head), Ok(httparse::Status::Complete(_))) {
-        return refuse(&mut s, 400, "not an HTTP request");
-    }
-    let (Some(method), Some(target)) = (req.method, req.path) else {
-        return refuse(&mut s, 400, "not an HTTP request");
-    };
-    if target.len() > MAX_TARGET {
-        return refuse(
-            &mut s,
-            414,
-            &format!("request target over {MAX_TARGET} bytes"),
-        );
-    }
-    if method != "GET" {
-        return refuse(&mut s, 405, "only GET is served");
-    }
-    let body = header(&req, "content-length").is_some_and(|v| v.trim() != "0")
-        || header(&req, "transfer-encoding").is_some();
-    if body {
-        return refuse(&mut s, 413, "requests carry no body here");
-    }
-    let (path, query) = target.split_once('?').unwrap_or((target, ""));
-    if let Some(t) = &shared.token
-        && !has_token(query, t)
-    {
-        return refuse(
-            &mut s,
-            403,
-            "this page needs the token that scanner-host printed with its address",
-        );
-    }
     let q = shared
         .token
         .as_ref()
         .map_or(String::new(), |t| format!("?t={t}"));
-    match path {
-        "/" | "/index.html" => reply(
+    match route(&head, shared.token.as_deref()) {
+        Route::Page => reply(
             &mut s,
             200,
             "text/html; charset=utf-8",
             "",
             INDEX.replace("{{Q}}", &q).as_bytes(),
         ),
-        "/app.js" => reply(&mut s, 200, JS, "", APP.as_bytes()),
-        "/vendor/three.module.min.js" => reply(&mut s, 200, JS, "", THREE),
-        "/vendor/OrbitControls.js" => reply(&mut s, 200, JS, "", ORBIT),
-        "/vendor/three-LICENSE.txt" => reply(&mut s, 200, TEXT, "", THREE_LICENSE),
-        "/live" => stream(s, &req, shared, pages),
-        "/mesh.bin" => match finished(shared) {
+        Route::App => reply(&mut s, 200, JS, "", APP.as_bytes()),
+        Route::Three => reply(&mut s, 200, JS, "", THREE),
+        Route::Orbit => reply(&mut s, 200, JS, "", ORBIT),
+        Route::ThreeLicense => reply(&mut s, 200, TEXT, "", THREE_LICENSE),
+        Route::Live { key } => stream(s, key, shared, pages),
+        Route::Mesh => match finished(shared) {
             Some(f) if !f.mesh.is_empty() => {
                 reply(&mut s, 200, "application/octet-stream", "", &f.mesh);
             }
             _ => refuse(&mut s, 404, "no mesh yet: the scan has not finished"),
         },
-        p => match p.strip_prefix("/files/").zip(finished(shared)) {
-            Some((name, f)) => match f.files.iter().find(|(n, _, _)| *n == name) {
+        Route::File(name) => match finished(shared) {
+            Some(f) => match f.files.iter().find(|(n, _, _)| *n == name) {
                 Some((n, kind, bytes)) => reply(
                     &mut s,
                     200,
@@ -253,6 +305,7 @@ fn handle(mut s: TcpStream, shared: &Shared, pages: &Arc<AtomicUsize>) {
             },
             None => refuse(&mut s, 404, "nothing here"),
         },
+        Route::Refuse(code, why) => refuse(&mut s, code, &why),
     }
 }
 
@@ -261,16 +314,7 @@ fn finished(shared: &Shared) -> Option<Arc<Finished>> {
 }
 
 /// The page's stream: the history, then what follows, until the page closes or the server does.
-fn stream(
-    mut s: TcpStream,
-    req: &httparse::Request<'_, '_>,
-    shared: &Shared,
-    pages: &Arc<AtomicUsize>,
-) {
-    let upgrade = header(req, "upgrade").is_some_and(|v| v.eq_ignore_ascii_case("websocket"));
-    let Some(key) = header(req, "sec-websocket-key").filter(|_| upgrade) else {
-        return refuse(&mut s, 400, "/live is a WebSocket");
-    };
+fn stream(mut s: TcpStream, key: &str, shared: &Shared, pages: &Arc<AtomicUsize>) {
     let Some(_page) = Slot::take(pages, MAX_PAGES) else {
         return refuse(
             &mut s,
@@ -420,5 +464,56 @@ mod tests {
         drop(a);
         assert!(Slot::take(&n, 2).is_some());
         assert_eq!(n.load(Ordering::SeqCst), 1);
+    }
+
+    fn get(target: &str, headers: &str) -> Vec<u8> {
+        format!("GET {target} HTTP/1.1\r\nHost: x\r\n{headers}\r\n").into_bytes()
+    }
+
+    #[test]
+    fn request_heads_route_or_are_refused_by_status() {
+        assert_eq!(route(&get("/", ""), None), Route::Page);
+        assert_eq!(route(&get("/app.js?t=ab", ""), Some("ab")), Route::App);
+        assert!(matches!(
+            route(&get("/", ""), Some("ab")),
+            Route::Refuse(403, _)
+        ));
+        assert!(matches!(
+            route(&get("/?t=ax", ""), Some("ab")),
+            Route::Refuse(403, _)
+        ));
+        assert_eq!(
+            route(&get("/files/scan.ply", ""), None),
+            Route::File("scan.ply")
+        );
+        assert!(matches!(
+            route(&get("/etc/passwd", ""), None),
+            Route::Refuse(404, _)
+        ));
+        let ws = "Upgrade: websocket\r\nSec-WebSocket-Key: abc==\r\n";
+        assert_eq!(route(&get("/live", ws), None), Route::Live { key: "abc==" });
+        assert!(matches!(
+            route(&get("/live", ""), None),
+            Route::Refuse(400, _)
+        ));
+        let post = b"POST / HTTP/1.1\r\nHost: x\r\n\r\n";
+        assert!(matches!(route(post, None), Route::Refuse(405, _)));
+        let body = get("/", "Content-Length: 5\r\n");
+        assert!(matches!(route(&body, None), Route::Refuse(413, _)));
+        let long = get(&format!("/{}", "a".repeat(MAX_TARGET)), "");
+        assert!(matches!(route(&long, None), Route::Refuse(414, _)));
+        let huge = get("/", &format!("X: {}\r\n", "a".repeat(MAX_HEAD)));
+        assert!(matches!(route(&huge, None), Route::Refuse(431, _)));
+        for junk in [
+            &b""[..],
+            b"\r\n\r\n",
+            b"GET",
+            b"\xff\xfe / HTTP/1.1\r\n\r\n",
+        ] {
+            assert!(
+                matches!(route(junk, None), Route::Refuse(400, _)),
+                "{junk:?}"
+            );
+        }
     }
 }
