@@ -209,7 +209,10 @@ pub fn write_stl(mesh: &Mesh, w: &mut impl std::io::Write) -> std::io::Result<()
 
 /// Writes `mesh` as 3MF (the 3D Consortium's format that slicers read): a ZIP package holding
 /// the content types, the package relationship and `3D/3dmodel.model` with one object of the
-/// mesh's vertices and triangles in millimetres (stored, not compressed; no colour).
+/// mesh's vertices and triangles in millimetres (stored, not compressed). A mesh coloured per
+/// vertex carries its colours through 3MF's materials extension: one `m:colorgroup` with a
+/// colour per vertex, each triangle naming its corners' (`p1`–`p3`); the extension is not
+/// required, so a reader without it still reads the shape.
 ///
 /// # Errors
 /// The writer's error, or the package's.
@@ -220,19 +223,39 @@ pub fn write_3mf(
     use std::fmt::Write as _;
     use std::io::Write as _;
     let mut model = String::with_capacity(64 * (mesh.vertices.len() + mesh.faces.len()) + 512);
+    let coloured = !mesh.colours.is_empty() && mesh.colours.len() == mesh.vertices.len();
     model.push_str(
-        "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n<model unit=\"millimeter\" xml:lang=\"en-US\" xmlns=\"http://schemas.microsoft.com/3dmanufacturing/core/2015/02\">\n<resources>\n<object id=\"1\" type=\"model\">\n<mesh>\n<vertices>\n",
+        "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n<model unit=\"millimeter\" xml:lang=\"en-US\" xmlns=\"http://schemas.microsoft.com/3dmanufacturing/core/2015/02\" xmlns:m=\"http://schemas.microsoft.com/3dmanufacturing/material/2015/02\">\n<resources>\n",
     );
+    if coloured {
+        model.push_str("<m:colorgroup id=\"2\">\n");
+        for [r, g, b] in &mesh.colours {
+            let _ = writeln!(model, "<m:color color=\"#{r:02X}{g:02X}{b:02X}\"/>");
+        }
+        model
+            .push_str("</m:colorgroup>\n<object id=\"1\" type=\"model\" pid=\"2\" pindex=\"0\">\n");
+    } else {
+        model.push_str("<object id=\"1\" type=\"model\">\n");
+    }
+    model.push_str("<mesh>\n<vertices>\n");
     for v in &mesh.vertices {
         let _ = writeln!(model, "<vertex x=\"{}\" y=\"{}\" z=\"{}\"/>", v.x, v.y, v.z);
     }
     model.push_str("</vertices>\n<triangles>\n");
     for f in &mesh.faces {
-        let _ = writeln!(
-            model,
-            "<triangle v1=\"{}\" v2=\"{}\" v3=\"{}\"/>",
-            f[0], f[1], f[2]
-        );
+        let _ = if coloured {
+            writeln!(
+                model,
+                "<triangle v1=\"{0}\" v2=\"{1}\" v3=\"{2}\" pid=\"2\" p1=\"{0}\" p2=\"{1}\" p3=\"{2}\"/>",
+                f[0], f[1], f[2]
+            )
+        } else {
+            writeln!(
+                model,
+                "<triangle v1=\"{}\" v2=\"{}\" v3=\"{}\"/>",
+                f[0], f[1], f[2]
+            )
+        };
     }
     model.push_str(
         "</triangles>\n</mesh>\n</object>\n</resources>\n<build>\n<item objectid=\"1\"/>\n</build>\n</model>\n",
@@ -598,5 +621,59 @@ mod tests {
         write_atomic(&ours, b"x").unwrap();
         let mode = |p: &Path| std::fs::metadata(p).unwrap().permissions().mode() & 0o777;
         assert_eq!(mode(&ours), mode(&plain));
+    }
+
+    /// The model part of a 3MF package written from `mesh`.
+    fn model_3mf(mesh: &Mesh) -> String {
+        let mut bytes = std::io::Cursor::new(Vec::new());
+        write_3mf(mesh, &mut bytes).unwrap();
+        let mut package = zip::ZipArchive::new(bytes).unwrap();
+        let mut xml = String::new();
+        std::io::Read::read_to_string(&mut package.by_name("3D/3dmodel.model").unwrap(), &mut xml)
+            .unwrap();
+        xml
+    }
+
+    #[test]
+    fn a_coloured_mesh_carries_its_vertex_colours_into_3mf() {
+        use scanner_core::nalgebra::Point3;
+        let mut mesh = Mesh {
+            vertices: vec![
+                Point3::new(0.0, 0.0, 0.0),
+                Point3::new(1.0, 0.0, 0.0),
+                Point3::new(0.0, 1.0, 0.0),
+                Point3::new(0.0, 0.0, 1.0),
+            ],
+            faces: vec![[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]],
+            ..Mesh::default()
+        };
+        let plain = model_3mf(&mesh);
+        assert!(
+            !plain.contains("colorgroup") && !plain.contains("p1="),
+            "{plain}"
+        );
+        mesh.colours = vec![[255, 0, 0], [0, 128, 0], [0, 0, 255], [18, 52, 86]];
+        let xml = model_3mf(&mesh);
+        // The group comes before the object that names it, a colour per vertex in order.
+        let group = xml.find("<m:colorgroup id=\"2\">").expect("a colour group");
+        assert!(
+            group
+                < xml
+                    .find("<object id=\"1\" type=\"model\" pid=\"2\"")
+                    .unwrap()
+        );
+        let colours: Vec<&str> = xml
+            .split("<m:color color=\"#")
+            .skip(1)
+            .map(|c| &c[..6])
+            .collect();
+        assert_eq!(colours, ["FF0000", "008000", "0000FF", "123456"]);
+        assert!(xml.contains(
+            "<triangle v1=\"1\" v2=\"2\" v3=\"3\" pid=\"2\" p1=\"1\" p2=\"2\" p3=\"3\"/>"
+        ));
+        assert_eq!(xml.matches(" p1=").count(), 4);
+        // A colour list of the wrong length is left out, not written half.
+        mesh.colours.pop();
+        assert!(!model_3mf(&mesh).contains("colorgroup"));
     }
 }

@@ -369,6 +369,26 @@ fn model_against_the_truth(d: &Path, scene: &scanner_rig::Scene, views: &[usize]
             .zip(mesh.positions.iter().step_by(3))
             .all(|(a, b)| (a - f64::from(*b)).abs() < 1e-3)
     );
+    // Its colours (materials extension): one per vertex, as the OBJ's, each triangle's corners
+    // naming their vertices'.
+    let colours: Vec<[f32; 3]> = xml
+        .split("<m:color color=\"#")
+        .skip(1)
+        .map(|c| {
+            core::array::from_fn(|i| {
+                f32::from(u8::from_str_radix(&c[2 * i..2 * i + 2], 16).unwrap()) / 255.0
+            })
+        })
+        .collect();
+    assert_eq!(colours.len() * 3, mesh.vertex_color.len());
+    assert!(
+        colours
+            .iter()
+            .flatten()
+            .zip(&mesh.vertex_color)
+            .all(|(a, b)| (a - b).abs() < 1e-3)
+    );
+    assert_eq!(attr("<triangle ", "p1"), v1);
     // The model is in the board's frame (y up); the truth in view 0's camera frame.
     let view0 = scanner_host::merge::load_view(0, &d.join("v0"), "2px".parse().unwrap()).unwrap();
     let frame = scanner_host::mesh::MeshFrame::board(&view0.header.board().unwrap());
