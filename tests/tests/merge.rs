@@ -23,6 +23,58 @@ fn rotation(line: &str) -> f64 {
         .unwrap()
 }
 
+/// A 360° scene of `scenes/` (`name`, its mesh `mesh`) made small for a test — 640×480, 200
+/// frames — written to `d/s.toml` with the rig's true calibration in `d/cal.toml`.
+fn small_scene(d: &Path, name: &str, mesh: &str) -> scanner_rig::Scene {
+    let scenes = Path::new(env!("CARGO_MANIFEST_DIR")).join("../scanner-device/scenes");
+    let text = std::fs::read_to_string(scenes.join(name))
+        .unwrap()
+        .replace("width = 1280", "width = 640")
+        .replace("height = 960", "height = 480")
+        .replace("frames = 300", "frames = 200")
+        .replace(
+            &format!("path = \"{mesh}\""),
+            &format!("path = {:?}", scenes.join(mesh).display().to_string()),
+        );
+    std::fs::write(d.join("s.toml"), &text).unwrap();
+    let scene = scanner_device::cli::render::load_scene(Some(&d.join("s.toml"))).unwrap();
+    scanner_rig::Rig::new(scene.clone())
+        .unwrap()
+        .truth_calibration()
+        .save(&d.join("cal.toml"))
+        .unwrap();
+    scene
+}
+
+/// The head scans view `k` of `d/s.toml` (with `extra` options) into `d/vK.stream`, and the host
+/// receives it into `d/vK`.
+fn scan_view(d: &Path, k: &str, extra: &[&str]) {
+    let stream = format!("v{k}.stream");
+    let mut args = vec![
+        "scan",
+        "--source",
+        "rig",
+        "--scene",
+        "s.toml",
+        "--view",
+        k,
+        "--calibration",
+        "cal.toml",
+        "--out",
+        &stream,
+        "-q",
+    ];
+    args.extend(extra);
+    let (ok, _, err) = run(d, "scanner-device", &args);
+    assert!(ok, "scan view {k}: {err}");
+    let (ok, _, err) = run(
+        d,
+        "scanner-host",
+        &["receive", &stream, "--out", &format!("v{k}"), "-q"],
+    );
+    assert!(ok, "receive view {k}: {err}");
+}
+
 /// The rig's part (`part.obj`, a twisted notched block of flat faces) in six views 60° apart
 /// about the vertical, scanned at 640×480 through the binaries: the merge either registers every
 /// view within 1° of the truth and writes the model, or refuses with the loop left open and
@@ -33,48 +85,10 @@ fn rotation(line: &str) -> f64 {
 fn views_of_a_part_of_flat_faces_are_merged_right_or_refused() {
     let t = tempfile::tempdir().unwrap();
     let d = t.path();
-    let scenes = Path::new(env!("CARGO_MANIFEST_DIR")).join("../scanner-device/scenes");
-    let text = std::fs::read_to_string(scenes.join("part-360.toml"))
-        .unwrap()
-        .replace("width = 1280", "width = 640")
-        .replace("height = 960", "height = 480")
-        .replace("frames = 300", "frames = 200")
-        .replace(
-            "path = \"part.obj\"",
-            &format!("path = {:?}", scenes.join("part.obj").display().to_string()),
-        );
-    std::fs::write(d.join("s.toml"), &text).unwrap();
-    let scene = scanner_device::cli::render::load_scene(Some(&d.join("s.toml"))).unwrap();
-    scanner_rig::Rig::new(scene.clone())
-        .unwrap()
-        .truth_calibration()
-        .save(&d.join("cal.toml"))
-        .unwrap();
+    let scene = small_scene(d, "part-360.toml", "part.obj");
     let views = ["0", "1", "2", "3", "4", "5"];
     for k in views {
-        let stream = format!("v{k}.stream");
-        let args = [
-            "scan",
-            "--source",
-            "rig",
-            "--scene",
-            "s.toml",
-            "--view",
-            k,
-            "--calibration",
-            "cal.toml",
-            "--out",
-            &stream,
-            "-q",
-        ];
-        let (ok, _, err) = run(d, "scanner-device", &args);
-        assert!(ok, "scan view {k}: {err}");
-        let (ok, _, err) = run(
-            d,
-            "scanner-host",
-            &["receive", &stream, "--out", &format!("v{k}"), "-q"],
-        );
-        assert!(ok, "receive view {k}: {err}");
+        scan_view(d, k, &[]);
     }
     let dirs: Vec<String> = views.iter().map(|k| format!("v{k}")).collect();
     let mut args = vec!["merge"];
@@ -112,58 +126,9 @@ fn views_of_a_part_of_flat_faces_are_merged_right_or_refused() {
 fn three_scanned_views_register_with_the_rigs_rotations() {
     let t = tempfile::tempdir().unwrap();
     let d = t.path();
-    let scenes = Path::new(env!("CARGO_MANIFEST_DIR")).join("../scanner-device/scenes");
-    let text = std::fs::read_to_string(scenes.join("bunny-360.toml"))
-        .unwrap()
-        .replace("width = 1280", "width = 640")
-        .replace("height = 960", "height = 480")
-        .replace("frames = 300", "frames = 200")
-        .replace(
-            "path = \"bunny.obj\"",
-            &format!(
-                "path = {:?}",
-                scenes.join("bunny.obj").display().to_string()
-            ),
-        );
-    std::fs::write(d.join("s.toml"), &text).unwrap();
-    let scene = scanner_device::cli::render::load_scene(Some(&d.join("s.toml"))).unwrap();
-    let rig = scanner_rig::Rig::new(scene.clone()).unwrap();
-    rig.truth_calibration().save(&d.join("cal.toml")).unwrap();
+    let scene = small_scene(d, "bunny-360.toml", "bunny.obj");
     for k in ["0", "1", "6"] {
-        let (ok, _, err) = run(
-            d,
-            "scanner-device",
-            &[
-                "scan",
-                "--source",
-                "rig",
-                "--scene",
-                "s.toml",
-                "--view",
-                k,
-                "--calibration",
-                "cal.toml",
-                "--format",
-                "rgb",
-                "--colour",
-                "--out",
-                &format!("v{k}.stream"),
-                "-q",
-            ],
-        );
-        assert!(ok, "scan view {k}: {err}");
-        let (ok, _, err) = run(
-            d,
-            "scanner-host",
-            &[
-                "receive",
-                &format!("v{k}.stream"),
-                "--out",
-                &format!("v{k}"),
-                "-q",
-            ],
-        );
-        assert!(ok, "receive view {k}: {err}");
+        scan_view(d, k, &["--format", "rgb", "--colour"]);
     }
     let (ok, out, err) = run(
         d,
@@ -284,7 +249,9 @@ fn three_scanned_views_register_with_the_rigs_rotations() {
     // A view whose scan sent no point (the laser off for the whole sweep).
     std::fs::write(
         d.join("dark.toml"),
-        text.replace("[laser]", "[laser]\npower = 0.0"),
+        std::fs::read_to_string(d.join("s.toml"))
+            .unwrap()
+            .replace("[laser]", "[laser]\npower = 0.0"),
     )
     .unwrap();
     let (ok, _, err) = run(
