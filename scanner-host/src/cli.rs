@@ -580,11 +580,11 @@ fn merge_command(
     let mut report = merge::report(&loaded, &results);
     report += &merge::closure_line(&closure);
     let input = merge::fusion_input(&loaded, &results);
-    let (points, colours) = (&input.points, &input.colours);
+    let colours = &input.colours;
     // The registered views in their colours (front and side), the board's frame like the model:
     // written before the plausibility check, which they help to read.
     let mut views_cloud = crate::mesh::Mesh {
-        vertices: points.iter().map(|p| p.cast()).collect(),
+        vertices: input.points.iter().map(|p| p.cast()).collect(),
         ..crate::mesh::Mesh::default()
     };
     views_cloud.into_frame(frame);
@@ -605,9 +605,8 @@ fn merge_command(
     if let Some(v) = view {
         // The registered views in their colours (the board's frame, like the model) while the
         // fusion runs.
-        for (pts, rgb) in points.chunks(8192).zip(colours.chunks(8192)) {
-            let pts: Vec<_> = pts.iter().map(|p| frame.point(&p.cast::<f32>())).collect();
-            v.points(&pts, rgb);
+        for (pts, rgb) in views_cloud.vertices.chunks(8192).zip(colours.chunks(8192)) {
+            v.points(pts, rgb);
         }
         v.stage("fusing the views into one mesh");
     }

@@ -202,12 +202,17 @@ pub enum Route<'h> {
     Refuse(u16, String),
 }
 
+/// The refusal of a request head over [`MAX_HEAD`].
+fn too_large() -> Route<'static> {
+    Route::Refuse(431, format!("request head over {MAX_HEAD} bytes"))
+}
+
 /// Decides what the request head `head` asks for; `token`, when set, must come as `t=` in the
 /// query.
 pub fn route<'h>(head: &'h [u8], token: Option<&str>) -> Route<'h> {
     let refuse = |code, why: &str| Route::Refuse(code, why.to_string());
     if head.len() > MAX_HEAD {
-        return Route::Refuse(431, format!("request head over {MAX_HEAD} bytes"));
+        return too_large();
     }
     let mut headers = [httparse::EMPTY_HEADER; 48];
     let mut req = httparse::Request::new(&mut headers);
@@ -263,17 +268,19 @@ fn handle(mut s: TcpStream, shared: &Shared, pages: &Arc<AtomicUsize>) {
     let _ = s.set_read_timeout(Some(READ_TIMEOUT));
     let _ = s.set_write_timeout(Some(WRITE_TIMEOUT));
     let head = match read_head(&mut s) {
-        Ok(h) => h,
-        Err(HeadError::TooLarge) => {
-            return refuse(&mut s, 431, &format!("request head over {MAX_HEAD} bytes"));
-        }
+        Ok(h) => Some(h),
+        Err(HeadError::TooLarge) => None,
         Err(HeadError::Io) => return,
     };
     let q = shared
         .token
         .as_ref()
         .map_or(String::new(), |t| format!("?t={t}"));
-    match route(&head, shared.token.as_deref()) {
+    let asked = match head.as_deref() {
+        Some(h) => route(h, shared.token.as_deref()),
+        None => too_large(),
+    };
+    match asked {
         Route::Page => reply(
             &mut s,
             200,
