@@ -104,7 +104,7 @@ pub enum Command {
     /// into one closed mesh (views: receive output folders or journals): writes
     /// model.obj/ply/stl/3mf (y up), views.ply (each view in its colour) and merge-report.txt.
     Merge {
-        /// The views, in the order they were scanned (each overlapping an earlier one).
+        /// The views (each overlapping at least one other; view 0, the first, is the frame).
         #[arg(required = true)]
         views: Vec<PathBuf>,
         /// Output folder.
@@ -119,7 +119,7 @@ pub enum Command {
         /// Grid cell of the fusion into one mesh, mm.
         #[arg(long, default_value_t = crate::merge::FUSE_CELL_MM)]
         fuse_cell: f64,
-        /// Least share of a view's points that must land on the view it is registered onto
+        /// Least share of a view's points that must land on another view for a candidate match
         /// (0.1–0.9); lower it for views turned far apart, which share less.
         #[arg(long, default_value_t = crate::merge::MIN_OVERLAP)]
         min_overlap: f64,
@@ -555,10 +555,10 @@ fn merge_command(
         min_overlap,
         ..Default::default()
     };
-    let mut results = merge::register_views(&loaded, &opts, turntable, |k| {
-        pb.set_message(format!("registered view {k} of {}", loaded.len() - 1));
+    let mut results = merge::register_views(&loaded, &opts, turntable, |done, all| {
+        pb.set_message(format!("registering pairs of views: {done} of {all}"));
         pb.tick();
-        stage(&format!("registered view {k} of {}", loaded.len() - 1));
+        stage(&format!("registering pairs of views: {done} of {all}"));
     })?;
     let closure = merge::refine_views(&loaded, &mut results, &opts, |round| {
         pb.set_message(format!("refining all views together: round {}", round + 1));

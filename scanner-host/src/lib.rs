@@ -49,6 +49,7 @@ pub mod mesh;
 pub mod outputs;
 pub mod refine;
 pub mod register;
+pub mod select;
 pub mod winding;
 
 pub use cli::{Args, Command, OutputArgs, run};

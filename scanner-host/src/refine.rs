@@ -238,34 +238,33 @@ pub fn refine(
 /// How far a loop of views is from closing.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct LoopError {
-    /// The view whose direct registration onto view 0 was compared with its pose.
+    /// The view whose direct registration onto [`LoopError::onto`] was compared with its pose.
     pub view: usize,
+    /// The view it was registered onto directly.
+    pub onto: usize,
     /// Rotation between the two, degrees.
     pub rotation_deg: f64,
     /// Translation between the two, mm.
     pub translation_mm: f64,
 }
 
-/// The worst loop-closure error over the views (other than `skip`, those registered onto view 0
-/// already) that overlap view 0 directly: each is registered onto view 0 alone by the same
-/// symmetric ICP, from its pose, and compared with that pose; a view with fewer than
-/// `min_overlap` of its points paired with view 0 at the end closes no loop. `None` when no view
-/// does.
+/// The worst loop-closure error over `pairs` (view, onto) that the poses do not link directly
+/// (each pair closes a loop of views): the view is registered onto the other alone by the same
+/// symmetric ICP, from where their poses put it, and compared with that; a pair with fewer than
+/// `min_overlap` of the view's points paired at the end closes no loop. `None` when no pair does.
 pub fn loop_error(
     clouds: &[&Cloud],
     poses: &[Isometry3<f64>],
-    skip: &[usize],
+    pairs: &[(usize, usize)],
     max_dist: f64,
     min_overlap: f64,
 ) -> Option<LoopError> {
     const ROUNDS: usize = 16;
     let mut worst: Option<LoopError> = None;
-    for (k, (cloud, pose)) in clouds.iter().zip(poses).enumerate().skip(1) {
-        if skip.contains(&k) {
-            continue;
-        }
-        let pair = [Part::new(clouds[0]), Part::new(cloud)];
-        let mut both = [Isometry3::identity(), *pose];
+    for &(k, j) in pairs {
+        let (cloud, start) = (clouds[k], poses[j].inverse() * poses[k]);
+        let pair = [Part::new(clouds[j]), Part::new(cloud)];
+        let mut both = [Isometry3::identity(), start];
         let mut scale = f64::INFINITY;
         for round in 0..ROUNDS {
             match step(&pair, &both, distance(max_dist, round, ROUNDS), scale) {
@@ -289,9 +288,10 @@ pub fn loop_error(
         if (paired as f64) < min_overlap * pair[1].sample.len() as f64 {
             continue;
         }
-        let e = pose.inverse() * both[1];
+        let e = start.inverse() * (both[0].inverse() * both[1]);
         let e = LoopError {
             view: k,
+            onto: j,
             rotation_deg: e.rotation.angle().to_degrees(),
             translation_mm: e.translation.vector.norm(),
         };

@@ -309,10 +309,7 @@ fn keep_best(best: &mut Vec<(Isometry3<f64>, f64)>, pose: Isometry3<f64>, score:
     if best.len() == HYPOTHESES && score <= best[HYPOTHESES - 1].1 {
         return;
     }
-    let near = best.iter().position(|(p, _)| {
-        let d = p.inverse() * pose;
-        d.rotation.angle() < 2f64.to_radians() && d.translation.vector.norm() < 2.0 * voxel
-    });
+    let near = best.iter().position(|(p, _)| same_motion(p, &pose, voxel));
     match near {
         Some(i) if best[i].1 >= score => return,
         Some(i) => {
@@ -434,6 +431,35 @@ pub fn register_hinted(
     o: &RegisterOptions,
     hints: &[Isometry3<f64>],
 ) -> Result<Registration, RegisterError> {
+    let best = candidates(src, dst, o, hints)?[0];
+    fine(src, dst, best.pose, o)
+}
+
+/// A motion of one view onto another that the coarse stage proposed and ICP refined on the
+/// thinned clouds.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Candidate {
+    /// Source → target.
+    pub pose: Isometry3<f64>,
+    /// Share of the source's thinned points within a third of a voxel of the target's.
+    pub fit: f64,
+    /// RMS point-to-plane residual of the refinement's pairs, mm.
+    pub rms_mm: f64,
+}
+
+/// The distinct motions of `src` onto `dst` worth a fine fit, best fitting first: the coarse
+/// stage's hypotheses (and `hints`) that bring `min_overlap` of the thinned points within 1.5
+/// voxels, each refined by ICP on the thinned clouds.
+///
+/// # Errors
+/// [`RegisterError::TooFewPoints`] for a view too small to describe,
+/// [`RegisterError::NoOverlap`] when no hypothesis brings `min_overlap` of it onto the other.
+pub fn candidates(
+    src: &Cloud,
+    dst: &Cloud,
+    o: &RegisterOptions,
+    hints: &[Isometry3<f64>],
+) -> Result<Vec<Candidate>, RegisterError> {
     const MIN_POINTS: usize = 50;
     let (s, d) = (thin(src, o.voxel_mm), thin(dst, o.voxel_mm));
     for c in [&s, &d] {
@@ -464,25 +490,54 @@ pub fn register_hinted(
             min_percent: 100.0 * o.min_overlap,
         });
     }
-    // Each hypothesis refined on the thinned clouds; the one that then fits most points, within
-    // a third of a voxel, wins.
-    let coarse_fit = hypotheses
-        .iter()
-        .filter(|h| h.1 >= o.min_overlap)
-        .map(|h| icp(&s, &d, h.0, 2.0 * o.voxel_mm, 30))
-        .map(|f| (overlap(&s.points, &dtree, &f.pose, o.voxel_mm / 3.0), f))
-        .max_by(|a, b| a.0.total_cmp(&b.0))
-        .map(|(_, f)| f)
-        .unwrap_or_else(|| icp(&s, &d, hypotheses[0].0, 2.0 * o.voxel_mm, 30));
-    // The fine fit pairs at most FINE_POINTS of the source (evenly spaced) with the whole target.
+    // Each hypothesis refined on the thinned clouds and scored by the points it then fits
+    // within a third of a voxel; hypotheses that met in one motion count once.
+    let mut out: Vec<Candidate> = Vec::new();
+    for h in hypotheses.iter().filter(|h| h.1 >= o.min_overlap) {
+        let r = icp(&s, &d, h.0, 2.0 * o.voxel_mm, 30);
+        let fit = overlap(&s.points, &dtree, &r.pose, o.voxel_mm / 3.0);
+        let c = Candidate {
+            pose: r.pose,
+            fit,
+            rms_mm: r.rms_mm,
+        };
+        match out
+            .iter_mut()
+            .find(|c| same_motion(&c.pose, &r.pose, o.voxel_mm))
+        {
+            Some(kept) if kept.fit >= fit => {}
+            Some(kept) => *kept = c,
+            None => out.push(c),
+        }
+    }
+    out.sort_by(|a, b| b.fit.total_cmp(&a.fit));
+    Ok(out)
+}
+
+/// Whether two motions differ by under 2° and 2 voxels.
+pub fn same_motion(a: &Isometry3<f64>, b: &Isometry3<f64>, voxel: f64) -> bool {
+    let d = a.inverse() * b;
+    d.rotation.angle() < 2f64.to_radians() && d.translation.vector.norm() < 2.0 * voxel
+}
+
+/// The fine fit of `src` onto `dst` from `init`: point-to-plane ICP pairing at most
+/// [`FINE_POINTS`] of the source (evenly spaced) with the whole target, within a voxel.
+///
+/// # Errors
+/// [`RegisterError::NoOverlap`] when the refined fit covers less than `min_overlap`: a wrong match
+/// that happened to score in the coarse stage (two views of opposite sides) is refused here.
+pub fn fine(
+    src: &Cloud,
+    dst: &Cloud,
+    init: Isometry3<f64>,
+    o: &RegisterOptions,
+) -> Result<Registration, RegisterError> {
     let step = src.points.len().div_ceil(FINE_POINTS).max(1);
     let sparse = Cloud {
         points: src.points.iter().step_by(step).copied().collect(),
         normals: src.normals.iter().step_by(step).copied().collect(),
     };
-    let fine = icp(&sparse, dst, coarse_fit.pose, o.voxel_mm, 30);
-    // The refined fit must still cover the share asked: a wrong match that happened to score
-    // in the coarse stage (two views of opposite sides) is refused here.
+    let fine = icp(&sparse, dst, init, o.voxel_mm, 30);
     if fine.overlap < o.min_overlap {
         return Err(RegisterError::NoOverlap {
             overlap_percent: 100.0 * fine.overlap,

@@ -62,7 +62,7 @@ fn run() -> Result<(), String> {
         ..Default::default()
     };
     let mut results =
-        merge::register_views(&views, &opts, None, |_| {}).map_err(|e| format!("{e}"))?;
+        merge::register_views(&views, &opts, None, |_, _| {}).map_err(|e| format!("{e}"))?;
     let closure = merge::refine_views(&views, &mut results, &opts, |_| {});
     let input = merge::fusion_input(&views, &results);
     let fused = merge::fuse_views(&input, merge::FUSE_CELL_MM, false, |_, _| {})

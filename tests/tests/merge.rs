@@ -81,6 +81,7 @@ fn scan_view(d: &Path, k: &str, extra: &[&str]) {
 /// writes no model — never a wrong model called watertight. In one run it refused: three views
 /// registered the wrong way round (173.5° found for 120°), the loop 0.74° and 6.2 mm open after
 /// the joint refinement (docs/reports.md: the registration's known failure on such parts).
+/// A view of another object among them is named as overlapping none.
 #[test]
 fn views_of_a_part_of_flat_faces_are_merged_right_or_refused() {
     let t = tempfile::tempdir().unwrap();
@@ -120,6 +121,21 @@ fn views_of_a_part_of_flat_faces_are_merged_right_or_refused() {
         );
         assert!(!d.join("model/model.obj").exists() && !d.join("model/model.stl").exists());
     }
+    // A view that overlaps none of the others (the bunny, scanned by the same set-up, among
+    // views of the part) is named, and nothing is merged.
+    small_scene(d, "bunny-360.toml", "bunny.obj");
+    scan_view(d, "6", &[]);
+    std::fs::rename(d.join("v6"), d.join("bunny")).unwrap();
+    let (ok, out, err) = run(
+        d,
+        "scanner-host",
+        &["merge", "v0", "v3", "v4", "bunny", "--out", "m5", "-q"],
+    );
+    assert!(
+        !ok && err.contains("view 3 (bunny) overlaps no other view"),
+        "{out}{err}"
+    );
+    assert!(!d.join("m5/model.obj").exists());
 }
 
 #[test]

@@ -142,6 +142,10 @@ fn a_view_of_another_object_is_reported_not_merged() {
 
 type Loop = scanner_host::refine::LoopError;
 
+/// The views that close the chain's loop: those not registered onto view 0 (all but view 1),
+/// each onto view 0 directly.
+const LOOPS: &[(usize, usize)] = &[(2, 0), (3, 0), (4, 0), (5, 0)];
+
 /// The six views around the vertical with `noise` mm of noise along each point's normal, each
 /// registered onto the one before (a chain of five links), then refined jointly: the loop
 /// closure before and after, and the worst view's (rotation °, translation mm) against the truth
@@ -177,11 +181,11 @@ fn chain_and_joint(sigma: f64) -> (Loop, Loop, (f64, f64), (f64, f64)) {
         chain.push(chain[k - 1] * r.pose);
     }
     let refs: Vec<&Cloud> = clouds.iter().collect();
-    let before = loop_error(&refs, &chain, &[1], 3.0, 0.25).expect("view 5 overlaps view 0");
+    let before = loop_error(&refs, &chain, LOOPS, 3.0, 0.25).expect("view 5 overlaps view 0");
     let t0 = std::time::Instant::now();
     let joint = refine(&refs, &chain, 3.0, 8, |_| {});
     let took = t0.elapsed().as_secs_f64();
-    let after = loop_error(&refs, &joint, &[1], 3.0, 0.25).expect("view 5 overlaps view 0");
+    let after = loop_error(&refs, &joint, LOOPS, 3.0, 0.25).expect("view 5 overlaps view 0");
     let worst = |poses: &[Isometry3<f64>]| {
         (1..6)
             .map(|k| angle_deg(&truth(k), &poses[k]))
