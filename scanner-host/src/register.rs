@@ -297,7 +297,7 @@ fn coarse(src: &Cloud, dst: &Cloud, o: &RegisterOptions) -> Vec<(Isometry3<f64>,
 }
 
 /// Source points paired in the fine fit.
-const FINE_POINTS: usize = 10_000;
+pub const FINE_POINTS: usize = 10_000;
 
 /// Coarse hypotheses kept for refinement: a wrong match can outscore the right one on the thinned
 /// clouds (noisy normals blur the descriptors), and the refinement tells them apart.

@@ -44,6 +44,22 @@ pub struct Choice {
     pub score: f64,
 }
 
+/// One way to place one more view from a partial set.
+struct Step {
+    /// The new set's score.
+    score: f64,
+    /// The partial set it grows (index in the beam).
+    from: usize,
+    /// The candidate that places the view.
+    edge: usize,
+    /// The view placed.
+    view: usize,
+    /// Its pose.
+    pose: Isometry3<f64>,
+    /// The candidates touching it that then agree.
+    agreeing: Vec<usize>,
+}
+
 /// Whether `edge` agrees with the poses of its two views (`None` when either is unplaced).
 fn agrees(
     edge: &Edge,
@@ -82,8 +98,7 @@ pub fn choose(n: usize, edges: &[Edge], centres: &[Point3<f64>], voxel: f64) -> 
     let beam_width = (BEAM * 8 / n.max(8)).max(16);
     let mut beam = vec![start];
     loop {
-        // Every way to place one more view: (score, partial set, edge, view, pose, agreeing).
-        let mut next: Vec<(f64, usize, usize, usize, Isometry3<f64>, Vec<usize>)> = Vec::new();
+        let mut next: Vec<Step> = Vec::new();
         for (b, s) in beam.iter().enumerate() {
             for (i, e) in edges.iter().enumerate() {
                 let (view, pose) = match (s.poses[e.from], s.poses[e.to]) {
@@ -98,23 +113,30 @@ pub fn choose(n: usize, edges: &[Edge], centres: &[Point3<f64>], voxel: f64) -> 
                     .filter(|&j| agrees(&edges[j], at, &centres[edges[j].from], voxel))
                     .collect();
                 let gain: f64 = agreeing.iter().map(|&j| edges[j].fit).sum();
-                next.push((s.score + gain, b, i, view, pose, agreeing));
+                next.push(Step {
+                    score: s.score + gain,
+                    from: b,
+                    edge: i,
+                    view,
+                    pose,
+                    agreeing,
+                });
             }
         }
         if next.is_empty() {
             break;
         }
-        next.sort_by(|a, b| b.0.total_cmp(&a.0));
+        next.sort_by(|a, b| b.score.total_cmp(&a.score));
         let mut kept: Vec<Choice> = Vec::with_capacity(beam_width);
-        for (score, b, i, view, pose, agreeing) in next {
+        for st in next {
             if kept.len() == beam_width {
                 break;
             }
-            let mut c = beam[b].clone();
-            c.poses[view] = Some(pose);
-            c.placed_by[view] = Some(i);
-            c.agreeing.extend(agreeing);
-            c.score = score;
+            let mut c = beam[st.from].clone();
+            c.poses[st.view] = Some(st.pose);
+            c.placed_by[st.view] = Some(st.edge);
+            c.agreeing.extend(st.agreeing);
+            c.score = st.score;
             if !kept.iter().any(|k| same_placements(k, &c, voxel)) {
                 kept.push(c);
             }

@@ -78,9 +78,9 @@ fn scan_view(d: &Path, k: &str, extra: &[&str]) {
 /// The rig's part (`part.obj`, a twisted notched block of flat faces) in six views 60° apart
 /// about the vertical, scanned at 640×480 through the binaries: the merge either registers every
 /// view within 1° of the truth and writes the model, or refuses with the loop left open and
-/// writes no model — never a wrong model called watertight. In one run it refused: three views
-/// registered the wrong way round (173.5° found for 120°), the loop 0.74° and 6.2 mm open after
-/// the joint refinement (docs/reports.md: the registration's known failure on such parts).
+/// writes no model — never a wrong model called watertight. In one run it refused: views 3 and
+/// 4 placed wrongly (174.1° found for 180°, 149.7° for 120°), the worst loop 1.46° and 6.5 mm open
+/// after the joint refinement (docs/reports.md: the registration's known failure on such parts).
 /// A view of another object among them is named as overlapping none.
 #[test]
 fn views_of_a_part_of_flat_faces_are_merged_right_or_refused() {
