@@ -257,6 +257,23 @@ fn linger(v: &LiveView, for_secs: Option<f64>) {
     v.linger(stop, for_secs);
 }
 
+/// Keeps the live view up after a merge ([`linger`]); a merge that stopped is shown on the page
+/// as stopped, with what it left in `dir`, and its error said before the page lingers (the exit
+/// status still fails).
+fn linger_after_merge(
+    v: &LiveView,
+    merged: Result<()>,
+    dir: &std::path::Path,
+    for_secs: Option<f64>,
+) -> Result<()> {
+    if let Err(e) = &merged {
+        crate::errln!("scanner-host: error: {e:#}");
+        v.stopped(dir, MERGE_REFUSED_FILES, &format!("{e:#}"));
+    }
+    linger(v, for_secs);
+    merged.map_err(|_| anyhow::anyhow!("the merge stopped (the reason above)"))
+}
+
 /// Set by Ctrl-C (and SIGTERM); the handler is installed once per process.
 fn interrupted() -> &'static AtomicBool {
     static STOP: AtomicBool = AtomicBool::new(false);
@@ -416,13 +433,15 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
             check_view_for(*view_for)?;
             let (summary, view) = receive(input, (*until_done, *append, *merge), *view, out)?;
             crate::outln!("{}", summary.text().trim_end());
-            if *merge {
-                merge_sweeps(out, view.as_ref())?;
-            }
-            if let Some(v) = view {
-                linger(&v, *view_for);
-            }
-            return Ok(());
+            let merged = if *merge {
+                merge_sweeps(out, view.as_ref())
+            } else {
+                Ok(())
+            };
+            return match view {
+                Some(v) => linger_after_merge(&v, merged, &out.out.join("model"), *view_for),
+                None => merged,
+            };
         }
         Some(Command::Merge {
             views,
@@ -446,18 +465,18 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
                 );
             }
             let view = view.map(start_view).transpose()?;
-            merge_command(
+            let merged = merge_command(
                 views,
                 out,
                 *cell,
                 (*voxel, *fuse_cell, *min_overlap, *turntable),
                 (*trim_unseen, *quiet),
                 view.as_ref(),
-            )?;
-            if let Some(v) = view {
-                linger(&v, *view_for);
-            }
-            return Ok(());
+            );
+            return match view {
+                Some(v) => linger_after_merge(&v, merged, out, *view_for),
+                None => merged,
+            };
         }
         Some(Command::Check {
             scan,
@@ -486,6 +505,9 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
     crate::outln!("{}", summary.text().trim_end());
     Ok(())
 }
+
+/// What a refused merge leaves to look at (those written before it stopped).
+const MERGE_REFUSED_FILES: &[&str] = &["views.png", "views.ply", "merge-report.txt"];
 
 /// `receive --merge`: the session's journal split into one view per scan, each view's
 /// outputs, and the merge of the views into OUT/model.
@@ -594,6 +616,13 @@ fn merge_command(
             w,
         )
     })?;
+    if let Some(v) = view {
+        // The registered views in their colours (the board's frame, like the model): while the
+        // fusion runs, or to see which view went wrong when the check below refuses them.
+        for (pts, rgb) in views_cloud.vertices.chunks(8192).zip(colours.chunks(8192)) {
+            v.points(pts, rgb);
+        }
+    }
     if let Err(e) = merge::check_closure(&closure, voxel) {
         crate::export::write_atomic(&out.join("merge-report.txt"), report.as_bytes())?;
         crate::outln!("{}", report.trim_end());
@@ -603,11 +632,6 @@ fn merge_command(
     pb.set_message("fusing the views into one mesh");
     pb.enable_steady_tick(std::time::Duration::from_millis(200));
     if let Some(v) = view {
-        // The registered views in their colours (the board's frame, like the model) while the
-        // fusion runs.
-        for (pts, rgb) in views_cloud.vertices.chunks(8192).zip(colours.chunks(8192)) {
-            v.points(pts, rgb);
-        }
         v.stage("fusing the views into one mesh");
     }
     let fused = merge::fuse_views(&input, fuse_cell, trim_unseen, |done, all| {

@@ -180,13 +180,19 @@ function fit(b) {
 
 let colourChosen = false;
 function showStatus(s) {
-  $('state').textContent = s.state === 'done' ? 'done (' + s.ended + ')' : s.state;
-  $('state').className = 'figure' + (s.state === 'done' ? ' state-done' : '');
+  if (s.failed) {
+    $('state').textContent = 'stopped: ' + s.ended;
+    $('state').className = 'figure state-lost';
+    $('done-title').textContent = 'No model';
+  } else {
+    $('state').textContent = s.state === 'done' ? 'done (' + s.ended + ')' : s.state;
+    $('state').className = 'figure' + (s.state === 'done' ? ' state-done' : '');
+  }
   if (s.colouring === 'points' && !colourChosen) setColouring(1);
   if (s.kind === 'merge') {
     // merge: the views in their colours, then the model; no scan figures.
     $('title').textContent = 'Merging views';
-    $('done-title').textContent = 'Model done';
+    if (!s.failed) $('done-title').textContent = 'Model done';
     $('scan-figures').hidden = true;
     last.points.visible = false;
     return;
@@ -227,7 +233,7 @@ async function showFinished(s) {
       pictures.append(img);
     }
   }
-  $('meshinfo').textContent = fmt(s.vertices) + ' vertices, ' + fmt(s.faces) + ' triangles';
+  $('meshinfo').textContent = s.failed ? '' : fmt(s.vertices) + ' vertices, ' + fmt(s.faces) + ' triangles';
   $('finished').hidden = false;
   document.body.dataset.downloads = String(links.children.length);
   if (s.faces > 0) {

@@ -120,6 +120,7 @@ fn views_of_a_part_of_flat_faces_are_merged_right_or_refused() {
             "{err}"
         );
         assert!(!d.join("model/model.obj").exists() && !d.join("model/model.stl").exists());
+        live_view_of_a_refused_merge(d, &dirs);
     }
     // A view that overlaps none of the others (the bunny, scanned by the same set-up, among
     // views of the part) is named, and nothing is merged.
@@ -515,6 +516,80 @@ fn live_view_of_the_merge(d: &Path) {
         &d.join("model-live"),
         &[MODEL_FILES.as_slice(), &["merge-report.txt"]].concat(),
     );
+}
+
+/// `merge --view` refused: the page says it stopped and why (in a failure's colour), offers what
+/// the refusal left (views.png, views.ply, merge-report.txt), and stays up; the exit status
+/// still fails when it closes.
+fn live_view_of_a_refused_merge(d: &Path, dirs: &[String]) {
+    use scanner_tests::browser::{Browser, chromium, lines_of, wait_line};
+    use std::process::{Command, Stdio};
+    use std::time::{Duration, Instant};
+    let Some(exe) = chromium() else { return };
+    let mut args = vec!["merge"];
+    args.extend(dirs.iter().map(String::as_str));
+    args.extend([
+        "--out",
+        "refused-live",
+        "--min-overlap",
+        "0.3",
+        "-q",
+        "--view",
+    ]);
+    let mut child = Command::new(workspace_bin("scanner-host"))
+        .current_dir(d)
+        .args(&args)
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let lines = lines_of(child.stderr.take().unwrap());
+    let url = wait_line(&lines, "live view: ", Duration::from_secs(20)).expect("the address");
+    let mut b = Browser::launch(&exe);
+    b.navigate(&url);
+    assert!(
+        b.wait_for(
+            "document.getElementById('state').textContent.startsWith('stopped: ')",
+            Duration::from_secs(120)
+        ),
+        "the page says the merge stopped: state {}",
+        b.eval("document.getElementById('state').textContent")
+    );
+    let state = b.eval("document.getElementById('state').textContent");
+    assert!(
+        state
+            .as_str()
+            .is_some_and(|t| t.contains("the views do not close into one object")),
+        "{state}"
+    );
+    assert_eq!(
+        b.eval("document.getElementById('state').className"),
+        "figure state-lost"
+    );
+    assert_eq!(b.eval("Number(document.body.dataset.downloads)"), 3);
+    // The registered views stay on the page, to see which one went wrong.
+    let points = b.eval("Number(document.body.dataset.points)");
+    assert!(points.as_u64().unwrap() > 1000, "{points}");
+    assert!(!d.join("refused-live/model.obj").exists());
+    let shot = b.screenshot();
+    if let Some(dir) = std::env::var_os("LIVE_VIEW_SHOTS") {
+        shot.save(Path::new(&dir).join("live-view-merge-refused.png"))
+            .unwrap();
+    }
+    // Still up after the refusal, until Ctrl-C; then the exit status fails.
+    let sent = Command::new("kill")
+        .args(["-INT", &child.id().to_string()])
+        .status();
+    assert!(sent.is_ok_and(|s| s.success()));
+    let t0 = Instant::now();
+    let status = loop {
+        if let Some(st) = child.try_wait().unwrap() {
+            break st;
+        }
+        assert!(t0.elapsed() < Duration::from_secs(20), "no exit on Ctrl-C");
+        std::thread::sleep(Duration::from_millis(50));
+    };
+    assert!(!status.success(), "a refused merge exits with failure");
 }
 
 /// `receive --merge`: the three sweeps in one session (one stream after the other, as a head

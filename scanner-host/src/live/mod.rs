@@ -297,6 +297,25 @@ impl LiveView {
         names: &[&'static str],
         ended: &str,
     ) {
+        self.end(k, mesh, dir, names, ended, false);
+    }
+
+    /// The job stopped without its result (a merge refused): `why` on the page, in the colour of
+    /// a failure, and the files `names` found in `dir` offered (what the refusal left to look
+    /// at).
+    pub fn stopped(&self, dir: &std::path::Path, names: &[&'static str], why: &str) {
+        self.end(None, None, dir, names, why, true);
+    }
+
+    fn end(
+        &self,
+        k: Option<&Counts>,
+        mesh: Option<Mesh>,
+        dir: &std::path::Path,
+        names: &[&'static str],
+        ended: &str,
+        failed: bool,
+    ) {
         let secs = self.started.elapsed().as_secs_f64().max(1e-3);
         let mut files = Vec::new();
         let mut listed = Vec::new();
@@ -330,6 +349,7 @@ impl LiveView {
         };
         status["type"] = "done".into();
         status["ended"] = ended.into();
+        status["failed"] = failed.into();
         status["files"] = listed.into();
         status["vertices"] = vertices.into();
         status["faces"] = faces.into();
