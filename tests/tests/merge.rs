@@ -463,31 +463,37 @@ fn same_files(a: &Path, b: &Path, files: &[&str]) {
     }
 }
 
-fn live_view_of_the_merge(d: &Path) {
+/// `scanner-host ARGS --view` started in `d` and its page opened in a headless Chromium (`None`
+/// without one: the browser module says so).
+fn merge_in_browser(
+    d: &Path,
+    args: &[&str],
+) -> Option<(std::process::Child, scanner_tests::browser::Browser)> {
     use scanner_tests::browser::{Browser, chromium, lines_of, wait_line};
     use std::process::{Command, Stdio};
-    use std::time::Duration;
-    let Some(exe) = chromium() else { return };
+    let exe = chromium()?;
     let mut child = Command::new(workspace_bin("scanner-host"))
         .current_dir(d)
-        .args([
-            "merge",
-            "v0",
-            "v1",
-            "v6",
-            "--out",
-            "model-live",
-            "-q",
-            "--view",
-        ])
+        .args(args)
+        .arg("--view")
         .stdout(Stdio::null())
         .stderr(Stdio::piped())
         .spawn()
         .unwrap();
     let lines = lines_of(child.stderr.take().unwrap());
-    let url = wait_line(&lines, "live view: ", Duration::from_secs(20)).expect("the address");
+    let url =
+        wait_line(&lines, "live view: ", std::time::Duration::from_secs(20)).expect("the address");
     let mut b = Browser::launch(&exe);
     b.navigate(&url);
+    Some((child, b))
+}
+
+fn live_view_of_the_merge(d: &Path) {
+    use std::time::Duration;
+    let args = ["merge", "v0", "v1", "v6", "--out", "model-live", "-q"];
+    let Some((child, mut b)) = merge_in_browser(d, &args) else {
+        return;
+    };
     assert!(
         b.wait_for(
             "document.body.dataset.mesh === 'shown'",
@@ -522,31 +528,14 @@ fn live_view_of_the_merge(d: &Path) {
 /// the refusal left (views.png, views.ply, merge-report.txt), and stays up; the exit status
 /// still fails when it closes.
 fn live_view_of_a_refused_merge(d: &Path, dirs: &[String]) {
-    use scanner_tests::browser::{Browser, chromium, lines_of, wait_line};
-    use std::process::{Command, Stdio};
+    use std::process::Command;
     use std::time::{Duration, Instant};
-    let Some(exe) = chromium() else { return };
     let mut args = vec!["merge"];
     args.extend(dirs.iter().map(String::as_str));
-    args.extend([
-        "--out",
-        "refused-live",
-        "--min-overlap",
-        "0.3",
-        "-q",
-        "--view",
-    ]);
-    let mut child = Command::new(workspace_bin("scanner-host"))
-        .current_dir(d)
-        .args(&args)
-        .stdout(Stdio::null())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
-    let lines = lines_of(child.stderr.take().unwrap());
-    let url = wait_line(&lines, "live view: ", Duration::from_secs(20)).expect("the address");
-    let mut b = Browser::launch(&exe);
-    b.navigate(&url);
+    args.extend(["--out", "refused-live", "--min-overlap", "0.3", "-q"]);
+    let Some((mut child, mut b)) = merge_in_browser(d, &args) else {
+        return;
+    };
     assert!(
         b.wait_for(
             "document.getElementById('state').textContent.startsWith('stopped: ')",
