@@ -131,8 +131,13 @@ pub enum Command {
         /// Remove the surface no view saw (farther than three fusion cells from every point):
         /// by default the fusion closes it smoothly (by the points' winding number) and the
         /// model is watertight; trimmed, it is open where the views left gaps.
-        #[arg(long)]
+        #[arg(long, conflicts_with = "flat_base")]
         trim_unseen: bool,
+        /// Close the model flat at the bottom, for printing: cut it level with the lowest point
+        /// any view saw (up: the board's crease) and cap it flat; the unseen surface below that
+        /// goes, the rest is closed smoothly.
+        #[arg(long)]
+        flat_base: bool,
         /// Show the registered views and the fused model in a web browser (as for receive).
         #[arg(long, value_name = "ADDR:PORT", num_args = 0..=1, default_missing_value = "127.0.0.1:0")]
         view: Option<SocketAddr>,
@@ -452,6 +457,7 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
             min_overlap,
             turntable,
             trim_unseen,
+            flat_base,
             view,
             view_for,
             quiet,
@@ -470,7 +476,7 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
                 out,
                 *cell,
                 (*voxel, *fuse_cell, *min_overlap, *turntable),
-                (*trim_unseen, *quiet),
+                (closing_choice(*trim_unseen, *flat_base), *quiet),
                 view.as_ref(),
             );
             return match view {
@@ -506,6 +512,22 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
     Ok(())
 }
 
+/// How the merge's model closes what no view saw (the options `--trim-unseen`, `--flat-base`).
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum ClosingChoice {
+    Smooth,
+    Trim,
+    FlatBase,
+}
+
+fn closing_choice(trim_unseen: bool, flat_base: bool) -> ClosingChoice {
+    match (trim_unseen, flat_base) {
+        (true, _) => ClosingChoice::Trim,
+        (_, true) => ClosingChoice::FlatBase,
+        _ => ClosingChoice::Smooth,
+    }
+}
+
 /// What a refused merge leaves to look at (those written before it stopped).
 const MERGE_REFUSED_FILES: &[&str] = &["views.png", "views.ply", "merge-report.txt"];
 
@@ -533,7 +555,7 @@ fn merge_sweeps(o: &OutputArgs, view: Option<&LiveView>) -> Result<()> {
             crate::merge::MIN_OVERLAP,
             None,
         ),
-        (false, o.quiet),
+        (ClosingChoice::Smooth, o.quiet),
         view,
     )
 }
@@ -543,7 +565,7 @@ fn merge_command(
     out: &std::path::Path,
     cell: Cell,
     (voxel, fuse_cell, min_overlap, turntable): (f64, f64, f64, Option<f64>),
-    (trim_unseen, quiet): (bool, bool),
+    (closing, quiet): (ClosingChoice, bool),
     view: Option<&LiveView>,
 ) -> Result<()> {
     use crate::merge;
@@ -572,6 +594,23 @@ fn merge_command(
         stage(&format!("reading view {k} of {}", views.len()));
         loaded.push(merge::load_view(k, p, cell)?);
     }
+    let frame = loaded[0]
+        .header
+        .board()
+        .map(|b| crate::mesh::MeshFrame::board(&b))
+        .unwrap_or_default();
+    let closing = match closing {
+        ClosingChoice::Smooth => merge::Closing::Smooth,
+        ClosingChoice::Trim => merge::Closing::Trim,
+        ClosingChoice::FlatBase => match frame {
+            crate::mesh::MeshFrame::Board { rotation, .. } => merge::Closing::FlatBase {
+                up: rotation.row(1).transpose().cast(),
+            },
+            crate::mesh::MeshFrame::Camera => anyhow::bail!(
+                "--flat-base needs to know which way is up: view 0's scan carries no board calibration"
+            ),
+        },
+    };
     let opts = crate::register::RegisterOptions {
         voxel_mm: voxel,
         min_overlap,
@@ -590,11 +629,6 @@ fn merge_command(
     pb.finish_and_clear();
     std::fs::create_dir_all(out)
         .with_context(|| format!("cannot create the output folder {}", out.display()))?;
-    let frame = loaded[0]
-        .header
-        .board()
-        .map(|b| crate::mesh::MeshFrame::board(&b))
-        .unwrap_or_default();
     crate::export::write_atomic(
         &out.join("views.ply"),
         &merge::views_ply(&loaded, &results, &frame),
@@ -634,7 +668,7 @@ fn merge_command(
     if let Some(v) = view {
         v.stage("fusing the views into one mesh");
     }
-    let fused = merge::fuse_views(&input, fuse_cell, trim_unseen, |done, all| {
+    let fused = merge::fuse_views(&input, fuse_cell, closing, |done, all| {
         pb.set_message(format!(
             "fusing the views into one mesh: {} %",
             100 * done / all.max(1)

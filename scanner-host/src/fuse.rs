@@ -119,6 +119,33 @@ pub fn fuse_with(
     normals: &[Vector3<f64>],
     weights: &[f64],
     cell: f64,
+    progress: impl FnMut(usize, usize),
+) -> Result<Mesh, FuseError> {
+    fuse_cut(points, normals, weights, cell, None, progress)
+}
+
+/// The side of a plane a fused model keeps: the points `x` with `up · x ≥ at` (`up` a unit
+/// vector).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct HalfSpace {
+    /// Unit normal, pointing into the kept side.
+    pub up: Vector3<f64>,
+    /// The plane's offset along `up`, mm.
+    pub at: f64,
+}
+
+/// [`fuse_with`], the solid cut by a plane when `keep` is given: what lies beyond it goes and
+/// the cut is closed flat (the field is the larger of the surface's and the plane's signed
+/// distances, so the model stays closed and manifold) — a flat base to print on.
+///
+/// # Errors
+/// As [`fuse_with`].
+pub fn fuse_cut(
+    points: &[Point3<f64>],
+    normals: &[Vector3<f64>],
+    weights: &[f64],
+    cell: f64,
+    keep: Option<HalfSpace>,
     mut progress: impl FnMut(usize, usize),
 ) -> Result<Mesh, FuseError> {
     if normals.len() != points.len() || !(weights.is_empty() || weights.len() == points.len()) {
@@ -210,11 +237,14 @@ pub fn fuse_with(
         let edge = |x: usize, n: usize| x < 2 || x + 2 >= n;
         for j in 0..ny {
             for i in 0..nx {
-                let v = if coarse.far(i, j, k, far) {
+                let mut v = if coarse.far(i, j, k, far) {
                     closing(coarse.winding(i, j, k))
                 } else {
                     field(i, j, k)
                 };
+                if let Some(h) = keep {
+                    v = v.max((h.at - h.up.dot(&at(i, j, k).coords)) as f32);
+                }
                 out.push(if edge(i, nx) || edge(j, ny) || edge(k, nz) {
                     v.max(cell as f32)
                 } else {
@@ -484,15 +514,31 @@ pub fn unseen_faces(m: &Mesh, points: &[Point3<f64>], max_dist: f64) -> Vec<bool
         .collect()
 }
 
+/// A face's area, mm².
+fn face_area(m: &Mesh, f: &[u32; 3]) -> f64 {
+    let [a, b, c] = f.map(|i| m.vertices[i as usize].cast::<f64>());
+    (b - a).cross(&(c - a)).norm() / 2.0
+}
+
+/// The area of `m`'s faces whose corners all lie within `tol` mm of the plane bounding `h` (a
+/// flat cut's cap), mm².
+pub fn area_on(m: &Mesh, h: &HalfSpace, tol: f64) -> f64 {
+    m.faces
+        .iter()
+        .filter(|f| {
+            f.iter().all(|&i| {
+                (h.up.dot(&m.vertices[i as usize].cast::<f64>().coords) - h.at).abs() <= tol
+            })
+        })
+        .map(|f| face_area(m, f))
+        .sum()
+}
+
 /// The share of `m`'s area in the faces marked in `marked` (0 for a mesh without area).
 pub fn area_share(m: &Mesh, marked: &[bool]) -> f64 {
-    let area = |f: &[u32; 3]| {
-        let [a, b, c] = f.map(|i| m.vertices[i as usize].cast::<f64>());
-        (b - a).cross(&(c - a)).norm() / 2.0
-    };
     let (mut part, mut all) = (0.0, 0.0);
     for (f, &x) in m.faces.iter().zip(marked) {
-        let a = area(f);
+        let a = face_area(m, f);
         all += a;
         if x {
             part += a;

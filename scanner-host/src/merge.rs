@@ -923,40 +923,76 @@ pub struct Fused {
 /// How far from every point the model's surface counts as unseen, in fusion cells.
 pub const UNSEEN_CELLS: f64 = 3.0;
 
-/// Fuses the views' points ([`fusion_input`]) with cells of `cell` mm: closed (watertight) by
-/// default, or with the surface no view saw removed (`trim_unseen`); coloured from the points
-/// when they carry colour. `progress` sees the grid's slices done and in all.
+/// How [`fuse_views`] closes the surface no view saw.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Closing {
+    /// Smoothly, by the points' winding number: the model is watertight.
+    Smooth,
+    /// Not at all: the unseen surface is removed and the model is open there.
+    Trim,
+    /// Cut level with the lowest point a view saw and closed flat there (a base to print on),
+    /// smoothly elsewhere: `up` is the object's up, unit, in view 0's frame. Nothing a view saw
+    /// lies below the cut.
+    FlatBase {
+        /// Up, in view 0's camera frame.
+        up: scanner_core::nalgebra::Vector3<f64>,
+    },
+}
+
+/// Fuses the views' points ([`fusion_input`]) with cells of `cell` mm, the unseen surface closed
+/// as `closing` says; coloured from the points when they carry colour. `progress` sees the
+/// grid's slices done and in all.
 ///
 /// # Errors
 /// [`crate::fuse::FuseError`] from the fusion.
 pub fn fuse_views(
     input: &FusionInput,
     cell: f64,
-    trim_unseen: bool,
+    closing: Closing,
     progress: impl FnMut(usize, usize),
 ) -> Result<Fused, crate::fuse::FuseError> {
-    let mut model = crate::fuse::fuse_with(
+    use crate::fuse::HalfSpace;
+    let base = match closing {
+        Closing::FlatBase { up } => Some(HalfSpace {
+            up,
+            at: input
+                .points
+                .iter()
+                .map(|p| up.dot(&p.coords))
+                .fold(f64::INFINITY, f64::min),
+        }),
+        _ => None,
+    };
+    let mut model = crate::fuse::fuse_cut(
         &input.points,
         &input.normals,
         &input.weights,
         cell,
+        base,
         progress,
     )?;
     let reach = UNSEEN_CELLS * cell;
     let unseen = crate::fuse::unseen_faces(&model, &input.points, reach);
     let unseen_share = crate::fuse::area_share(&model, &unseen);
-    let mut report = if trim_unseen {
-        let removed = crate::fuse::trim(&mut model, &unseen);
-        format!(
-            "trimmed {removed} faces ({:.1} % of the area) farther than {reach:.1} mm from every point: surface no view saw\n",
-            100.0 * unseen_share
-        )
-    } else {
-        format!(
+    let mut report = match closing {
+        Closing::Trim => {
+            let removed = crate::fuse::trim(&mut model, &unseen);
+            format!(
+                "trimmed {removed} faces ({:.1} % of the area) farther than {reach:.1} mm from every point: surface no view saw\n",
+                100.0 * unseen_share
+            )
+        }
+        _ => format!(
             "surface no view saw (farther than {reach:.1} mm from every point): {:.1} % of the area, closed by the points' winding number (--trim-unseen removes it)\n",
             100.0 * unseen_share
-        )
+        ),
     };
+    if let Some(h) = base {
+        report += &format!(
+            "closed flat at the bottom, level with the lowest point a view saw: a base of {:.0} mm² (--flat-base)\n",
+            crate::fuse::area_on(&model, &h, 0.01)
+        );
+    }
     crate::fuse::colour_from(&mut model, &input.points, &input.surface);
     if !model.colours.is_empty() {
         report += "model coloured per vertex from the views (the nearest point's colour)\n";

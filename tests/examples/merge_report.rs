@@ -65,8 +65,13 @@ fn run() -> Result<(), String> {
         merge::register_views(&views, &opts, None, |_, _| {}).map_err(|e| format!("{e}"))?;
     let closure = merge::refine_views(&views, &mut results, &opts, |_| {});
     let input = merge::fusion_input(&views, &results);
-    let fused = merge::fuse_views(&input, merge::FUSE_CELL_MM, false, |_, _| {})
-        .map_err(|e| format!("{e}"))?;
+    let fused = merge::fuse_views(
+        &input,
+        merge::FUSE_CELL_MM,
+        merge::Closing::Smooth,
+        |_, _| {},
+    )
+    .map_err(|e| format!("{e}"))?;
     let seconds = t0.elapsed().as_secs_f64();
     let distance = scene.board.distance;
     let pct = |mm: f64| 100.0 * mm / distance;

@@ -206,3 +206,63 @@ fn points_of_low_weight_give_way_where_sure_points_saw_the_same_surface() {
         assert!(e.to_string().contains("point 7"), "{e}");
     }
 }
+
+/// A cut by a plane (`fuse_cut`, what `merge --flat-base` runs): the sphere from six sides cut
+/// half a radius below its centre stays closed and manifold, nothing lies beyond the plane, and
+/// the cap is flat, faces away from the kept side and has the area of the sphere's section there
+/// (π (r² − (r/2)²)); the volume is the cut sphere's.
+#[test]
+fn a_plane_cuts_the_fused_sphere_and_closes_it_flat() {
+    use scanner_host::fuse::{HalfSpace, area_on, fuse_cut};
+    let (centre, radius, points, normals) = sphere_views(&SIX_SIDES);
+    // Camera y points down: keep y ≤ centre + r/2, i.e. (−y)·x ≥ −(centre.y + r/2).
+    let keep = HalfSpace {
+        up: -Vector3::y(),
+        at: -(centre.y + radius / 2.0),
+    };
+    let m = fuse_cut(&points, &normals, &[], 1.0, Some(keep), |_, _| {}).unwrap();
+    let c = check(&m);
+    let beyond = m
+        .vertices
+        .iter()
+        .map(|v| keep.at - keep.up.dot(&v.cast::<f64>().coords))
+        .fold(f64::NEG_INFINITY, f64::max);
+    let cap = area_on(&m, &keep, 0.01);
+    let section = std::f64::consts::PI * (radius * radius - radius * radius / 4.0);
+    // The cap of a sphere of radius r cut at height h = r/2 below the centre: the kept part's
+    // volume is the sphere's less the cap of height r/2: π h² (3r − h)/3 with h = r/2.
+    let h = radius / 2.0;
+    let truth = 4.0 / 3.0 * std::f64::consts::PI * radius.powi(3)
+        - std::f64::consts::PI * h * h * (3.0 * radius - h) / 3.0;
+    let down: f64 = m
+        .faces
+        .iter()
+        .filter(|f| {
+            f.iter().all(|&i| {
+                (keep.up.dot(&m.vertices[i as usize].cast::<f64>().coords) - keep.at).abs() <= 0.01
+            })
+        })
+        .map(|f| {
+            let [a, b, c] = f.map(|i| m.vertices[i as usize].cast::<f64>());
+            (b - a).cross(&(c - a)).dot(&keep.up)
+        })
+        .fold(f64::NEG_INFINITY, f64::max);
+    println!(
+        "cut sphere: {c:?}; farthest beyond the plane {beyond:.4} mm; cap {cap:.0} mm² against {section:.0}; volume {:+.2} % of the cut sphere's",
+        100.0 * (c.volume_mm3 / truth - 1.0)
+    );
+    assert!(
+        c.watertight && c.nonmanifold_vertices == 0 && c.components == 1,
+        "{c:?}"
+    );
+    assert!(beyond <= 1e-3, "a vertex {beyond} mm beyond the plane");
+    assert!(
+        (cap / section - 1.0).abs() < 0.03,
+        "cap {cap} mm², section {section} mm²"
+    );
+    assert!(down < 0.0, "every cap face faces out of the kept side");
+    assert!(
+        (c.volume_mm3 / truth - 1.0).abs() < 0.01,
+        "{c:?} against {truth}"
+    );
+}
