@@ -627,6 +627,11 @@ fn merge_command(
         stage(&format!("refining all views together: round {}", round + 1));
     });
     pb.finish_and_clear();
+    if closure.after.is_none() {
+        crate::errln!(
+            "warning: no loop of views to check the registration by (each view rests on one pairwise match): look at views.png before trusting the model; a view that overlaps two others closes a loop"
+        );
+    }
     std::fs::create_dir_all(out)
         .with_context(|| format!("cannot create the output folder {}", out.display()))?;
     crate::export::write_atomic(

@@ -736,14 +736,16 @@ pub fn closure_line(c: &Closure) -> String {
         ),
         None => "—".into(),
     };
+    let pairs = match c.pairs {
+        1 => "1 pair".to_string(),
+        n => format!("{n} pairs"),
+    };
     match (c.before, c.after) {
         (None, None) => format!(
-            "loop closure: no loop to close ({} pairs of views besides the registered ones agree, none overlapping enough to tell)\n",
-            c.pairs
+            "loop closure: no loop to close ({pairs} of views besides the registered ones agree, none overlapping enough to tell)\n"
         ),
         (b, a) => format!(
-            "loop closure (the worst of {} pairs of views that close loops, each registered directly against their poses): {} before the joint refinement, {} after\n",
-            c.pairs,
+            "loop closure (the worst of {pairs} of views that close loops, each registered directly against their poses): {} before the joint refinement, {} after\n",
             show(&b),
             show(&a)
         ),
