@@ -527,6 +527,15 @@ pub fn register_clouds(
                 return Ok(out);
             }
             Err(bad) => {
+                // Every view is reached by an agreeing candidate: a view left out means a fine
+                // fit failed, so each round drops one candidate at least.
+                debug_assert!(!bad.is_empty());
+                if bad.is_empty() {
+                    return Err(Unplaced::Apart {
+                        placed: vec![0],
+                        apart: (1..n).collect(),
+                    });
+                }
                 for i in bad {
                     dropped[i] = true;
                     for v in [edges[i].from, edges[i].to] {
