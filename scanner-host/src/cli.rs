@@ -476,7 +476,7 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
                 out,
                 *cell,
                 (*voxel, *fuse_cell, *min_overlap, *turntable),
-                (closing_choice(*trim_unseen, *flat_base), *quiet),
+                (*trim_unseen, *flat_base, *quiet),
                 view.as_ref(),
             );
             return match view {
@@ -512,22 +512,6 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// How the merge's model closes what no view saw (the options `--trim-unseen`, `--flat-base`).
-#[derive(Debug, Clone, Copy, PartialEq)]
-enum ClosingChoice {
-    Smooth,
-    Trim,
-    FlatBase,
-}
-
-fn closing_choice(trim_unseen: bool, flat_base: bool) -> ClosingChoice {
-    match (trim_unseen, flat_base) {
-        (true, _) => ClosingChoice::Trim,
-        (_, true) => ClosingChoice::FlatBase,
-        _ => ClosingChoice::Smooth,
-    }
-}
-
 /// What a refused merge leaves to look at (those written before it stopped).
 const MERGE_REFUSED_FILES: &[&str] = &["views.png", "views.ply", "merge-report.txt"];
 
@@ -555,7 +539,7 @@ fn merge_sweeps(o: &OutputArgs, view: Option<&LiveView>) -> Result<()> {
             crate::merge::MIN_OVERLAP,
             None,
         ),
-        (ClosingChoice::Smooth, o.quiet),
+        (false, false, o.quiet),
         view,
     )
 }
@@ -565,7 +549,7 @@ fn merge_command(
     out: &std::path::Path,
     cell: Cell,
     (voxel, fuse_cell, min_overlap, turntable): (f64, f64, f64, Option<f64>),
-    (closing, quiet): (ClosingChoice, bool),
+    (trim_unseen, flat_base, quiet): (bool, bool, bool),
     view: Option<&LiveView>,
 ) -> Result<()> {
     use crate::merge;
@@ -599,16 +583,15 @@ fn merge_command(
         .board()
         .map(|b| crate::mesh::MeshFrame::board(&b))
         .unwrap_or_default();
-    let closing = match closing {
-        ClosingChoice::Smooth => merge::Closing::Smooth,
-        ClosingChoice::Trim => merge::Closing::Trim,
-        ClosingChoice::FlatBase => match frame {
-            crate::mesh::MeshFrame::Board { rotation, .. } => merge::Closing::FlatBase {
-                up: rotation.row(1).transpose().cast(),
-            },
-            crate::mesh::MeshFrame::Camera => anyhow::bail!(
-                "--flat-base needs to know which way is up: view 0's scan carries no board calibration"
-            ),
+    let closing = match (trim_unseen, flat_base) {
+        (true, _) => merge::Closing::Trim,
+        (false, false) => merge::Closing::Smooth,
+        (false, true) => merge::Closing::FlatBase {
+            up: frame.up().ok_or_else(|| {
+                anyhow::anyhow!(
+                    "--flat-base needs to know which way is up: view 0's scan carries no board calibration"
+                )
+            })?,
         },
     };
     let opts = crate::register::RegisterOptions {

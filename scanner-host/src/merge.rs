@@ -648,10 +648,9 @@ fn turntable_hints(views: &[View], k: usize, j: usize, step_deg: f64) -> Vec<Iso
     let Ok(board) = views[0].header.board() else {
         return Vec::new();
     };
-    let MeshFrame::Board { rotation, .. } = MeshFrame::board(&board) else {
+    let Some(up) = MeshFrame::board(&board).up() else {
         return Vec::new();
     };
-    let up = rotation.row(1).transpose().cast();
     let angle = step_deg * (k - j) as f64;
     crate::register::turntable_motions(&up, &views[k].cloud, &views[j].cloud, angle).to_vec()
 }

@@ -45,6 +45,15 @@ pub enum MeshFrame {
 }
 
 impl MeshFrame {
+    /// Up (the board's +y, along the crease) in camera coordinates; `None` in the camera's own
+    /// frame, which has no up.
+    pub fn up(&self) -> Option<Vector3<f64>> {
+        match self {
+            MeshFrame::Board { rotation, .. } => Some(rotation.row(1).transpose().cast()),
+            MeshFrame::Camera => None,
+        }
+    }
+
     /// The board frame of `board` (see [`MeshFrame::Board`]).
     pub fn board(board: &Board<f32>) -> MeshFrame {
         let crease = board.crease();

@@ -5,8 +5,8 @@
 //! On an object of flat faces, a wrong motion can fit a pair of views better than the true one
 //! (a face laid on another face); it then disagrees with what the other pairs say about the same
 //! two views. Each view's pose is placed from a candidate motion onto an already placed view, and
-//! a set of placements scores the fit of every candidate — of every pair, both ways — that its
-//! poses agree with. A beam search keeps the best partial sets while views are added.
+//! a set of placements scores the fit of every candidate — of every pair — that its poses agree
+//! with. A beam search keeps the best partial sets while views are added.
 
 use scanner_core::nalgebra::{Isometry3, Point3};
 
