@@ -621,8 +621,10 @@ fn merge_command(
         &out.join("views.ply"),
         &merge::views_ply(&loaded, &results, &frame),
     )?;
+    let seen = merge::free_space(&loaded, &results, voxel);
     let mut report = merge::report(&loaded, &results);
     report += &merge::closure_line(&closure);
+    report += &merge::free_space_line(seen, voxel);
     let input = merge::fusion_input(&loaded, &results);
     let colours = &input.colours;
     // The registered views in their colours (front and side), the board's frame like the model:
@@ -645,7 +647,9 @@ fn merge_command(
             v.points(pts, rgb);
         }
     }
-    if let Err(e) = merge::check_closure(&closure, voxel) {
+    if let Err(e) = merge::check_closure(&closure, voxel)
+        .and_then(|()| merge::check_free_space(seen, &loaded, voxel))
+    {
         crate::export::write_atomic(&out.join("merge-report.txt"), report.as_bytes())?;
         crate::outln!("{}", report.trim_end());
         return Err(e.into());

@@ -49,6 +49,7 @@ pub mod mesh;
 pub mod outputs;
 pub mod refine;
 pub mod register;
+pub mod seen;
 pub mod select;
 pub mod winding;
 

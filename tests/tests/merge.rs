@@ -122,6 +122,7 @@ fn views_of_a_part_of_flat_faces_are_merged_right_or_refused() {
         assert!(!d.join("model/model.obj").exists() && !d.join("model/model.stl").exists());
         live_view_of_a_refused_merge(d, &dirs);
     }
+    two_views_of_the_part_merged_right_or_seen_through(d, &scene);
     // A view that overlaps none of the others (the bunny, scanned by the same set-up, among
     // views of the part) is named, and nothing is merged.
     small_scene(d, "bunny-360.toml", "bunny.obj");
@@ -162,6 +163,9 @@ fn three_scanned_views_register_with_the_rigs_rotations() {
         "{out}"
     );
     assert!(out.contains("surface no view saw"), "{out}");
+    // Right poses leave (next to) no view's points in front of what another saw.
+    let share = free_space_share(&out);
+    assert!(share < 0.5, "{share} % in front:\n{out}");
     model_against_the_truth(d, &scene, &[0, 1, 6]);
     // Coloured per vertex from the views' colours (the bunny's albedo, lit), in the PLY read
     // back by an independent reader (tobj reads the OBJ's vertex colours).
@@ -506,6 +510,72 @@ fn model_against_the_truth(d: &Path, scene: &scanner_rig::Scene, views: &[usize]
         pct(c.to_truth.p99.max(c.to_model.p99)),
     );
     assert!(mean < 0.03 && p99 < 0.2, "mean {mean} %, p99 {p99} %");
+}
+
+/// Two views of the part close no loop, so only their free space can tell a wrong registration
+/// (a face laid on the wrong face) by itself. Each pair is refused as overlapping too little,
+/// merged right (within 1° of the truth, next to no point in front of what the other view saw),
+/// refused because one view's points lie where the other saw empty space, or — where a wrong
+/// placement leaves the other's free space alone — merged wrong with the warning that no loop
+/// checked it. Some pair must be refused by its free space.
+fn two_views_of_the_part_merged_right_or_seen_through(d: &Path, scene: &scanner_rig::Scene) {
+    let mut seen_through = 0;
+    for (a, b) in [(1, 2), (0, 2), (1, 3), (4, 5), (5, 0), (2, 3)] {
+        let (va, vb) = (format!("v{a}"), format!("v{b}"));
+        let out_dir = format!("pair{a}{b}");
+        let (ok, out, err) = run(
+            d,
+            "scanner-host",
+            &[
+                "merge",
+                &va,
+                &vb,
+                "--out",
+                &out_dir,
+                "--min-overlap",
+                "0.3",
+                "-q",
+            ],
+        );
+        let outcome = if err.contains("overlaps no other view") {
+            "too little overlap"
+        } else if ok {
+            let truth = (scene.view(a).unwrap().object_pose
+                * scene.view(b).unwrap().object_pose.inverse())
+            .rotation
+            .angle()
+            .to_degrees();
+            let found = rotation(out.lines().nth(2).unwrap_or_default());
+            assert!(err.contains("warning: no loop of views"), "{err}");
+            if (found - truth).abs() < 1.0 {
+                assert!(free_space_share(&out) < 0.5, "{out}");
+                "right"
+            } else {
+                "wrong, with the warning"
+            }
+        } else {
+            assert!(
+                err.contains("points lie in front of what view")
+                    && err.contains("no model was written"),
+                "views {a} and {b}: {err}"
+            );
+            assert!(!d.join(&out_dir).join("model.obj").exists());
+            seen_through += 1;
+            "refused by its free space"
+        };
+        println!("views {a} and {b}: {outcome}\n{out}{err}");
+    }
+    assert!(seen_through > 0, "no pair was refused by its free space");
+}
+
+/// The worst share of a view's points in front of what another saw, %, from `merge`'s report.
+fn free_space_share(out: &str) -> f64 {
+    out.split("points against what the others saw empty")
+        .nth(1)
+        .and_then(|s| s.split(": ").nth(2))
+        .and_then(|s| s.split(" %").next())
+        .and_then(|s| s.parse().ok())
+        .unwrap_or_else(|| panic!("a free-space line:\n{out}"))
 }
 
 /// The files `merge` writes for the model (beside its report and pictures).
