@@ -385,6 +385,46 @@ fn flat_base_of_the_merge(d: &Path) {
         &["merge", "v0", "v1", "--flat-base", "--trim-unseen"],
     );
     assert!(!ok && err.contains("cannot be used with"), "{err}");
+    // A view 0 whose scan carries no usable board (both planes the same: no crease, so no up):
+    // the flat base cannot be placed, and says why; the merge without it still runs.
+    let journal = std::fs::read(d.join("v0/journal.stream")).expect("view 0's journal");
+    std::fs::create_dir_all(d.join("noboard")).unwrap();
+    std::fs::write(d.join("noboard/journal.stream"), without_board(&journal)).unwrap();
+    let (ok, _, err) = run(
+        d,
+        "scanner-host",
+        &["merge", "noboard", "v1", "--out", "nb", "--flat-base", "-q"],
+    );
+    assert!(
+        !ok && err.contains("--flat-base needs to know which way is up")
+            && err.contains("no board calibration"),
+        "{err}"
+    );
+    assert!(!d.join("nb/model.obj").exists());
+    let (ok, _, err) = run(
+        d,
+        "scanner-host",
+        &["merge", "noboard", "v1", "--out", "nb", "-q"],
+    );
+    assert!(ok && d.join("nb/model.obj").exists(), "{err}");
+}
+
+/// A journal's frames with every header's right board plane replaced by its left one, each
+/// frame re-encoded as the head sends it.
+fn without_board(journal: &[u8]) -> Vec<u8> {
+    use scanner_core::wire::{self, Decoder, MAX_ENCODED, MAX_FRAME, Message};
+    let mut out = Vec::new();
+    let (mut scratch, mut frame) = (vec![0u8; MAX_FRAME], vec![0u8; MAX_ENCODED]);
+    let mut decoder = Box::new(Decoder::<MAX_ENCODED>::new());
+    decoder.feed(journal, |m| {
+        let mut m = m.expect("a journal of good frames");
+        if let Message::Header(h) = &mut m {
+            h.board[1] = h.board[0];
+        }
+        let n = wire::encode(&m, &mut scratch, &mut frame).expect("re-encoded");
+        out.extend_from_slice(&frame[..n]);
+    });
+    out
 }
 
 fn model_against_the_truth(d: &Path, scene: &scanner_rig::Scene, views: &[usize]) {
