@@ -33,6 +33,14 @@ fn calibrate_the_rig_from_its_images() {
     let (ok, out, err) = run(&args);
     assert!(ok, "{err}");
     assert!(out.contains("rms"), "{out}");
+    // The rig's twelve shots sweep the target round the middle of the view: the border stays
+    // unsampled, and the command says where.
+    assert!(
+        out.contains("coverage: the features used fall in")
+            && out.contains("0 of the 24 on its border")
+            && out.contains("none in the top left, top right, bottom left, bottom right corners"),
+        "{out}"
+    );
     let (ok, out, err) = run(&[
         "calibrate",
         "board",

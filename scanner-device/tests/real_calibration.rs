@@ -345,6 +345,29 @@ fn the_command_says_for_every_real_image_what_it_used_and_draws_each() {
         assert_eq!(image::open(&overlay).unwrap().width(), 640);
     }
     assert!(text.contains("over 13 images"), "{text}");
+    // Where the corners fell: this series holds the board near the middle, and the corners of
+    // the view stay unsampled (the distortion there extrapolated), which the command says.
+    let coverage = text
+        .lines()
+        .find(|l| l.starts_with("coverage: "))
+        .unwrap_or_else(|| panic!("a coverage line:\n{text}"));
+    let count = |after: &str| -> usize {
+        coverage
+            .split(after)
+            .next()
+            .and_then(|s| s.rsplit(' ').next())
+            .and_then(|v| v.parse().ok())
+            .unwrap_or_else(|| panic!("{coverage}"))
+    };
+    let (cells, border) = (
+        count(" of the image's 48 cells"),
+        count(" of the 24 on its border"),
+    );
+    assert!((20..48).contains(&cells) && border < 24, "{coverage}");
+    assert!(
+        coverage.contains("corner") && coverage.contains("extrapolated"),
+        "{coverage}"
+    );
     // Squares or corners: the same board, the same camera.
     let out2 = dir.path().join("camera2.toml");
     let (ok, text2, err) = run(&intrinsics_args(

@@ -136,9 +136,13 @@ fn run() -> Result<(), String> {
         let moved = (err * centre - centre).norm();
         worst_rot = worst_rot.max(rot);
         worst_move = worst_move.max(moved);
+        let axis = err.rotation.scaled_axis().map(f64::to_degrees);
         println!(
-            "{k} | {} | {rot:.4}° | {moved:.3} mm ({:.4} %)",
+            "{k} | {} | {rot:.4}° (x {:+.3}, y {:+.3}, z {:+.3}) | {moved:.3} mm ({:.4} %)",
             r.points,
+            axis.x,
+            axis.y,
+            axis.z,
             pct(moved)
         );
     }

@@ -203,6 +203,76 @@ pub fn intrinsics(
     intrinsics_outcome(images, target, free).into_fit()
 }
 
+/// Columns and rows of the cells [`Coverage`] divides the image into.
+pub const COVER_CELLS: (usize, usize) = (8, 6);
+
+/// Where in the image the features of the images used fell: the image divided into
+/// [`COVER_CELLS`], each cell covered when some used feature lies in it. The lens's distortion
+/// is measured where features are and extrapolated elsewhere, and it grows fastest towards the
+/// corners — where the board's markers and the laser's stripe on it lie: a target photographed
+/// only in the middle of the view leaves the board measured through a guessed distortion.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Coverage {
+    /// Per cell, row by row: some used feature lies in it.
+    pub covered: Vec<bool>,
+}
+
+impl Coverage {
+    /// The coverage of the features `fit` used, over its image.
+    pub fn of(fit: &IntrinsicsFit) -> Coverage {
+        let (cols, rows) = COVER_CELLS;
+        let (w, h) = (f64::from(fit.size.0.max(1)), f64::from(fit.size.1.max(1)));
+        let mut covered = vec![false; cols * rows];
+        for v in fit.views.iter().flatten() {
+            for (_, p) in &v.found {
+                let (c, r) = (p.x / w * cols as f64, p.y / h * rows as f64);
+                if c >= 0.0 && r >= 0.0 && c < cols as f64 && r < rows as f64 {
+                    covered[r as usize * cols + c as usize] = true;
+                }
+            }
+        }
+        Coverage { covered }
+    }
+
+    /// Covered cells and all cells.
+    pub fn cells(&self) -> (usize, usize) {
+        (
+            self.covered.iter().filter(|&&c| c).count(),
+            self.covered.len(),
+        )
+    }
+
+    /// Covered cells on the image's border (its outer ring) and all border cells.
+    pub fn border(&self) -> (usize, usize) {
+        let (cols, rows) = COVER_CELLS;
+        let ring = |k: usize| {
+            let (c, r) = (k % cols, k / cols);
+            c == 0 || r == 0 || c + 1 == cols || r + 1 == rows
+        };
+        let on: Vec<bool> = (0..self.covered.len())
+            .filter(|&k| ring(k))
+            .map(|k| self.covered[k])
+            .collect();
+        (on.iter().filter(|&&c| c).count(), on.len())
+    }
+
+    /// The image's corners (top left, top right, bottom left, bottom right) whose cell no used
+    /// feature reached.
+    pub fn empty_corners(&self) -> Vec<&'static str> {
+        let (cols, rows) = COVER_CELLS;
+        [
+            (0, "top left"),
+            (cols - 1, "top right"),
+            ((rows - 1) * cols, "bottom left"),
+            (rows * cols - 1, "bottom right"),
+        ]
+        .into_iter()
+        .filter(|&(k, _)| !self.covered[k])
+        .map(|(_, name)| name)
+        .collect()
+    }
+}
+
 /// Status of an image whose grid was found, until the fit says more.
 fn pending() -> Result<ViewFit, CalibError> {
     Err(CalibError::NotSolved)

@@ -50,8 +50,8 @@ use corners::{CornerConfig, find_corners};
 use detect::{Blob, DetectConfig, Detections, find_markers};
 use identify::{Assignment, Orientation, candidates, identify};
 pub use intrinsics::{
-    Found, GridView, ImageReport, IntrinsicsFit, IntrinsicsOutcome, ViewFit, find_grid, intrinsics,
-    intrinsics_outcome,
+    Coverage, Found, GridView, ImageReport, IntrinsicsFit, IntrinsicsOutcome, ViewFit, find_grid,
+    intrinsics, intrinsics_outcome,
 };
 
 /// The largest RMS of a sheet's markers against its layout that a board calibration accepts,

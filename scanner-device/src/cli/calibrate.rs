@@ -11,7 +11,7 @@ use scanner_core::calib::Free;
 use scanner_calib::board::BoardFile;
 use scanner_calib::file::{CalibrationFile, write_atomic};
 use scanner_calib::{
-    CalibError, DotGrid, PlaneMethod, Target, ViewFit, board_planes, check_size,
+    CalibError, Coverage, DotGrid, PlaneMethod, Target, ViewFit, board_planes, check_size,
     intrinsics_outcome, overlay, print, short,
 };
 
@@ -435,6 +435,22 @@ fn intrinsics_command(
         d.k3,
         fit.rms_px,
         out.display()
+    );
+    let cover = Coverage::of(&fit);
+    let ((cells, all), (border, ring)) = (cover.cells(), cover.border());
+    let (cols, rows) = scanner_calib::intrinsics::COVER_CELLS;
+    let empty = cover.empty_corners();
+    let corners = if empty.is_empty() {
+        String::new()
+    } else {
+        format!(
+            "; none in the {} corner{}, where the distortion is extrapolated",
+            empty.join(", "),
+            if empty.len() == 1 { "" } else { "s" }
+        )
+    };
+    outln!(
+        "coverage: the features used fall in {cells} of the image's {all} cells ({cols}×{rows}), {border} of the {ring} on its border{corners}"
     );
     Ok(())
 }
