@@ -7,8 +7,9 @@
 //! - every view's points against the true surface (placed by the view's true pose), those clear
 //!   of the view's edges and those on them apart (what the merge registers on, what it only
 //!   fills in with);
-//! - every view's pose against the truth: rotation, and the displacement of the object's centre
-//!   (mm and % of the camera–board distance);
+//! - every view's pose against the truth: rotation (with its rotation vector in view 0's camera
+//!   frame, degrees about x, y and z), and the displacement of the object's centre (mm and % of
+//!   the camera–board distance);
 //! - the fused mesh against the true mesh both ways over the surface the views saw: model → truth
 //!   from the model's seen faces (area-weighted samples), truth → model from samples of the true
 //!   surface within the unseen distance of a registered point (so holes count);
