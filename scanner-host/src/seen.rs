@@ -35,9 +35,9 @@ pub struct DepthMap {
 
 impl DepthMap {
     /// The map of `points` (camera frame, mm) seen by the camera of a scan's `header`: its bins
-    /// cover the image (the header's width × height: at most 65 535² pixels, so at most 2.7e8
-    /// bins; the image's pixels over 16 in practice); points behind the camera or outside the
-    /// image are left out.
+    /// cover the image, the header's width × height over 16 — at most 1024 × 1024 bins (4 MB),
+    /// since the collector refuses a header beyond [`scanner_core::config::MAX_LINES`] pixels a
+    /// side (300 KB at 1280×960); points behind the camera or outside the image are left out.
     pub fn new(points: &[Point3<f64>], header: &Header) -> DepthMap {
         let c = &header.camera;
         DepthMap::of(
