@@ -48,10 +48,13 @@ impl DepthMap {
     }
 
     /// [`DepthMap::new`] for a camera of focal lengths and principal point `camera` (pixels) and
-    /// an image of `width × height` pixels.
+    /// an image of `width × height` pixels (each side taken as at most
+    /// [`scanner_core::config::MAX_LINES`], the largest image a head sends).
     pub fn of(points: &[Point3<f64>], camera: [f64; 4], (width, height): (u16, u16)) -> DepthMap {
-        let cols = (f64::from(width) / BIN_PX).ceil() as usize;
-        let rows = (f64::from(height) / BIN_PX).ceil() as usize;
+        let side = |s: u16| {
+            (usize::from(s).min(scanner_core::config::MAX_LINES) as f64 / BIN_PX).ceil() as usize
+        };
+        let (cols, rows) = (side(width), side(height));
         let mut map = DepthMap {
             camera,
             cols,
