@@ -125,15 +125,17 @@ fn main() {
     // As `merge` checks the poses: every view's points against every other's free space, seen
     // by a 1280×960 camera of f = 1120 px.
     let t4 = Instant::now();
-    let maps: Vec<DepthMap> = clouds
-        .iter()
-        .map(|c| DepthMap::of(&c.points, [1120.0, 1120.0, 639.5, 479.5], (1280, 960)))
-        .collect();
     let tol = scanner_host::merge::SEEN_TOL_VOXELS * o.voxel_mm;
-    let worst = conflicts(&refs, &maps, &poses, tol)
-        .into_iter()
-        .map(|c| c.share())
-        .fold(0.0, f64::max);
+    let worst = conflicts(&refs, &poses, tol, |k| {
+        DepthMap::of(
+            &clouds[k].points,
+            [1120.0, 1120.0, 639.5, 479.5],
+            (1280, 960),
+        )
+    })
+    .into_iter()
+    .map(|c| c.share())
+    .fold(0.0, f64::max);
     let t_seen = t4.elapsed().as_secs_f64();
     let t2 = Instant::now();
     let (mut points, mut normals) = (Vec::new(), Vec::new());

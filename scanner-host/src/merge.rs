@@ -824,12 +824,13 @@ pub fn closure_line(c: &Closure) -> String {
 pub fn free_space(views: &[View], results: &[ViewResult], voxel_mm: f64) -> Option<Conflict> {
     let clear: Vec<Cloud> = views.iter().map(clear_cloud).collect();
     let clouds: Vec<&Cloud> = clear.iter().collect();
-    let maps: Vec<DepthMap> = views.iter().map(View::depth_map).collect();
     let poses: Vec<Isometry3<f64>> = results.iter().map(|r| r.pose).collect();
-    crate::seen::conflicts(&clouds, &maps, &poses, SEEN_TOL_VOXELS * voxel_mm)
-        .into_iter()
-        .filter(|c| c.tested >= SEEN_MIN_TESTED)
-        .max_by(|a, b| a.share().total_cmp(&b.share()))
+    crate::seen::conflicts(&clouds, &poses, SEEN_TOL_VOXELS * voxel_mm, |k| {
+        views[k].depth_map()
+    })
+    .into_iter()
+    .filter(|c| c.tested >= SEEN_MIN_TESTED)
+    .max_by(|a, b| a.share().total_cmp(&b.share()))
 }
 
 /// The plausibility check of a merge by the views' free space: no view's points may lie in front

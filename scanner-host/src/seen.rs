@@ -152,22 +152,25 @@ pub fn in_front(
 }
 
 /// Every view's points (`clouds`, each in its own camera frame, placed into a common frame by
-/// `poses`) against every other view's free space (`maps`, one per view, in the same order):
-/// one [`Conflict`] per ordered pair of views with at least one point tested ([`in_front`]).
+/// `poses`) against every other view's free space (`map_of(k)`: view `k`'s [`DepthMap`], made
+/// when its turn comes and dropped after, so that one map is held at a time): one [`Conflict`]
+/// per ordered pair of views with at least one point tested ([`in_front`]).
 pub fn conflicts(
     clouds: &[&Cloud],
-    maps: &[DepthMap],
     poses: &[Isometry3<f64>],
     tol_mm: f64,
+    map_of: impl Fn(usize) -> DepthMap,
 ) -> Vec<Conflict> {
     let mut out = Vec::new();
-    for (a, map) in maps.iter().enumerate() {
+    for a in 0..clouds.len() {
+        let map = map_of(a);
         for (b, cloud) in clouds.iter().enumerate() {
             if a == b {
                 continue;
             }
             // view b's camera frame into view a's
-            let (tested, in_front) = in_front(cloud, &(poses[a].inverse() * poses[b]), map, tol_mm);
+            let (tested, in_front) =
+                in_front(cloud, &(poses[a].inverse() * poses[b]), &map, tol_mm);
             if tested > 0 {
                 out.push(Conflict {
                     view: b,
@@ -225,9 +228,9 @@ mod tests {
         // view 1: the object turned by 60° before it was seen; its pose into view 0 turns it back
         let a = front_of_sphere(&Isometry3::identity());
         let b = front_of_sphere(&about(60.0));
-        let maps = [map(&a), map(&b)];
+        let clouds = [&a, &b];
         let right = [Isometry3::identity(), about(60.0).inverse()];
-        let found = conflicts(&[&a, &b], &maps, &right, 2.0);
+        let found = conflicts(&clouds, &right, 2.0, |k| map(clouds[k]));
         assert_eq!(found.len(), 2, "{found:?}");
         for c in &found {
             assert!(c.tested > 100 && c.in_front == 0, "{c:?}");
@@ -237,7 +240,7 @@ mod tests {
             Isometry3::identity(),
             about(60.0).inverse() * Isometry3::translation(0.0, 0.0, -10.0),
         ];
-        let found = conflicts(&[&a, &b], &maps, &wrong, 2.0);
+        let found = conflicts(&clouds, &wrong, 2.0, |k| map(clouds[k]));
         assert!(found.iter().any(|c| c.share() > 0.5), "{found:?}");
     }
 }
