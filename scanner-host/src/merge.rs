@@ -818,9 +818,8 @@ pub fn closure_line(c: &Closure) -> String {
 /// Every view's points clear of its edges ([`clear_cloud`]: those on them lie off the surface,
 /// as a stripe cut at an occluding edge does) at the merged poses against every other view's
 /// free space ([`crate::seen::conflicts`], points more than [`SEEN_TOL_VOXELS`] of `voxel_mm` in
-/// front):
-/// the pair with the largest share in front among those with at least [`SEEN_MIN_TESTED`]
-/// points tested (`None`: no pair has so many).
+/// front): the pair with the largest share in front among those with at least
+/// [`SEEN_MIN_TESTED`] points tested (`None`: no pair has so many).
 pub fn free_space(views: &[View], results: &[ViewResult], voxel_mm: f64) -> Option<Conflict> {
     let clear: Vec<Cloud> = views.iter().map(clear_cloud).collect();
     let clouds: Vec<&Cloud> = clear.iter().collect();
