@@ -244,4 +244,36 @@ mod tests {
         let found = conflicts(&clouds, &wrong, 2.0, |k| map(clouds[k]));
         assert!(found.iter().any(|c| c.share() > 0.5), "{found:?}");
     }
+
+    #[test]
+    fn points_that_are_not_numbers_behind_the_camera_or_off_the_image_are_left_out() {
+        let odd = Cloud {
+            points: vec![
+                Point3::new(f64::NAN, 0.0, 500.0),
+                Point3::new(0.0, 0.0, f64::NAN),
+                Point3::new(0.0, 0.0, -500.0),
+                Point3::new(0.0, 0.0, 0.0),
+                Point3::new(1.0e9, 0.0, 500.0),
+                Point3::new(0.0, f64::INFINITY, 500.0),
+            ],
+            normals: vec![Vector3::z(); 6],
+        };
+        let m = map(&odd);
+        assert!(m.depth.iter().all(|d| *d == f32::INFINITY));
+        // nothing seen: nothing tested, whatever the pose
+        let sphere = front_of_sphere(&Isometry3::identity());
+        assert_eq!(in_front(&sphere, &Isometry3::identity(), &m, 1.0), (0, 0));
+        let nan = Isometry3::translation(f64::NAN, 0.0, 0.0);
+        assert_eq!(in_front(&sphere, &nan, &map(&sphere), 1.0), (0, 0));
+        assert_eq!(
+            in_front(&odd, &Isometry3::identity(), &map(&sphere), 1.0),
+            (0, 0)
+        );
+        // an image size beyond what a head sends is taken at the largest
+        let big = DepthMap::of(&[], [560.0, 560.0, 0.0, 0.0], (u16::MAX, u16::MAX));
+        assert_eq!(
+            big.depth.len(),
+            (scanner_core::config::MAX_LINES / 4).pow(2)
+        );
+    }
 }
