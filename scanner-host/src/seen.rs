@@ -108,6 +108,15 @@ impl DepthMap {
     }
 }
 
+impl DepthMap {
+    /// Whether `p` (this view's camera frame) lies more than `tol_mm` nearer the camera than
+    /// everything the view saw around it; `None` where it does not project inside the seen
+    /// surface ([`DepthMap::seen_around`]).
+    pub fn in_front(&self, p: &Point3<f64>, tol_mm: f64) -> Option<bool> {
+        self.seen_around(p).map(|seen| p.z < seen - tol_mm)
+    }
+}
+
 /// One view's points against what another view saw.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Conflict {
@@ -143,10 +152,9 @@ pub fn in_front(
 ) -> (usize, usize) {
     let (mut tested, mut front) = (0, 0);
     for p in &cloud.points {
-        let q = pose * p;
-        if let Some(seen) = map.seen_around(&q) {
+        if let Some(f) = map.in_front(&(pose * p), tol_mm) {
             tested += 1;
-            front += usize::from(q.z < seen - tol_mm);
+            front += usize::from(f);
         }
     }
     (tested, front)

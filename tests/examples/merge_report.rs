@@ -1,5 +1,5 @@
 //! Issue 17's figures of a 360° merge against the rig's truth: `cargo run --release -p
-//! scanner-tests --example merge_report -- OUT [SCENE]`, where OUT is the folder
+//! scanner-tests --example merge_report -- OUT [SCENE] [--on-truth]`, where OUT is the folder
 //! `scripts/scan-rig-360 OUT` wrote (its views `view0`, `view1`, … scanned at 1280×960 with a
 //! calibration from images) and SCENE the scene they were scanned from (default
 //! `scanner-device/scenes/bunny-360.toml`). The views are merged as `scripts/scan-rig-360` merges
@@ -13,7 +13,11 @@
 //! - the fused mesh against the true mesh both ways over the surface the views saw: model → truth
 //!   from the model's seen faces (area-weighted samples), truth → model from samples of the true
 //!   surface within the unseen distance of a registered point (so holes count);
-//! - watertight, manifold vertices, components, volume against the true mesh's.
+//! - watertight, manifold vertices, components, volume against the true mesh's, and which way
+//!   the model is off: the mean signed distance of its faces from the truth, seen and unseen.
+//!
+//! With `--on-truth` every point is first moved onto the true surface (its nearest point there):
+//! what is then left of the poses' and the mesh's errors is the merge's own, not the points'.
 //!
 //! Prints the table docs/reports.md quotes.
 
@@ -34,7 +38,12 @@ fn main() {
 }
 
 fn run() -> Result<(), String> {
-    let mut args = std::env::args().skip(1);
+    let mut args: Vec<String> = std::env::args().skip(1).collect();
+    // --on-truth: every point moved onto the true surface (its nearest point there) before the
+    // merge, so that what is left of the poses' errors is the registration's own.
+    let on_truth = args.iter().any(|a| a == "--on-truth");
+    args.retain(|a| a != "--on-truth");
+    let mut args = args.into_iter();
     let out =
         PathBuf::from(args.next().ok_or(
             "usage: merge_report OUT [SCENE] (OUT: the folder scripts/scan-rig-360 wrote)",
@@ -55,6 +64,14 @@ fn run() -> Result<(), String> {
         views.push(
             merge::load_view(k, &out.join(format!("view{k}")), cell).map_err(|e| format!("{e}"))?,
         );
+    }
+    if on_truth {
+        for (k, v) in views.iter_mut().enumerate() {
+            let placed = placed(&scene, k)?;
+            for p in &mut v.cloud.points {
+                *p = placed.closest(p).unwrap_or(*p);
+            }
+        }
     }
     // As scripts/scan-rig-360 merges: 30 % overlap asked, the defaults otherwise.
     let opts = scanner_host::register::RegisterOptions {
@@ -83,10 +100,7 @@ fn run() -> Result<(), String> {
         let pk = scene.view(k).map_err(|e| format!("{e}"))?.object_pose;
         Ok(p0 * pk.inverse())
     };
-    let view0 = scene.view(0).map_err(|e| format!("{e}"))?;
-    let Some(Shape::Mesh(truth)) = view0.objects.first().map(|o| o.shape.clone()) else {
-        return Err("the scene's first object is not a mesh".into());
-    };
+    let truth = placed(&scene, 0)?;
     let centre = truth.centroid();
     println!(
         "{} views of {} from {} (camera–board distance {distance:.0} mm); merged in {seconds:.1} s",
@@ -99,15 +113,7 @@ fn run() -> Result<(), String> {
         "view | clear of its edges: points, median, p99, over 0.5 mm | on its edges: points, median, p99, over 0.5 mm"
     );
     for (k, v) in views.iter().enumerate() {
-        let Some(Shape::Mesh(placed)) = scene
-            .view(k)
-            .map_err(|e| format!("{e}"))?
-            .objects
-            .first()
-            .map(|o| o.shape.clone())
-        else {
-            return Err("the scene's first object is not a mesh".into());
-        };
+        let placed = placed(&scene, k)?;
         let mut parts = [Vec::new(), Vec::new()];
         for (p, c) in v.cloud.points.iter().zip(&v.clear) {
             parts[usize::from(*c < merge::CLEAR)].push(placed.distance(p));
@@ -190,6 +196,31 @@ fn run() -> Result<(), String> {
             pct(c.to_truth.p99.max(c.to_model.p99))
         );
     }
+    // Which way the model is off: the area-weighted mean of its faces' signed distances from
+    // the truth (positive outside), over the seen faces and over the others.
+    let mut signed = [(0.0, 0.0); 2];
+    let seen = compare::Seen::new(&input.points, SEEN_MM);
+    for t in &model_tris {
+        let c = Point3::from((t[0].coords + t[1].coords + t[2].coords) / 3.0);
+        let n = (t[1] - t[0]).cross(&(t[2] - t[0]));
+        let (area, Some(on)) = (n.norm() / 2.0, truth.closest(&c)) else {
+            continue;
+        };
+        if area <= 0.0 {
+            continue;
+        }
+        let s = &mut signed[usize::from(!seen.contains(&c))];
+        s.0 += area * (c - on).dot(&n.normalize());
+        s.1 += area;
+    }
+    let [(a, wa), (b, wb)] = signed;
+    println!(
+        "model off the truth (signed, + outside): seen faces mean {:+.4} mm over {wa:.0} mm², unseen {:+.4} mm over {wb:.0} mm² (volume {:+.0} and {:+.0} mm³)",
+        a / wa.max(1e-9),
+        b / wb.max(1e-9),
+        a,
+        b
+    );
     let c = scanner_host::fuse::check(model);
     let true_volume = compare::volume(truth.triangles());
     println!(
@@ -203,4 +234,18 @@ fn run() -> Result<(), String> {
         100.0 * (c.volume_mm3 / true_volume - 1.0)
     );
     Ok(())
+}
+
+/// The object as the rig placed it in view `k` (camera frame).
+fn placed(scene: &Scene, k: usize) -> Result<std::sync::Arc<scanner_rig::mesh::Mesh>, String> {
+    match scene
+        .view(k)
+        .map_err(|e| format!("{e}"))?
+        .objects
+        .first()
+        .map(|o| o.shape.clone())
+    {
+        Some(Shape::Mesh(m)) => Ok(m),
+        _ => Err("the scene's first object is not a mesh".into()),
+    }
 }

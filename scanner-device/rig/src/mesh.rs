@@ -151,16 +151,21 @@ impl Mesh {
         Point3::from(sum / n)
     }
 
-    /// Distance from `p` to the nearest triangle, mm (through the hierarchy: a node is opened
-    /// only while its box is nearer than the nearest triangle found so far).
+    /// Distance from `p` to the nearest triangle, mm.
     pub fn distance(&self, p: &Point3<f64>) -> f64 {
+        self.closest(p).map_or(f64::INFINITY, |c| (c - p).norm())
+    }
+
+    /// The nearest point of the surface to `p` (through the hierarchy: a node is opened only
+    /// while its box is nearer than the nearest triangle found so far); `None` without triangles.
+    pub fn closest(&self, p: &Point3<f64>) -> Option<Point3<f64>> {
         let box_distance2 = |n: &Node| {
             (n.min - p.coords)
                 .sup(&(p.coords - n.max))
                 .sup(&Vector3::zeros())
                 .norm_squared()
         };
-        let mut best2 = f64::INFINITY;
+        let (mut best2, mut best) = (f64::INFINITY, None);
         let mut stack = [0usize; 64];
         let mut top = usize::from(!self.nodes.is_empty());
         while top > 0 {
@@ -176,7 +181,11 @@ impl Mesh {
                     (0, self.triangles.len())
                 };
                 for t in &self.triangles[first..first + count] {
-                    best2 = best2.min((closest_on_triangle(p, t) - p).norm_squared());
+                    let c = closest_on_triangle(p, t);
+                    let d2 = (c - p).norm_squared();
+                    if d2 < best2 {
+                        (best2, best) = (d2, Some(c));
+                    }
                 }
             } else {
                 // the nearer child last, so that it is opened first
@@ -192,7 +201,7 @@ impl Mesh {
                 top += 2;
             }
         }
-        best2.sqrt()
+        best
     }
 
     /// The placed triangles.
