@@ -1011,29 +1011,38 @@ pub const CONFIRM_MM: f64 = 2.0;
 /// For every point of every view (views in order, as [`registered_points`] lists them), whether
 /// it lies on its view's edge ([`View::clear`] under [`CLEAR`]) and, at the merged poses, more
 /// than [`EDGE_OFF_MM`] off the tangent plane of the nearest point clear of another view's edges
-/// within [`CONFIRM_MM`]. An edge point no other view saw clear stays.
+/// within [`CONFIRM_MM`] ([`contradicted`]).
 pub fn contradicted_edges(views: &[View], results: &[ViewResult]) -> Vec<bool> {
-    let is_clear = |v: &View, i: usize| v.clear.get(i).is_none_or(|&c| c >= CLEAR);
+    let clouds: Vec<&Cloud> = views.iter().map(|v| &v.cloud).collect();
+    let clear: Vec<&[f64]> = views.iter().map(|v| &v.clear[..]).collect();
+    let poses: Vec<Isometry3<f64>> = results.iter().map(|r| r.pose).collect();
+    contradicted(&clouds, &clear, &poses)
+}
+
+/// [`contradicted_edges`] of views' `clouds` (each in its own frame, placed by `poses`) with
+/// their points' shares clear of the edges `clear` (a missing share counts as clear). An edge
+/// point no other view saw clear stays.
+pub fn contradicted(clouds: &[&Cloud], clear: &[&[f64]], poses: &[Isometry3<f64>]) -> Vec<bool> {
+    let is_clear = |k: usize, i: usize| clear[k].get(i).is_none_or(|&c| c >= CLEAR);
     // each view's clear points (indices into its cloud) and their tree, in its own frame
-    let judges: Vec<(Vec<usize>, kiddo::KdTree<f64, 3>)> = views
+    let judges: Vec<(Vec<usize>, kiddo::KdTree<f64, 3>)> = clouds
         .iter()
-        .map(|v| {
-            let keep: Vec<usize> = (0..v.cloud.points.len())
-                .filter(|&i| is_clear(v, i))
-                .collect();
-            let points: Vec<Point3<f64>> = keep.iter().map(|&i| v.cloud.points[i]).collect();
+        .enumerate()
+        .map(|(k, c)| {
+            let keep: Vec<usize> = (0..c.points.len()).filter(|&i| is_clear(k, i)).collect();
+            let points: Vec<Point3<f64>> = keep.iter().map(|&i| c.points[i]).collect();
             (keep, crate::register::tree(&points))
         })
         .collect();
-    let inverses: Vec<Isometry3<f64>> = results.iter().map(|r| r.pose.inverse()).collect();
+    let inverses: Vec<Isometry3<f64>> = poses.iter().map(Isometry3::inverse).collect();
     let mut out = Vec::new();
-    for (k, (v, r)) in views.iter().zip(results).enumerate() {
-        for (i, p) in v.cloud.points.iter().enumerate() {
-            if is_clear(v, i) {
+    for (k, (c, pose)) in clouds.iter().zip(poses).enumerate() {
+        for (i, p) in c.points.iter().enumerate() {
+            if is_clear(k, i) {
                 out.push(false);
                 continue;
             }
-            let q = r.pose * p;
+            let q = pose * p;
             // the nearest clear point of another view: (squared distance, offset off its plane)
             let mut nearest: Option<(f64, f64)> = None;
             for (j, (keep, tree)) in judges.iter().enumerate() {
@@ -1054,7 +1063,7 @@ pub fn contradicted_edges(views: &[View], results: &[ViewResult]) -> Vec<bool> {
                     continue;
                 };
                 let at = keep[m.item as usize];
-                let offset = (local - views[j].cloud.points[at]).dot(&views[j].cloud.normals[at]);
+                let offset = (local - clouds[j].points[at]).dot(&clouds[j].normals[at]);
                 if nearest.is_none_or(|(d, _)| m.distance < d) {
                     nearest = Some((m.distance, offset));
                 }
