@@ -9,7 +9,7 @@
 use std::time::Instant;
 
 use scanner_core::nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
-use scanner_host::fuse::{check, fuse, inliers};
+use scanner_host::fuse::{afloat, check, fuse, inliers};
 use scanner_host::merge::{contradicted, register_clouds};
 use scanner_host::refine::refine;
 use scanner_host::register::{Cloud, RegisterOptions};
@@ -161,9 +161,30 @@ fn main() {
         normals.extend(c.normals.iter().map(|n| p * n));
     }
     let keep: Vec<usize> = inliers(&points).into_iter().filter(|&i| !off[i]).collect();
-    let points: Vec<Point3<f64>> = keep.iter().map(|&i| points[i]).collect();
-    let normals: Vec<Vector3<f64>> = keep.iter().map(|&i| normals[i]).collect();
     let t_filter = t2.elapsed().as_secs_f64();
+    // ... and those the winding number of all puts clearly off the surface.
+    let t6 = Instant::now();
+    let weights: Vec<f64> = clear
+        .iter()
+        .flatten()
+        .map(|c| scanner_host::merge::EDGE_WEIGHT + (1.0 - scanner_host::merge::EDGE_WEIGHT) * c)
+        .collect();
+    let pick = |v: &[Point3<f64>]| keep.iter().map(|&i| v[i]).collect::<Vec<_>>();
+    let (points, normals) = (
+        pick(&points),
+        keep.iter().map(|&i| normals[i]).collect::<Vec<_>>(),
+    );
+    let weights: Vec<f64> = keep.iter().map(|&i| weights[i]).collect();
+    let drift = afloat(&points, &normals, &weights);
+    let afloat_count = drift.iter().filter(|&&a| a).count();
+    let (points, normals): (Vec<Point3<f64>>, Vec<Vector3<f64>>) = points
+        .iter()
+        .zip(&normals)
+        .zip(&drift)
+        .filter(|(_, a)| !**a)
+        .map(|((p, n), _)| (*p, *n))
+        .unzip();
+    let t_afloat = t6.elapsed().as_secs_f64();
     let t3 = Instant::now();
     let mesh = fuse(&points, &normals, 1.0).expect("fusion");
     let t_fuse = t3.elapsed().as_secs_f64();
@@ -188,6 +209,9 @@ fn main() {
         off.iter().filter(|&&o| o).count()
     );
     println!("| outlier filter ({} points) | {t_filter:.2} |", keep.len());
+    println!(
+        "| edge points off the surface by the winding number ({afloat_count} left out) | {t_afloat:.2} |"
+    );
     println!(
         "| fusion, 1 mm cells ({} vertices, {}, {} component(s)) | {t_fuse:.2} |",
         mesh.vertices.len(),

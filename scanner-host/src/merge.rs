@@ -996,6 +996,9 @@ pub struct FusionInput {
     /// Points on views' edges left out: off the surface another view saw clear
     /// ([`contradicted_edges`]).
     pub contradicted: usize,
+    /// Points on views' edges left out: clearly off the surface all the points wind around
+    /// ([`crate::fuse::afloat`]).
+    pub afloat: usize,
 }
 
 /// A point on a view's edge ([`View::clear`] under [`CLEAR`]) is not fused when a point clear
@@ -1074,8 +1077,9 @@ pub fn contradicted(clouds: &[&Cloud], clear: &[&[f64]], poses: &[Isometry3<f64>
     out
 }
 
-/// [`registered_points`] without isolated points and without edge points that another view's
-/// clear surface contradicts ([`contradicted_edges`]), with their view colours.
+/// [`registered_points`] without isolated points and without the edge points that another view's
+/// clear surface contradicts ([`contradicted_edges`]) or that float off the surface of all the
+/// points ([`crate::fuse::afloat`]), with their view colours.
 pub fn fusion_input(views: &[View], results: &[ViewResult]) -> FusionInput {
     let (points, normals) = registered_points(views, results);
     let off = contradicted_edges(views, results);
@@ -1098,12 +1102,25 @@ pub fn fusion_input(views: &[View], results: &[ViewResult]) -> FusionInput {
                 .map(|i| EDGE_WEIGHT + (1.0 - EDGE_WEIGHT) * v.clear.get(i).copied().unwrap_or(1.0))
         })
         .collect();
-    let keep: Vec<usize> = crate::fuse::inliers(&points)
+    let kept: Vec<usize> = crate::fuse::inliers(&points)
         .into_iter()
         .filter(|&i| !off[i])
         .collect();
+    // Of the edge points left, those the winding number of all puts clearly off the surface.
+    let afloat = crate::fuse::afloat(
+        &kept.iter().map(|&i| points[i]).collect::<Vec<_>>(),
+        &kept.iter().map(|&i| normals[i]).collect::<Vec<_>>(),
+        &kept.iter().map(|&i| weights[i]).collect::<Vec<_>>(),
+    );
+    let keep: Vec<usize> = kept
+        .iter()
+        .zip(&afloat)
+        .filter(|(_, a)| !**a)
+        .map(|(&i, _)| i)
+        .collect();
     FusionInput {
         contradicted: off.iter().filter(|&&o| o).count(),
+        afloat: afloat.iter().filter(|&&a| a).count(),
         weights: keep.iter().map(|&i| weights[i]).collect(),
         points: keep.iter().map(|&i| points[i]).collect(),
         normals: keep.iter().map(|&i| normals[i]).collect(),
@@ -1182,8 +1199,10 @@ pub fn fuse_views(
     let unseen = crate::fuse::unseen_faces(&model, &input.points, reach);
     let unseen_share = crate::fuse::area_share(&model, &unseen);
     let mut report = format!(
-        "points on the views' edges left out of the fusion: {} (more than {EDGE_OFF_MM} mm off the surface another view saw clear of its edges)\n",
-        input.contradicted
+        "points on the views' edges left out of the fusion: {} more than {EDGE_OFF_MM} mm off the surface another view saw clear of its edges, {} where the winding number of all the points is over {} from ½ (off the surface they wind around)\n",
+        input.contradicted,
+        input.afloat,
+        crate::fuse::AFLOAT_MARGIN
     );
     report += &match closing {
         Closing::Trim => {

@@ -543,8 +543,10 @@ fn model_against_the_truth(d: &Path, scene: &scanner_rig::Scene, views: &[usize]
         "{c:?}"
     );
     // The targets are means of 0.03 % and a p99 of 0.15 % at 1280×960 (docs/reports.md
-    // for the seven-view demo); three views at 640×480 here, one run: means 0.019 % and
-    // 0.022 %, p99 0.12 % and 0.155 %.
+    // for the seven-view demo); three views at 640×480 here, one run: means 0.020 % and
+    // 0.022 %, p99 0.12 % and 0.16 % (the holes of three views take the leaving out of edge
+    // points that float off the surface to its limit: with a margin of 0.30 instead of 0.35 the
+    // second p99 was 0.39 %).
     let (mean, p99) = (
         pct(c.to_truth.mean.max(c.to_model.mean)),
         pct(c.to_truth.p99.max(c.to_model.p99)),
