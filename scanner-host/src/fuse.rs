@@ -5,9 +5,10 @@
 //! normals (positive outside): precise where the views saw the surface. Elsewhere its sign is the
 //! points' generalized winding number's ([`crate::winding`]): inside where it exceeds ½, which
 //! closes the gaps the views left with a smooth patch instead of letting tangent planes run on
-//! as sheets. Checked after: edges in exactly two faces, fans around vertices, components, the
-//! enclosed volume; [`unseen_faces`] says which surface no view saw (for the report, or
-//! [`trim`]).
+//! as sheets. Points that are less sure ([`SURE`]: on a view's edge) do not set the side against
+//! a clear verdict of the winding number ([`afloat`]). Checked after: edges in exactly two
+//! faces, fans around vertices, components, the enclosed volume; [`unseen_faces`] says which
+//! surface no view saw (for the report, or [`trim`]).
 
 use kiddo::SquaredEuclidean;
 use scanner_core::nalgebra::{Point3, Vector3};
