@@ -166,6 +166,19 @@ fn three_scanned_views_register_with_the_rigs_rotations() {
     // Right poses leave (next to) no view's points in front of what another saw.
     let share = free_space_share(&out);
     assert!(share < 0.5, "{share} % in front:\n{out}");
+    // The edge points left out of the fusion are counted, by each check (one run: 110 off
+    // another view's clear surface, 533 by the winding number).
+    let left_out: Vec<usize> = out
+        .lines()
+        .find_map(|l| l.strip_prefix("points on the views' edges left out of the fusion: "))
+        .unwrap_or_else(|| panic!("no count of edge points left out:\n{out}"))
+        .split(' ')
+        .filter_map(|w| w.parse().ok())
+        .collect();
+    assert!(
+        left_out.len() >= 2 && left_out.iter().sum::<usize>() > 0,
+        "{out}"
+    );
     model_against_the_truth(d, &scene, &[0, 1, 6]);
     // Coloured per vertex from the views' colours (the bunny's albedo, lit), in the PLY read
     // back by an independent reader (tobj reads the OBJ's vertex colours).
