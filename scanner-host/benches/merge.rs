@@ -9,8 +9,8 @@
 use std::time::Instant;
 
 use scanner_core::nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
-use scanner_host::fuse::{afloat, check, fuse, inliers};
-use scanner_host::merge::{contradicted, register_clouds};
+use scanner_host::fuse::{check, fuse_with};
+use scanner_host::merge::{contradicted, fused_points, register_clouds};
 use scanner_host::refine::refine;
 use scanner_host::register::{Cloud, RegisterOptions};
 use scanner_host::seen::{DepthMap, conflicts};
@@ -160,33 +160,20 @@ fn main() {
         points.extend(c.points.iter().map(|q| p * q));
         normals.extend(c.normals.iter().map(|n| p * n));
     }
-    let keep: Vec<usize> = inliers(&points).into_iter().filter(|&i| !off[i]).collect();
-    let t_filter = t2.elapsed().as_secs_f64();
-    // ... and those the winding number of all puts clearly off the surface.
-    let t6 = Instant::now();
+    // As `merge` chooses the points it fuses: not isolated, not contradicted, not afloat.
     let weights: Vec<f64> = clear
         .iter()
         .flatten()
-        .map(|c| scanner_host::merge::EDGE_WEIGHT + (1.0 - scanner_host::merge::EDGE_WEIGHT) * c)
+        .map(|&c| scanner_host::merge::edge_weight(Some(c)))
         .collect();
-    let pick = |v: &[Point3<f64>]| keep.iter().map(|&i| v[i]).collect::<Vec<_>>();
-    let (points, normals) = (
-        pick(&points),
-        keep.iter().map(|&i| normals[i]).collect::<Vec<_>>(),
-    );
+    let (keep, afloat_count) = fused_points(&points, &normals, &weights, &off);
+    let points: Vec<Point3<f64>> = keep.iter().map(|&i| points[i]).collect();
+    let normals: Vec<Vector3<f64>> = keep.iter().map(|&i| normals[i]).collect();
     let weights: Vec<f64> = keep.iter().map(|&i| weights[i]).collect();
-    let drift = afloat(&points, &normals, &weights);
-    let afloat_count = drift.iter().filter(|&&a| a).count();
-    let (points, normals): (Vec<Point3<f64>>, Vec<Vector3<f64>>) = points
-        .iter()
-        .zip(&normals)
-        .zip(&drift)
-        .filter(|(_, a)| !**a)
-        .map(|((p, n), _)| (*p, *n))
-        .unzip();
-    let t_afloat = t6.elapsed().as_secs_f64();
+    let t_filter = t2.elapsed().as_secs_f64();
     let t3 = Instant::now();
-    let mesh = fuse(&points, &normals, 1.0).expect("fusion");
+    // As `merge` fuses: the edge points weighed down.
+    let mesh = fuse_with(&points, &normals, &weights, 1.0, |_, _| {}).expect("fusion");
     let t_fuse = t3.elapsed().as_secs_f64();
     let total = t0.elapsed().as_secs_f64();
     let c = check(&mesh);
@@ -208,9 +195,9 @@ fn main() {
         "| edge points against the others' clear surfaces ({} of {edges} left out) | {t_edges:.2} |",
         off.iter().filter(|&&o| o).count()
     );
-    println!("| outlier filter ({} points) | {t_filter:.2} |", keep.len());
     println!(
-        "| edge points off the surface by the winding number ({afloat_count} left out) | {t_afloat:.2} |"
+        "| outlier filter and edge points off the surface by the winding number ({afloat_count} left out; {} points) | {t_filter:.2} |",
+        keep.len()
     );
     println!(
         "| fusion, 1 mm cells ({} vertices, {}, {} component(s)) | {t_fuse:.2} |",

@@ -191,11 +191,7 @@ pub fn fuse_cut(
     }
     let tree = crate::register::tree(points);
     let area = crate::winding::spacing_areas(points, &tree);
-    let winding = Winding::new(
-        points,
-        normals,
-        &crate::winding::areas(points, normals, &area, &tree),
-    );
+    let winding = Winding::of_cloud(points, normals, &tree, &area);
     let at = |i: usize, j: usize, k: usize| lo + Vector3::new(i as f64, j as f64, k as f64) * cell;
     // Where no view saw, the value is the winding number's (½ − w) scaled to about a cell.
     let closing = |w: f64| ((0.5 - w) * 2.0 * cell) as f32;
@@ -207,6 +203,13 @@ pub fn fuse_cut(
     // the winding number's, which closes the holes.
     let field = |i: usize, j: usize, k: usize| {
         let q = at(i, j, k);
+        let wound = || {
+            if coarse.settled(i, j, k) {
+                coarse.winding(i, j, k)
+            } else {
+                winding.at(&q)
+            }
+        };
         let m = tree.nearest_one::<SquaredEuclidean>(&[q.x, q.y, q.z]);
         let p = m.item as usize;
         let s = (q - points[p]).dot(&normals[p]);
@@ -232,27 +235,19 @@ pub fn fuse_cut(
             // of all the points clearly says the other ([`afloat`]'s rule for the grid point):
             // a stray point that stayed raises no bead of surface of its own.
             if weights[p] < SURE {
-                let w = if coarse.settled(i, j, k) {
-                    coarse.winding(i, j, k)
+                let w = wound();
+                let against = if signed >= 0.0 {
+                    w > 0.5 + AFLOAT_MARGIN
                 } else {
-                    winding.at(&q)
+                    w < 0.5 - AFLOAT_MARGIN
                 };
-                let clearly = |inside: bool| {
-                    if inside {
-                        w > 0.5 + AFLOAT_MARGIN
-                    } else {
-                        w < 0.5 - AFLOAT_MARGIN
-                    }
-                };
-                if clearly(signed >= 0.0) {
+                if against {
                     return closing(w);
                 }
             }
             signed
-        } else if coarse.settled(i, j, k) {
-            closing(coarse.winding(i, j, k))
         } else {
-            closing(winding.at(&q))
+            closing(wound())
         }
     };
     // A coarse cube whose eight corners are all this far from every point holds no grid point
@@ -322,8 +317,7 @@ pub fn afloat(points: &[Point3<f64>], normals: &[Vector3<f64>], weights: &[f64])
     }
     let tree = crate::register::tree(points);
     let spacing = crate::winding::spacing_areas(points, &tree);
-    let area = crate::winding::areas(points, normals, &spacing, &tree);
-    let winding = Winding::new(points, normals, &area);
+    let winding = Winding::of_cloud(points, normals, &tree, &spacing);
     points
         .iter()
         .enumerate()

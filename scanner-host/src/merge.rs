@@ -1077,6 +1077,39 @@ pub fn contradicted(clouds: &[&Cloud], clear: &[&[f64]], poses: &[Isometry3<f64>
     out
 }
 
+/// The fusion's weight of a point clear of its view's edges by the share `clear` (`None`:
+/// clear): 1 clear of them, down to [`EDGE_WEIGHT`] on one.
+pub fn edge_weight(clear: Option<f64>) -> f64 {
+    EDGE_WEIGHT + (1.0 - EDGE_WEIGHT) * clear.unwrap_or(1.0)
+}
+
+/// Which of the registered `points` (with `normals` and fusion `weights`) are fused: not
+/// isolated ([`crate::fuse::inliers`]), not `contradicted` ([`contradicted`]), and of the edge
+/// points left not afloat ([`crate::fuse::afloat`]). Returns their indices and how many were
+/// afloat.
+pub fn fused_points(
+    points: &[Point3<f64>],
+    normals: &[scanner_core::nalgebra::Vector3<f64>],
+    weights: &[f64],
+    contradicted: &[bool],
+) -> (Vec<usize>, usize) {
+    let kept: Vec<usize> = crate::fuse::inliers(points)
+        .into_iter()
+        .filter(|&i| !contradicted[i])
+        .collect();
+    let pick = |i: &usize| (points[*i], normals[*i], weights[*i]);
+    let (p, (n, w)): (Vec<_>, (Vec<_>, Vec<_>)) =
+        kept.iter().map(pick).map(|(p, n, w)| (p, (n, w))).unzip();
+    let afloat = crate::fuse::afloat(&p, &n, &w);
+    let keep = kept
+        .iter()
+        .zip(&afloat)
+        .filter(|(_, a)| !**a)
+        .map(|(&i, _)| i)
+        .collect();
+    (keep, afloat.iter().filter(|&&a| a).count())
+}
+
 /// [`registered_points`] without isolated points and without the edge points that another view's
 /// clear surface contradicts ([`contradicted_edges`]) or that float off the surface of all the
 /// points ([`crate::fuse::afloat`]), with their view colours.
@@ -1097,30 +1130,12 @@ pub fn fusion_input(views: &[View], results: &[ViewResult]) -> FusionInput {
     };
     let weights: Vec<f64> = views
         .iter()
-        .flat_map(|v| {
-            (0..v.cloud.points.len())
-                .map(|i| EDGE_WEIGHT + (1.0 - EDGE_WEIGHT) * v.clear.get(i).copied().unwrap_or(1.0))
-        })
+        .flat_map(|v| (0..v.cloud.points.len()).map(|i| edge_weight(v.clear.get(i).copied())))
         .collect();
-    let kept: Vec<usize> = crate::fuse::inliers(&points)
-        .into_iter()
-        .filter(|&i| !off[i])
-        .collect();
-    // Of the edge points left, those the winding number of all puts clearly off the surface.
-    let afloat = crate::fuse::afloat(
-        &kept.iter().map(|&i| points[i]).collect::<Vec<_>>(),
-        &kept.iter().map(|&i| normals[i]).collect::<Vec<_>>(),
-        &kept.iter().map(|&i| weights[i]).collect::<Vec<_>>(),
-    );
-    let keep: Vec<usize> = kept
-        .iter()
-        .zip(&afloat)
-        .filter(|(_, a)| !**a)
-        .map(|(&i, _)| i)
-        .collect();
+    let (keep, afloat) = fused_points(&points, &normals, &weights, &off);
     FusionInput {
         contradicted: off.iter().filter(|&&o| o).count(),
-        afloat: afloat.iter().filter(|&&a| a).count(),
+        afloat,
         weights: keep.iter().map(|&i| weights[i]).collect(),
         points: keep.iter().map(|&i| points[i]).collect(),
         normals: keep.iter().map(|&i| normals[i]).collect(),

@@ -106,9 +106,7 @@ impl DepthMap {
         }
         Some(f64::from(nearest))
     }
-}
 
-impl DepthMap {
     /// Whether `p` (this view's camera frame) lies more than `tol_mm` nearer the camera than
     /// everything the view saw around it; `None` where it does not project inside the seen
     /// surface ([`DepthMap::seen_around`]).

@@ -188,6 +188,17 @@ impl Winding {
         w
     }
 
+    /// The winding number of oriented `points` (their k-d tree `tree`, their spacing areas
+    /// `spacing` from [`spacing_areas`]), each weighed by its Voronoi cell ([`areas`]).
+    pub fn of_cloud(
+        points: &[Point3<f64>],
+        normals: &[Vector3<f64>],
+        tree: &kiddo::KdTree<f64, 3>,
+        spacing: &[f64],
+    ) -> Self {
+        Winding::new(points, normals, &areas(points, normals, spacing, tree))
+    }
+
     /// Splits node `k` at the median of its longest side until leaves hold [`LEAF`] points.
     fn split(&mut self, k: usize, order: &mut [u32], points: &[Point3<f64>]) {
         let (start, end) = (self.nodes[k].start as usize, self.nodes[k].end as usize);
