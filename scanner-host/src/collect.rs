@@ -138,6 +138,11 @@ struct State {
     /// Each accepted frame's points and colours since the last [`Collector::take_watched`]
     /// (only while watched).
     watched: Option<Vec<Watched>>,
+    /// The frames' laser planes, summed: where the light comes from.
+    pencil: crate::sheet::Pencil,
+    /// Moves each frame's points to where the sheet's middle crosses the surface (a second pass
+    /// over a scan, see [`crate::sheet`]), and how many it moved.
+    sheet: Option<(std::sync::Arc<crate::sheet::Correction>, u64)>,
 }
 
 /// One accepted frame's points (camera frame, mm) and colours (empty: none), for a live view.
@@ -181,6 +186,23 @@ impl Collector {
             .as_mut()
             .map(std::mem::take)
             .unwrap_or_default()
+    }
+
+    /// Corrects every frame's points for the light sheet's thickness from now on (see
+    /// [`crate::sheet`]); the journal keeps them as they came.
+    pub fn correct_sheet(&mut self, c: std::sync::Arc<crate::sheet::Correction>) {
+        self.state.sheet = Some((c, 0));
+    }
+
+    /// Points moved by the sheet's correction so far.
+    pub fn sheet_corrected(&self) -> u64 {
+        self.state.sheet.as_ref().map_or(0, |s| s.1)
+    }
+
+    /// Where the laser's light comes from, as the frames' planes so far say (see
+    /// [`crate::sheet::Pencil`]).
+    pub fn light_source(&self) -> Option<scanner_core::nalgebra::Point3<f64>> {
+        self.state.pencil.source()
     }
 
     /// Whether points carried colour.
@@ -245,6 +267,8 @@ impl State {
             points: Vec::with_capacity(4096),
             seen: BTreeSet::new(),
             watched: None,
+            pencil: crate::sheet::Pencil::default(),
+            sheet: None,
         }
     }
 
@@ -305,6 +329,10 @@ impl State {
                 {
                     self.counts.bad_points += 1;
                     return Ok(());
+                }
+                self.pencil.add(p.plane);
+                if let Some((c, moved)) = &mut self.sheet {
+                    *moved += c.apply(p.plane, &mut self.points) as u64;
                 }
                 self.counts.points += u64::from(p.count);
                 let rgb: Vec<[u8; 3]> = p.rgb.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect();

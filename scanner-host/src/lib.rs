@@ -51,6 +51,7 @@ pub mod refine;
 pub mod register;
 pub mod seen;
 pub mod select;
+pub mod sheet;
 pub mod winding;
 
 pub use cli::{Args, Command, OutputArgs, run};

@@ -154,6 +154,8 @@ pub struct View {
     /// ([`mesh::edge_cells`]); 0 on an edge, 1 clear of it. The joint refinement pairs only
     /// points at least half clear ([`CLEAR`]); the fusion weighs them by it ([`EDGE_WEIGHT`]).
     pub clear: Vec<f64>,
+    /// With the sheet's correction ([`load_view`]'s `sheet_mm`): the samples it moved, of all.
+    pub sheet_moved: Option<(u64, u64)>,
 }
 
 impl View {
@@ -306,11 +308,14 @@ fn stream_of(path: &Path) -> PathBuf {
     }
 }
 
-/// Reads view `k` from `path`: replays it into a grid (cells of `cell`) and takes its mesh.
-///
-/// # Errors
-/// The file cannot be read, or holds no scan.
-pub fn load_view(k: usize, path: &Path, cell: crate::grid::Cell) -> Result<View, MergeError> {
+/// View `k`'s scan at `path` replayed into a collector (grid cells of `cell`), each frame's
+/// points corrected by `sheet` if given.
+fn replay_view(
+    k: usize,
+    path: &Path,
+    cell: crate::grid::Cell,
+    sheet: Option<std::sync::Arc<crate::sheet::Correction>>,
+) -> Result<Collector, MergeError> {
     let mut c = Collector::new(
         CollectOptions {
             cell,
@@ -318,11 +323,45 @@ pub fn load_view(k: usize, path: &Path, cell: crate::grid::Cell) -> Result<View,
         },
         None,
     );
+    if let Some(s) = sheet {
+        c.correct_sheet(s);
+    }
     replay_into(&mut c, &stream_of(path)).map_err(|source| MergeError::Read {
         view: k,
         path: path.to_path_buf(),
         source,
     })?;
+    Ok(c)
+}
+
+/// Reads view `k` from `path`: replays it into a grid (cells of `cell`) and takes its mesh. With
+/// `sheet_mm` (the laser sheet's Gaussian thickness, mm) above zero the scan is replayed a second
+/// time, each frame's points moved to where the sheet's middle crosses the surface the first pass
+/// found (see [`crate::sheet`]).
+///
+/// # Errors
+/// The file cannot be read, or holds no scan.
+pub fn load_view(
+    k: usize,
+    path: &Path,
+    cell: crate::grid::Cell,
+    sheet_mm: f64,
+) -> Result<View, MergeError> {
+    let mut c = replay_view(k, path, cell, None)?;
+    if sheet_mm > 0.0
+        && let (Some(grid), Some(header)) = (c.grid(), c.header())
+    {
+        let fx = f64::from(header.camera.fx);
+        let m = mesh::build(grid, fx, &MeshOptions::default(), false);
+        let correction = crate::sheet::Correction::new(
+            &m.vertices.iter().map(|p| p.cast()).collect::<Vec<_>>(),
+            &m.normals.iter().map(|n| n.cast()).collect::<Vec<_>>(),
+            f64::from(header.camera.fy),
+            sheet_mm,
+            c.light_source(),
+        );
+        c = replay_view(k, path, cell, Some(std::sync::Arc::new(correction)))?;
+    }
     let (Some(grid), Some(header)) = (c.grid(), c.header()) else {
         return Err(MergeError::Empty {
             view: k,
@@ -365,6 +404,7 @@ pub fn load_view(k: usize, path: &Path, cell: crate::grid::Cell) -> Result<View,
         header: *header,
         colours,
         clear,
+        sheet_moved: (sheet_mm > 0.0).then(|| (c.sheet_corrected(), c.counts().points)),
     })
 }
 
@@ -950,6 +990,20 @@ pub fn report(views: &[View], results: &[ViewResult]) -> String {
             r.pose.rotation.angle().to_degrees()
         );
     }
+    let moved: Vec<String> = views
+        .iter()
+        .enumerate()
+        .filter_map(|(k, v)| {
+            v.sheet_moved
+                .map(|(m, all)| format!("view {k} {m} of {all}"))
+        })
+        .collect();
+    if !moved.is_empty() {
+        s += &format!(
+            "points moved to where the laser sheet's middle crosses the surface (--sheet): {}\n",
+            moved.join(", ")
+        );
+    }
     s
 }
 
@@ -1345,6 +1399,7 @@ mod tests {
             },
             colours: Vec::new(),
             clear: points.iter().map(|p| p.1).collect(),
+            sheet_moved: None,
         }
     }
 

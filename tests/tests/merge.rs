@@ -211,6 +211,7 @@ fn three_scanned_views_register_with_the_rigs_rotations() {
             "view {k}: {found}° found, {truth}° true\n{out}"
         );
     }
+    sheet_correction_of_the_views(d, &scene);
     live_view_of_the_merge(d);
     flat_base_of_the_merge(d);
     one_session_of_three_sweeps(d);
@@ -497,7 +498,8 @@ fn model_against_the_truth(d: &Path, scene: &scanner_rig::Scene, views: &[usize]
     );
     assert_eq!(attr("<triangle ", "p1"), v1);
     // The model is in the board's frame (y up); the truth in view 0's camera frame.
-    let view0 = scanner_host::merge::load_view(0, &d.join("v0"), "2px".parse().unwrap()).unwrap();
+    let view0 =
+        scanner_host::merge::load_view(0, &d.join("v0"), "2px".parse().unwrap(), 0.0).unwrap();
     let frame = scanner_host::mesh::MeshFrame::board(&view0.header.board().unwrap());
     let to_board = |p: &Point3<f64>| frame.point(&p.cast::<f32>()).cast::<f64>();
     let v0 = scene.view(0).unwrap();
@@ -565,6 +567,82 @@ fn model_against_the_truth(d: &Path, scene: &scanner_rig::Scene, views: &[usize]
         pct(c.to_truth.p99.max(c.to_model.p99)),
     );
     assert!(mean < 0.03 && p99 < 0.2, "mean {mean} %, p99 {p99} %");
+}
+
+/// `merge --sheet 0.6` (the rig's light sheet, σ 0.6 mm): each view's points moved to where the
+/// sheet's middle crosses the surface lie nearer the true surface than the head's, clear of the
+/// views' edges (where the lit band's skew on the curved bunny moves them); the report says how
+/// many moved, and the merge still meets its targets. A sheet thicker than any line laser is
+/// refused.
+fn sheet_correction_of_the_views(d: &Path, scene: &scanner_rig::Scene) {
+    let (ok, out, err) = run(
+        d,
+        "scanner-host",
+        &[
+            "merge", "v0", "v1", "v6", "--sheet", "0.6", "--out", "sheet", "-q",
+        ],
+    );
+    assert!(ok, "{err}");
+    let report = std::fs::read_to_string(d.join("sheet/merge-report.txt")).unwrap();
+    assert!(
+        report.contains("points moved to where the laser sheet's middle crosses the surface"),
+        "{report}"
+    );
+    let mut medians = Vec::new();
+    for k in [0usize, 1, 6] {
+        let scanner_rig::Shape::Mesh(truth) = &scene.view(k).unwrap().objects[0].shape else {
+            panic!("the bunny is a mesh")
+        };
+        // The clear points' mean signed distance from the truth (+ towards the camera) and
+        // their median distance.
+        let [head, corrected] = [0.0, 0.6].map(|sheet| {
+            let v = scanner_host::merge::load_view(
+                k,
+                &d.join(format!("v{k}")),
+                "2px".parse().unwrap(),
+                sheet,
+            )
+            .unwrap();
+            let mut e: Vec<f64> = v
+                .cloud
+                .points
+                .iter()
+                .zip(&v.cloud.normals)
+                .zip(&v.clear)
+                .filter(|(_, c)| **c >= scanner_host::merge::CLEAR)
+                .map(|((p, n), _)| (p - truth.closest(p).unwrap()).dot(n))
+                .collect();
+            let mean = e.iter().sum::<f64>() / e.len() as f64;
+            e.iter_mut().for_each(|x| *x = x.abs());
+            e.sort_by(f64::total_cmp);
+            (mean, e[e.len() / 2])
+        });
+        medians.push((k, head, corrected));
+    }
+    println!("(mean signed, median) distance from the truth, head and corrected, mm: {medians:?}");
+    // One run: the mean −0.016, −0.010, −0.013 mm → −0.009, −0.005, −0.010 mm, the medians 3–6 %
+    // lower (at 640×480 the sensor's noise and the speckle dominate the medians; on the
+    // 1280×960 demo with the true calibration the views' worst rotation halves, docs/reports.md).
+    for (k, head, corrected) in &medians {
+        assert!(
+            corrected.0.abs() < head.0.abs() && corrected.1 < head.1,
+            "view {k}: {corrected:?} mm corrected, {head:?} mm"
+        );
+    }
+    let (head, corrected): (f64, f64) = medians
+        .iter()
+        .fold((0.0, 0.0), |(h, c), m| (h + m.1.0.abs(), c + m.2.0.abs()));
+    assert!(corrected < 0.8 * head, "{medians:?}");
+    assert!(out.contains("watertight"), "{out}");
+    let (ok, _, err) = run(
+        d,
+        "scanner-host",
+        &["merge", "v0", "v1", "--sheet", "9", "--out", "thick", "-q"],
+    );
+    assert!(
+        !ok && err.contains("--sheet must be 0 (off) to 5 mm, found 9"),
+        "{err}"
+    );
 }
 
 /// Two views of the part close no loop, so only their free space can tell a wrong registration
