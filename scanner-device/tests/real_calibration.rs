@@ -345,6 +345,12 @@ fn the_command_says_for_every_real_image_what_it_used_and_draws_each() {
         assert_eq!(image::open(&overlay).unwrap().width(), 640);
     }
     assert!(text.contains("over 13 images"), "{text}");
+    // OpenCV's photographs put corners on half the image's border: k3 is fitted there, as
+    // OpenCV fits it, not fixed.
+    assert!(
+        text.contains("12 of the 24 on its border") && !text.contains("k3 fixed"),
+        "{text}"
+    );
     // Where the corners fell: this series holds the board near the middle, and the corners of
     // the view stay unsampled (the distortion there extrapolated), which the command says.
     let coverage = text

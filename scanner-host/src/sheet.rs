@@ -95,14 +95,6 @@ impl Quadric {
         })
     }
 
-    /// The surface's height over the tangent plane minus that of `p`: zero on the surface.
-    fn off(&self, p: &Point3<f64>) -> f64 {
-        let d = p - self.origin;
-        let (x, y) = (d.dot(&self.e1), d.dot(&self.e2));
-        let c = &self.c;
-        d.dot(&self.n) - (c[0] + c[1] * x + c[2] * y + c[3] * x * x + c[4] * x * y + c[5] * y * y)
-    }
-
     /// The surface's unit normal at `p` (on it), on the side of `n`.
     fn normal_at(&self, p: &Point3<f64>) -> Vector3<f64> {
         let d = p - self.origin;
@@ -115,24 +107,38 @@ impl Quadric {
         (self.n - self.e1 * hx - self.e2 * hy).normalize()
     }
 
-    /// Where the ray from the camera's centre along `dir` meets the surface, starting from depth
-    /// `t0` (Newton's method); `None` when it does not converge.
+    /// Where the ray from the camera's centre along `dir` meets the surface: on the ray
+    /// `t · dir` the height off the surface is a quadratic in `t`; of its roots the one nearest
+    /// the depth `t0`. `None` where the ray misses the surface.
     fn hit(&self, dir: &Vector3<f64>, t0: f64) -> Option<Point3<f64>> {
-        let mut t = t0;
-        for _ in 0..8 {
-            let f = self.off(&Point3::from(dir * t));
-            let h = 1e-3 * t0.abs().max(1.0);
-            let df = (self.off(&Point3::from(dir * (t + h))) - f) / h;
-            if df.abs() < 1e-12 {
+        let q = -self.origin.coords;
+        let (r1, r2, r3) = (dir.dot(&self.e1), dir.dot(&self.e2), dir.dot(&self.n));
+        let (q1, q2, q3) = (q.dot(&self.e1), q.dot(&self.e2), q.dot(&self.n));
+        let c = &self.c;
+        let a = -(c[3] * r1 * r1 + c[4] * r1 * r2 + c[5] * r2 * r2);
+        let b = r3
+            - c[1] * r1
+            - c[2] * r2
+            - (2.0 * c[3] * r1 * q1 + c[4] * (r1 * q2 + r2 * q1) + 2.0 * c[5] * r2 * q2);
+        let k =
+            q3 - c[0] - c[1] * q1 - c[2] * q2 - (c[3] * q1 * q1 + c[4] * q1 * q2 + c[5] * q2 * q2);
+        let t = if a.abs() <= 1e-12 * b.abs() {
+            -k / b
+        } else {
+            let disc = b * b - 4.0 * a * k;
+            if disc < 0.0 {
                 return None;
             }
-            let step = f / df;
-            t -= step;
-            if step.abs() < 1e-7 {
-                return t.is_finite().then(|| Point3::from(dir * t));
+            // the two roots without cancellation
+            let s = -0.5 * (b + b.signum() * disc.sqrt());
+            let (x, y) = (s / a, k / s);
+            if (x - t0).abs() < (y - t0).abs() {
+                x
+            } else {
+                y
             }
-        }
-        None
+        };
+        (t.is_finite() && t > 0.0).then(|| Point3::from(dir * t))
     }
 }
 

@@ -51,7 +51,7 @@ use detect::{Blob, DetectConfig, Detections, find_markers};
 use identify::{Assignment, Orientation, candidates, identify};
 pub use intrinsics::{
     Coverage, Found, GridView, ImageReport, IntrinsicsFit, IntrinsicsOutcome, ViewFit, find_grid,
-    intrinsics, intrinsics_outcome,
+    intrinsics, intrinsics_auto, intrinsics_outcome,
 };
 
 /// The largest RMS of a sheet's markers against its layout that a board calibration accepts,

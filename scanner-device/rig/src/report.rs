@@ -6,9 +6,8 @@
 
 use crate::{Object, Rig, Scene, Shape};
 use scanner_calib::board::{BoardFile, Cross, Grid, SheetLayout, SheetSize};
-use scanner_calib::{DotGrid, Target, board_planes, intrinsics};
+use scanner_calib::{DotGrid, Target, board_planes, intrinsics_auto};
 use scanner_core::Camera;
-use scanner_core::calib::Free;
 use scanner_core::geometry::Board;
 use scanner_core::nalgebra::{Matrix4, Point2, Point3, Unit, Vector3, Vector4};
 use scanner_core::pipeline::{Head, HeadConfig};
@@ -143,7 +142,10 @@ pub fn calibrate_camera(width: u32, height: u32) -> Camera<f64> {
     let rig = Rig::new(Scene::demo(width, height)).expect("demo rig");
     let grid = DotGrid::RIG;
     let images = rig.dot_grid_shots(&grid, 12);
-    intrinsics(&images, &Target::Dots(grid), Free::ALL)
+    // as `calibrate intrinsics` does (k3 fixed when no shot reaches the image's border)
+    intrinsics_auto(&images, &Target::Dots(grid))
+        .0
+        .into_fit()
         .expect("intrinsics")
         .camera
 }

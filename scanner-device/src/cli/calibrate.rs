@@ -6,13 +6,12 @@ use anyhow::{Context, Result, bail};
 use clap::{Subcommand, ValueEnum};
 use image::GrayImage;
 use scanner_core::Camera;
-use scanner_core::calib::Free;
 
 use scanner_calib::board::BoardFile;
 use scanner_calib::file::{CalibrationFile, write_atomic};
 use scanner_calib::{
     CalibError, Coverage, DotGrid, PlaneMethod, Target, ViewFit, board_planes, check_size,
-    intrinsics_outcome, overlay, print, short,
+    intrinsics_auto, overlay, print, short,
 };
 
 /// The intrinsics target: a dot grid (default) or a chessboard, with its sizes.
@@ -392,7 +391,7 @@ fn intrinsics_command(
     overlays: Option<&Path>,
 ) -> Result<()> {
     let imgs: Vec<GrayImage> = images.iter().map(|p| load_gray(p)).collect::<Result<_>>()?;
-    let outcome = intrinsics_outcome(&imgs, target, Free::ALL);
+    let (outcome, k3_fixed) = intrinsics_auto(&imgs, target);
     let name = |i: usize| images[i].display().to_string();
     for (i, r) in outcome.images.iter().enumerate() {
         outln!("  {}: {}", name(i), image_line(&r.status, name));
@@ -452,6 +451,11 @@ fn intrinsics_command(
     outln!(
         "coverage: the features used fall in {cells} of the image's {all} cells ({cols}×{rows}), {border} of the {ring} on its border{corners}"
     );
+    if k3_fixed {
+        outln!(
+            "k3 fixed at 0: no feature used lies on the image's border, and only there does k3 show apart from k1 and k2 (shots with the target in the corners let it be fitted)"
+        );
+    }
     Ok(())
 }
 
