@@ -5,7 +5,7 @@
 #[test]
 fn the_quick_accuracy_report_is_within_loose_bounds() {
     let (w, h) = (640, 480);
-    let camera = scanner_rig::report::calibrate_camera(w, h);
+    let (camera, _) = scanner_rig::report::calibrate_camera(w, h);
     let mut rows = Vec::new();
     for d in [400.0, 1600.0] {
         rows.extend(scanner_rig::report::run_distance(

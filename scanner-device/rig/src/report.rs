@@ -137,17 +137,14 @@ pub fn scene(width: u32, height: u32, d: f64, frames: usize) -> (Scene, BoardFil
     (sc, board)
 }
 
-/// Intrinsics from 12 rendered dot-grid images of the demo camera at this size.
-pub fn calibrate_camera(width: u32, height: u32) -> Camera<f64> {
+/// Intrinsics from 12 rendered dot-grid images of the demo camera at this size, as `calibrate
+/// intrinsics` finds them, and whether `k3` was fixed (no shot reaching the image's border).
+pub fn calibrate_camera(width: u32, height: u32) -> (Camera<f64>, bool) {
     let rig = Rig::new(Scene::demo(width, height)).expect("demo rig");
     let grid = DotGrid::RIG;
     let images = rig.dot_grid_shots(&grid, 12);
-    // as `calibrate intrinsics` does (k3 fixed when no shot reaches the image's border)
-    intrinsics_auto(&images, &Target::Dots(grid))
-        .0
-        .into_fit()
-        .expect("intrinsics")
-        .camera
+    let (outcome, k3_fixed) = intrinsics_auto(&images, &Target::Dots(grid));
+    (outcome.into_fit().expect("intrinsics").camera, k3_fixed)
 }
 
 /// Least-squares sphere (algebraic, then the radius from the centre): centre and radius.
