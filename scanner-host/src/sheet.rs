@@ -315,6 +315,9 @@ impl Correction {
         let Some(m) = m.try_normalize(1e-9) else {
             return 0;
         };
+        if self.fits.is_empty() || !m.iter().all(|v| v.is_finite()) {
+            return 0;
+        }
         let mut moved = 0;
         for s in samples.iter_mut() {
             let p: Point3<f64> = s.cast();
@@ -521,5 +524,22 @@ mod tests {
             );
         }
         assert_eq!(Pencil::default().source(), None);
+    }
+
+    #[test]
+    fn no_surface_or_no_plane_moves_nothing() {
+        let mut samples = [Point3::new(1.0f32, 2.0, 500.0)];
+        let none = Correction::new(&[], &[], 1000.0, 0.6, None);
+        assert_eq!(none.apply([0.0, 1.0, 0.0, -2.0], &mut samples), 0);
+        let p = Point3::new(1.0, 2.0, 500.0);
+        let grid: Vec<Point3<f64>> = (-5..=5)
+            .flat_map(|i| (-5..=5).map(move |j| p + Vector3::new(i as f64, j as f64, 0.0) * 0.5))
+            .collect();
+        let normals = vec![-Vector3::z(); grid.len()];
+        let flat = Correction::new(&grid, &normals, 1000.0, 0.6, None);
+        for plane in [[0.0, 0.0, 0.0, 1.0], [f32::NAN, 0.0, 1.0, 0.0]] {
+            assert_eq!(flat.apply(plane, &mut samples), 0, "{plane:?}");
+        }
+        assert_eq!(samples[0], Point3::new(1.0f32, 2.0, 500.0));
     }
 }
