@@ -6,7 +6,9 @@
 //! plane grows faster on one side of the band than on the other, the band is skewed, and its
 //! brightest middle and its centroid move off the true crossing — to first order by `−3 b σ²/a³`
 //! pixels, `a` and `b` the first and second derivative of that distance along the image column
-//! (over 2 for `b`). The offset is largest where the sheet grazes the surface (small `a`). On the
+//! (over 2 for `b`). The light's angle of incidence also changes across a curved band, and its
+//! cosine over the distance² weighs one side more. The offset is largest where the sheet grazes
+//! the surface (small `a`). On the
 //! rig's bunny (σ 0.6 mm) it moves points by up to 0.1 mm, and as each view sees the object from
 //! its own side, it turns views against each other by up to 0.07° (docs/reports.md).
 //!
