@@ -142,7 +142,7 @@ struct State {
     pencil: crate::sheet::Pencil,
     /// Moves each frame's points to where the sheet's middle crosses the surface (a second pass
     /// over a scan, see [`crate::sheet`]), and how many it moved.
-    sheet: Option<(std::sync::Arc<crate::sheet::Correction>, u64)>,
+    sheet: Option<(crate::sheet::Correction, u64)>,
 }
 
 /// One accepted frame's points (camera frame, mm) and colours (empty: none), for a live view.
@@ -190,7 +190,7 @@ impl Collector {
 
     /// Corrects every frame's points for the light sheet's thickness from now on (see
     /// [`crate::sheet`]); the journal keeps them as they came.
-    pub fn correct_sheet(&mut self, c: std::sync::Arc<crate::sheet::Correction>) {
+    pub fn correct_sheet(&mut self, c: crate::sheet::Correction) {
         self.state.sheet = Some((c, 0));
     }
 

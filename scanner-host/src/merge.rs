@@ -314,7 +314,7 @@ fn replay_view(
     k: usize,
     path: &Path,
     cell: crate::grid::Cell,
-    sheet: Option<std::sync::Arc<crate::sheet::Correction>>,
+    sheet: Option<crate::sheet::Correction>,
 ) -> Result<Collector, MergeError> {
     let mut c = Collector::new(
         CollectOptions {
@@ -360,7 +360,7 @@ pub fn load_view(
             sheet_mm,
             c.light_source(),
         );
-        c = replay_view(k, path, cell, Some(std::sync::Arc::new(correction)))?;
+        c = replay_view(k, path, cell, Some(correction))?;
     }
     let (Some(grid), Some(header)) = (c.grid(), c.header()) else {
         return Err(MergeError::Empty {
