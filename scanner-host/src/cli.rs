@@ -14,7 +14,7 @@ use crate::grid::Cell;
 use crate::link::Input;
 use crate::live::LiveView;
 use crate::mesh::MeshFrame;
-use crate::outputs::{FrameChoice, OutputOptions, Summary, mesh_of, replay_into, write_outputs};
+use crate::outputs::{FrameChoice, OutputOptions, Summary, mesh_of, replay_from, write_outputs};
 
 /// Command line of the host tool.
 #[derive(Debug, Parser)]
@@ -49,6 +49,13 @@ pub struct OutputArgs {
     /// down, +z forward). The pictures are the camera's view either way.
     #[arg(long, value_enum, default_value_t = FrameChoice::Board)]
     pub frame: FrameChoice,
+    /// The laser sheet's thickness, mm (the Gaussian σ across it; a line laser's line width
+    /// at half its brightness is 2.355 σ): each frame's points are moved to where the sheet's
+    /// middle crosses the surface, which on a curved surface is not the lit band's centre (up
+    /// to 0.1 mm on the rig's bunny at σ 0.6 mm). The scan is read twice for it. 0: the points
+    /// as the head sent them.
+    #[arg(long, value_name = "MM", default_value_t = 0.0)]
+    pub sheet: f64,
     /// No progress display.
     #[arg(long, short)]
     pub quiet: bool,
@@ -184,6 +191,10 @@ pub enum Command {
         /// Grid cell (as for receive).
         #[arg(long, default_value = "2px")]
         cell: Cell,
+        /// The laser sheet's thickness, mm (as for receive): the points are moved to where the
+        /// sheet's middle crosses the surface before the check (a sphere's size moves with it).
+        #[arg(long, value_name = "MM", default_value_t = 0.0)]
+        sheet: f64,
         /// Output folder.
         #[arg(long, default_value = "check")]
         out: PathBuf,
@@ -222,7 +233,9 @@ fn progress_bar(quiet: bool) -> indicatif::ProgressBar {
 
 /// Refuses a receive that would read its own journal, or mix into an earlier session's journal
 /// unless told to append.
-fn check_journal(input: &Input, journal: &std::path::Path, append: bool) -> Result<()> {
+/// Refuses a journal that a receive would read from or mix into; returns its length before this
+/// session (where this session's frames will start).
+fn check_journal(input: &Input, journal: &std::path::Path, append: bool) -> Result<u64> {
     if let Input::File(path) = input
         && let (Ok(a), Ok(b)) = (path.canonicalize(), journal.canonicalize())
         && a == b
@@ -240,7 +253,7 @@ fn check_journal(input: &Input, journal: &std::path::Path, append: bool) -> Resu
             journal.display()
         );
     }
-    Ok(())
+    Ok(held)
 }
 
 /// Refuses a `--view-for` that is no duration.
@@ -329,7 +342,7 @@ fn receive(
     std::fs::create_dir_all(&o.out)
         .with_context(|| format!("cannot create the output folder {}", o.out.display()))?;
     let journal_path = o.out.join("journal.stream");
-    check_journal(input, &journal_path, append)?;
+    let held = check_journal(input, &journal_path, append)?;
     let mut c = Collector::new(collect_options(o), Some(Journal::open(&journal_path)?));
     let stop = interrupted();
     stop.store(false, Ordering::SeqCst);
@@ -391,6 +404,15 @@ fn receive(
     if !o.quiet {
         crate::errln!("{ended}; journal: {}", journal_path.display());
     }
+    // --sheet: this session's frames read again from the journal, corrected.
+    if o.sheet > 0.0
+        && let Some(correction) = crate::outputs::sheet_correction(&c, o.sheet)
+    {
+        let mut again = Collector::new(collect_options(o), None);
+        again.correct_sheet(correction);
+        replay_from(&mut again, &journal_path, held)?;
+        c.regrid(again);
+    }
     let summary = write_outputs(&c, &o.out, &o.output_options())?;
     // (With --merge the page is given the merged model instead.)
     if let Some(v) = view.as_ref().filter(|_| !merge) {
@@ -442,6 +464,7 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
             out,
         }) => {
             check_view_for(*view_for)?;
+            check_sheet(out.sheet)?;
             let (summary, view) = receive(input, (*until_done, *append, *merge), *view, out)?;
             crate::outln!("{}", summary.text().trim_end());
             let merged = if *merge {
@@ -500,18 +523,26 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
             form_tolerance,
             flatness_tolerance,
             cell,
+            sheet,
             out,
         }) => {
+            check_sheet(*sheet)?;
             let tolerances = crate::check::Tolerances {
                 size_pct: *size_tolerance,
                 form_pct: *form_tolerance,
                 flatness_pct: *flatness_tolerance,
             };
-            return check_command(scan, spheres, *spacing, *plane, tolerances, *cell, out);
+            return check_command(
+                scan,
+                (spheres, *spacing, *plane),
+                tolerances,
+                (*cell, *sheet),
+                out,
+            );
         }
         Some(Command::Replay { input, out }) => {
-            let mut c = Collector::new(collect_options(out), None);
-            replay_into(&mut c, input)?;
+            check_sheet(out.sheet)?;
+            let c = crate::outputs::replay(collect_options(out), input, out.sheet)?;
             write_outputs(&c, &out.out, &out.output_options())?
         }
     };
@@ -523,6 +554,14 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
 /// far thicker than any line laser meant for scanning).
 const MAX_SHEET_MM: f64 = 5.0;
 
+/// Refuses a `--sheet` that is no sheet's thickness.
+fn check_sheet(sheet: f64) -> Result<()> {
+    if !(0.0..=MAX_SHEET_MM).contains(&sheet) {
+        anyhow::bail!("--sheet must be 0 (off) to {MAX_SHEET_MM} mm, found {sheet}");
+    }
+    Ok(())
+}
+
 /// What a refused merge leaves to look at (those written before it stopped).
 const MERGE_REFUSED_FILES: &[&str] = &["views.png", "views.ply", "merge-report.txt"];
 
@@ -531,8 +570,7 @@ const MERGE_REFUSED_FILES: &[&str] = &["views.png", "views.ply", "merge-report.t
 fn merge_sweeps(o: &OutputArgs, view: Option<&LiveView>) -> Result<()> {
     let folders = crate::merge::split_scans(&o.out.join("journal.stream"), &o.out)?;
     for f in &folders {
-        let mut c = Collector::new(collect_options(o), None);
-        replay_into(&mut c, &f.join("journal.stream"))?;
+        let c = crate::outputs::replay(collect_options(o), &f.join("journal.stream"), o.sheet)?;
         let s = write_outputs(&c, f, &o.output_options())?;
         crate::outln!(
             "{}: {}",
@@ -549,7 +587,7 @@ fn merge_sweeps(o: &OutputArgs, view: Option<&LiveView>) -> Result<()> {
             crate::merge::FUSE_CELL_MM,
             crate::merge::MIN_OVERLAP,
             None,
-            0.0,
+            o.sheet,
         ),
         (false, false, o.quiet),
         view,
@@ -579,9 +617,7 @@ fn merge_command(
     if !(0.1..=0.9).contains(&min_overlap) {
         anyhow::bail!("--min-overlap must be 0.1 to 0.9, found {min_overlap}");
     }
-    if !(0.0..=MAX_SHEET_MM).contains(&sheet) {
-        anyhow::bail!("--sheet must be 0 (off) to {MAX_SHEET_MM} mm, found {sheet}");
-    }
+    check_sheet(sheet)?;
     if views.len() < 2 {
         return Err(merge::MergeError::TooFewViews(views.len()).into());
     }
@@ -730,11 +766,9 @@ fn merge_command(
 
 fn check_command(
     scan: &std::path::Path,
-    spheres: &[f64],
-    spacing: Option<f64>,
-    plane: bool,
+    (spheres, spacing, plane): (&[f64], Option<f64>, bool),
     tolerances: crate::check::Tolerances,
-    cell: Cell,
+    (cell, sheet): (Cell, f64),
     out: &std::path::Path,
 ) -> Result<()> {
     if spheres.len() > 2 {
@@ -762,10 +796,15 @@ fn check_command(
             anyhow::bail!("{name} must be more than 0 and at most 10 %, found {t}");
         }
     }
-    let view = crate::merge::load_view(0, scan, cell, 0.0).context("reading the scan")?;
+    let view = crate::merge::load_view(0, scan, cell, sheet).context("reading the scan")?;
     let (points, normals) = (&view.cloud.points, &view.cloud.normals);
     let report = crate::check::check(points, normals, spheres, spacing, plane, tolerances)?;
     let (mut text, pass) = report.text();
+    if let Some((moved, all)) = view.sheet_moved {
+        text += &format!(
+            "laser sheet (--sheet {sheet} mm): {moved} of {all} points moved to where its middle crosses the surface\n"
+        );
+    }
     // The residual picture: the checked points in the board's frame, coloured by residual.
     let scale = report
         .spheres

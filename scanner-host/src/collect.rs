@@ -194,9 +194,19 @@ impl Collector {
         self.state.sheet = Some((c, 0));
     }
 
-    /// Points moved by the sheet's correction so far.
-    pub fn sheet_corrected(&self) -> u64 {
-        self.state.sheet.as_ref().map_or(0, |s| s.1)
+    /// Points moved by the sheet's correction so far (`None`: no correction).
+    pub fn sheet_corrected(&self) -> Option<u64> {
+        self.state.sheet.as_ref().map(|s| s.1)
+    }
+
+    /// Takes the grid of `again`, the same frames collected a second time with the sheet's
+    /// correction ([`Collector::correct_sheet`]); what arrived (the counts) stays this
+    /// collection's, so that the link's rejections are still reported.
+    pub fn regrid(&mut self, again: Collector) {
+        let a = again.state;
+        self.state.grid = a.grid;
+        self.state.sheet = a.sheet;
+        self.state.counts.gridded = a.counts.gridded;
     }
 
     /// Where the laser's light comes from, as the frames' planes so far say (see

@@ -10,9 +10,9 @@ use std::path::{Path, PathBuf};
 use scanner_core::nalgebra::{Isometry3, Point3};
 use scanner_core::wire::Header;
 
-use crate::collect::{CollectOptions, Collector};
+use crate::collect::CollectOptions;
 use crate::mesh::{self, MeshFrame, MeshOptions};
-use crate::outputs::{OutputError, replay_into};
+use crate::outputs::OutputError;
 use crate::register::{Cloud, RegisterError, RegisterOptions, Registration};
 use crate::seen::{Conflict, DepthMap};
 
@@ -308,32 +308,6 @@ fn stream_of(path: &Path) -> PathBuf {
     }
 }
 
-/// View `k`'s scan at `path` replayed into a collector (grid cells of `cell`), each frame's
-/// points corrected by `sheet` if given.
-fn replay_view(
-    k: usize,
-    path: &Path,
-    cell: crate::grid::Cell,
-    sheet: Option<crate::sheet::Correction>,
-) -> Result<Collector, MergeError> {
-    let mut c = Collector::new(
-        CollectOptions {
-            cell,
-            ..CollectOptions::default()
-        },
-        None,
-    );
-    if let Some(s) = sheet {
-        c.correct_sheet(s);
-    }
-    replay_into(&mut c, &stream_of(path)).map_err(|source| MergeError::Read {
-        view: k,
-        path: path.to_path_buf(),
-        source,
-    })?;
-    Ok(c)
-}
-
 /// Reads view `k` from `path`: replays it into a grid (cells of `cell`) and takes its mesh. With
 /// `sheet_mm` (the laser sheet's Gaussian thickness, mm) above zero the scan is replayed a second
 /// time, each frame's points moved to where the sheet's middle crosses the surface the first pass
@@ -347,21 +321,17 @@ pub fn load_view(
     cell: crate::grid::Cell,
     sheet_mm: f64,
 ) -> Result<View, MergeError> {
-    let mut c = replay_view(k, path, cell, None)?;
-    if sheet_mm > 0.0
-        && let (Some(grid), Some(header)) = (c.grid(), c.header())
-    {
-        let fx = f64::from(header.camera.fx);
-        let m = mesh::build(grid, fx, &MeshOptions::default(), false);
-        let correction = crate::sheet::Correction::new(
-            &m.vertices.iter().map(|p| p.cast()).collect::<Vec<_>>(),
-            &m.normals.iter().map(|n| n.cast()).collect::<Vec<_>>(),
-            f64::from(header.camera.fy),
-            sheet_mm,
-            c.light_source(),
-        );
-        c = replay_view(k, path, cell, Some(correction))?;
-    }
+    let opts = CollectOptions {
+        cell,
+        ..CollectOptions::default()
+    };
+    let c = crate::outputs::replay(opts, &stream_of(path), sheet_mm).map_err(|source| {
+        MergeError::Read {
+            view: k,
+            path: path.to_path_buf(),
+            source,
+        }
+    })?;
     let (Some(grid), Some(header)) = (c.grid(), c.header()) else {
         return Err(MergeError::Empty {
             view: k,
@@ -404,7 +374,7 @@ pub fn load_view(
         header: *header,
         colours,
         clear,
-        sheet_moved: (sheet_mm > 0.0).then(|| (c.sheet_corrected(), c.counts().points)),
+        sheet_moved: c.sheet_corrected().map(|m| (m, c.counts().points)),
     })
 }
 

@@ -1,12 +1,12 @@
 //! What a collection becomes: the mesh, the files and pictures, the summary; and a replay of a
 //! journal or recording into a collector.
 
-use std::io::Read;
+use std::io::{Read, Seek};
 use std::path::Path;
 
 use scanner_core::wire::{Control, Header, Skip};
 
-use crate::collect::{CollectError, Collector, Counts};
+use crate::collect::{CollectError, CollectOptions, Collector, Counts};
 use crate::export::{self, ExportError};
 use crate::grid::Grid;
 use crate::mesh::{self, Mesh, MeshFrame, MeshOptions};
@@ -75,6 +75,8 @@ pub struct Summary {
     /// The vertices' standard uncertainty (the PLY's `quality`), mm: median and 95th
     /// percentile; `None` when the points carried none (a head before wire version 2).
     pub uncertainty: Option<(f32, f32)>,
+    /// Points moved by the laser sheet's correction (`--sheet`), of all; `None`: not asked.
+    pub sheet_moved: Option<u64>,
 }
 
 impl Summary {
@@ -133,6 +135,12 @@ impl Summary {
             ),
             None => "the points carried no uncertainty (a head before wire version 2): scan.ply has no quality\n".into(),
         };
+        if let Some(moved) = self.sheet_moved {
+            s += &format!(
+                "laser sheet (--sheet): {moved} of {} points moved to where its middle crosses the surface\n",
+                c.points
+            );
+        }
         let skipped = c.skipped();
         for r in Skip::ALL {
             if skipped[r as usize] > 0 {
@@ -248,6 +256,7 @@ pub fn write_outputs(
         outliers: grid.rejected(),
         frame: m.frame.describe(),
         uncertainty: quantiles(&m.quality),
+        sheet_moved: c.sheet_corrected(),
     };
     export::write_atomic(&dir.join("summary.txt"), summary.text().as_bytes())?;
     Ok(summary)
@@ -301,11 +310,21 @@ fn camera_mesh(
 /// # Errors
 /// The file cannot be read.
 pub fn replay_into(c: &mut Collector, input: &Path) -> Result<(), OutputError> {
+    replay_from(c, input, 0)
+}
+
+/// Feeds a file into a collector from byte `from` on (a journal's later session: it starts
+/// where the journal ended before it).
+///
+/// # Errors
+/// The file cannot be read.
+pub fn replay_from(c: &mut Collector, input: &Path, from: u64) -> Result<(), OutputError> {
     let io = |source| OutputError::Input {
         path: input.to_path_buf(),
         source,
     };
     let mut f = crate::link::open_file(input)?;
+    f.seek(std::io::SeekFrom::Start(from)).map_err(io)?;
     let mut buf = vec![0u8; 1 << 16];
     loop {
         let n = f.read(&mut buf).map_err(io)?;
@@ -315,4 +334,43 @@ pub fn replay_into(c: &mut Collector, input: &Path) -> Result<(), OutputError> {
         }
         c.feed(&buf[..n])?;
     }
+}
+
+/// The laser sheet's correction for a collection (see [`crate::sheet`]): the surface its grid's
+/// mesh gives, each frame's points moved for a sheet of Gaussian thickness `sigma_mm`, the
+/// light's source from its planes. `None` before a header arrived.
+pub fn sheet_correction(c: &Collector, sigma_mm: f64) -> Option<crate::sheet::Correction> {
+    let (grid, header) = (c.grid()?, c.header()?);
+    let m = mesh::build(
+        grid,
+        f64::from(header.camera.fx),
+        &MeshOptions::default(),
+        false,
+    );
+    Some(crate::sheet::Correction::new(
+        &m.vertices.iter().map(|p| p.cast()).collect::<Vec<_>>(),
+        &m.normals.iter().map(|n| n.cast()).collect::<Vec<_>>(),
+        f64::from(header.camera.fy),
+        sigma_mm,
+        c.light_source(),
+    ))
+}
+
+/// A file (a journal or a recording) collected with `opts`; with `sheet_mm` (the laser sheet's
+/// Gaussian thickness) above 0 it is read twice, the second time with each frame's points moved
+/// to where the sheet's middle crosses the surface the first reading found.
+///
+/// # Errors
+/// The file cannot be read.
+pub fn replay(opts: CollectOptions, input: &Path, sheet_mm: f64) -> Result<Collector, OutputError> {
+    let mut c = Collector::new(opts, None);
+    replay_into(&mut c, input)?;
+    if sheet_mm > 0.0
+        && let Some(correction) = sheet_correction(&c, sheet_mm)
+    {
+        c = Collector::new(opts, None);
+        c.correct_sheet(correction);
+        replay_into(&mut c, input)?;
+    }
+    Ok(c)
 }
