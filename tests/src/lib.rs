@@ -69,6 +69,34 @@ pub fn run_in(
     )
 }
 
+/// Scans a rig scene through the head's binary, as a user would: writes `scene` (TOML) to
+/// `dir/scene.toml` and the rig's true calibration to `dir/cal.toml`, then runs `scanner-device
+/// scan --source rig` with `extra` arguments, its stream to `dir/out`.
+///
+/// # Panics
+/// When the scene is not a scene or the scan fails: this is a test helper.
+pub fn scan_rig(dir: &std::path::Path, scene: &str, extra: &[&str], out: &str) {
+    std::fs::write(dir.join("scene.toml"), scene).expect("scene written");
+    let rig = scanner_rig::Rig::new(scanner_rig::Scene::from_toml_in(scene, dir).expect("a scene"))
+        .expect("a rig");
+    rig.truth_calibration()
+        .save(&dir.join("cal.toml"))
+        .expect("calibration written");
+    let mut args = vec![
+        "scan",
+        "--source",
+        "rig",
+        "--scene",
+        "scene.toml",
+        "--calibration",
+        "cal.toml",
+    ];
+    args.extend_from_slice(extra);
+    args.extend_from_slice(&["--out", out, "-q"]);
+    let (ok, _, err) = run_in(&workspace_bin("scanner-device"), dir, &args);
+    assert!(ok, "scanner-device scan: {err}");
+}
+
 /// A global allocator that counts allocations per thread (the test harness allocates on other
 /// threads while a test runs). Install it in a test binary with
 /// `#[global_allocator] static A: scanner_tests::Counting = scanner_tests::Counting;` and

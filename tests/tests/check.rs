@@ -39,29 +39,7 @@ fn figure(report: &str, line_has: &str, label: &str) -> f64 {
 fn a_two_sphere_bar_and_the_board_are_checked_against_the_truth() {
     let t = tempfile::tempdir().unwrap();
     let d = t.path();
-    std::fs::write(d.join("scene.toml"), SCENE).unwrap();
-    let rig = scanner_rig::Rig::new(scanner_rig::Scene::from_toml_in(SCENE, d).unwrap()).unwrap();
-    rig.truth_calibration().save(&d.join("cal.toml")).unwrap();
-    let (ok, _, err) = run(
-        d,
-        "scanner-device",
-        &[
-            "scan",
-            "--source",
-            "rig",
-            "--scene",
-            "scene.toml",
-            "--calibration",
-            "cal.toml",
-            "--keep-board",
-            "--scan-id",
-            "9",
-            "--out",
-            "bar.stream",
-            "-q",
-        ],
-    );
-    assert!(ok, "{err}");
+    scanner_tests::scan_rig(d, SCENE, &["--keep-board", "--scan-id", "9"], "bar.stream");
     let (ok, _, err) = run(
         d,
         "scanner-host",

@@ -69,26 +69,7 @@ fn radial(points: &[Point3<f64>]) -> Vec<(f64, f64, f64)> {
 fn the_sheet_correction_moves_a_spheres_points_onto_it() {
     let t = tempfile::tempdir().unwrap();
     let d = t.path();
-    std::fs::write(d.join("scene.toml"), SCENE).unwrap();
-    let rig = scanner_rig::Rig::new(scanner_rig::Scene::from_toml_in(SCENE, d).unwrap()).unwrap();
-    rig.truth_calibration().save(&d.join("cal.toml")).unwrap();
-    let (ok, _, err) = run(
-        d,
-        "scanner-device",
-        &[
-            "scan",
-            "--source",
-            "rig",
-            "--scene",
-            "scene.toml",
-            "--calibration",
-            "cal.toml",
-            "--out",
-            "bar.stream",
-            "-q",
-        ],
-    );
-    assert!(ok, "{err}");
+    scanner_tests::scan_rig(d, SCENE, &[], "bar.stream");
     // Live: receive corrects this session's frames from its journal at the end.
     let (ok, out, err) = run(
         d,
