@@ -14,7 +14,9 @@ use crate::grid::Cell;
 use crate::link::Input;
 use crate::live::LiveView;
 use crate::mesh::MeshFrame;
-use crate::outputs::{FrameChoice, OutputOptions, Summary, mesh_of, replay_from, write_outputs};
+use crate::outputs::{
+    FrameChoice, OutputOptions, Summary, mesh_of, replay_corrected, write_outputs,
+};
 
 /// Command line of the host tool.
 #[derive(Debug, Parser)]
@@ -232,9 +234,8 @@ fn progress_bar(quiet: bool) -> indicatif::ProgressBar {
 }
 
 /// Refuses a receive that would read its own journal, or mix into an earlier session's journal
-/// unless told to append.
-/// Refuses a journal that a receive would read from or mix into; returns its length before this
-/// session (where this session's frames will start).
+/// unless told to append; returns the journal's length before this session (where this
+/// session's frames will start).
 fn check_journal(input: &Input, journal: &std::path::Path, append: bool) -> Result<u64> {
     if let Input::File(path) = input
         && let (Ok(a), Ok(b)) = (path.canonicalize(), journal.canonicalize())
@@ -408,9 +409,7 @@ fn receive(
     if o.sheet > 0.0
         && let Some(correction) = crate::outputs::sheet_correction(&c, o.sheet)
     {
-        let mut again = Collector::new(collect_options(o), None);
-        again.correct_sheet(correction);
-        replay_from(&mut again, &journal_path, held)?;
+        let again = replay_corrected(collect_options(o), &journal_path, held, correction)?;
         c.regrid(again);
     }
     let summary = write_outputs(&c, &o.out, &o.output_options())?;

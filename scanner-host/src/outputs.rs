@@ -365,12 +365,28 @@ pub fn sheet_correction(c: &Collector, sigma_mm: f64) -> Option<crate::sheet::Co
 pub fn replay(opts: CollectOptions, input: &Path, sheet_mm: f64) -> Result<Collector, OutputError> {
     let mut c = Collector::new(opts, None);
     replay_into(&mut c, input)?;
-    if sheet_mm > 0.0
-        && let Some(correction) = sheet_correction(&c, sheet_mm)
-    {
-        c = Collector::new(opts, None);
-        c.correct_sheet(correction);
-        replay_into(&mut c, input)?;
+    let correction = (sheet_mm > 0.0)
+        .then(|| sheet_correction(&c, sheet_mm))
+        .flatten();
+    match correction {
+        Some(correction) => replay_corrected(opts, input, 0, correction),
+        None => Ok(c),
     }
+}
+
+/// A file collected with `opts` from byte `from` on, each frame's points moved by the sheet's
+/// `correction`.
+///
+/// # Errors
+/// The file cannot be read.
+pub fn replay_corrected(
+    opts: CollectOptions,
+    input: &Path,
+    from: u64,
+    correction: crate::sheet::Correction,
+) -> Result<Collector, OutputError> {
+    let mut c = Collector::new(opts, None);
+    c.correct_sheet(correction);
+    replay_from(&mut c, input, from)?;
     Ok(c)
 }
