@@ -115,7 +115,7 @@ fn main() {
     let refs: Vec<&Cloud> = clouds.iter().collect();
     // As `merge` registers: every pair's candidates, the agreeing set chosen, the fine fits.
     let mut pairs = 0;
-    let placed = register_clouds(&refs, &o, |_, _| Vec::new(), |_, all| pairs = all)
+    let placed = register_clouds(&refs, &o, |_, _| Vec::new(), |_| None, |_, all| pairs = all)
         .expect("the views register");
     let poses: Vec<Isometry3<f64>> = placed.iter().map(|r| r.pose).collect();
     let t_chain = t0.elapsed().as_secs_f64() - t_thin;

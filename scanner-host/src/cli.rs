@@ -132,9 +132,12 @@ pub enum Command {
         /// (0.1–0.9); lower it for views turned far apart, which share less.
         #[arg(long, default_value_t = crate::merge::MIN_OVERLAP)]
         min_overlap: f64,
-        /// A hint, never needed: the object was turned by DEG about the vertical (a turntable's
-        /// step, either way round) between consecutive views; tried beside the registration's own
-        /// guesses.
+        /// A hint: the object was turned by DEG about the vertical (a turntable's step, either
+        /// way round) between consecutive views. The turn is tried beside the registration's own
+        /// guesses (where its axis stands is searched), and a match that agrees with it (within
+        /// 5°) decides between matches that fit alike, as a nearly symmetric object's front and
+        /// back do; a view that no step fits (laid over by hand) is placed by its own matches.
+        /// Not needed for an object that looks different from every side.
         #[arg(long, value_name = "DEG", allow_negative_numbers = true)]
         turntable: Option<f64>,
         /// The laser sheet's thickness, mm (the Gaussian σ across it; a line laser's line width

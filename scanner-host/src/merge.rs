@@ -449,6 +449,10 @@ pub struct ViewResult {
     pub points: usize,
 }
 
+/// Choices of poses made again at most, each time one view's points lie in front of what
+/// another saw ([`register_views`]).
+const MAX_RETRIES: usize = 16;
+
 /// Views each view is paired with, besides view 0: the ones before it up to this many back.
 pub const PAIR_REACH: usize = 7;
 
@@ -486,7 +490,14 @@ pub fn register_views(
     let hints = |a: usize, b: usize| {
         turntable_deg.map_or_else(Vec::new, |step| turntable_hints(views, a, b, step))
     };
-    register_clouds(&clouds, o, hints, progress).map_err(|e| match e {
+    // A choice that the free-space check would refuse (`check_free_space`, after the joint
+    // refinement) is made again without the weakest placement between the two views.
+    let implausible = |results: &[ViewResult]| {
+        free_space(views, results, o.voxel_mm)
+            .filter(|c| seen_through((c.tested, c.in_front)))
+            .map(|c| (c.view, c.seen_by))
+    };
+    register_clouds(&clouds, o, hints, implausible, progress).map_err(|e| match e {
         Unplaced::NoMatch { view, best } => MergeError::NoMatch {
             view,
             path: views[view].path.clone(),
@@ -516,7 +527,9 @@ pub enum Unplaced {
 }
 
 /// [`register_views`] on the views' clouds: `hints(a, b)` gives motions of view `a` onto view `b`
-/// to try beside the descriptors' (a turntable's step), `progress` the pairs done and in all.
+/// to try beside the descriptors' (a turntable's step), `implausible(results)` two views whose
+/// placements contradict each other (one's points where the other saw empty space), `progress`
+/// the pairs done and in all.
 ///
 /// # Errors
 /// [`Unplaced`]: a view that overlaps none of the others, views that match one another but not
@@ -525,6 +538,7 @@ pub fn register_clouds(
     clouds: &[&Cloud],
     o: &RegisterOptions,
     hints: impl Fn(usize, usize) -> Vec<Isometry3<f64>>,
+    implausible: impl Fn(&[ViewResult]) -> Option<(usize, usize)>,
     mut progress: impl FnMut(usize, usize),
 ) -> Result<Vec<ViewResult>, Unplaced> {
     use crate::select::{Edge, choose};
@@ -539,14 +553,22 @@ pub fn register_clouds(
     let mut edges = Vec::new();
     // Per view, the best failed registration: the reason given if it stays unplaced.
     let mut failed: Vec<Option<RegisterError>> = vec![None; n];
+    // Per candidate, whether it agrees with its pair's hint.
+    let mut stepped = Vec::new();
     for (done, &(a, b)) in pairs.iter().enumerate() {
-        match crate::register::candidates(clouds[a], clouds[b], o, &hints(a, b)) {
-            Ok(found) => edges.extend(found.into_iter().map(|c| Edge {
-                from: a,
-                to: b,
-                pose: c.pose,
-                fit: c.fit * tightness(c.rms_mm, o.voxel_mm),
-            })),
+        let hinted = hints(a, b);
+        match crate::register::candidates(clouds[a], clouds[b], o, &hinted) {
+            Ok(found) => {
+                for c in found {
+                    stepped.push(agrees_with_hint(&c.pose, &hinted));
+                    edges.push(Edge {
+                        from: a,
+                        to: b,
+                        pose: c.pose,
+                        fit: c.fit * tightness(c.rms_mm, o.voxel_mm),
+                    });
+                }
+            }
             Err(e) => {
                 for v in [a, b] {
                     if better_failure(&e, failed[v].as_ref()) {
@@ -557,15 +579,20 @@ pub fn register_clouds(
         }
         progress(done + 1, pairs.len());
     }
+    keep_stepped(&mut edges, &stepped, n);
     let centres: Vec<Point3<f64>> = clouds.iter().map(|c| cloud_centre(c)).collect();
     // A candidate whose fine fit fails is dropped and the choice made again without it.
     let mut dropped = vec![false; edges.len()];
     let mut fits = std::collections::HashMap::new();
+    let (mut first_implausible, mut retries) = (None, 0);
     loop {
         let live: Vec<usize> = (0..edges.len()).filter(|&i| !dropped[i]).collect();
         let live_edges: Vec<Edge> = live.iter().map(|&i| edges[i]).collect();
         let choice = choose(n, &live_edges, &centres, o.voxel_mm);
         if let Some(k) = choice.poses.iter().position(Option::is_none) {
+            if let Some(first) = first_implausible.take() {
+                return Ok(first);
+            }
             let reached = live_edges.iter().any(|e| e.from == k || e.to == k);
             return Err(match failed[k].take() {
                 Some(best) if !reached => Unplaced::NoMatch { view: k, best },
@@ -577,7 +604,7 @@ pub fn register_clouds(
         }
         let agreeing: Vec<usize> = choice.agreeing.iter().map(|&i| live[i]).collect();
         match fine_tree(clouds, &edges, &agreeing, o, &mut fits) {
-            Ok(mut out) => {
+            Ok((mut out, by)) => {
                 for &i in &agreeing {
                     let (a, b) = (edges[i].from, edges[i].to);
                     let linked = out[a].onto == Some(b) || out[b].onto == Some(a);
@@ -589,7 +616,24 @@ pub fn register_clouds(
                 for r in &mut out {
                     r.agrees.sort_unstable();
                 }
-                return Ok(out);
+                let Some((a, b)) = implausible(&out) else {
+                    return Ok(out);
+                };
+                // One view's points in front of what another saw: one of the candidates that
+                // link the two (through the views that placed them) is wrong. The weakest gives
+                // way and the choice is made again. If no other choice holds, the first is
+                // given (the final check names the pair).
+                let weaker = link(&out, &by, a, b)
+                    .into_iter()
+                    .min_by(|&i, &j| edges[i].fit.total_cmp(&edges[j].fit));
+                let first = first_implausible.get_or_insert(out);
+                match weaker {
+                    Some(i) if retries < MAX_RETRIES => {
+                        retries += 1;
+                        dropped[i] = true;
+                    }
+                    _ => return Ok(std::mem::take(first)),
+                }
             }
             Err(bad) => {
                 // Every view is reached by an agreeing candidate: a view left out means a fine
@@ -616,19 +660,52 @@ pub fn register_clouds(
     }
 }
 
+/// The candidates (`by`, per view the one that placed it onto `results[k].onto`) on the path
+/// between views `a` and `b` through the tree of placements: those their relative pose rests on.
+fn link(results: &[ViewResult], by: &[Option<usize>], a: usize, b: usize) -> Vec<usize> {
+    let to_root = |mut k: usize| {
+        let mut path = Vec::new();
+        // A tree of n views has paths of under n steps; the bound guards against a cycle.
+        for _ in 0..results.len() {
+            match (results[k].onto, by[k]) {
+                (Some(onto), Some(i)) => {
+                    path.push(i);
+                    k = onto;
+                }
+                _ => break,
+            }
+        }
+        path
+    };
+    let (pa, pb) = (to_root(a), to_root(b));
+    // The shared part of the two paths (from view 0 down to where they part) moves both alike.
+    let shared = pa
+        .iter()
+        .rev()
+        .zip(pb.iter().rev())
+        .take_while(|(x, y)| x == y)
+        .count();
+    let mut out = pa[..pa.len() - shared].to_vec();
+    out.extend_from_slice(&pb[..pb.len() - shared]);
+    out
+}
+
 /// The fine fits along the best-fitting `agreeing` candidates that reach every view from view 0
 /// (Prim's tree), composed outwards; a candidate whose fine fit fails gives way to the next.
 /// `fits` keeps each candidate's fine fit (by candidate and the view moved) for the next call.
 ///
+/// Returns the results and, per view, the candidate that placed it.
+///
 /// # Errors
 /// The candidates whose fine fits failed, when some view is left unreached.
+#[allow(clippy::type_complexity)]
 fn fine_tree(
     clouds: &[&Cloud],
     edges: &[crate::select::Edge],
     agreeing: &[usize],
     o: &RegisterOptions,
     fits: &mut std::collections::HashMap<(usize, usize), Result<Registration, RegisterError>>,
-) -> Result<Vec<ViewResult>, Vec<usize>> {
+) -> Result<(Vec<ViewResult>, Vec<Option<usize>>), Vec<usize>> {
     let n = clouds.len();
     let mut agreeing = agreeing.to_vec();
     agreeing.sort_by(|&a, &b| edges[b].fit.total_cmp(&edges[a].fit).then(a.cmp(&b)));
@@ -641,6 +718,7 @@ fn fine_tree(
         points: clouds[0].points.len(),
     });
     let mut bad = Vec::new();
+    let mut by = vec![None; n];
     loop {
         let next = agreeing.iter().copied().find_map(|i| {
             let e = edges[i];
@@ -658,6 +736,7 @@ fn fine_tree(
             .or_insert_with(|| crate::register::fine(clouds[k], clouds[onto], init, o));
         match fit {
             Ok(fit) => {
+                by[k] = Some(i);
                 let base = out[onto].as_ref().map_or(Isometry3::identity(), |r| r.pose);
                 out[k] = Some(ViewResult {
                     pose: base * fit.pose,
@@ -673,7 +752,39 @@ fn fine_tree(
     if out.iter().any(Option::is_none) {
         return Err(bad);
     }
-    Ok(out.into_iter().flatten().collect())
+    Ok((out.into_iter().flatten().collect(), by))
+}
+
+/// Whether `pose`'s rotation agrees with one of `hints`' (within [`crate::select::AGREE_DEG`]).
+fn agrees_with_hint(pose: &Isometry3<f64>, hints: &[Isometry3<f64>]) -> bool {
+    hints.iter().any(|h| {
+        (h.rotation.inverse() * pose.rotation).angle() < crate::select::AGREE_DEG.to_radians()
+    })
+}
+
+/// With a turntable's step the user's word decides between motions that fit alike (a symmetric
+/// object's front and back): a view with a candidate that agrees with the step (`stepped`) is
+/// on the turntable, and between two views on it only such candidates are kept. A view with none
+/// (turned over by hand between sweeps) keeps all of its own.
+/// The candidates that agree with the step then count before any others in the choice: each
+/// weighs more than all the others' fits together.
+fn keep_stepped(edges: &mut Vec<crate::select::Edge>, stepped: &[bool], n: usize) {
+    let mut on = vec![false; n];
+    for (e, _) in edges.iter().zip(stepped).filter(|(_, s)| **s) {
+        on[e.from] = true;
+        on[e.to] = true;
+    }
+    let outweigh = 1.0 + edges.iter().map(|e| e.fit).sum::<f64>();
+    let mut kept = Vec::with_capacity(edges.len());
+    for (mut e, &s) in edges.drain(..).zip(stepped) {
+        if s {
+            e.fit += outweigh;
+            kept.push(e);
+        } else if !(on[e.from] && on[e.to]) {
+            kept.push(e);
+        }
+    }
+    *edges = kept;
 }
 
 /// How much of a candidate's fit counts in the choice, by its residual: right motions leave
@@ -1302,6 +1413,60 @@ mod tests {
             before: Some(e),
             after: Some(e),
         }
+    }
+
+    /// A turn of `deg` about the vertical through (0, 0, 500).
+    fn turn(deg: f64) -> Isometry3<f64> {
+        use scanner_core::nalgebra::{Translation3, UnitQuaternion, Vector3};
+        let c = Vector3::new(0.0, 0.0, 500.0);
+        let r = UnitQuaternion::from_axis_angle(&Vector3::y_axis(), deg.to_radians());
+        Isometry3::from_parts(Translation3::from(c - r * c), r)
+    }
+
+    #[test]
+    fn a_turntables_step_decides_between_its_views_and_leaves_a_view_turned_by_hand_alone() {
+        use crate::select::Edge;
+        let edge = |from, to, deg, fit| Edge {
+            from,
+            to,
+            pose: turn(deg),
+            fit,
+        };
+        // A step of 60°: rotations within 5° of it (either way) agree.
+        let hints = [turn(60.0), turn(-60.0)];
+        assert!(agrees_with_hint(&turn(62.0), &hints) && agrees_with_hint(&turn(-58.5), &hints));
+        assert!(!agrees_with_hint(&turn(66.0), &hints) && !agrees_with_hint(&turn(180.0), &hints));
+        assert!(!agrees_with_hint(&turn(60.0), &[]));
+        // Views 0, 1, 2 on the turntable, view 3 turned over by hand (no candidate of it agrees).
+        let mut edges = vec![
+            edge(1, 0, 60.0, 0.3),  // the step: kept, and counts before all the others
+            edge(1, 0, 180.0, 0.5), // a symmetric object's other side, between turntable views: gone
+            edge(2, 1, 60.0, 0.2),  // the step
+            edge(2, 0, 10.0, 0.4), // no candidate of this pair agrees, but both views are on it: gone
+            edge(3, 0, 90.0, 0.4), // view 3's own candidates stay, all of them
+            edge(3, 2, 150.0, 0.1),
+        ];
+        let stepped = [true, false, true, false, false, false];
+        let total: f64 = edges.iter().map(|e| e.fit).sum();
+        keep_stepped(&mut edges, &stepped, 4);
+        let want = [
+            (1, 0, 0.3 + 1.0 + total),
+            (2, 1, 0.2 + 1.0 + total),
+            (3, 0, 0.4),
+            (3, 2, 0.1),
+        ];
+        assert_eq!(edges.len(), want.len(), "{edges:?}");
+        for (e, w) in edges.iter().zip(want) {
+            assert!(
+                (e.from, e.to) == (w.0, w.1) && (e.fit - w.2).abs() < 1e-12,
+                "{edges:?}"
+            );
+        }
+        // Without a hint nothing changes.
+        let mut plain = vec![edge(1, 0, 60.0, 0.3), edge(1, 0, 180.0, 0.5)];
+        let before = plain.clone();
+        keep_stepped(&mut plain, &[false, false], 2);
+        assert_eq!(plain, before);
     }
 
     #[test]

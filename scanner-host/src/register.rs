@@ -92,9 +92,26 @@ pub struct Registration {
 
 /// A k-d tree of `points`, items their indices.
 pub(crate) fn tree(points: &[Point3<f64>]) -> KdTree<f64, 3> {
-    let mut t: KdTree<f64, 3> = KdTree::new();
-    for (i, p) in points.iter().enumerate() {
-        t.add(&[p.x, p.y, p.z], i as u64);
+    tree_of(points.iter().map(|p| [p.x, p.y, p.z]))
+}
+
+/// Copies of one exact point a k-d tree takes: kiddo's leaves hold 32 items and cannot split
+/// identical ones (it panics at the 33rd), and a journal can hold any number of the same point.
+/// A query then finds one of the copies kept, at the same distance.
+const MAX_SAME: usize = 16;
+
+/// A k-d tree of `items`, each under its index, with at most [`MAX_SAME`] copies of any one.
+fn tree_of<A: kiddo::float::kdtree::Axis + Into<f64>, const K: usize>(
+    items: impl Iterator<Item = [A; K]>,
+) -> KdTree<A, K> {
+    let mut t: KdTree<A, K> = KdTree::new();
+    let mut copies: std::collections::HashMap<[u64; K], usize> = std::collections::HashMap::new();
+    for (i, item) in items.enumerate() {
+        let n = copies.entry(item.map(|a| a.into().to_bits())).or_default();
+        if *n < MAX_SAME {
+            *n += 1;
+            t.add(&item, i as u64);
+        }
     }
     t
 }
@@ -253,10 +270,7 @@ fn overlap(src: &[Point3<f64>], dst: &KdTree<f64, 3>, pose: &Isometry3<f64>, tol
 fn coarse(src: &Cloud, dst: &Cloud, o: &RegisterOptions) -> Vec<(Isometry3<f64>, f64)> {
     let radius = 5.0 * o.voxel_mm;
     let (fs, fd) = (fpfh(src, radius), fpfh(dst, radius));
-    let mut ftree: KdTree<f32, FPFH_LEN> = KdTree::new();
-    for (i, f) in fd.iter().enumerate() {
-        ftree.add(f, i as u64);
-    }
+    let ftree: KdTree<f32, FPFH_LEN> = tree_of(fd.iter().copied());
     let matches: Vec<(usize, usize)> = fs
         .iter()
         .enumerate()
@@ -473,10 +487,12 @@ pub fn candidates(
     }
     let dtree = tree(&d.points);
     let mut hypotheses = coarse(&s, &d, o);
-    // A hint's translation is rough (the axis's place is not known): it is pulled in by a wide
-    // ICP on the thinned clouds before it is scored like the others.
+    // A hint's rotation is taken as known, its translation as rough (a turntable's axis is not
+    // known where it stands): the translation is searched across the plane the turn keeps, then
+    // pulled in by a wide ICP on the thinned clouds before it is scored like the others.
     for h in hints {
-        let pulled = icp(&s, &d, *h, 4.0 * o.voxel_mm, 30).pose;
+        let placed = place_turn(&s, &dtree, h, o.voxel_mm);
+        let pulled = icp(&s, &d, placed, 4.0 * o.voxel_mm, 30).pose;
         hypotheses.push((
             pulled,
             overlap(&s.points, &dtree, &pulled, 1.5 * o.voxel_mm),
@@ -512,6 +528,57 @@ pub fn candidates(
     }
     out.sort_by(|a, b| b.fit.total_cmp(&a.fit));
     Ok(out)
+}
+
+/// `hint` moved across the plane its rotation keeps (perpendicular to the axis; a turn about an
+/// axis of that direction, wherever it stands, moves nothing along it) to where it brings the most
+/// of `src` within 1.5 voxels of `dst`: a grid of 2 voxels over as far as `src` reaches from its
+/// centre. A rotation of under 1° has no axis to speak of and is returned as it is.
+fn place_turn(
+    src: &Cloud,
+    dst: &KdTree<f64, 3>,
+    hint: &Isometry3<f64>,
+    voxel: f64,
+) -> Isometry3<f64> {
+    let Some(axis) = hint
+        .rotation
+        .axis()
+        .filter(|_| hint.rotation.angle() > 1f64.to_radians())
+    else {
+        return *hint;
+    };
+    let n = src.points.len().max(1) as f64;
+    let centre = src
+        .points
+        .iter()
+        .fold(Vector3::zeros(), |a, p| a + p.coords)
+        / n;
+    let reach = src
+        .points
+        .iter()
+        .map(|p| (p.coords - centre).norm())
+        .fold(0.0, f64::max);
+    // Two directions across the plane.
+    let e1 = axis
+        .cross(&Vector3::x())
+        .try_normalize(1e-6)
+        .unwrap_or_else(|| axis.cross(&Vector3::y()).normalize());
+    let e2 = axis.cross(&e1);
+    let step = 2.0 * voxel;
+    let half = (reach / step).ceil().min(50.0) as i32;
+    let sample: Vec<Point3<f64>> = src.points.iter().step_by(4).copied().collect();
+    let mut best = (*hint, f64::NEG_INFINITY);
+    for i in -half..=half {
+        for j in -half..=half {
+            let shift = Translation3::from(e1 * (f64::from(i) * step) + e2 * (f64::from(j) * step));
+            let pose = shift * *hint;
+            let score = overlap(&sample, dst, &pose, 1.5 * voxel);
+            if score > best.1 {
+                best = (pose, score);
+            }
+        }
+    }
+    best.0
 }
 
 /// Whether two motions differ by under 2° and 2 voxels.

@@ -19,7 +19,8 @@
 //! With `--on-truth` every point is first moved onto the true surface (its nearest point there):
 //! what is then left of the poses' and the mesh's errors is the merge's own, not the points'.
 //! With `--sheet MM` the views are read as `merge --sheet MM` reads them: each frame's points
-//! moved to where a light sheet of that thickness (σ) has its middle on the surface.
+//! moved to where a light sheet of that thickness (σ) has its middle on the surface. With
+//! `--turntable DEG` they are registered with `merge --turntable DEG`'s hint.
 //!
 //! Prints the table docs/reports.md quotes.
 
@@ -52,6 +53,15 @@ fn run() -> Result<(), String> {
             .get(i + 1)
             .ok_or("--sheet needs the sheet's thickness in mm")?;
         sheet_mm = v.parse().map_err(|e| format!("--sheet {v}: {e}"))?;
+        args.drain(i..=i + 1);
+    }
+    // --turntable DEG: the views merged with `merge --turntable DEG`'s hint.
+    let mut turntable = None;
+    if let Some(i) = args.iter().position(|a| a == "--turntable") {
+        let v = args
+            .get(i + 1)
+            .ok_or("--turntable needs the step in degrees")?;
+        turntable = Some(v.parse().map_err(|e| format!("--turntable {v}: {e}"))?);
         args.drain(i..=i + 1);
     }
     let mut args = args.into_iter();
@@ -92,7 +102,7 @@ fn run() -> Result<(), String> {
         ..Default::default()
     };
     let mut results =
-        merge::register_views(&views, &opts, None, |_, _| {}).map_err(|e| format!("{e}"))?;
+        merge::register_views(&views, &opts, turntable, |_, _| {}).map_err(|e| format!("{e}"))?;
     let closure = merge::refine_views(&views, &mut results, &opts, |_| {});
     let input = merge::fusion_input(&views, &results);
     let fused = merge::fuse_views(

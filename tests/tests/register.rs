@@ -106,6 +106,37 @@ fn a_turntable_hint_registers_alone_and_is_never_required() {
     );
 }
 
+/// A journal can hold any number of one exact point (a stuck stripe, a hostile file): kiddo's
+/// k-d tree panics at the 33rd copy in a leaf, so the registration keeps 16 of each. Two views
+/// of the bunny, each with 200 copies of one point added, still register, and a view that is
+/// one point 200 times is refused with the reason, not a panic.
+#[test]
+fn views_with_many_copies_of_one_point_register_without_a_panic() {
+    let scene = bunny_views();
+    let (mut target, pose0) = view_cloud(&scene, 0);
+    let (mut source, pose1) = view_cloud(&scene, 1);
+    for c in [&mut target, &mut source] {
+        let (p, n) = (c.points[0], c.normals[0]);
+        c.points.extend(std::iter::repeat_n(p, 200));
+        c.normals.extend(std::iter::repeat_n(n, 200));
+    }
+    let r = register(&source, &target, &RegisterOptions::default()).expect("registers");
+    let (rot, trans) = angle_deg(&(pose0 * pose1.inverse()), &r.pose);
+    assert!(rot < 0.05 && trans < 0.4, "off by {rot}° and {trans} mm");
+    let one = Cloud {
+        points: vec![source.points[0]; 200],
+        normals: vec![source.normals[0]; 200],
+    };
+    assert!(matches!(
+        register(&one, &target, &RegisterOptions::default()),
+        Err(RegisterError::TooFewPoints { .. })
+    ));
+    // The same point 200 times in both views, beside their own: a thinned view keeps one of
+    // them, the fine fit's trees hold 16.
+    let r = scanner_host::register::fine(&source, &target, r.pose, &RegisterOptions::default());
+    assert!(r.is_ok(), "{r:?}");
+}
+
 #[test]
 fn views_of_opposite_sides_are_reported_not_merged() {
     let scene = bunny_views();
@@ -299,7 +330,7 @@ fn views_chosen_together_are_placed_right_and_a_group_apart_is_named() {
         min_overlap: 0.25,
         ..RegisterOptions::default()
     };
-    let placed = register_clouds(&refs, &o, |_, _| Vec::new(), |_, _| {})
+    let placed = register_clouds(&refs, &o, |_, _| Vec::new(), |_| None, |_, _| {})
         .unwrap_or_else(|e| panic!("the bunny's views: {e:?}"));
     let chosen: Vec<Isometry3<f64>> = placed.iter().map(|r| r.pose).collect();
     let joint = scanner_host::refine::refine(&refs, &chosen, 3.0, 8, |_| {});
@@ -328,7 +359,7 @@ fn views_chosen_together_are_placed_right_and_a_group_apart_is_named() {
     let (p0, _) = view_cloud(&part, 0);
     let (p1, _) = view_cloud(&part, 1);
     let mixed = [refs[0], refs[1], &p0, &p1];
-    match register_clouds(&mixed, &o, |_, _| Vec::new(), |_, _| {}) {
+    match register_clouds(&mixed, &o, |_, _| Vec::new(), |_| None, |_, _| {}) {
         Err(Unplaced::Apart { placed, apart }) => {
             assert_eq!((placed, apart), (vec![0, 1], vec![2, 3]));
         }
