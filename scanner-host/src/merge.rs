@@ -447,6 +447,11 @@ pub struct ViewResult {
     pub agrees: Vec<usize>,
     /// Points.
     pub points: usize,
+    /// On the turntable: a candidate of it agrees with `--turntable`'s step.
+    pub on_turntable: bool,
+    /// Its angle about the turntable's axis, degrees, when the joint refinement kept the views on
+    /// the turntable turns about one axis ([`refine_views`]).
+    pub turn_deg: Option<f64>,
 }
 
 /// Choices of poses made again at most, each time one view's points lie in front of what
@@ -579,7 +584,7 @@ pub fn register_clouds(
         }
         progress(done + 1, pairs.len());
     }
-    keep_stepped(&mut edges, &stepped, n);
+    let on_turntable = keep_stepped(&mut edges, &stepped, n);
     let centres: Vec<Point3<f64>> = clouds.iter().map(|c| cloud_centre(c)).collect();
     // A candidate whose fine fit fails is dropped and the choice made again without it.
     let mut dropped = vec![false; edges.len()];
@@ -613,8 +618,9 @@ pub fn register_clouds(
                         out[b].agrees.push(a);
                     }
                 }
-                for r in &mut out {
+                for (r, &on) in out.iter_mut().zip(&on_turntable) {
                     r.agrees.sort_unstable();
+                    r.on_turntable = on;
                 }
                 let Some((a, b)) = implausible(&out) else {
                     return Ok(out);
@@ -716,6 +722,8 @@ fn fine_tree(
         fit: None,
         agrees: Vec::new(),
         points: clouds[0].points.len(),
+        on_turntable: false,
+        turn_deg: None,
     });
     let mut bad = Vec::new();
     let mut by = vec![None; n];
@@ -744,6 +752,8 @@ fn fine_tree(
                     fit: Some(*fit),
                     agrees: Vec::new(),
                     points: clouds[k].points.len(),
+                    on_turntable: false,
+                    turn_deg: None,
                 });
             }
             Err(_) => bad.push(i),
@@ -767,8 +777,8 @@ fn agrees_with_hint(pose: &Isometry3<f64>, hints: &[Isometry3<f64>]) -> bool {
 /// on the turntable, and between two views on it only such candidates are kept. A view with none
 /// (turned over by hand between sweeps) keeps all of its own.
 /// The candidates that agree with the step then count before any others in the choice: each
-/// weighs more than all the others' fits together.
-fn keep_stepped(edges: &mut Vec<crate::select::Edge>, stepped: &[bool], n: usize) {
+/// weighs more than all the others' fits together. Returns which views are on the turntable.
+fn keep_stepped(edges: &mut Vec<crate::select::Edge>, stepped: &[bool], n: usize) -> Vec<bool> {
     let mut on = vec![false; n];
     for (e, _) in edges.iter().zip(stepped).filter(|(_, s)| **s) {
         on[e.from] = true;
@@ -785,6 +795,7 @@ fn keep_stepped(edges: &mut Vec<crate::select::Edge>, stepped: &[bool], n: usize
         }
     }
     *edges = kept;
+    on
 }
 
 /// How much of a candidate's fit counts in the choice, by its residual: right motions leave
@@ -851,7 +862,7 @@ pub fn refine_views(
     o: &RegisterOptions,
     progress: impl FnMut(usize),
 ) -> Closure {
-    use crate::refine::{loop_error, refine};
+    use crate::refine::{loop_error, refine_turns};
     const ROUNDS: usize = 8;
     // Points on a view's edges lie off the surface, all the same way: they would pull the views
     // apart.
@@ -871,9 +882,18 @@ pub fn refine_views(
         .collect();
     let closure = |p: &[Isometry3<f64>]| loop_error(&clouds, p, &loops, o.voxel_mm, o.min_overlap);
     let before = closure(&poses);
-    let joint = refine(&clouds, &poses, o.voxel_mm, ROUNDS, progress);
+    // Views on a turntable (view 0 among them) stay turns about one axis.
+    let on: Vec<bool> = results.iter().map(|r| r.on_turntable).collect();
+    let turns = crate::refine::Turns::fit(&poses, &on);
+    let (joint, turns) = refine_turns(&clouds, &poses, turns, o.voxel_mm, ROUNDS, progress);
     for (r, p) in results.iter_mut().zip(&joint) {
         r.pose = *p;
+    }
+    if let Some(t) = turns {
+        results[0].turn_deg = Some(0.0);
+        for (&k, a) in t.views.iter().zip(&t.angles) {
+            results[k].turn_deg = Some(a.to_degrees());
+        }
     }
     Closure {
         pairs: loops.len(),
@@ -1069,6 +1089,17 @@ pub fn report(views: &[View], results: &[ViewResult]) -> String {
             v.path.display(),
             r.points,
             r.pose.rotation.angle().to_degrees()
+        );
+    }
+    let turned: Vec<String> = results
+        .iter()
+        .enumerate()
+        .filter_map(|(k, r)| r.turn_deg.map(|a| format!("view {k} {a:.2}°")))
+        .collect();
+    if !turned.is_empty() {
+        s += &format!(
+            "turntable (--turntable): refined as turns about one axis: {}\n",
+            turned.join(", ")
         );
     }
     let moved: Vec<String> = views
@@ -1448,7 +1479,8 @@ mod tests {
         ];
         let stepped = [true, false, true, false, false, false];
         let total: f64 = edges.iter().map(|e| e.fit).sum();
-        keep_stepped(&mut edges, &stepped, 4);
+        let on = keep_stepped(&mut edges, &stepped, 4);
+        assert_eq!(on, [true, true, true, false]);
         let want = [
             (1, 0, 0.3 + 1.0 + total),
             (2, 1, 0.2 + 1.0 + total),
@@ -1465,7 +1497,7 @@ mod tests {
         // Without a hint nothing changes.
         let mut plain = vec![edge(1, 0, 60.0, 0.3), edge(1, 0, 180.0, 0.5)];
         let before = plain.clone();
-        keep_stepped(&mut plain, &[false, false], 2);
+        assert_eq!(keep_stepped(&mut plain, &[false, false], 2), [false, false]);
         assert_eq!(plain, before);
     }
 
@@ -1563,6 +1595,8 @@ mod tests {
             fit: None,
             agrees: Vec::new(),
             points: views[k].cloud.points.len(),
+            on_turntable: false,
+            turn_deg: None,
         };
         let results = [result(0), result(1)];
         let off = contradicted_edges(&views, &results);

@@ -17,7 +17,8 @@
 
 use kiddo::{KdTree, SquaredEuclidean};
 use scanner_core::nalgebra::{
-    DMatrix, DVector, Isometry3, Matrix6, Point3, Translation3, UnitQuaternion, Vector3, Vector6,
+    DMatrix, DVector, Isometry3, Matrix3, Matrix6, Point3, Translation3, Unit, UnitQuaternion,
+    Vector3, Vector6,
 };
 
 use crate::register::Cloud;
@@ -93,6 +94,152 @@ struct Step {
     poses: Vec<Isometry3<f64>>,
     /// Robust spread of the pairs' residuals (1.4826 × their median absolute value), mm.
     spread: f64,
+    /// The turns, moved with the poses.
+    turns: Option<Turns>,
+}
+
+/// Views turned about one axis between them (a turntable), view 0 among them: the pose of each
+/// is a turn by its own angle about the common axis, so that together they have one axis (its
+/// direction and where it stands: 4 unknowns) and an angle each, not 6 unknowns each.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Turns {
+    /// The views turned, besides view 0 (whose angle is 0).
+    pub views: Vec<usize>,
+    /// The axis.
+    pub axis: Unit<Vector3<f64>>,
+    /// A point on it (view 0's frame), mm.
+    pub point: Point3<f64>,
+    /// Each view's angle about the axis, radians (as `views`).
+    pub angles: Vec<f64>,
+}
+
+impl Turns {
+    /// The turns that come nearest to `poses` of the views `on` the turntable (view 0 must be
+    /// one): the axis the mean of their rotation axes (each turned to agree with the largest),
+    /// each angle its rotation about that axis, the point on the axis the least-squares fit of
+    /// their translations. `None` when view 0 is not on it or no other view turned by over 1°.
+    pub fn fit(poses: &[Isometry3<f64>], on: &[bool]) -> Option<Turns> {
+        if !on.first().copied().unwrap_or(false) {
+            return None;
+        }
+        let views: Vec<usize> = (1..poses.len())
+            .filter(|&k| on.get(k) == Some(&true))
+            .collect();
+        let turned = |k: &usize| poses[*k].rotation.angle() > 1f64.to_radians();
+        let widest = views.iter().filter(|k| turned(k)).max_by(|a, b| {
+            let angle = |k: usize| (poses[k].rotation.angle() - std::f64::consts::FRAC_PI_2).abs();
+            // The axis is best defined by a turn nearest a quarter (farthest from 0 and 180°).
+            angle(**b).total_cmp(&angle(**a))
+        })?;
+        let reference = poses[*widest].rotation.axis()?;
+        let sum = views
+            .iter()
+            .filter(|k| turned(k))
+            .fold(Vector3::zeros(), |acc, &k| {
+                let r = poses[k].rotation.scaled_axis();
+                acc + if r.dot(&reference) < 0.0 { -r } else { r }
+            });
+        let axis = Unit::try_new(sum, 1e-9)?;
+        let angles: Vec<f64> = views
+            .iter()
+            .map(|&k| {
+                let r = poses[k].rotation;
+                let (c, s) = (r.w, r.imag().dot(&axis));
+                2.0 * s.atan2(c)
+            })
+            .collect();
+        // t_k = (I − R_k) c for a turn about an axis through c: least squares for c, damped
+        // along the axis (where no turn says anything).
+        let mut m = Matrix3::identity() * 1e-9;
+        let mut b = Vector3::zeros();
+        for (&k, &a) in views.iter().zip(&angles) {
+            let i_r = Matrix3::identity() - turn(&axis, a).to_rotation_matrix().into_inner();
+            m += i_r.transpose() * i_r;
+            b += i_r.transpose() * poses[k].translation.vector;
+        }
+        let point = Point3::from(m.try_inverse()? * b);
+        Some(Turns {
+            views,
+            axis,
+            point,
+            angles,
+        })
+    }
+
+    /// The pose of the `i`-th of [`Turns::views`].
+    pub fn pose(&self, i: usize) -> Isometry3<f64> {
+        let r = turn(&self.axis, self.angles[i]);
+        Isometry3::from_parts(
+            Translation3::from(self.point.coords - r * self.point.coords),
+            r,
+        )
+    }
+
+    /// Two unit directions across the axis.
+    fn across(&self) -> (Vector3<f64>, Vector3<f64>) {
+        let a = self.axis.into_inner();
+        let e1 = a
+            .cross(&Vector3::x())
+            .try_normalize(1e-6)
+            .unwrap_or_else(|| a.cross(&Vector3::y()).normalize());
+        (e1, a.cross(&e1))
+    }
+}
+
+/// The turn by `angle` radians about `axis`.
+fn turn(axis: &Unit<Vector3<f64>>, angle: f64) -> UnitQuaternion<f64> {
+    UnitQuaternion::from_axis_angle(axis, angle)
+}
+
+/// The unknowns of a step with `turns`: in place of each turned view's 6 (its motion, as in
+/// [`step`]'s system), the axis's tilt (2), its shift (2) and each turned view's angle. Returns
+/// the matrix `B` that maps them to the views' motions (`δ = B p`) and the place of each
+/// untouched view's 6 among them.
+fn turn_unknowns(turns: &Turns, n: usize) -> (DMatrix<f64>, Vec<Option<usize>>) {
+    let turned: Vec<Option<usize>> = (0..n)
+        .map(|k| turns.views.iter().position(|&v| v == k))
+        .collect();
+    let own = 4 + turns.views.len();
+    let mut place = vec![None; n];
+    let mut next = own;
+    for k in 1..n {
+        if turned[k].is_none() {
+            place[k] = Some(next);
+            next += 6;
+        }
+    }
+    let mut b = DMatrix::<f64>::zeros(6 * (n - 1), next);
+    let (e1, e2) = turns.across();
+    let (a, c) = (turns.axis.into_inner(), turns.point.coords);
+    for k in 1..n {
+        let row = 6 * (k - 1);
+        if let Some(col) = place[k] {
+            b.view_mut((row, col), (6, 6)).fill_with_identity();
+            continue;
+        }
+        let Some(i) = turned[k] else { continue };
+        let r = turn(&turns.axis, turns.angles[i])
+            .to_rotation_matrix()
+            .into_inner();
+        let i_r = Matrix3::identity() - r;
+        // A motion (ω, t) as x ↦ x + ω × x + t; the axis's point c.
+        let mut set = |col: usize, omega: Vector3<f64>, t: Vector3<f64>| {
+            b.fixed_view_mut::<3, 1>(row, col).copy_from(&omega);
+            b.fixed_view_mut::<3, 1>(row + 3, col).copy_from(&t);
+        };
+        // The axis tilted by φ (across it): ω = (I − R) φ, t = c × ω.
+        for (col, phi) in [(0, e1), (1, e2)] {
+            let omega = i_r * phi;
+            set(col, omega, c.cross(&omega));
+        }
+        // The axis shifted by u (across it): t = (I − R) u.
+        for (col, u) in [(2, e1), (3, e2)] {
+            set(col, Vector3::zeros(), i_r * u);
+        }
+        // The view turned further by δθ: ω = a, t = c × a.
+        set(4 + i, a, c.cross(&a));
+    }
+    (b, place)
 }
 
 /// Bins of the residuals' histogram, from 0 to the pairing distance: the median to a 2 000th of
@@ -107,7 +254,13 @@ const SPREAD_BINS: usize = 2000;
 /// round. Pairs are weighed by Cauchy's function of their residual over `scale` (infinite: all
 /// alike), so that a few points far off the others' surface (a stripe cut at an edge another
 /// view saw clear) pull little. A view without pairs stays where it is. `None`: too few pairs.
-fn step(parts: &[Part<'_>], poses: &[Isometry3<f64>], max_dist: f64, scale: f64) -> Option<Step> {
+fn step(
+    parts: &[Part<'_>],
+    poses: &[Isometry3<f64>],
+    turns: Option<&Turns>,
+    max_dist: f64,
+    scale: f64,
+) -> Option<Step> {
     let n = parts.len();
     let inverses: Vec<Isometry3<f64>> = poses.iter().map(Isometry3::inverse).collect();
     // Block of view k in the unknowns (view 0 has none).
@@ -165,12 +318,28 @@ fn step(parts: &[Part<'_>], poses: &[Isometry3<f64>], max_dist: f64, scale: f64)
     if pairs < 6 * n {
         return None;
     }
-    // A view with no pair would leave the system singular: a touch of damping keeps it put
-    // (the others' diagonals are millions).
-    for d in 0..free {
-        ata[(d, d)] += 1e-6;
-    }
-    let x = ata.cholesky()?.solve(&atb);
+    // With turns the unknowns are the turns' and the other views' (δ = B p).
+    let (x, turns) = match turns {
+        None => (solve(ata, &atb)?, None),
+        Some(t) => {
+            let (b, _) = turn_unknowns(t, n);
+            let p = solve(b.transpose() * &ata * &b, &(b.transpose() * &atb))?;
+            let (e1, e2) = t.across();
+            let tilt = e1 * p[0] + e2 * p[1];
+            let moved = Turns {
+                views: t.views.clone(),
+                axis: UnitQuaternion::from_scaled_axis(tilt) * t.axis,
+                point: t.point + e1 * p[2] + e2 * p[3],
+                angles: t
+                    .angles
+                    .iter()
+                    .zip(p.iter().skip(4))
+                    .map(|(a, d)| a + d)
+                    .collect(),
+            };
+            (b * p, Some(moved))
+        }
+    };
     let mut seen = 0u32;
     let median = histogram
         .iter()
@@ -185,6 +354,13 @@ fn step(parts: &[Part<'_>], poses: &[Isometry3<f64>], max_dist: f64, scale: f64)
         .enumerate()
         .map(|(k, p)| match block(k) {
             None => *p,
+            Some(_)
+                if let Some(i) = turns
+                    .as_ref()
+                    .and_then(|t| t.views.iter().position(|&v| v == k)) =>
+            {
+                turns.as_ref().map_or(*p, |t| t.pose(i))
+            }
             Some(b) => {
                 let delta = Isometry3::from_parts(
                     Translation3::new(x[b + 3], x[b + 4], x[b + 5]),
@@ -197,7 +373,17 @@ fn step(parts: &[Part<'_>], poses: &[Isometry3<f64>], max_dist: f64, scale: f64)
     Some(Step {
         poses: moved,
         spread,
+        turns,
     })
+}
+
+/// Solves the normal equations `a x = b`. A view with no pair would leave them singular: a touch
+/// of damping keeps it put (the others' diagonals are millions).
+fn solve(mut a: DMatrix<f64>, b: &DVector<f64>) -> Option<DVector<f64>> {
+    for d in 0..a.nrows() {
+        a[(d, d)] += 1e-6;
+    }
+    Some(a.cholesky()?.solve(b))
 }
 
 /// The pairing distance of round `round` of `rounds`: from `max_dist` down to a third of it by
@@ -216,23 +402,44 @@ pub fn refine(
     poses: &[Isometry3<f64>],
     max_dist: f64,
     rounds: usize,
-    mut progress: impl FnMut(usize),
+    progress: impl FnMut(usize),
 ) -> Vec<Isometry3<f64>> {
+    refine_turns(clouds, poses, None, max_dist, rounds, progress).0
+}
+
+/// [`refine`] with the views of `turns` (a turntable's) kept turns about one axis: their axis
+/// and angles are refined, not each view's pose. Returns the poses and the turns refined.
+pub fn refine_turns(
+    clouds: &[&Cloud],
+    poses: &[Isometry3<f64>],
+    turns: Option<Turns>,
+    max_dist: f64,
+    rounds: usize,
+    mut progress: impl FnMut(usize),
+) -> (Vec<Isometry3<f64>>, Option<Turns>) {
     let parts: Vec<Part<'_>> = clouds.iter().map(|c| Part::new(c)).collect();
     let mut poses = poses.to_vec();
     if poses.len() < 2 {
-        return poses;
+        return (poses, turns);
+    }
+    let mut turns = turns;
+    if let Some(t) = &turns {
+        for (i, &k) in t.views.iter().enumerate() {
+            poses[k] = t.pose(i);
+        }
     }
     // The first round weighs all pairs alike; each later one by the spread of the last.
     let mut scale = f64::INFINITY;
     for round in 0..rounds {
-        if let Some(s) = step(&parts, &poses, distance(max_dist, round, rounds), scale) {
+        let d = distance(max_dist, round, rounds);
+        if let Some(s) = step(&parts, &poses, turns.as_ref(), d, scale) {
             poses = s.poses;
             scale = ROBUST * s.spread;
+            turns = s.turns;
         }
         progress(round);
     }
-    poses
+    (poses, turns)
 }
 
 /// How far a loop of views is from closing.
@@ -267,7 +474,7 @@ pub fn loop_error(
         let mut both = [Isometry3::identity(), start];
         let mut scale = f64::INFINITY;
         for round in 0..ROUNDS {
-            match step(&pair, &both, distance(max_dist, round, ROUNDS), scale) {
+            match step(&pair, &both, None, distance(max_dist, round, ROUNDS), scale) {
                 Some(s) => {
                     both = [s.poses[0], s.poses[1]];
                     scale = ROBUST * s.spread;

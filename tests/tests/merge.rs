@@ -97,6 +97,7 @@ fn views_of_a_part_of_flat_faces_are_merged_right_or_refused() {
     args.extend(["--out", "model", "--min-overlap", "0.3", "-q"]);
     let (ok, out, err) = run(d, "scanner-host", &args);
     println!("{out}{err}");
+    assert!(!out.contains("refined as turns"), "no step given:\n{out}");
     // What a refusal leaves, and what it does not.
     assert!(d.join("model/views.png").exists() && d.join("model/merge-report.txt").exists());
     if ok {
@@ -650,8 +651,9 @@ fn sheet_correction_of_the_views(d: &Path, scene: &scanner_rig::Scene) {
 /// on its side, which no step describes: `merge --turntable 60` places every view the right way
 /// round (the part is nearly the same turned 180° about the vertical: without the step its back
 /// views fit the front ones as well) and writes the model; the side view is placed by its own
-/// match. Each view's rotation from view 0 is within 1.5° of the rig's (at 1280×960 the worst
-/// view is 1.05° off; docs/reports.md). At 640×480 views 60° apart share about 30 % (the fine
+/// match; the six are refined as turns about one axis, each within 0.5° of its step. Each
+/// view's rotation from view 0 is within 1.5° of the rig's (at 1280×960 the side view is 1.05°
+/// off, the turned ones 0.08–0.17°; docs/reports.md). At 640×480 views 60° apart share about 30 % (the fine
 /// fit of views 4 and 3 covers under 30 %), so 25 % is asked, as `merge --help` advises for
 /// views turned far apart; at 30 % that pair fails, the side view places views 2 and 3 wrongly
 /// and the free-space check refuses the merge.
@@ -687,6 +689,31 @@ fn the_part_on_a_turntable(d: &Path, scene: &scanner_rig::Scene, dirs: &[String]
     }
     assert!(free_space_share(&out) < 0.5, "{out}");
     assert!(d.join("turntable/model.obj").exists());
+    // The six turned views refined as turns about one axis (the side view is not among them),
+    // each by its step: one run 59.97°, 119.95°, 179.97°, 239.97° and 300.00°.
+    let turns = out
+        .lines()
+        .find_map(|l| l.strip_prefix("turntable (--turntable): refined as turns about one axis: "))
+        .unwrap_or_else(|| panic!("no turntable line:\n{out}"));
+    let angles: Vec<f64> = turns
+        .split(", ")
+        .map(|v| {
+            v.rsplit(' ')
+                .next()
+                .unwrap()
+                .trim_end_matches('°')
+                .parse()
+                .unwrap()
+        })
+        .collect();
+    assert_eq!(angles.len(), dirs.len(), "{turns}");
+    for (k, a) in angles.iter().enumerate() {
+        let want = 60.0 * k as f64;
+        assert!(
+            (a.abs() - want).abs() < 0.5,
+            "view {k} turned {a}°, not {want}°: {turns}"
+        );
+    }
 }
 
 /// Two views of the part close no loop, so only their free space can tell a wrong registration
