@@ -449,8 +449,9 @@ pub struct ViewResult {
     pub points: usize,
     /// On the turntable: a candidate of it agrees with `--turntable`'s step.
     pub on_turntable: bool,
-    /// Its angle about the turntable's axis, degrees, when the joint refinement kept the views on
-    /// the turntable turns about one axis ([`refine_views`]).
+    /// Its angle about the turntable's axis, degrees (0–360, the first view turned forwards),
+    /// when the joint refinement kept the views on the turntable turns about one axis
+    /// ([`refine_views`]).
     pub turn_deg: Option<f64>,
 }
 
@@ -890,9 +891,11 @@ pub fn refine_views(
         r.pose = *p;
     }
     if let Some(t) = turns {
+        // As a turntable counts: the first view turned forwards, every angle in [0°, 360°).
+        let sign = t.angles.first().map_or(1.0, |a| a.signum());
         results[0].turn_deg = Some(0.0);
         for (&k, a) in t.views.iter().zip(&t.angles) {
-            results[k].turn_deg = Some(a.to_degrees());
+            results[k].turn_deg = Some((sign * a.to_degrees()).rem_euclid(360.0));
         }
     }
     Closure {

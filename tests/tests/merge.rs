@@ -710,7 +710,7 @@ fn the_part_on_a_turntable(d: &Path, scene: &scanner_rig::Scene, dirs: &[String]
     for (k, a) in angles.iter().enumerate() {
         let want = 60.0 * k as f64;
         assert!(
-            (a.abs() - want).abs() < 0.5,
+            (a - want).abs() < 0.5,
             "view {k} turned {a}°, not {want}°: {turns}"
         );
     }
