@@ -1449,17 +1449,9 @@ mod tests {
         }
     }
 
-    /// A turn of `deg` about the vertical through (0, 0, 500).
-    fn turn(deg: f64) -> Isometry3<f64> {
-        use scanner_core::nalgebra::{Translation3, UnitQuaternion, Vector3};
-        let c = Vector3::new(0.0, 0.0, 500.0);
-        let r = UnitQuaternion::from_axis_angle(&Vector3::y_axis(), deg.to_radians());
-        Isometry3::from_parts(Translation3::from(c - r * c), r)
-    }
-
     #[test]
     fn a_turntables_step_decides_between_its_views_and_leaves_a_view_turned_by_hand_alone() {
-        use crate::select::Edge;
+        use crate::select::{Edge, tests::turn};
         let edge = |from, to, deg, fit| Edge {
             from,
             to,

@@ -156,12 +156,13 @@ fn same_placements(a: &Choice, b: &Choice, voxel: f64) -> bool {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
     use scanner_core::nalgebra::{Translation3, UnitQuaternion, Vector3};
 
-    fn turn(deg: f64) -> Isometry3<f64> {
-        // About a vertical axis through (0, 0, 500), as a turntable in front of the camera.
+    /// A turn of `deg` about the vertical through (0, 0, 500), as a turntable in front of the
+    /// camera.
+    pub(crate) fn turn(deg: f64) -> Isometry3<f64> {
         let c = Vector3::new(0.0, 0.0, 500.0);
         let r = UnitQuaternion::from_axis_angle(&Vector3::y_axis(), deg.to_radians());
         Isometry3::from_parts(Translation3::from(c - r * c), r)
