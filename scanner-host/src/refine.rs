@@ -98,6 +98,14 @@ struct Step {
     turns: Option<Turns>,
 }
 
+/// A view on the turntable whose rotation's axis is more than this off the axis the others
+/// share is not one of its turns, degrees (the registration's poses are within about 0.2°).
+pub const TURN_AXIS_DEG: f64 = 2.0;
+/// Nor one whose pose is more than this from its turn, degrees...
+pub const TURN_OFF_DEG: f64 = 1.0;
+/// ...or moves the axis's point more than this, mm.
+pub const TURN_OFF_MM: f64 = 3.0;
+
 /// Views turned about one axis between them (a turntable), view 0 among them: the pose of each
 /// is a turn by its own angle about the common axis, so that together they have one axis (its
 /// direction and where it stands: 4 unknowns) and an angle each, not 6 unknowns each.
@@ -115,30 +123,62 @@ pub struct Turns {
 
 impl Turns {
     /// The turns that come nearest to `poses` of the views `on` the turntable (view 0 must be
-    /// one): the axis the mean of their rotation axes (each turned to agree with the largest),
-    /// each angle its rotation about that axis, the point on the axis the least-squares fit of
-    /// their translations. `None` when view 0 is not on it or no other view turned by over 1°.
+    /// one). A view flagged on it that is not a turn about the axis the others share is left
+    /// out: its rotation's axis more than [`TURN_AXIS_DEG`] off that axis, or its pose more than
+    /// [`TURN_OFF_DEG`] or [`TURN_OFF_MM`] from its turn (by a step's coincidence a view turned
+    /// over by hand can agree with the step). `None` when view 0 is not on it or no other view
+    /// is left.
     pub fn fit(poses: &[Isometry3<f64>], on: &[bool]) -> Option<Turns> {
         if !on.first().copied().unwrap_or(false) {
             return None;
         }
-        let views: Vec<usize> = (1..poses.len())
+        let flagged: Vec<usize> = (1..poses.len())
             .filter(|&k| on.get(k) == Some(&true))
             .collect();
-        let turned = |k: &usize| poses[*k].rotation.angle() > 1f64.to_radians();
-        let widest = views.iter().filter(|k| turned(k)).max_by(|a, b| {
-            let angle = |k: usize| (poses[k].rotation.angle() - std::f64::consts::FRAC_PI_2).abs();
-            // The axis is best defined by a turn nearest a quarter (farthest from 0 and 180°).
-            angle(**b).total_cmp(&angle(**a))
+        // The axis the most views turned by over 10° share (their axes are well defined).
+        let axis_of = |k: usize| {
+            let r = poses[k].rotation;
+            (r.angle() > 10f64.to_radians()).then(|| r.axis()).flatten()
+        };
+        let near = |a: &Unit<Vector3<f64>>, b: &Unit<Vector3<f64>>| {
+            a.angle(b).min(a.angle(&-*b)) < TURN_AXIS_DEG.to_radians()
+        };
+        let shared = flagged.iter().filter_map(|&r| axis_of(r)).max_by_key(|a| {
+            flagged
+                .iter()
+                .filter(|&&k| axis_of(k).is_some_and(|b| near(a, &b)))
+                .count()
         })?;
-        let reference = poses[*widest].rotation.axis()?;
-        let sum = views
+        let sharing: Vec<usize> = flagged
             .iter()
-            .filter(|k| turned(k))
-            .fold(Vector3::zeros(), |acc, &k| {
-                let r = poses[k].rotation.scaled_axis();
-                acc + if r.dot(&reference) < 0.0 { -r } else { r }
-            });
+            .copied()
+            .filter(|&k| axis_of(k).is_none_or(|b| near(&shared, &b)))
+            .collect();
+        let first = Self::fit_views(poses, sharing)?;
+        let close: Vec<usize> = first
+            .views
+            .iter()
+            .enumerate()
+            .filter(|&(i, &k)| {
+                let t = first.pose(i);
+                let d = t.inverse() * poses[k];
+                d.rotation.angle() < TURN_OFF_DEG.to_radians()
+                    && (poses[k] * first.point - t * first.point).norm() < TURN_OFF_MM
+            })
+            .map(|(_, &k)| k)
+            .collect();
+        Self::fit_views(poses, close)
+    }
+
+    /// [`Turns::fit`] of `views` (besides view 0), all of them: the axis the mean of their
+    /// rotation axes (each turned to agree with the first), each angle its rotation about that
+    /// axis, the point on the axis the least-squares fit of their translations.
+    fn fit_views(poses: &[Isometry3<f64>], views: Vec<usize>) -> Option<Turns> {
+        let reference = views.iter().find_map(|&k| poses[k].rotation.axis())?;
+        let sum = views.iter().fold(Vector3::zeros(), |acc, &k| {
+            let r = poses[k].rotation.scaled_axis();
+            acc + if r.dot(&reference) < 0.0 { -r } else { r }
+        });
         let axis = Unit::try_new(sum, 1e-9)?;
         let angles: Vec<f64> = views
             .iter()

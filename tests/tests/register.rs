@@ -265,6 +265,21 @@ fn views_on_a_turntable_are_refined_as_turns_about_one_axis() {
     let start = Turns::fit(&chain, &[true; 6]).expect("six views turned about one axis");
     assert_eq!(start.views, [1, 2, 3, 4, 5]);
     assert!(Turns::fit(&chain, &[false, true, true, true, true, true]).is_none());
+    // A view flagged on the turntable that is not one of its turns (laid on its side, 90° about
+    // the camera's z; or turned 3° off the axis) is left out of them.
+    {
+        use scanner_core::nalgebra::{Translation3, UnitQuaternion, Vector3};
+        let mut poses = chain.clone();
+        let side = UnitQuaternion::from_axis_angle(&Vector3::z_axis(), 90f64.to_radians());
+        poses.push(Isometry3::from_parts(
+            Translation3::new(0.0, 10.0, 0.0),
+            side,
+        ));
+        let tilt = UnitQuaternion::from_axis_angle(&Vector3::x_axis(), 3f64.to_radians());
+        poses[2] = Isometry3::from_parts(poses[2].translation, tilt * poses[2].rotation);
+        let fitted = Turns::fit(&poses, &[true; 7]).expect("the others are turns");
+        assert_eq!(fitted.views, [1, 3, 4, 5]);
+    }
     let (turned, turns) = refine_turns(&refs, &chain, Some(start), 3.0, 8, |_| {});
     let turns = turns.expect("the turns, refined");
     let vertical = truth[1].rotation.axis().unwrap();
