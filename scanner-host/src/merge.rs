@@ -1496,6 +1496,36 @@ mod tests {
         assert_eq!(plain, before);
     }
 
+    /// The candidates between two views through the tree of placements: 1 and 2 onto 0, 3 onto
+    /// 1, 4 onto 3 (candidates 10, 20, 30, 40).
+    #[test]
+    fn the_link_between_two_views_is_the_path_through_the_views_that_placed_them() {
+        let onto = [None, Some(0), Some(0), Some(1), Some(3)];
+        let results: Vec<ViewResult> = onto
+            .iter()
+            .map(|&onto| ViewResult {
+                pose: Isometry3::identity(),
+                onto,
+                fit: None,
+                agrees: Vec::new(),
+                points: 0,
+                on_turntable: false,
+                turn_deg: None,
+            })
+            .collect();
+        let by = [None, Some(10), Some(20), Some(30), Some(40)];
+        let sorted = |mut v: Vec<usize>| {
+            v.sort_unstable();
+            v
+        };
+        assert_eq!(sorted(link(&results, &by, 4, 2)), [10, 20, 30, 40]);
+        // The shared way down from view 0 (candidate 10) moves 3 and 4 alike.
+        assert_eq!(sorted(link(&results, &by, 4, 1)), [30, 40]);
+        assert_eq!(sorted(link(&results, &by, 3, 4)), [40]);
+        assert_eq!(sorted(link(&results, &by, 0, 3)), [10, 30]);
+        assert!(link(&results, &by, 2, 2).is_empty());
+    }
+
     #[test]
     fn a_loop_left_open_refuses_the_merge_and_names_the_view() {
         // The 360° demo closes within 0.039° and 0.13 mm (docs/reports.md).
