@@ -59,9 +59,11 @@ fn the_stream_in_a_file_decodes_to_exactly_the_heads_points() {
     let mut source = RigSource::new(rig, PixelFormat::Gray8);
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("scan.stream");
+    // The deepest link (`--link-depth` 64): headers, like point packets, are dropped when every
+    // buffer waits (they repeat), and the count below assumes a writer that keeps up.
     let mut link = Link::spawn(
         Box::new(std::fs::File::create(&path).unwrap()),
-        8,
+        scanner_device::link::MAX_DEPTH,
         MAX_ENCODED,
     );
     let mut mine: BTreeMap<u32, Vec<[i32; 3]>> = BTreeMap::new();
@@ -80,13 +82,27 @@ fn the_stream_in_a_file_decodes_to_exactly_the_heads_points() {
     let bytes = std::fs::read(&path).unwrap();
     let (theirs, headers, last, stats) = decode(&bytes);
     assert_eq!(stats.rejected(), 0);
-    assert_eq!(theirs, mine, "decoded points differ from the head's");
+    // On a busy machine the link may drop point packets rather than hold the camera up (counted,
+    // by design): every packet that arrived is exactly what the head made of its frame, and
+    // those missing are the ones the link counted as dropped.
+    for (f, points) in &theirs {
+        assert_eq!(
+            Some(points),
+            mine.get(f),
+            "frame {f}: decoded points differ"
+        );
+    }
+    assert_eq!(
+        (mine.len() - theirs.len()) as u64,
+        report.dropped,
+        "packets missing without being counted as dropped"
+    );
     let status = last.expect("a final status");
     assert!(status.done && status.ended == scanner_core::wire::EndReason::Completed);
-    assert_eq!(u64::from(status.packets), mine.len() as u64);
+    assert_eq!(u64::from(status.packets), theirs.len() as u64);
     assert_eq!(
         status.points,
-        mine.values().map(|v| v.len() as u64).sum::<u64>()
+        theirs.values().map(|v| v.len() as u64).sum::<u64>()
     );
     assert_eq!(bytes.len() as u64, report.bytes);
     assert!(headers >= 6, "{headers} headers for 60 frames");

@@ -455,6 +455,12 @@ pub struct ViewResult {
     pub turn_deg: Option<f64>,
 }
 
+/// A candidate that agrees with a turntable's step counts as one only if it fits at least this
+/// share as well as the best of its pair's candidates (fit times [`tightness`]): on the part of
+/// flat faces (1280×960) every right step was its pair's best, and a step-agreeing wrong match of
+/// its side view onto a turned view fitted a hundredth as well as that pair's best.
+const STEP_FIT_SHARE: f64 = 0.5;
+
 /// Choices of poses made again at most, each time one view's points lie in front of what
 /// another saw ([`register_views`]).
 const MAX_RETRIES: usize = 16;
@@ -565,15 +571,25 @@ pub fn register_clouds(
         let hinted = hints(a, b);
         match crate::register::candidates(clouds[a], clouds[b], o, &hinted) {
             Ok(found) => {
-                for c in found {
-                    stepped.push(agrees_with_hint(&c.pose, &hinted));
-                    edges.push(Edge {
+                let pair: Vec<Edge> = found
+                    .iter()
+                    .map(|c| Edge {
                         from: a,
                         to: b,
                         pose: c.pose,
                         fit: c.fit * tightness(c.rms_mm, o.voxel_mm),
-                    });
-                }
+                    })
+                    .collect();
+                // The step decides between matches that fit alike: one that agrees with it but
+                // fits less than half as well as the pair's best (a view turned over by hand,
+                // laid on a symmetric face by chance) does not count as a step.
+                let best = pair.iter().map(|e| e.fit).fold(0.0, f64::max);
+                stepped.extend(
+                    pair.iter().map(|e| {
+                        agrees_with_hint(&e.pose, &hinted) && e.fit >= STEP_FIT_SHARE * best
+                    }),
+                );
+                edges.extend(pair);
             }
             Err(e) => {
                 for v in [a, b] {

@@ -532,8 +532,10 @@ pub fn candidates(
 
 /// `hint` moved across the plane its rotation keeps (perpendicular to the axis; a turn about an
 /// axis of that direction, wherever it stands, moves nothing along it) to where it brings the most
-/// of `src` within 1.5 voxels of `dst`: a grid of 2 voxels over as far as `src` reaches from its
-/// centre. A rotation of under 1° has no axis to speak of and is returned as it is.
+/// of `src` within 1.5 voxels of `dst`: first a grid of 4 voxels over as far as `src` reaches
+/// from its centre (points within 3 voxels counted, so that no peak falls between the grid's
+/// points), then a grid of 1 voxel around the best. A rotation of under 1° has no axis to speak
+/// of and is returned as it is.
 fn place_turn(
     src: &Cloud,
     dst: &KdTree<f64, 3>,
@@ -564,21 +566,27 @@ fn place_turn(
         .try_normalize(1e-6)
         .unwrap_or_else(|| axis.cross(&Vector3::y()).normalize());
     let e2 = axis.cross(&e1);
-    let step = 2.0 * voxel;
-    let half = (reach / step).ceil().min(50.0) as i32;
     let sample: Vec<Point3<f64>> = src.points.iter().step_by(4).copied().collect();
-    let mut best = (*hint, f64::NEG_INFINITY);
-    for i in -half..=half {
-        for j in -half..=half {
-            let shift = Translation3::from(e1 * (f64::from(i) * step) + e2 * (f64::from(j) * step));
-            let pose = shift * *hint;
-            let score = overlap(&sample, dst, &pose, 1.5 * voxel);
-            if score > best.1 {
-                best = (pose, score);
+    // The best of a (2 half + 1)² grid of `step` around `from`, points within `tol` counted.
+    let best_of = |from: Isometry3<f64>, step: f64, half: i32, tol: f64| {
+        let mut best = (from, f64::NEG_INFINITY);
+        for i in -half..=half {
+            for j in -half..=half {
+                let shift =
+                    Translation3::from(e1 * (f64::from(i) * step) + e2 * (f64::from(j) * step));
+                let pose = shift * from;
+                let score = overlap(&sample, dst, &pose, tol);
+                if score > best.1 {
+                    best = (pose, score);
+                }
             }
         }
-    }
-    best.0
+        best.0
+    };
+    let coarse = 4.0 * voxel;
+    let half = (reach / coarse).ceil().min(25.0) as i32;
+    let near = best_of(*hint, coarse, half, 3.0 * voxel);
+    best_of(near, voxel, 2, 1.5 * voxel)
 }
 
 /// Whether two motions differ by under 2° and 2 voxels.
