@@ -87,6 +87,15 @@ pub enum Command {
         /// session with Ctrl-C or the input's end (--until-done would stop after the first).
         #[arg(long, conflicts_with = "until_done")]
         merge: bool,
+        /// With --merge: the object was turned by DEG about the vertical between sweeps (a
+        /// turntable's step), a hint to the merge as `merge --turntable` takes it.
+        #[arg(
+            long,
+            value_name = "DEG",
+            requires = "merge",
+            allow_negative_numbers = true
+        )]
+        turntable: Option<f64>,
         /// Show the scan live in a web browser: serves a page on ADDR:PORT (default
         /// 127.0.0.1 and a free port, printed). Another address than loopback (e.g.
         /// `0.0.0.0:8080`, to watch from a phone) prints a warning and needs the random token in
@@ -461,16 +470,18 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
             until_done,
             append,
             merge,
+            turntable,
             view,
             view_for,
             out,
         }) => {
             check_view_for(*view_for)?;
             check_sheet(out.sheet)?;
+            check_turntable(*turntable)?;
             let (summary, view) = receive(input, (*until_done, *append, *merge), *view, out)?;
             crate::outln!("{}", summary.text().trim_end());
             let merged = if *merge {
-                merge_sweeps(out, view.as_ref())
+                merge_sweeps(out, *turntable, view.as_ref())
             } else {
                 Ok(())
             };
@@ -495,13 +506,7 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
             quiet,
         }) => {
             check_view_for(*view_for)?;
-            if let Some(t) = turntable
-                && !(t.abs() > 0.0 && t.abs() <= 180.0)
-            {
-                anyhow::bail!(
-                    "--turntable must be a step of more than 0 and at most 180 degrees, found {t}"
-                );
-            }
+            check_turntable(*turntable)?;
             let view = view.map(start_view).transpose()?;
             let merged = merge_command(
                 views,
@@ -567,9 +572,19 @@ fn check_sheet(sheet: f64) -> Result<()> {
 /// What a refused merge leaves to look at (those written before it stopped).
 const MERGE_REFUSED_FILES: &[&str] = &["views.png", "views.ply", "merge-report.txt"];
 
+/// `--turntable`'s step must turn the object (more than 0°) and at most half a turn either way.
+fn check_turntable(step: Option<f64>) -> Result<()> {
+    match step {
+        Some(t) if !(t.abs() > 0.0 && t.abs() <= 180.0) => anyhow::bail!(
+            "--turntable must be a step of more than 0 and at most 180 degrees, found {t}"
+        ),
+        _ => Ok(()),
+    }
+}
+
 /// `receive --merge`: the session's journal split into one view per scan, each view's
-/// outputs, and the merge of the views into OUT/model.
-fn merge_sweeps(o: &OutputArgs, view: Option<&LiveView>) -> Result<()> {
+/// outputs, and the merge of the views into OUT/model (with a turntable's step, if given).
+fn merge_sweeps(o: &OutputArgs, turntable: Option<f64>, view: Option<&LiveView>) -> Result<()> {
     let folders = crate::merge::split_scans(&o.out.join("journal.stream"), &o.out)?;
     for f in &folders {
         let c = crate::outputs::replay(collect_options(o), &f.join("journal.stream"), o.sheet)?;
@@ -588,7 +603,7 @@ fn merge_sweeps(o: &OutputArgs, view: Option<&LiveView>) -> Result<()> {
             crate::merge::VOXEL_MM,
             crate::merge::FUSE_CELL_MM,
             crate::merge::MIN_OVERLAP,
-            None,
+            turntable,
             o.sheet,
         ),
         (false, false, o.quiet),

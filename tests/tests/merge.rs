@@ -955,6 +955,47 @@ fn one_session_of_three_sweeps(d: &Path) {
     }
     assert!(!d.join("session/view-4").exists());
     same_files(&d.join("session/model"), &d.join("model"), &MODEL_FILES);
+    // A turntable's step reaches the merge: views 1 and 2 (view 0 and the one turned 60°) are
+    // refined as turns about one axis, the side view is not; the step must be a turn.
+    let (ok, out, err) = run(
+        d,
+        "scanner-host",
+        &[
+            "receive",
+            "session.stream",
+            "--merge",
+            "--turntable",
+            "60",
+            "--out",
+            "session-turntable",
+            "-q",
+        ],
+    );
+    assert!(ok, "{out}\n{err}");
+    let turns = out
+        .lines()
+        .find_map(|l| l.strip_prefix("turntable (--turntable): refined as turns about one axis: "))
+        .unwrap_or_else(|| panic!("no turntable line:\n{out}"));
+    assert!(
+        turns.starts_with("view 0 0.00°, view 1 ") && !turns.contains("view 2"),
+        "{turns}"
+    );
+    for (bad, args) in [
+        (
+            "--turntable must be a step",
+            vec!["--merge", "--turntable", "0"],
+        ),
+        (
+            "--turntable must be a step",
+            vec!["--merge", "--turntable", "270"],
+        ),
+        ("--merge", vec!["--turntable", "60"]),
+    ] {
+        let mut all = vec!["receive", "session.stream", "--out", "refused"];
+        all.extend(args);
+        let (ok, _, err) = run(d, "scanner-host", &all);
+        assert!(!ok && err.contains(bad), "{all:?}: {err}");
+    }
     let (ok, _, err) = run(
         d,
         "scanner-host",
