@@ -217,12 +217,7 @@ impl Turns {
 
     /// Two unit directions across the axis.
     fn across(&self) -> (Vector3<f64>, Vector3<f64>) {
-        let a = self.axis.into_inner();
-        let e1 = a
-            .cross(&Vector3::x())
-            .try_normalize(1e-6)
-            .unwrap_or_else(|| a.cross(&Vector3::y()).normalize());
-        (e1, a.cross(&e1))
+        crate::register::across(&self.axis)
     }
 }
 
@@ -232,10 +227,9 @@ fn turn(axis: &Unit<Vector3<f64>>, angle: f64) -> UnitQuaternion<f64> {
 }
 
 /// The unknowns of a step with `turns`: in place of each turned view's 6 (its motion, as in
-/// [`step`]'s system), the axis's tilt (2), its shift (2) and each turned view's angle. Returns
-/// the matrix `B` that maps them to the views' motions (`δ = B p`) and the place of each
-/// untouched view's 6 among them.
-fn turn_unknowns(turns: &Turns, n: usize) -> (DMatrix<f64>, Vec<Option<usize>>) {
+/// [`step`]'s system), the axis's tilt (2), its shift (2) and each turned view's angle, then each
+/// untouched view's 6. Returns the matrix `B` that maps them to the views' motions (`δ = B p`).
+fn turn_unknowns(turns: &Turns, n: usize) -> DMatrix<f64> {
     let turned: Vec<Option<usize>> = (0..n)
         .map(|k| turns.views.iter().position(|&v| v == k))
         .collect();
@@ -279,7 +273,7 @@ fn turn_unknowns(turns: &Turns, n: usize) -> (DMatrix<f64>, Vec<Option<usize>>) 
         // The view turned further by δθ: ω = a, t = c × a.
         set(4 + i, a, c.cross(&a));
     }
-    (b, place)
+    b
 }
 
 /// Bins of the residuals' histogram, from 0 to the pairing distance: the median to a 2 000th of
@@ -362,7 +356,7 @@ fn step(
     let (x, turns) = match turns {
         None => (solve(ata, &atb)?, None),
         Some(t) => {
-            let (b, _) = turn_unknowns(t, n);
+            let b = turn_unknowns(t, n);
             let p = solve(b.transpose() * &ata * &b, &(b.transpose() * &atb))?;
             let (e1, e2) = t.across();
             let tilt = e1 * p[0] + e2 * p[1];
@@ -392,21 +386,22 @@ fn step(
     let moved = poses
         .iter()
         .enumerate()
-        .map(|(k, p)| match block(k) {
-            None => *p,
-            Some(_)
-                if let Some(i) = turns
-                    .as_ref()
-                    .and_then(|t| t.views.iter().position(|&v| v == k)) =>
-            {
-                turns.as_ref().map_or(*p, |t| t.pose(i))
-            }
-            Some(b) => {
-                let delta = Isometry3::from_parts(
-                    Translation3::new(x[b + 3], x[b + 4], x[b + 5]),
-                    UnitQuaternion::from_scaled_axis(Vector3::new(x[b], x[b + 1], x[b + 2])),
-                );
-                delta * p
+        .map(|(k, p)| {
+            // A turned view is where its turn puts it; any other moves by its own motion.
+            let turned = turns.as_ref().and_then(|t| {
+                let i = t.views.iter().position(|&v| v == k)?;
+                Some(t.pose(i))
+            });
+            match (block(k), turned) {
+                (None, _) => *p,
+                (Some(_), Some(pose)) => pose,
+                (Some(b), None) => {
+                    let delta = Isometry3::from_parts(
+                        Translation3::new(x[b + 3], x[b + 4], x[b + 5]),
+                        UnitQuaternion::from_scaled_axis(Vector3::new(x[b], x[b + 1], x[b + 2])),
+                    );
+                    delta * p
+                }
             }
         })
         .collect();

@@ -8,8 +8,8 @@
 
 use kiddo::{KdTree, SquaredEuclidean};
 use scanner_core::nalgebra::{
-    Isometry3, Matrix3, Matrix6, Point3, Rotation3, SymmetricEigen, Translation3, UnitQuaternion,
-    Vector3, Vector6,
+    Isometry3, Matrix3, Matrix6, Point3, Rotation3, SymmetricEigen, Translation3, Unit,
+    UnitQuaternion, Vector3, Vector6,
 };
 
 /// Bins per angle feature of a descriptor (three features: 33 values).
@@ -530,6 +530,15 @@ pub fn candidates(
     Ok(out)
 }
 
+/// Two unit directions across `axis`, square to it and to each other.
+pub(crate) fn across(axis: &Unit<Vector3<f64>>) -> (Vector3<f64>, Vector3<f64>) {
+    let e1 = axis
+        .cross(&Vector3::x())
+        .try_normalize(1e-6)
+        .unwrap_or_else(|| axis.cross(&Vector3::y()).normalize());
+    (e1, axis.cross(&e1))
+}
+
 /// `hint` moved across the plane its rotation keeps (perpendicular to the axis; a turn about an
 /// axis of that direction, wherever it stands, moves nothing along it) to where it brings the most
 /// of `src` within 1.5 voxels of `dst`: first a grid of 4 voxels over as far as `src` reaches
@@ -560,12 +569,7 @@ fn place_turn(
         .iter()
         .map(|p| (p.coords - centre).norm())
         .fold(0.0, f64::max);
-    // Two directions across the plane.
-    let e1 = axis
-        .cross(&Vector3::x())
-        .try_normalize(1e-6)
-        .unwrap_or_else(|| axis.cross(&Vector3::y()).normalize());
-    let e2 = axis.cross(&e1);
+    let (e1, e2) = across(&axis);
     let sample: Vec<Point3<f64>> = src.points.iter().step_by(4).copied().collect();
     // The best of a (2 half + 1)² grid of `step` around `from`, points within `tol` counted.
     let best_of = |from: Isometry3<f64>, step: f64, half: i32, tol: f64| {

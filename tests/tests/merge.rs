@@ -989,6 +989,10 @@ fn one_session_of_three_sweeps(d: &Path) {
             "--turntable must be a step",
             vec!["--merge", "--turntable", "270"],
         ),
+        (
+            "--turntable must be a step",
+            vec!["--merge", "--turntable", "NaN"],
+        ),
         ("--merge", vec!["--turntable", "60"]),
     ] {
         let mut all = vec!["receive", "session.stream", "--out", "refused"];
