@@ -97,6 +97,29 @@ pub fn scan_rig(dir: &std::path::Path, scene: &str, extra: &[&str], out: &str) {
     assert!(ok, "scanner-device scan: {err}");
 }
 
+/// Records a scan of `source` into `out` as the head streams it (headers, point packets,
+/// statuses), through the link's deepest queue: a recording for a test to read, not a test of
+/// the link, so a writer that falls behind on a busy machine must drop nothing.
+///
+/// # Panics
+/// When the scan fails or the link dropped a packet all the same: this is a test helper.
+pub fn record_scan(
+    source: &mut dyn scanner_device::source::FrameSource,
+    cal: &scanner_device::session::Calibration,
+    opts: scanner_device::session::ScanOptions,
+    out: Box<dyn std::io::Write + Send>,
+) {
+    let mut link = scanner_device::link::Link::spawn(
+        out,
+        scanner_device::link::MAX_DEPTH,
+        scanner_core::wire::MAX_ENCODED,
+    );
+    scanner_device::session::run_scan(source, cal, opts, &mut link, |_| {}, |_, _| {})
+        .expect("the scan runs");
+    let stats = link.finish().expect("the link writes");
+    assert_eq!(stats.dropped, 0, "the link dropped point packets");
+}
+
 /// A global allocator that counts allocations per thread (the test harness allocates on other
 /// threads while a test runs). Install it in a test binary with
 /// `#[global_allocator] static A: scanner_tests::Counting = scanner_tests::Counting;` and

@@ -8,8 +8,7 @@ use std::path::Path;
 use scanner_core::pipeline::HeadConfig;
 use scanner_core::stripe::{Axis, Method, PixelFormat, StripeConfig};
 use scanner_core::wire::{Control, Controls, Decoder, MAX_ENCODED, Message};
-use scanner_device::link::Link;
-use scanner_device::session::{ScanOptions, run_scan, truth_calibration};
+use scanner_device::session::{ScanOptions, truth_calibration};
 use scanner_device::source::controls::{on_wire, parse_v4l2_ctl, plan};
 use scanner_device::source::record::{Recorder, RecordingSource};
 use scanner_device::source::{FrameSource, OwnedFrame, RigSource, SourceError};
@@ -62,22 +61,12 @@ fn scan(source: &mut dyn FrameSource, out: &Path) {
     // every 10, the last status: under 40): on a busy machine a shallower link drops point
     // packets (as it must, so as not to hold the camera up), and the reprocessed stream
     // would differ by what was dropped.
-    let mut link = Link::spawn(
-        Box::new(std::fs::File::create(out).unwrap()),
-        scanner_device::link::MAX_DEPTH,
-        MAX_ENCODED,
-    );
-    run_scan(
+    scanner_tests::record_scan(
         source,
         &truth_calibration(&rig),
         opts,
-        &mut link,
-        |_| {},
-        |_, _| {},
-    )
-    .unwrap();
-    let stats = link.finish().unwrap();
-    assert_eq!(stats.dropped, 0, "the link dropped point packets");
+        Box::new(std::fs::File::create(out).unwrap()),
+    );
 }
 
 fn controls_in(bytes: &[u8]) -> Vec<Controls> {

@@ -38,19 +38,18 @@ fn clean_frames() -> &'static Vec<Vec<u8>> {
         let mut src = RigSource::new(rig, PixelFormat::Gray8);
         let dir = tempfile::tempdir().unwrap();
         let path = dir.path().join("s");
-        let mut link = Link::spawn(
-            Box::new(std::fs::File::create(&path).unwrap()),
-            8,
-            MAX_ENCODED,
-        );
         let opts = ScanOptions {
             head: HeadConfig::new(StripeConfig::new(Method::Dim, Axis::Columns)),
             header_every: 10,
             status_every: 10,
             scan_id: 21,
         };
-        run_scan(&mut src, &cal, opts, &mut link, |_| {}, |_, _| {}).unwrap();
-        link.finish().unwrap();
+        scanner_tests::record_scan(
+            &mut src,
+            &cal,
+            opts,
+            Box::new(std::fs::File::create(&path).unwrap()),
+        );
         let bytes = std::fs::read(&path).unwrap();
         // Frames are 0x00 ‖ body ‖ 0x00.
         let mut frames = Vec::new();

@@ -10,9 +10,8 @@ use scanner_core::nalgebra::{Point3, Vector3};
 use scanner_core::pipeline::HeadConfig;
 use scanner_core::stripe::{Axis, Method, PixelFormat, StripeConfig};
 use scanner_core::wire::{Decoder, MAX_ENCODED};
-use scanner_device::link::Link;
+use scanner_device::session::ScanOptions;
 use scanner_device::session::truth_calibration;
-use scanner_device::session::{ScanOptions, run_scan};
 use scanner_device::source::RigSource;
 use scanner_host::collect::{CollectOptions, Collector, Journal};
 use scanner_host::{replay_into, write_outputs};
@@ -46,13 +45,12 @@ fn record(w: u32, h: u32, frames: usize, colour: bool, path: &Path) -> Rig {
         status_every: 30,
         scan_id: 5,
     };
-    let mut link = Link::spawn(
+    scanner_tests::record_scan(
+        &mut source,
+        &cal,
+        opts,
         Box::new(std::fs::File::create(path).unwrap()),
-        16,
-        MAX_ENCODED,
     );
-    run_scan(&mut source, &cal, opts, &mut link, |_| {}, |_, _| {}).unwrap();
-    link.finish().unwrap();
     rig
 }
 

@@ -13,8 +13,7 @@ use scanner_core::pipeline::HeadConfig;
 use scanner_core::stripe::{Axis, Method, PixelFormat, StripeConfig};
 use scanner_core::wire::{self, Header, MAX_ENCODED, Message, PlaneMethod};
 use scanner_core::{Camera, Distortion};
-use scanner_device::link::Link;
-use scanner_device::session::{ScanOptions, run_scan, truth_calibration};
+use scanner_device::session::{ScanOptions, truth_calibration};
 use scanner_device::source::{FrameSource, RigSource};
 use scanner_rig::{Rig, Scene};
 use scanner_tests::workspace_bin;
@@ -113,13 +112,12 @@ fn record(w: u32, h: u32, id: u32, path: &Path) {
         status_every: 30,
         scan_id: id,
     };
-    let mut link = Link::spawn(
+    scanner_tests::record_scan(
+        &mut source,
+        &cal,
+        opts,
         Box::new(std::fs::File::create(path).unwrap()),
-        4,
-        MAX_ENCODED,
     );
-    run_scan(&mut source, &cal, opts, &mut link, |_| {}, |_, _| {}).unwrap();
-    link.finish().unwrap();
 }
 
 /// One encoded header frame, changed by `edit`.
