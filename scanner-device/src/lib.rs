@@ -12,24 +12,7 @@
 //! it uses.
 #![deny(missing_docs)]
 
-/// Prints a line to standard output. A closed stdout (piped into `head`, say) is not an error
-/// for the work itself, so a failed write is ignored and the command carries on.
-#[macro_export]
-macro_rules! outln {
-    ($($t:tt)*) => {{
-        use std::io::Write as _;
-        let _ = writeln!(std::io::stdout().lock(), $($t)*);
-    }};
-}
-
-/// Prints a line to standard error; a closed stderr is ignored like a closed stdout ([`outln`]).
-#[macro_export]
-macro_rules! errln {
-    ($($t:tt)*) => {{
-        use std::io::Write as _;
-        let _ = writeln!(std::io::stderr().lock(), $($t)*);
-    }};
-}
+pub use scanner_io::{errln, outln};
 
 /// An error and its sources as one line, `outer: inner: innermost` (for summaries and messages
 /// that go on as text, where `{e:#}` of `anyhow` is not at hand).

@@ -4,7 +4,6 @@
 //! never leaves a half-written file in place of a good one.
 
 use std::fmt::Write as _;
-use std::io::Write as _;
 use std::path::Path;
 
 use image::{Rgb, RgbImage};
@@ -27,20 +26,21 @@ pub enum ExportError {
     },
 }
 
-/// Writes `bytes` to `path` through a temporary file in the same folder (`tempfile`) and a
-/// rename, so that a crash never leaves a half-written file in place of a good one.
+/// Writes `bytes` to `path` whole or not at all ([`scanner_io::write_atomic`]).
 ///
 /// # Errors
 /// [`ExportError::Write`] naming the file.
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), ExportError> {
-    write_atomic_with(path, |w| w.write_all(bytes))
+    scanner_io::write_atomic(path, bytes).map_err(|source| ExportError::Write {
+        path: path.to_path_buf(),
+        source,
+    })
 }
 
-/// The buffered temporary file a [`write_atomic_with`] writer writes to.
-pub type TempWriter = std::io::BufWriter<tempfile::NamedTempFile>;
+pub use scanner_io::TempWriter;
 
-/// Like [`write_atomic`], with the file's content streamed by `fill` (a mesh of millions of
-/// faces is written as it is formatted, never held whole in memory).
+/// Like [`write_atomic`], with the file's content streamed by `fill`
+/// ([`scanner_io::write_atomic_with`]).
 ///
 /// # Errors
 /// [`ExportError::Write`] naming the file, also for an error of `fill`.
@@ -48,26 +48,7 @@ pub fn write_atomic_with(
     path: &Path,
     fill: impl FnOnce(&mut TempWriter) -> std::io::Result<()>,
 ) -> Result<(), ExportError> {
-    let dir = path
-        .parent()
-        .filter(|p| !p.as_os_str().is_empty())
-        .unwrap_or(Path::new("."));
-    let write = || -> std::io::Result<()> {
-        let mut temp = tempfile::Builder::new();
-        // Made as any new file is (0666 less the umask), not tempfile's private 0600: the
-        // outputs are the user's to share.
-        #[cfg(unix)]
-        temp.permissions(std::os::unix::fs::PermissionsExt::from_mode(0o666));
-        let mut w = std::io::BufWriter::with_capacity(1 << 20, temp.tempfile_in(dir)?);
-        fill(&mut w)?;
-        let f = w
-            .into_inner()
-            .map_err(std::io::IntoInnerError::into_error)?;
-        f.as_file().sync_all()?;
-        f.persist(path).map_err(|e| e.error)?;
-        Ok(())
-    };
-    write().map_err(|source| ExportError::Write {
+    scanner_io::write_atomic_with(path, fill).map_err(|source| ExportError::Write {
         path: path.to_path_buf(),
         source,
     })

@@ -16,24 +16,7 @@
 //! - [`cli`]: the command line (the only place `anyhow` is used).
 #![deny(missing_docs)]
 
-/// Prints a line to standard output. A closed stdout (`scanner-host replay … | head -1`) is not
-/// an error for the work itself: a failed write is ignored and the outputs are still written.
-#[macro_export]
-macro_rules! outln {
-    ($($t:tt)*) => {{
-        use std::io::Write as _;
-        let _ = writeln!(std::io::stdout().lock(), $($t)*);
-    }};
-}
-
-/// Prints a line to standard error, ignoring a closed stderr like [`outln`].
-#[macro_export]
-macro_rules! errln {
-    ($($t:tt)*) => {{
-        use std::io::Write as _;
-        let _ = writeln!(std::io::stderr().lock(), $($t)*);
-    }};
-}
+pub use scanner_io::{errln, outln};
 
 pub mod check;
 pub mod cli;

@@ -440,28 +440,7 @@ impl CalibrationFile {
     }
 }
 
-/// Writes `bytes` to `path` through a temporary file in the same folder (`tempfile`) and a
-/// rename, so that a crash never leaves a half-written file in place of a good one. The file is
-/// made as any new file is (0666 less the umask), not with tempfile's private 0600: calibration
-/// files, shots and printable sheets are the user's to share.
-///
-/// # Errors
-/// Any I/O error.
-pub fn write_atomic(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
-    use std::io::Write;
-    let dir = path
-        .parent()
-        .filter(|p| !p.as_os_str().is_empty())
-        .unwrap_or(Path::new("."));
-    let mut temp = tempfile::Builder::new();
-    #[cfg(unix)]
-    temp.permissions(std::os::unix::fs::PermissionsExt::from_mode(0o666));
-    let mut f = temp.tempfile_in(dir)?;
-    f.write_all(bytes)?;
-    f.as_file().sync_all()?;
-    f.persist(path).map_err(|e| e.error)?;
-    Ok(())
-}
+pub use scanner_io::write_atomic;
 
 /// A sheet's plane and its markers as the file records them.
 fn sheet_section(s: &SheetFit, plane: &Plane<f64>) -> SheetSection {

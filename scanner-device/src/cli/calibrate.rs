@@ -6,6 +6,7 @@ use anyhow::{Context, Result, bail};
 use clap::{Subcommand, ValueEnum};
 use image::GrayImage;
 use scanner_core::Camera;
+use scanner_io::outln;
 
 use scanner_calib::board::BoardFile;
 use scanner_calib::file::{CalibrationFile, write_atomic};
