@@ -98,6 +98,18 @@ fn view(k: usize) -> Cloud {
     c
 }
 
+/// The worst view's rotation (degrees) and translation (mm) off the truth, view 0 fixing the
+/// frame.
+fn worst_view(poses: &[Isometry3<f64>]) -> (f64, f64) {
+    (1..VIEWS)
+        .map(|k| {
+            let truth = pose(0) * pose(k).inverse();
+            let d = truth.inverse() * poses[k];
+            (d.rotation.angle().to_degrees(), d.translation.vector.norm())
+        })
+        .fold((0.0f64, 0.0f64), |a, b| (a.0.max(b.0), a.1.max(b.1)))
+}
+
 fn main() {
     let t = Instant::now();
     let clouds: Vec<Cloud> = (0..VIEWS).map(view).collect();
@@ -235,13 +247,7 @@ fn main() {
         clouds[0].points.len(),
         raw.points.len()
     );
-    let worst = (1..VIEWS)
-        .map(|k| {
-            let truth = pose(0) * pose(k).inverse();
-            let d = truth.inverse() * poses[k];
-            (d.rotation.angle().to_degrees(), d.translation.vector.norm())
-        })
-        .fold((0.0f64, 0.0f64), |a, b| (a.0.max(b.0), a.1.max(b.1)));
+    let worst = worst_view(&poses);
     println!(
         "worst view against the truth: {:.4}° {:.3} mm",
         worst.0, worst.1
@@ -264,13 +270,7 @@ fn main() {
     let as_turns = turns.as_ref().map_or(0, |t| t.views.len());
     let (turned, _) = refine_turns(&refs, &start, turns, o.voxel_mm, 8, |_| {});
     let t_turns = t8.elapsed().as_secs_f64();
-    let worst = (1..VIEWS)
-        .map(|k| {
-            let truth = pose(0) * pose(k).inverse();
-            let d = truth.inverse() * turned[k];
-            (d.rotation.angle().to_degrees(), d.translation.vector.norm())
-        })
-        .fold((0.0f64, 0.0f64), |a, b| (a.0.max(b.0), a.1.max(b.1)));
+    let worst = worst_view(&turned);
     println!(
         "with the turntable's step (`--turntable 45`, not in the total): registration {t_step:.2} s, \
          joint refinement with {as_turns} views as turns about one axis {t_turns:.2} s; worst view \
