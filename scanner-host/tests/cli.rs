@@ -22,9 +22,11 @@ fn recording(dir: &std::path::Path) -> std::path::PathBuf {
     let cal = scanner_device::session::truth_calibration(&rig);
     let mut src = scanner_device::source::RigSource::new(rig, PixelFormat::Gray8);
     let path = dir.join("rec.stream");
+    // A recording, not a test of the link: its deepest queue (30 frames and a few headers and
+    // statuses fit), so that a writer that falls behind on a busy machine drops nothing.
     let mut link = scanner_device::link::Link::spawn(
         Box::new(std::fs::File::create(&path).unwrap()),
-        8,
+        scanner_device::link::MAX_DEPTH,
         scanner_core::wire::MAX_ENCODED,
     );
     let opts = scanner_device::session::ScanOptions {
@@ -34,7 +36,8 @@ fn recording(dir: &std::path::Path) -> std::path::PathBuf {
         scan_id: 3,
     };
     scanner_device::session::run_scan(&mut src, &cal, opts, &mut link, |_| {}, |_, _| {}).unwrap();
-    link.finish().unwrap();
+    let stats = link.finish().unwrap();
+    assert_eq!(stats.dropped, 0, "the link dropped point packets");
     path
 }
 
