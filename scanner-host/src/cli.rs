@@ -153,8 +153,10 @@ pub enum Command {
         /// at half its brightness is 2.355 σ): each view's points are moved to where the sheet's
         /// middle crosses the surface, which on a curved surface is not the lit band's centre
         /// (up to 0.1 mm on the rig's bunny at σ 0.6 mm). 0: points as the head sent them.
-        #[arg(long, value_name = "MM", default_value_t = 0.0)]
-        sheet: f64,
+        /// `auto`: the thickness where the views agree best, from 0 to 1.2 mm (each tried
+        /// thickness refines the views again, about 5 s on the 360° demo; reported).
+        #[arg(long, value_name = "MM|auto", default_value = "0")]
+        sheet: SheetArg,
         /// Remove the surface no view saw (farther than three fusion cells from every point):
         /// by default the fusion closes it smoothly (by the points' winding number) and the
         /// model is watertight; trimmed, it is open where the views left gaps.
@@ -561,6 +563,28 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
 /// far thicker than any line laser meant for scanning).
 const MAX_SHEET_MM: f64 = 5.0;
 
+/// `merge --sheet`: the laser sheet's thickness given (mm, 0: off), or `auto`: found from where
+/// the views agree best ([`crate::merge::disagreement`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum SheetArg {
+    /// Given, mm.
+    Mm(f64),
+    /// Found by the merge.
+    Auto,
+}
+
+impl std::str::FromStr for SheetArg {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        if s == "auto" {
+            return Ok(SheetArg::Auto);
+        }
+        s.parse::<f64>().map(SheetArg::Mm).map_err(|_| {
+            format!("expected the sheet's thickness in mm (0 to {MAX_SHEET_MM}) or \"auto\"")
+        })
+    }
+}
+
 /// Refuses a `--sheet` that is no sheet's thickness.
 fn check_sheet(sheet: f64) -> Result<()> {
     if !(0.0..=MAX_SHEET_MM).contains(&sheet) {
@@ -604,7 +628,7 @@ fn merge_sweeps(o: &OutputArgs, turntable: Option<f64>, view: Option<&LiveView>)
             crate::merge::FUSE_CELL_MM,
             crate::merge::MIN_OVERLAP,
             turntable,
-            o.sheet,
+            SheetArg::Mm(o.sheet),
         ),
         (false, false, o.quiet),
         view,
@@ -615,7 +639,7 @@ fn merge_command(
     views: &[PathBuf],
     out: &std::path::Path,
     cell: Cell,
-    (voxel, fuse_cell, min_overlap, turntable, sheet): (f64, f64, f64, Option<f64>, f64),
+    (voxel, fuse_cell, min_overlap, turntable, sheet): (f64, f64, f64, Option<f64>, SheetArg),
     (trim_unseen, flat_base, quiet): (bool, bool, bool),
     view: Option<&LiveView>,
 ) -> Result<()> {
@@ -634,18 +658,33 @@ fn merge_command(
     if !(0.1..=0.9).contains(&min_overlap) {
         anyhow::bail!("--min-overlap must be 0.1 to 0.9, found {min_overlap}");
     }
-    check_sheet(sheet)?;
+    if let SheetArg::Mm(mm) = sheet {
+        check_sheet(mm)?;
+    }
     if views.len() < 2 {
         return Err(merge::MergeError::TooFewViews(views.len()).into());
     }
+    let opts = crate::register::RegisterOptions {
+        voxel_mm: voxel,
+        min_overlap,
+        ..Default::default()
+    };
     let pb = progress_bar(quiet);
-    let mut loaded = Vec::new();
-    for (k, p) in views.iter().enumerate() {
-        pb.set_message(format!("reading view {k} ({})", p.display()));
-        pb.tick();
-        stage(&format!("reading view {k} of {}", views.len()));
-        loaded.push(merge::load_view(k, p, cell, sheet)?);
-    }
+    let load = |sheet: f64, what: &str| -> Result<Vec<merge::View>> {
+        let mut loaded = Vec::new();
+        for (k, p) in views.iter().enumerate() {
+            pb.set_message(format!("reading view {k} ({}){what}", p.display()));
+            pb.tick();
+            stage(&format!("reading view {k} of {}{what}", views.len()));
+            loaded.push(merge::load_view(k, p, cell, sheet)?);
+        }
+        Ok(loaded)
+    };
+    let (sheet, sheet_line) = match sheet {
+        SheetArg::Mm(mm) => (mm, String::new()),
+        SheetArg::Auto => auto_sheet(&load, &opts, turntable, &pb, &stage)?,
+    };
+    let loaded = load(sheet, "")?;
     let frame = loaded[0]
         .header
         .board()
@@ -661,11 +700,6 @@ fn merge_command(
                 )
             })?,
         },
-    };
-    let opts = crate::register::RegisterOptions {
-        voxel_mm: voxel,
-        min_overlap,
-        ..Default::default()
     };
     let mut results = merge::register_views(&loaded, &opts, turntable, |done, all| {
         pb.set_message(format!("registering pairs of views: {done} of {all}"));
@@ -690,7 +724,8 @@ fn merge_command(
         &merge::views_ply(&loaded, &results, &frame),
     )?;
     let seen = merge::free_space(&loaded, &results, voxel);
-    let mut report = merge::report(&loaded, &results);
+    let mut report = sheet_line;
+    report += &merge::report(&loaded, &results);
     report += &merge::closure_line(&closure);
     report += &merge::free_space_line(seen, voxel);
     let input = merge::fusion_input(&loaded, &results);
@@ -779,6 +814,76 @@ fn merge_command(
         );
     }
     Ok(())
+}
+
+/// `merge --sheet auto`: the views registered once without a sheet's correction, then, for each
+/// of [`crate::merge::SHEET_TRIES`], read with it and refined from those poses, and their
+/// [`crate::merge::disagreement`] measured; the thickness where they agree best
+/// ([`crate::merge::best_sheet`]) and the report's line naming it.
+///
+/// # Errors
+/// A view that cannot be read or registered; views that nowhere overlap, which tell no
+/// thickness.
+fn auto_sheet(
+    load: &dyn Fn(f64, &str) -> Result<Vec<crate::merge::View>>,
+    opts: &crate::register::RegisterOptions,
+    turntable: Option<f64>,
+    pb: &indicatif::ProgressBar,
+    stage: &dyn Fn(&str),
+) -> Result<(f64, String)> {
+    use crate::merge;
+    let first = load(0.0, ", for --sheet auto")?;
+    let registered = merge::register_views(&first, opts, turntable, |done, all| {
+        pb.set_message(format!(
+            "--sheet auto: registering pairs of views: {done} of {all}"
+        ));
+        pb.tick();
+        stage(&format!(
+            "--sheet auto: registering pairs of views: {done} of {all}"
+        ));
+    })?;
+    let mut tried = Vec::with_capacity(merge::SHEET_TRIES.len());
+    for (i, &sigma) in merge::SHEET_TRIES.iter().enumerate() {
+        let what = format!(
+            ", --sheet auto: σ {sigma} mm ({} of {})",
+            i + 1,
+            merge::SHEET_TRIES.len()
+        );
+        let views = if i == 0 {
+            None
+        } else {
+            Some(load(sigma, &what)?)
+        };
+        let views = views.as_deref().unwrap_or(&first);
+        let mut results = registered.clone();
+        merge::refine_views(views, &mut results, opts, |_| {
+            pb.set_message(format!("refining all views together{what}"));
+            pb.tick();
+        });
+        tried.push((
+            sigma,
+            merge::disagreement(views, &results).unwrap_or(f64::NAN),
+        ));
+    }
+    let best = merge::best_sheet(&tried).ok_or_else(|| {
+        anyhow::anyhow!(
+            "--sheet auto: the views nowhere overlap within {} mm of each other, so they tell no sheet thickness; give it with --sheet MM",
+            merge::AGREE_MM
+        )
+    })?;
+    let list: Vec<String> = tried
+        .iter()
+        .map(|(s, d)| format!("{s} mm: {:.4} mm", d))
+        .collect();
+    let mut line = format!(
+        "laser sheet (--sheet auto): σ {best:.2} mm, where the views agree best (RMS between overlapping views, σ {})",
+        list.join(", ")
+    );
+    if best >= merge::SHEET_TRIES[merge::SHEET_TRIES.len() - 1] {
+        line += "; the thickest tried: the sheet may be thicker, or the views disagree for another reason (look at views.png)";
+    }
+    line.push('\n');
+    Ok((best, line))
 }
 
 fn check_command(

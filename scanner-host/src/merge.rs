@@ -921,6 +921,77 @@ pub fn refine_views(
     }
 }
 
+/// The laser sheet's thicknesses (σ, mm) `merge --sheet auto` tries: from none to twice the
+/// thickest a scanning line laser's line usually is (a line 5.7 mm wide at half its brightness).
+pub const SHEET_TRIES: [f64; 7] = [0.0, 0.2, 0.4, 0.6, 0.8, 1.0, 1.2];
+
+/// Pairs of points of two views this near count in [`disagreement`], mm.
+pub const AGREE_MM: f64 = 1.0;
+
+/// How far the views' surfaces lie apart where they overlap: the RMS distance of each view's
+/// points clear of its edges from the tangent plane of the nearest such point of every other
+/// view within [`AGREE_MM`], placed by `results`; `None` where no view overlaps another.
+///
+/// Each view's stripe centres are off the surface by an amount that depends on how its own
+/// sweep met the surface, so views that see the same surface from different sides disagree by
+/// it; moved by the right sheet thickness (`--sheet`), they agree best.
+pub fn disagreement(views: &[View], results: &[ViewResult]) -> Option<f64> {
+    use kiddo::SquaredEuclidean;
+    let placed: Vec<Cloud> = views
+        .iter()
+        .zip(results)
+        .map(|(v, r)| {
+            let c = clear_cloud(v);
+            Cloud {
+                points: c.points.iter().map(|p| r.pose * p).collect(),
+                normals: c.normals.iter().map(|n| r.pose * n).collect(),
+            }
+        })
+        .collect();
+    let (mut sum2, mut pairs) = (0.0, 0usize);
+    for (j, dst) in placed.iter().enumerate() {
+        let tree = crate::register::tree(&dst.points);
+        for (_, src) in placed.iter().enumerate().filter(|(k, _)| *k != j) {
+            for q in &src.points {
+                let nn = tree.nearest_one::<SquaredEuclidean>(&[q.x, q.y, q.z]);
+                if nn.distance > AGREE_MM * AGREE_MM {
+                    continue;
+                }
+                let i = nn.item as usize;
+                sum2 += (q - dst.points[i]).dot(&dst.normals[i]).powi(2);
+                pairs += 1;
+            }
+        }
+    }
+    (pairs > 0).then(|| (sum2 / pairs as f64).sqrt())
+}
+
+/// The sheet thickness where the views agree best, from `tried` (σ ascending, with the views'
+/// [`disagreement`] at each): the least one refined by the parabola through it and its two
+/// neighbours in σ² and the disagreement squared (the correction moves points by σ² to first
+/// order, so the squared disagreement is a parabola in σ² where the bias dominates), its vertex
+/// kept between the neighbours; at either end of the list, that end. `None` when no thickness
+/// was measured.
+pub fn best_sheet(tried: &[(f64, f64)]) -> Option<f64> {
+    let (i, _) = tried
+        .iter()
+        .enumerate()
+        .filter(|(_, t)| t.1.is_finite())
+        .min_by(|a, b| a.1.1.total_cmp(&b.1.1))?;
+    if i == 0 || i + 1 == tried.len() {
+        return Some(tried[i].0);
+    }
+    let [(a, ya), (b, yb), (c, yc)] =
+        [tried[i - 1], tried[i], tried[i + 1]].map(|(s, d)| (s * s, d * d));
+    let num = (b - a).powi(2) * (yb - yc) - (b - c).powi(2) * (yb - ya);
+    let den = (b - a) * (yb - yc) - (b - c) * (yb - ya);
+    let vertex = b - 0.5 * num / den;
+    if !vertex.is_finite() || den >= 0.0 {
+        return Some(tried[i].0);
+    }
+    Some(vertex.clamp(a, c).sqrt())
+}
+
 /// Largest loop-closure rotation after the joint refinement that a merge accepts, degrees: the
 /// 360° demo closes within 0.04°; a view registered the wrong way round leaves degrees.
 pub const LOOP_MAX_DEG: f64 = 1.0;
@@ -1448,6 +1519,23 @@ pub fn fuse_views(
 
 #[cfg(test)]
 mod tests {
+    #[test]
+    fn best_sheet_is_the_parabola_vertex_inside_the_grid_and_the_end_outside() {
+        // the squared disagreement a parabola in σ², least at σ 0.57 mm
+        let d = |s: f64| (0.01 + (s * s - 0.57f64.powi(2)).powi(2)).sqrt();
+        let tried: Vec<(f64, f64)> = super::SHEET_TRIES.iter().map(|&s| (s, d(s))).collect();
+        let best = super::best_sheet(&tried).unwrap();
+        assert!((best - 0.57).abs() < 1e-9, "{best}");
+        // falling all the way: the thickest tried
+        let falling: Vec<(f64, f64)> = super::SHEET_TRIES.iter().map(|&s| (s, 1.0 - s)).collect();
+        assert_eq!(super::best_sheet(&falling), Some(1.2));
+        // a measurement missing where it would be least is passed over
+        let mut gap = tried.clone();
+        gap[3].1 = f64::NAN;
+        assert!(super::best_sheet(&gap).is_some_and(|b| (0.4..=0.8).contains(&b)));
+        assert_eq!(super::best_sheet(&[]), None);
+    }
+
     use super::*;
     use crate::refine::LoopError;
 

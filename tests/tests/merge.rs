@@ -645,6 +645,41 @@ fn sheet_correction_of_the_views(d: &Path, scene: &scanner_rig::Scene) {
         !ok && err.contains("--sheet must be 0 (off) to 5 mm, found 9"),
         "{err}"
     );
+    let (ok, _, err) = run(
+        d,
+        "scanner-host",
+        &[
+            "merge", "v0", "v1", "--sheet", "thin", "--out", "thin", "-q",
+        ],
+    );
+    assert!(
+        !ok && err.contains("expected the sheet's thickness in mm (0 to 5) or \"auto\""),
+        "{err}"
+    );
+    // --sheet auto: the views refined at each thickness tried, the one where they agree best
+    // named (one run: 0.70 mm for the rig's 0.6 on these three 640×480 views; on nine folders of
+    // seven 1280×960 views 10–30 % under the rig's σ, docs/reports.md).
+    let (ok, out, err) = run(
+        d,
+        "scanner-host",
+        &[
+            "merge", "v0", "v1", "v6", "--sheet", "auto", "--out", "auto", "-q",
+        ],
+    );
+    assert!(ok, "{err}");
+    let line = out
+        .lines()
+        .find(|l| l.starts_with("laser sheet (--sheet auto): σ "))
+        .unwrap_or_else(|| panic!("{out}"));
+    let sigma: f64 = line["laser sheet (--sheet auto): σ ".len()..]
+        .split(' ')
+        .next()
+        .and_then(|v| v.parse().ok())
+        .unwrap_or_else(|| panic!("{line}"));
+    println!("{line}");
+    assert!((0.3..=0.8).contains(&sigma), "{line}");
+    let report = std::fs::read_to_string(d.join("auto/merge-report.txt")).unwrap();
+    assert!(report.starts_with(line), "{report}");
 }
 
 /// The part's six views (`dirs`) with the turntable's step given, and a seventh view of it laid
