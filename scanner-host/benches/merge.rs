@@ -1,19 +1,20 @@
 //! Speed of a 360° merge (issue 17's target: 8 views of 50 000 points each registered and fused
 //! in ≤ 10 s on one core): `cargo bench -p scanner-host --bench merge` (run it pinned,
 //! `taskset -c 1`). The stages `scanner-host merge` runs after reading the views — every pair
-//! registered without a guess and the agreeing candidates chosen, the joint refinement, the outlier filter and the
-//! fusion — on eight synthetic views of a lumpy closed surface (about 60 mm across) turned by 45°
-//! about the vertical, each view the half of the surface that faces its camera, 50 000 points
-//! with exact normals. Prints each stage's time and each view's error against the truth; then,
-//! not in the total, the registration and the joint refinement again with the turntable's step
-//! (`merge --turntable 45`).
+//! registered without a guess and the agreeing candidates chosen, the joint refinement (and the
+//! turns about one axis it finds), the outlier filter and the fusion — on eight synthetic views
+//! of a lumpy closed surface (about 60 mm across) turned by 45° about the vertical, each view
+//! the half of the surface that faces its camera, 50 000 points with exact normals. Prints each
+//! stage's time and each view's error against the truth; then, not in the total, the
+//! registration and the joint refinement again with the turntable's step (`merge --turntable
+//! 45`).
 
 use std::time::Instant;
 
 use scanner_core::nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
 use scanner_host::fuse::{check, fuse_with};
 use scanner_host::merge::{contradicted, fused_points, register_clouds};
-use scanner_host::refine::{Turns, refine, refine_turns};
+use scanner_host::refine::{HINTED, Turns, found_turns, refine, refine_turns};
 use scanner_host::register::{Cloud, RegisterOptions};
 use scanner_host::seen::{DepthMap, conflicts};
 
@@ -134,7 +135,10 @@ fn main() {
     let poses: Vec<Isometry3<f64>> = placed.iter().map(|r| r.pose).collect();
     let t_chain = t0.elapsed().as_secs_f64() - t_thin;
     let t1 = Instant::now();
-    let poses = refine(&refs, &poses, o.voxel_mm, 8, |_| {});
+    let free = refine(&refs, &poses, o.voxel_mm, 8, |_| {});
+    // As `merge` does without a hint: views whose poses are turns about one axis refined again
+    // as such turns (and kept if they fit as well).
+    let (poses, found) = found_turns(&refs, free, o.voxel_mm);
     let t_joint = t1.elapsed().as_secs_f64();
     // As `merge` checks the poses: every view's points against every other's free space, seen
     // by a 1280×960 camera of f = 1120 px.
@@ -200,7 +204,10 @@ fn main() {
     println!(
         "| registration, {pairs} pairs without a guess, the agreeing set chosen | {t_chain:.2} |"
     );
-    println!("| joint refinement, 8 rounds | {t_joint:.2} |");
+    println!(
+        "| joint refinement, 8 rounds, then the turns found ({} views as turns about one axis) | {t_joint:.2} |",
+        found.map_or(0, |t| t.views.len())
+    );
     println!(
         "| free-space check (worst: {:.2} % of a view's points in front of another's surface) | {t_seen:.2} |",
         100.0 * worst
@@ -266,7 +273,7 @@ fn main() {
     let t8 = Instant::now();
     let on: Vec<bool> = stepped.iter().map(|r| r.on_turntable).collect();
     let start: Vec<Isometry3<f64>> = stepped.iter().map(|r| r.pose).collect();
-    let turns = Turns::fit(&start, &on);
+    let turns = Turns::fit(&start, &on, HINTED);
     let as_turns = turns.as_ref().map_or(0, |t| t.views.len());
     let (turned, _) = refine_turns(&refs, &start, turns, o.voxel_mm, 8, |_| {});
     let t_turns = t8.elapsed().as_secs_f64();

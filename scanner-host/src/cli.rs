@@ -146,7 +146,9 @@ pub enum Command {
         /// guesses (where its axis stands is searched), and a match that agrees with it (within
         /// 5°) decides between matches that fit alike, as a nearly symmetric object's front and
         /// back do; a view that no step fits (laid over by hand) is placed by its own matches.
-        /// Not needed for an object that looks different from every side.
+        /// Not needed for an object that looks different from every side: without it, views
+        /// the merge finds to be turns about one axis (a turntable's, any steps) are refined as
+        /// such all the same.
         #[arg(long, value_name = "DEG", allow_negative_numbers = true)]
         turntable: Option<f64>,
         /// The laser sheet's thickness, mm (the Gaussian σ across it; a line laser's line width
@@ -867,7 +869,7 @@ fn auto_sheet(
     let best = merge::best_sheet(&tried).ok_or_else(|| {
         anyhow::anyhow!(
             "--sheet auto: the views nowhere overlap within {} mm of each other, so they tell no sheet thickness; give it with --sheet MM",
-            merge::AGREE_MM
+            crate::refine::AGREE_MM
         )
     })?;
     let list: Vec<String> = tried

@@ -901,8 +901,13 @@ pub fn refine_views(
     let before = closure(&poses);
     // Views on a turntable (view 0 among them) stay turns about one axis.
     let on: Vec<bool> = results.iter().map(|r| r.on_turntable).collect();
-    let turns = crate::refine::Turns::fit(&poses, &on);
-    let (joint, turns) = refine_turns(&clouds, &poses, turns, o.voxel_mm, ROUNDS, progress);
+    let hinted = crate::refine::Turns::fit(&poses, &on, crate::refine::HINTED);
+    let (joint, turns) = if hinted.is_some() {
+        refine_turns(&clouds, &poses, hinted, o.voxel_mm, ROUNDS, progress)
+    } else {
+        let free = refine_turns(&clouds, &poses, None, o.voxel_mm, ROUNDS, progress).0;
+        crate::refine::found_turns(&clouds, free, o.voxel_mm)
+    };
     for (r, p) in results.iter_mut().zip(&joint) {
         r.pose = *p;
     }
@@ -925,45 +930,18 @@ pub fn refine_views(
 /// thickest a scanning line laser's line usually is (a line 5.7 mm wide at half its brightness).
 pub const SHEET_TRIES: [f64; 7] = [0.0, 0.2, 0.4, 0.6, 0.8, 1.0, 1.2];
 
-/// Pairs of points of two views this near count in [`disagreement`], mm.
-pub const AGREE_MM: f64 = 1.0;
-
-/// How far the views' surfaces lie apart where they overlap: the RMS distance of each view's
-/// points clear of its edges from the tangent plane of the nearest such point of every other
-/// view within [`AGREE_MM`], placed by `results`; `None` where no view overlaps another.
+/// How far the views' surfaces lie apart where they overlap ([`crate::refine::disagreement`] of
+/// their points clear of their edges, placed by `results`); `None` where no view overlaps
+/// another.
 ///
 /// Each view's stripe centres are off the surface by an amount that depends on how its own
 /// sweep met the surface, so views that see the same surface from different sides disagree by
 /// it; moved by the right sheet thickness (`--sheet`), they agree best.
 pub fn disagreement(views: &[View], results: &[ViewResult]) -> Option<f64> {
-    use kiddo::SquaredEuclidean;
-    let placed: Vec<Cloud> = views
-        .iter()
-        .zip(results)
-        .map(|(v, r)| {
-            let c = clear_cloud(v);
-            Cloud {
-                points: c.points.iter().map(|p| r.pose * p).collect(),
-                normals: c.normals.iter().map(|n| r.pose * n).collect(),
-            }
-        })
-        .collect();
-    let (mut sum2, mut pairs) = (0.0, 0usize);
-    for (j, dst) in placed.iter().enumerate() {
-        let tree = crate::register::tree(&dst.points);
-        for (_, src) in placed.iter().enumerate().filter(|(k, _)| *k != j) {
-            for q in &src.points {
-                let nn = tree.nearest_one::<SquaredEuclidean>(&[q.x, q.y, q.z]);
-                if nn.distance > AGREE_MM * AGREE_MM {
-                    continue;
-                }
-                let i = nn.item as usize;
-                sum2 += (q - dst.points[i]).dot(&dst.normals[i]).powi(2);
-                pairs += 1;
-            }
-        }
-    }
-    (pairs > 0).then(|| (sum2 / pairs as f64).sqrt())
+    let clear: Vec<Cloud> = views.iter().map(clear_cloud).collect();
+    let clouds: Vec<&Cloud> = clear.iter().collect();
+    let poses: Vec<Isometry3<f64>> = results.iter().map(|r| r.pose).collect();
+    crate::refine::disagreement(&clouds, &poses)
 }
 
 /// The sheet thickness where the views agree best, from `tried` (σ ascending, with the views'
@@ -1187,8 +1165,13 @@ pub fn report(views: &[View], results: &[ViewResult]) -> String {
         .filter_map(|(k, r)| r.turn_deg.map(|a| format!("view {k} {a:.2}°")))
         .collect();
     if !turned.is_empty() {
+        let how = if results.iter().any(|r| r.on_turntable) {
+            "--turntable"
+        } else {
+            "found: the views are turns about one axis"
+        };
         s += &format!(
-            "turntable (--turntable): refined as turns about one axis: {}\n",
+            "turntable ({how}): refined as turns about one axis: {}\n",
             turned.join(", ")
         );
     }
