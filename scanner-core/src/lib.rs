@@ -26,6 +26,16 @@
 //! stays small, a Cortex-M4F has only a single-precision FPU, and `f32` keeps about 2e-6 relative
 //! on exact data (property tests), i.e. 2 µm at 1 m, far below the stripe noise (~0.1 px ≈ 70 µm at
 //! 1 m with f = 1400 px) and the 0.01 mm wire quantum.
+//!
+//! # Layers
+//! Each module uses only modules on its own line or below (`tests/tests/layers.rs` checks it):
+//! ```text
+//! pipeline
+//! wire   calib   stripe
+//! geometry       colour
+//! camera
+//! config  error  real  link_spec
+//! ```
 #![no_std]
 #![deny(missing_docs)]
 #![deny(unsafe_code)]

@@ -10,6 +10,14 @@
 //! The arrows run one way: `cli` → `session` → `source`, `link` → `scanner-core`; `cli` →
 //! `scanner-calib` (and `scanner-rig` with the feature). Nothing here is imported by the crates
 //! it uses.
+//!
+//! # Layers
+//! Each module uses only modules on its own line or below (`tests/tests/layers.rs` checks it):
+//! ```text
+//! cli
+//! session
+//! source  link
+//! ```
 #![deny(missing_docs)]
 
 pub use scanner_io::{errln, outln};

@@ -172,7 +172,7 @@ pub fn find_sphere(
     if points.len() < 30 {
         return None;
     }
-    let tree = crate::register::tree(points);
+    let tree = scanner_merge::spatial::tree(points);
     let near = |s: &Sphere, band: f64| -> Vec<usize> {
         let reach = (s.radius + band).powi(2);
         tree.within_unsorted::<SquaredEuclidean>(&s.centre.coords.into(), reach)
@@ -439,27 +439,179 @@ pub fn check(
     })
 }
 
-/// One line of the report: a figure in mm and in % of the distance, against its tolerance.
-fn line(name: &str, mm: f64, distance: f64, tol_pct: f64, signed: bool) -> (String, bool) {
-    let pct = 100.0 * mm / distance;
-    let pass = if signed {
-        pct.abs() <= tol_pct
-    } else {
-        pct <= tol_pct
-    };
-    let tol = if signed {
-        format!("±{tol_pct:.3} %")
-    } else {
-        format!("≤ {tol_pct:.3} %")
-    };
-    (
+/// One figure of the report: in mm and in % of the distance, against its tolerance.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct Figure {
+    /// The figure, mm (signed for a size or spacing error).
+    pub mm: f64,
+    /// The figure, % of the distance from the camera.
+    pub pct: f64,
+    /// The tolerance, % of the distance (± for a signed figure, at most for a range).
+    pub tolerance_pct: f64,
+    /// The tolerance, mm at that distance.
+    pub tolerance_mm: f64,
+    /// Whether the figure is within its tolerance.
+    pub pass: bool,
+}
+
+impl Figure {
+    /// `mm` at `distance` mm from the camera against `tol_pct`, ± when `signed`.
+    fn new(mm: f64, distance: f64, tol_pct: f64, signed: bool) -> Figure {
+        let pct = 100.0 * mm / distance;
+        Figure {
+            mm,
+            pct,
+            tolerance_pct: tol_pct,
+            tolerance_mm: tol_pct / 100.0 * distance,
+            pass: if signed {
+                pct.abs() <= tol_pct
+            } else {
+                pct <= tol_pct
+            },
+        }
+    }
+
+    /// Its line of the report.
+    fn line(&self, name: &str, signed: bool) -> String {
+        let tol = if signed {
+            format!("±{:.3} %", self.tolerance_pct)
+        } else {
+            format!("≤ {:.3} %", self.tolerance_pct)
+        };
         format!(
-            "  {name:<22} {mm:>+9.4} mm  {pct:>+8.4} %  (tolerance {tol} = {:.3} mm)  {}\n",
-            tol_pct / 100.0 * distance,
-            if pass { "pass" } else { "FAIL" }
-        ),
-        pass,
-    )
+            "  {name:<22} {:>+9.4} mm  {:>+8.4} %  (tolerance {tol} = {:.3} mm)  {}\n",
+            self.mm,
+            self.pct,
+            self.tolerance_mm,
+            if self.pass { "pass" } else { "FAIL" }
+        )
+    }
+}
+
+/// One sphere's figures.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct SphereFigures {
+    /// Nominal diameter, mm.
+    pub nominal_mm: f64,
+    /// Measured diameter, mm.
+    pub measured_mm: f64,
+    /// Centre, mm, camera frame.
+    pub centre_mm: [f64; 3],
+    /// Distance of the centre from the camera, mm.
+    pub distance_mm: f64,
+    /// Points used.
+    pub points: usize,
+    /// Points left out as outliers.
+    pub left_out: usize,
+    /// RMS of the radial residuals, mm.
+    pub rms_mm: f64,
+    /// Size error (measured minus nominal diameter).
+    pub size: Figure,
+    /// Form error (range of the radial residuals).
+    pub form: Figure,
+}
+
+/// The two spheres' spacing.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct SpacingFigures {
+    /// Nominal centre spacing, mm.
+    pub nominal_mm: f64,
+    /// Measured, mm.
+    pub measured_mm: f64,
+    /// Measured minus nominal.
+    pub error: Figure,
+}
+
+/// The plane's figures.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct PlaneFigures {
+    /// Points used.
+    pub points: usize,
+    /// Points left out as outliers.
+    pub left_out: usize,
+    /// Distance of its points' centroid from the camera, mm.
+    pub distance_mm: f64,
+    /// RMS of the residuals, mm.
+    pub rms_mm: f64,
+    /// Flatness (range of the residuals).
+    pub flatness: Figure,
+}
+
+/// What a check reports, as data (`check-report.json`).
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct CheckFigures {
+    /// Each sphere, in the order asked.
+    pub spheres: Vec<SphereFigures>,
+    /// The spacing of two spheres.
+    pub spacing: Option<SpacingFigures>,
+    /// The plane.
+    pub plane: Option<PlaneFigures>,
+    /// With the laser sheet's correction: its thickness (σ, mm), the points it moved and all
+    /// points.
+    pub sheet: Option<SheetMoved>,
+    /// Whether every figure passed.
+    pub pass: bool,
+}
+
+/// The points the laser sheet's correction moved before the check.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct SheetMoved {
+    /// The sheet's thickness, mm (σ).
+    pub sigma_mm: f64,
+    /// Points moved.
+    pub moved: u64,
+    /// All points.
+    pub of: u64,
+}
+
+impl CheckFigures {
+    /// The report as text.
+    pub fn text(&self) -> String {
+        let mut s = String::from(
+            "acceptance check after VDI/VDE 2634-2 (0.3 % of the points left out as outliers; % of the distance from the camera)\n",
+        );
+        for (k, r) in self.spheres.iter().enumerate() {
+            let [x, y, z] = r.centre_mm;
+            s += &format!(
+                "sphere {}: nominal ⌀ {:.3} mm, measured ⌀ {:.4} mm, centre ({x:.2}, {y:.2}, {z:.2}) mm, {:.0} mm from the camera, {} points ({} left out), RMS {:.4} mm\n",
+                k + 1,
+                r.nominal_mm,
+                r.measured_mm,
+                r.distance_mm,
+                r.points,
+                r.left_out,
+                r.rms_mm
+            );
+            s += &r.size.line("size error", true);
+            s += &r.form.line("form error", false);
+        }
+        if let Some(sp) = &self.spacing {
+            s += &format!(
+                "spacing: nominal {:.3} mm, measured {:.4} mm\n",
+                sp.nominal_mm, sp.measured_mm
+            );
+            s += &sp.error.line("spacing error", true);
+        }
+        if let Some(p) = &self.plane {
+            s += &format!(
+                "plane: {} points ({} left out), {:.0} mm from the camera, RMS {:.4} mm\n",
+                p.points, p.left_out, p.distance_mm, p.rms_mm
+            );
+            s += &p.flatness.line("flatness", false);
+        }
+        s += if self.pass {
+            "result: PASS\n"
+        } else {
+            "result: FAIL\n"
+        };
+        if let Some(m) = &self.sheet {
+            s += &format!(
+                "laser sheet (--sheet {} mm): {} of {} points moved to where its middle crosses the surface\n",
+                m.sigma_mm, m.moved, m.of
+            );
+        }
+        s
+    }
 }
 
 impl Report {
@@ -471,65 +623,61 @@ impl Report {
         }
     }
 
+    /// The report's figures, each against its tolerance.
+    pub fn figures(&self) -> CheckFigures {
+        let t = &self.tolerances;
+        let spheres: Vec<SphereFigures> = self
+            .spheres
+            .iter()
+            .map(|r| {
+                let c = r.sphere.centre;
+                SphereFigures {
+                    nominal_mm: r.nominal,
+                    measured_mm: 2.0 * r.sphere.radius,
+                    centre_mm: [c.x, c.y, c.z],
+                    distance_mm: r.distance(),
+                    points: r.form.points,
+                    left_out: r.form.left_out,
+                    rms_mm: r.form.rms,
+                    size: Figure::new(r.size_error(), r.distance(), t.size_pct, true),
+                    form: Figure::new(r.form.range(), r.distance(), t.form_pct, false),
+                }
+            })
+            .collect();
+        let spacing = match (self.spacing, self.measured_spacing()) {
+            (Some(nominal_mm), Some(measured_mm)) => {
+                let d = 0.5 * (self.spheres[0].distance() + self.spheres[1].distance());
+                Some(SpacingFigures {
+                    nominal_mm,
+                    measured_mm,
+                    error: Figure::new(measured_mm - nominal_mm, d, t.size_pct, true),
+                })
+            }
+            _ => None,
+        };
+        let plane = self.plane.as_ref().map(|p| PlaneFigures {
+            points: p.flatness.points,
+            left_out: p.flatness.left_out,
+            distance_mm: p.distance,
+            rms_mm: p.flatness.rms,
+            flatness: Figure::new(p.flatness.range(), p.distance, t.flatness_pct, false),
+        });
+        let pass = spheres.iter().all(|s| s.size.pass && s.form.pass)
+            && spacing.as_ref().is_none_or(|s| s.error.pass)
+            && plane.as_ref().is_none_or(|p| p.flatness.pass);
+        CheckFigures {
+            spheres,
+            spacing,
+            plane,
+            sheet: None,
+            pass,
+        }
+    }
+
     /// The report as text, and whether every figure passed.
     pub fn text(&self) -> (String, bool) {
-        let t = &self.tolerances;
-        let mut s = String::from(
-            "acceptance check after VDI/VDE 2634-2 (0.3 % of the points left out as outliers; % of the distance from the camera)\n",
-        );
-        let mut all = true;
-        for (k, r) in self.spheres.iter().enumerate() {
-            let c = r.sphere.centre;
-            s += &format!(
-                "sphere {}: nominal ⌀ {:.3} mm, measured ⌀ {:.4} mm, centre ({:.2}, {:.2}, {:.2}) mm, {:.0} mm from the camera, {} points ({} left out), RMS {:.4} mm\n",
-                k + 1,
-                r.nominal,
-                2.0 * r.sphere.radius,
-                c.x,
-                c.y,
-                c.z,
-                r.distance(),
-                r.form.points,
-                r.form.left_out,
-                r.form.rms
-            );
-            for (name, mm, tol, signed) in [
-                ("size error", r.size_error(), t.size_pct, true),
-                ("form error", r.form.range(), t.form_pct, false),
-            ] {
-                let (l, pass) = line(name, mm, r.distance(), tol, signed);
-                s += &l;
-                all &= pass;
-            }
-        }
-        if let (Some(nominal), Some(found)) = (self.spacing, self.measured_spacing()) {
-            let d = 0.5 * (self.spheres[0].distance() + self.spheres[1].distance());
-            s += &format!("spacing: nominal {nominal:.3} mm, measured {found:.4} mm\n");
-            let (l, pass) = line("spacing error", found - nominal, d, t.size_pct, true);
-            s += &l;
-            all &= pass;
-        }
-        if let Some(p) = &self.plane {
-            s += &format!(
-                "plane: {} points ({} left out), {:.0} mm from the camera, RMS {:.4} mm\n",
-                p.flatness.points, p.flatness.left_out, p.distance, p.flatness.rms
-            );
-            let (l, pass) = line(
-                "flatness",
-                p.flatness.range(),
-                p.distance,
-                t.flatness_pct,
-                false,
-            );
-            s += &l;
-            all &= pass;
-        }
-        s += if all {
-            "result: PASS\n"
-        } else {
-            "result: FAIL\n"
-        };
-        (s, all)
+        let f = self.figures();
+        (f.text(), f.pass)
     }
 
     /// Each checked feature (the spheres, then the plane) as its points with their residuals,

@@ -1,41 +1,46 @@
 //! `scanner-host`: the PC companion of the scanner head. Reads point packets from a serial port,
-//! a recording or stdin, collects them into the structured grid and writes meshes and pictures.
+//! a recording or stdin, collects them into the structured grid and writes meshes and pictures;
+//! reads several scans of one object as views for the 360° merge (`scanner-merge`).
 //!
 //! Where it sits: `head ─► [scanner-host: link → decoder → journal → grid → mesh → exports] ─►
-//! files`. It depends on `scanner-core` alone (the wire format and the camera model):
+//! files`. It depends on `scanner-core` (the wire format and the camera model) and
+//! `scanner-merge` (the 360° merge, and its spatial search for the sheet's correction and the
+//! check). The command line is the `scanner-host` binary (`scanner-host/cli`): this library has
+//! no argument parsing, progress bars or signal handlers.
 //! - [`link`]: where the bytes come from (serial, pseudo-terminal, file, stdin);
 //! - [`collect`]: the streaming decoder and the grid filling, with the [`journal`];
 //! - [`grid`]: the 2-D structured grid with robust cells;
+//! - [`sheet`]: the laser sheet's correction of each frame's points;
 //! - [`mesh`]: triangles from neighbouring cells;
-//! - [`export`] and [`outputs`]: OBJ, PLY, STL, depth and preview pictures, the summary, written
-//!   atomically;
-//! - [`register`], [`refine`], [`merge`], [`fuse`] and [`winding`]: several views of one object
-//!   registered into one frame and fused into one mesh (`merge`);
+//! - [`export`] and [`outputs`]: OBJ, PLY, STL, 3MF, depth and preview pictures, the summary
+//!   (text and JSON), written atomically;
+//! - [`views`]: scans read as views for the 360° merge, and the merge of view folders;
 //! - [`check`]: the acceptance check on a known artefact (spheres, a plane);
-//! - [`live`]: the live view in a web browser (`receive --view`);
-//! - [`cli`]: the command line (the only place `anyhow` is used).
+//! - [`live`]: the live view in a web browser (`receive --view`).
+//!
+//! # Layers
+//! Each module uses only modules on its own line or below (`tests/tests/layers.rs` checks it):
+//! ```text
+//! views  live  check
+//! outputs
+//! collect  export
+//! mesh  journal  sheet
+//! grid  link
+//! ```
 #![deny(missing_docs)]
 
 pub use scanner_io::{errln, outln};
 
 pub mod check;
-pub mod cli;
 pub mod collect;
 pub mod export;
-pub mod fuse;
 pub mod grid;
 pub mod journal;
 pub mod link;
 pub mod live;
-pub mod merge;
 pub mod mesh;
 pub mod outputs;
-pub mod refine;
-pub mod register;
-pub mod seen;
-pub mod select;
 pub mod sheet;
-pub mod winding;
+pub mod views;
 
-pub use cli::{Args, Command, OutputArgs, run};
 pub use outputs::{FrameChoice, OutputOptions, Summary, replay_into, write_outputs};

@@ -57,11 +57,8 @@ impl MeshFrame {
     /// The board frame of `board` (see [`MeshFrame::Board`]).
     pub fn board(board: &Board<f32>) -> MeshFrame {
         let crease = board.crease();
-        let mut down = crease.direction().normalize();
-        if down.y < 0.0 {
-            down = -down;
-        }
-        let up = -down;
+        let up = board.up();
+        let down = -up;
         // The normals face the camera: their sum points from the crease towards it.
         let towards = board.left().normal() + board.right().normal();
         // Made exactly perpendicular to the crease.
@@ -105,6 +102,20 @@ impl MeshFrame {
                 o.y,
                 o.z
             ),
+        }
+    }
+}
+
+impl From<scanner_merge::Model> for Mesh {
+    /// The merge's model as a mesh in the camera's frame (view 0's), without grid cells or
+    /// uncertainties.
+    fn from(m: scanner_merge::Model) -> Mesh {
+        Mesh {
+            vertices: m.vertices,
+            normals: m.normals,
+            colours: m.colours,
+            faces: m.faces,
+            ..Mesh::default()
         }
     }
 }

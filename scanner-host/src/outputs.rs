@@ -155,19 +155,181 @@ impl Summary {
     }
 }
 
+/// A summary as data (`summary.json`): the figures [`Summary::text`] tells, field for field.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct SummaryData {
+    /// Frames decoded.
+    pub frames: u64,
+    /// Point packets received.
+    pub point_packets: u64,
+    /// Headers received.
+    pub headers: u64,
+    /// Scan ids seen.
+    pub scans: Vec<u32>,
+    /// Points received.
+    pub points: u64,
+    /// Points in the grid.
+    pub gridded: u64,
+    /// Samples the grid rejected as outliers.
+    pub outliers: u64,
+    /// Mesh vertices.
+    pub vertices: usize,
+    /// Mesh faces.
+    pub faces: usize,
+    /// Filled cells over all cells of the grid (0–1).
+    pub coverage: f64,
+    /// Points per second of capture time.
+    pub points_per_second: f64,
+    /// What the link lost.
+    pub link: LinkData,
+    /// Scans left out of the grid (another image size or camera than the first).
+    pub other_camera_scans: Vec<u32>,
+    /// Their points.
+    pub other_camera_points: u64,
+    /// Each scan's camera controls, one entry per scan and control.
+    pub controls: Vec<ControlData>,
+    /// The meshes' frame, described.
+    pub frame: String,
+    /// The vertices' standard uncertainty, mm: median (`None`: the points carried none).
+    pub uncertainty_median_mm: Option<f32>,
+    /// …and 95th percentile.
+    pub uncertainty_p95_mm: Option<f32>,
+    /// Points moved by the laser sheet's correction (`--sheet`).
+    pub sheet_moved: Option<u64>,
+    /// Frames the head skipped, by reason (reasons with none left out).
+    pub skipped: Vec<SkippedData>,
+}
+
+/// One camera control of one scan, as its head reported it.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct ControlData {
+    /// The scan.
+    pub scan: u32,
+    /// The control (`exposure`, `white balance`, `gain`, `focus`, `power line`).
+    pub control: &'static str,
+    /// `no_camera`, `not_offered`, `set` or `refused`.
+    pub state: &'static str,
+    /// With `set`: the value (V4L2's).
+    pub value: Option<i32>,
+}
+
+/// Frames the head skipped for one reason.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct SkippedData {
+    /// The reason, as the head names it.
+    pub reason: &'static str,
+    /// Frames.
+    pub frames: u64,
+}
+
+/// What the link lost, counted.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct LinkData {
+    /// Bytes read.
+    pub bytes: u64,
+    /// Frames rejected for a bad CRC.
+    pub bad_crc: u64,
+    /// …bad COBS framing.
+    pub bad_cobs: u64,
+    /// …an unknown wire version.
+    pub bad_version: u64,
+    /// …a payload that is no message.
+    pub bad_payload: u64,
+    /// …longer than the largest frame.
+    pub oversize: u64,
+    /// …too short.
+    pub truncated: u64,
+    /// Point packets whose points did not decode.
+    pub bad_points: u64,
+    /// Packets dropped without a header.
+    pub no_header: u64,
+    /// Packets received twice.
+    pub duplicates: u64,
+}
+
+impl Summary {
+    /// The summary as data.
+    pub fn data(&self) -> SummaryData {
+        let c = &self.counts;
+        let d = &c.decode;
+        let skipped = c.skipped();
+        SummaryData {
+            frames: d.frames,
+            point_packets: c.packets,
+            headers: c.headers,
+            scans: c.scans.iter().copied().collect(),
+            points: c.points,
+            gridded: c.gridded,
+            outliers: self.outliers,
+            vertices: self.vertices,
+            faces: self.faces,
+            coverage: self.coverage,
+            points_per_second: self.point_rate,
+            link: LinkData {
+                bytes: d.bytes,
+                bad_crc: d.bad_crc,
+                bad_cobs: d.bad_cobs,
+                bad_version: d.bad_version,
+                bad_payload: d.bad_payload,
+                oversize: d.oversize,
+                truncated: d.truncated,
+                bad_points: c.bad_points,
+                no_header: c.no_header,
+                duplicates: c.duplicates,
+            },
+            other_camera_scans: c.other_camera.iter().copied().collect(),
+            other_camera_points: c.other_camera_points,
+            controls: c
+                .controls
+                .iter()
+                .flat_map(|(&scan, k)| {
+                    k.named().map(|(control, c)| {
+                        let (state, value) = match c {
+                            Control::NoCamera => ("no_camera", None),
+                            Control::NotOffered => ("not_offered", None),
+                            Control::Set(v) => ("set", Some(v)),
+                            Control::Refused => ("refused", None),
+                        };
+                        ControlData {
+                            scan,
+                            control,
+                            state,
+                            value,
+                        }
+                    })
+                })
+                .collect(),
+            frame: self.frame.clone(),
+            uncertainty_median_mm: self.uncertainty.map(|u| u.0),
+            uncertainty_p95_mm: self.uncertainty.map(|u| u.1),
+            sheet_moved: self.sheet_moved,
+            skipped: Skip::ALL
+                .iter()
+                .filter(|&&r| skipped[r as usize] > 0)
+                .map(|&r| SkippedData {
+                    reason: r.name(),
+                    frames: skipped[r as usize],
+                })
+                .collect(),
+        }
+    }
+}
+
 /// The files [`write_outputs`] makes, `summary.txt` last (also what the live view offers for
 /// download when a receive ends).
-pub const OUTPUT_FILES: [&str; 6] = [
+pub const OUTPUT_FILES: [&str; 7] = [
     "scan.obj",
     "scan.ply",
     "scan.stl",
     "depth.png",
     "preview.png",
+    "summary.json",
     "summary.txt",
 ];
 
 /// Which frame the meshes are written in.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, clap::ValueEnum)]
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "snake_case")]
 pub enum FrameChoice {
     /// The board's, y up: the right way up in MeshLab, Blender, CloudCompare (default).
     #[default]
@@ -219,6 +381,13 @@ pub fn write_outputs(
         for f in OUTPUT_FILES {
             let _ = std::fs::remove_file(dir.join(f));
         }
+        let failed = serde_json::json!({
+            "error": e.to_string(),
+            "bytes": counts.decode.bytes,
+            "frames": counts.decode.frames,
+            "rejected": counts.decode.rejected(),
+        });
+        export::write_atomic(&dir.join("summary.json"), failed.to_string().as_bytes())?;
         export::write_atomic(&dir.join("summary.txt"), e.to_string().as_bytes())?;
         return Err(e);
     };
@@ -258,6 +427,11 @@ pub fn write_outputs(
         uncertainty: quantiles(&m.quality),
         sheet_moved: c.sheet_corrected(),
     };
+    let json = serde_json::to_vec_pretty(&summary.data()).map_err(|e| ExportError::Write {
+        path: dir.join("summary.json"),
+        source: std::io::Error::other(e),
+    })?;
+    export::write_atomic(&dir.join("summary.json"), &json)?;
     export::write_atomic(&dir.join("summary.txt"), summary.text().as_bytes())?;
     Ok(summary)
 }

@@ -21,6 +21,27 @@
 use kiddo::{KdTree, SquaredEuclidean};
 use scanner_core::nalgebra::{Matrix3, Matrix6, Point3, Vector3, Vector6};
 
+/// The thickest laser sheet the correction takes, mm (σ; a line 12 mm wide at half its
+/// brightness, far thicker than any line laser meant for scanning).
+pub const MAX_SIGMA_MM: f64 = 5.0;
+
+/// A laser sheet's thickness out of range.
+#[derive(Debug, Clone, Copy, PartialEq, thiserror::Error)]
+#[error("--sheet must be 0 (off) to {MAX_SIGMA_MM} mm, found {0}")]
+pub struct ThicknessError(pub f64);
+
+/// Refuses a thickness that is no sheet's: 0 (no correction) to [`MAX_SIGMA_MM`].
+///
+/// # Errors
+/// [`ThicknessError`] naming the value.
+pub fn check_thickness(mm: f64) -> Result<(), ThicknessError> {
+    if (0.0..=MAX_SIGMA_MM).contains(&mm) {
+        Ok(())
+    } else {
+        Err(ThicknessError(mm))
+    }
+}
+
 /// Least neighbours a local fit needs (six unknowns).
 pub const MIN_NEIGHBOURS: usize = 10;
 
@@ -278,7 +299,7 @@ impl Correction {
         sigma_mm: f64,
         source: Option<Point3<f64>>,
     ) -> Correction {
-        let tree = crate::register::tree(points);
+        let tree = scanner_merge::spatial::tree(points);
         let fits = points
             .iter()
             .zip(normals)

@@ -3,7 +3,7 @@
 //! `scripts/scan-rig-360 OUT` wrote (its views `view0`, `view1`, … scanned at 1280×960 with a
 //! calibration from images) and SCENE the scene they were scanned from (default
 //! `scanner-device/scenes/bunny-360.toml`). The views are merged as `scripts/scan-rig-360` merges
-//! them (the library calls `scanner-host merge` makes) and measured:
+//! them (`scanner_merge::run`, as `scanner-host merge` calls it) and measured:
 //! - every view's points against the true surface (placed by the view's true pose), those clear
 //!   of the view's edges and those on them apart (what the merge registers on, what it only
 //!   fills in with);
@@ -27,8 +27,20 @@
 use std::path::{Path, PathBuf};
 
 use scanner_core::nalgebra::{Isometry3, Point3};
-use scanner_host::merge;
+use scanner_merge::{MergeOptions, Progress, Registered, Stage};
 use scanner_rig::{Scene, Shape, compare};
+
+/// Keeps the points the fusion takes (the registered views, less the isolated and the
+/// contradicted points), which tell the surface the views saw.
+#[derive(Default)]
+struct Fused(Vec<Point3<f64>>);
+
+impl Progress for Fused {
+    fn stage(&mut self, _: Stage) {}
+    fn registered(&mut self, r: &Registered<'_>) {
+        self.0 = r.fused.to_vec();
+    }
+}
 
 /// The surface within this distance of a registered point counts as seen, mm.
 const SEEN_MM: f64 = 1.5;
@@ -83,7 +95,7 @@ fn run() -> Result<(), String> {
     let mut views = Vec::new();
     for k in 0..n {
         views.push(
-            merge::load_view(k, &out.join(format!("view{k}")), cell, sheet_mm)
+            scanner_host::views::load_view(k, &out.join(format!("view{k}")), cell, sheet_mm)
                 .map_err(|e| format!("{e}"))?,
         );
     }
@@ -96,22 +108,18 @@ fn run() -> Result<(), String> {
         }
     }
     // As scripts/scan-rig-360 merges: 30 % overlap asked, the defaults otherwise.
-    let opts = scanner_host::register::RegisterOptions {
-        voxel_mm: merge::VOXEL_MM,
+    let opts = MergeOptions {
         min_overlap: 0.3,
-        ..Default::default()
+        turntable_deg: turntable,
+        ..MergeOptions::default()
     };
-    let mut results =
-        merge::register_views(&views, &opts, turntable, |_, _| {}).map_err(|e| format!("{e}"))?;
-    let closure = merge::refine_views(&views, &mut results, &opts, |_| {});
-    let input = merge::fusion_input(&views, &results);
-    let fused = merge::fuse_views(
-        &input,
-        merge::FUSE_CELL_MM,
-        merge::Closing::Smooth,
-        |_, _| {},
-    )
-    .map_err(|e| format!("{e}"))?;
+    let mut input = Fused::default();
+    let merged = scanner_merge::run(&views, &opts, &mut input).map_err(|e| format!("{e}"))?;
+    let fusion = merged
+        .report
+        .fusion
+        .clone()
+        .ok_or("the merge made no model")?;
     let seconds = t0.elapsed().as_secs_f64();
     let distance = scene.board.distance;
     let pct = |mm: f64| 100.0 * mm / distance;
@@ -137,8 +145,9 @@ fn run() -> Result<(), String> {
     for (k, v) in views.iter().enumerate() {
         let placed = placed(&scene, k)?;
         let mut parts = [Vec::new(), Vec::new()];
+        // Clear of the edges: at least half the grid cells averaged into the point are.
         for (p, c) in v.cloud.points.iter().zip(&v.clear) {
-            parts[usize::from(*c < merge::CLEAR)].push(placed.distance(p));
+            parts[usize::from(*c < 0.5)].push(placed.distance(p));
         }
         let cols: Vec<String> = parts
             .iter_mut()
@@ -162,8 +171,7 @@ fn run() -> Result<(), String> {
     let surface = surface_cloud(&truth);
     let mut alone = Vec::with_capacity(n);
     for (k, v) in views.iter().enumerate() {
-        let fit =
-            scanner_host::register::icp(&merge::clear_cloud(v), &surface, true_pose(k)?, 2.0, 40);
+        let fit = scanner_merge::register::icp(&v.clear_cloud(), &surface, true_pose(k)?, 2.0, 40);
         alone.push(fit.pose);
     }
     let turn = |e: &Isometry3<f64>| {
@@ -185,8 +193,8 @@ fn run() -> Result<(), String> {
         "view | points | pose error: rotation (about x, y, z), centre displaced | its points alone fitted onto the truth"
     );
     let (mut worst_rot, mut worst_move, mut worst_alone) = (0.0f64, 0.0f64, 0.0f64);
-    for (k, r) in results.iter().enumerate() {
-        let (rot, moved, err) = turn(&(r.pose * true_pose(k)?.inverse()));
+    for (k, (pose, r)) in merged.poses.iter().zip(&merged.report.views).enumerate() {
+        let (rot, moved, err) = turn(&(pose * true_pose(k)?.inverse()));
         let (rot_alone, _, fit) = turn(&(alone[k] * true_pose(k)?.inverse()));
         worst_rot = worst_rot.max(rot);
         worst_move = worst_move.max(moved);
@@ -200,7 +208,11 @@ fn run() -> Result<(), String> {
     println!(
         "each view's points alone, fitted onto the truth, turn it by up to {worst_alone:.4}° off its true pose (what the points themselves allow)"
     );
-    print!("{}", merge::closure_line(&closure));
+    let c = &merged.report.closure;
+    println!(
+        "loop closure ({} pairs): {:?} before the joint refinement, {:?} after",
+        c.pairs, c.before, c.after
+    );
 
     // Model → truth over the seen faces; truth → model over the true surface the views saw.
     // "Seen": within SEEN_MM of a registered point (the points lie about 1 mm apart), and, as a
@@ -208,16 +220,16 @@ fn run() -> Result<(), String> {
     // closing patches along the gaps' rims.
     println!(
         "surface no view saw: {:.1} % of the model's area (closed by the winding number)",
-        100.0 * fused.unseen_share
+        100.0 * fusion.unseen_share
     );
-    let model = &fused.model;
+    let model = &merged.model;
     let model_tris: Vec<[Point3<f64>; 3]> = model
         .faces
         .iter()
         .map(|f| f.map(|i| model.vertices[i as usize].cast()))
         .collect();
-    for reach in [SEEN_MM, merge::UNSEEN_CELLS * merge::FUSE_CELL_MM] {
-        let seen = compare::Seen::new(&input.points, reach);
+    for reach in [SEEN_MM, fusion.unseen_reach_mm] {
+        let seen = compare::Seen::new(&input.0, reach);
         let c = compare::compare(&model_tris, &truth, &seen, 0.5);
         let line = |name: &str, d: &compare::Distances| {
             println!(
@@ -242,7 +254,7 @@ fn run() -> Result<(), String> {
     // Which way the model is off: the area-weighted mean of its faces' signed distances from
     // the truth (positive outside), over the seen faces and over the others.
     let mut signed = [(0.0, 0.0); 2];
-    let seen = compare::Seen::new(&input.points, SEEN_MM);
+    let seen = compare::Seen::new(&input.0, SEEN_MM);
     for t in &model_tris {
         let c = Point3::from((t[0].coords + t[1].coords + t[2].coords) / 3.0);
         let n = (t[1] - t[0]).cross(&(t[2] - t[0]));
@@ -264,7 +276,7 @@ fn run() -> Result<(), String> {
         a,
         b
     );
-    let c = scanner_host::fuse::check(model);
+    let c = fusion.check;
     let true_volume = compare::volume(truth.triangles());
     println!(
         "mesh: {} vertices, {} faces; open edges {}, non-manifold vertices {}, components {}; volume {:.0} mm³ against {true_volume:.0} mm³ true ({:+.2} %, target ±0.5 %)",
@@ -295,9 +307,9 @@ fn placed(scene: &Scene, k: usize) -> Result<std::sync::Arc<scanner_rig::mesh::M
 
 /// Points with normals over the true surface: every face sampled on a triangular lattice (45
 /// points a face, about 0.5 mm apart on the bunny), for fitting views onto it.
-fn surface_cloud(truth: &scanner_rig::mesh::Mesh) -> scanner_host::register::Cloud {
+fn surface_cloud(truth: &scanner_rig::mesh::Mesh) -> scanner_merge::spatial::Cloud {
     const M: usize = 8;
-    let mut c = scanner_host::register::Cloud::default();
+    let mut c = scanner_merge::spatial::Cloud::default();
     for t in truth.triangles() {
         let n = (t[1] - t[0]).cross(&(t[2] - t[0]));
         if n.norm() <= 0.0 {

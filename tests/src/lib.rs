@@ -35,6 +35,31 @@ pub fn check_cli(exe: &str, name: &str) {
     assert!(err.contains("--no-such-flag"), "{err}");
 }
 
+/// The summary (`summary.json`) a receive or a replay wrote into `dir`.
+///
+/// # Panics
+/// When it is missing or no JSON: this is a test helper.
+pub fn summary(dir: &std::path::Path) -> serde_json::Value {
+    let path = dir.join("summary.json");
+    let text = std::fs::read_to_string(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    serde_json::from_str(&text).unwrap_or_else(|e| panic!("{}: {e}", path.display()))
+}
+
+/// Frames the link rejected or lost, by kind, from a summary ([`summary`]): every count of its
+/// `link` that is not 0.
+///
+/// # Panics
+/// When the summary has no link counts: this is a test helper.
+pub fn link_losses(summary: &serde_json::Value) -> Vec<(String, u64)> {
+    summary["link"]
+        .as_object()
+        .expect("the link's counts")
+        .iter()
+        .filter(|(k, _)| *k != "bytes")
+        .filter_map(|(k, v)| v.as_u64().filter(|&n| n > 0).map(|n| (k.clone(), n)))
+        .collect()
+}
+
 /// Runs a binary with arguments: (success, stdout, stderr).
 ///
 /// # Panics

@@ -123,7 +123,8 @@ fn a_sphere_a_box_and_a_mesh_over_a_serial_link() {
         "{}",
         String::from_utf8_lossy(&res.stderr)
     );
-    assert!(text.contains("0 bad CRC, 0 bad COBS"), "{text}");
+    let losses = scanner_tests::link_losses(&scanner_tests::summary(&out));
+    assert!(losses.is_empty(), "{losses:?}\n{text}");
     // Vertices against the true surfaces (sphere, box, bunny mesh, board).
     let rig =
         scanner_rig::Rig::new(scanner_device::cli::render::load_scene(Some(&scene_path)).unwrap())

@@ -18,21 +18,15 @@ const SCENE: &str = "width = 800\nheight = 600\n\n[laser]\nframes = 240\n\n\
     [[objects]]\nshape = \"sphere\"\ncentre = [-60.0, 20.0, 560.0]\nradius = 20.0\n\n\
     [[objects]]\nshape = \"sphere\"\ncentre = [60.0, 20.0, 570.0]\nradius = 20.0\n";
 
-/// A figure of the report: the number after `label` on the line that holds it.
-fn figure(report: &str, line_has: &str, label: &str) -> f64 {
-    let line = report
-        .lines()
-        .find(|l| l.contains(line_has))
-        .unwrap_or_else(|| panic!("no line with {line_has:?} in\n{report}"));
-    line.split(label)
-        .nth(1)
-        .unwrap()
-        .split_whitespace()
-        .next()
-        .unwrap()
-        .trim_end_matches(',')
-        .parse()
-        .unwrap()
+/// The check report a check wrote into `dir`.
+fn report(dir: &Path) -> serde_json::Value {
+    let text = std::fs::read_to_string(dir.join("check-report.json")).unwrap();
+    serde_json::from_str(&text).unwrap()
+}
+
+/// A number of a report.
+fn num(v: &serde_json::Value) -> f64 {
+    v.as_f64().unwrap_or_else(|| panic!("not a number: {v}"))
 }
 
 #[test]
@@ -78,7 +72,8 @@ fn a_two_sphere_bar_and_the_board_are_checked_against_the_truth() {
     );
     assert!(ok, "{out}\n{err}");
     println!("{out}");
-    assert!(out.contains("result: PASS"));
+    let loose = report(&d.join("loose"));
+    assert_eq!(loose["pass"], true, "{loose}");
     assert_eq!(
         std::fs::read_to_string(d.join("loose/check-report.txt"))
             .unwrap()
@@ -126,17 +121,13 @@ fn a_two_sphere_bar_and_the_board_are_checked_against_the_truth() {
         .collect();
     for k in 1..=2 {
         let which = format!("sphere {k}:");
-        let measured = figure(&out, &which, "measured ⌀");
-        let line = out.lines().find(|l| l.contains(&which)).unwrap();
-        let c: Vec<f64> = line
-            .split("centre (")
-            .nth(1)
+        let sphere = &loose["spheres"][k - 1];
+        let measured = num(&sphere["measured_mm"]);
+        let c: Vec<f64> = sphere["centre_mm"]
+            .as_array()
             .unwrap()
-            .split(')')
-            .next()
-            .unwrap()
-            .split(',')
-            .map(|v| v.trim().parse().unwrap())
+            .iter()
+            .map(num)
             .collect();
         let found = Point3::new(c[0], c[1], c[2]);
         let truth = if (found - a).norm() < (found - b).norm() {
@@ -165,7 +156,7 @@ fn a_two_sphere_bar_and_the_board_are_checked_against_the_truth() {
         );
         assert!((measured - 40.0).abs() < 0.8, "{which} ⌀ {measured}");
     }
-    let found = figure(&out, "spacing: nominal", "measured");
+    let found = num(&loose["spacing"]["measured_mm"]);
     assert!(
         (found - spacing).abs() < 0.2,
         "spacing {found} vs true {spacing:.4}"
@@ -181,13 +172,24 @@ fn a_two_sphere_bar_and_the_board_are_checked_against_the_truth() {
         ],
     );
     println!("{out}");
-    let fails = out.lines().filter(|l| l.ends_with("FAIL")).count();
+    let strict = report(&d.join("strict"));
+    let sphere = &strict["spheres"][0];
+    let figures = [
+        &sphere["size"],
+        &sphere["form"],
+        &strict["plane"]["flatness"],
+    ];
+    let fails = figures.iter().filter(|f| f["pass"] == false).count();
     assert_eq!(ok, fails == 0, "{out}\n{err}");
-    if !ok {
-        assert!(
-            out.contains("result: FAIL") && err.contains("the check failed"),
-            "{err}"
-        );
+    assert_eq!(strict["pass"], ok, "{strict}");
+    // each figure against its tolerance, in % of the distance
+    for f in figures {
+        let within = if f == &sphere["size"] {
+            num(&f["pct"]).abs() <= num(&f["tolerance_pct"])
+        } else {
+            num(&f["pct"]) <= num(&f["tolerance_pct"])
+        };
+        assert_eq!(f["pass"], within, "{f}");
     }
     // A wrong nominal diameter (a 40 mm ball called 38) fails by name.
     let (ok, out, err) = run(
@@ -206,8 +208,9 @@ fn a_two_sphere_bar_and_the_board_are_checked_against_the_truth() {
             "wrong",
         ],
     );
+    let wrong = report(&d.join("wrong"));
     assert!(
-        !ok && out.contains("size error") && out.contains("FAIL"),
+        !ok && wrong["spheres"][0]["size"]["pass"] == false && wrong["pass"] == false,
         "{out}\n{err}"
     );
 

@@ -216,20 +216,14 @@ fn the_page_shows_the_scan_as_it_streams_then_offers_the_mesh() {
     );
     let downloads = b.eval("Number(document.body.dataset.downloads)");
     assert_eq!(
-        downloads, 6,
-        "scan.obj/ply/stl, depth.png, preview.png, summary.txt offered"
+        downloads, 7,
+        "scan.obj/ply/stl, depth.png, preview.png, summary.json and .txt offered"
     );
     let received = b
         .eval("Number(document.body.dataset.points)")
         .as_u64()
         .unwrap();
-    let summary = std::fs::read_to_string(live.join("summary.txt")).unwrap();
-    let sent: u64 = summary
-        .split("points ")
-        .nth(1)
-        .and_then(|s| s.split_whitespace().next())
-        .and_then(|s| s.parse().ok())
-        .unwrap();
+    let sent = scanner_tests::summary(&live)["points"].as_u64().unwrap();
     assert_eq!(
         received, sent,
         "every point reached the page ({points_mid} of them mid-scan)"

@@ -220,11 +220,10 @@ fn the_pi_guide_and_the_build_section_run_as_written() {
         String::from_utf8_lossy(&host.stderr),
         String::from_utf8_lossy(&device.stderr)
     );
-    assert!(summary.contains("(40 point packets"), "{summary}");
-    assert!(
-        summary.contains("0 bad CRC, 0 bad COBS, 0 unknown version, 0 bad payload"),
-        "{summary}"
-    );
+    let data = scanner_tests::summary(&d.join("scan1"));
+    assert_eq!(data["point_packets"], 40, "{summary}");
+    let losses = scanner_tests::link_losses(&data);
+    assert!(losses.is_empty(), "{losses:?}");
     for f in ["scan.obj", "scan.ply", "journal.stream"] {
         assert!(d.join("scan1").join(f).exists(), "{f}");
     }

@@ -71,7 +71,7 @@ fn the_sheet_correction_moves_a_spheres_points_onto_it() {
     let d = t.path();
     scanner_tests::scan_rig(d, SCENE, &[], "bar.stream");
     // Live: receive corrects this session's frames from its journal at the end.
-    let (ok, out, err) = run(
+    let (ok, _, err) = run(
         d,
         "scanner-host",
         &[
@@ -87,17 +87,16 @@ fn the_sheet_correction_moves_a_spheres_points_onto_it() {
         ],
     );
     assert!(ok, "{err}");
-    let line = out
-        .lines()
-        .find(|l| l.starts_with("laser sheet (--sheet):"))
-        .unwrap_or_else(|| panic!("no sheet line in\n{out}"));
-    let nums: Vec<u64> = line
-        .split_whitespace()
-        .filter_map(|w| w.parse().ok())
-        .collect();
+    let live = scanner_tests::summary(&d.join("live"));
+    let (moved, points) = (
+        live["sheet_moved"]
+            .as_u64()
+            .unwrap_or_else(|| panic!("{live}")),
+        live["points"].as_u64().unwrap(),
+    );
     assert!(
-        nums.len() == 2 && nums[0] * 10 > nums[1] * 8,
-        "most points move: {line}"
+        moved * 10 > points * 8,
+        "most points move: {moved} of {points}"
     );
     // The same from a replay of the journal, and without the correction.
     for (sheet, folder) in [("0.6", "again"), ("0", "plain")] {
@@ -116,11 +115,11 @@ fn the_sheet_correction_moves_a_spheres_points_onto_it() {
                 "-q",
             ],
         );
-        assert!(ok, "{err}");
+        assert!(ok, "{err}\n{out}");
         assert_eq!(
-            out.contains("laser sheet (--sheet):"),
+            scanner_tests::summary(&d.join(folder))["sheet_moved"].is_u64(),
             sheet != "0",
-            "{out}"
+            "{folder}"
         );
     }
     assert_eq!(
@@ -167,7 +166,11 @@ fn the_sheet_correction_moves_a_spheres_points_onto_it() {
         ],
     );
     assert!(ok, "{err}\n{out}");
-    assert!(out.contains("laser sheet (--sheet 0.6 mm):"), "{out}");
+    let checked: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(d.join("chk/check-report.json")).unwrap())
+            .unwrap();
+    assert_eq!(checked["sheet"]["sigma_mm"], 0.6, "{checked}");
+    assert!(checked["sheet"]["moved"].as_u64() > Some(0), "{checked}");
     // Bad values are refused, naming the option.
     for (cmd, v) in [
         ("replay", "9"),

@@ -70,6 +70,13 @@ impl<T: Real> Board<T> {
         &self.crease
     }
 
+    /// Up along the crease, unit: its direction turned to point up the image (−y in camera
+    /// coordinates), since the board stands on the table the objects stand on.
+    pub fn up(&self) -> Vector3<T> {
+        let d = self.crease.direction().normalize();
+        if d.y >= T::zero() { -d } else { d }
+    }
+
     /// The opening angle of the board as built, radians: π/2 for a right-angled corner, π for a
     /// flat wall.
     pub fn angle(&self) -> T {

@@ -12,6 +12,16 @@
 //!   pose (default) and, where the layout is the paper's, by the paper's three-point lines.
 //!
 //! The results go into one calibration file ([`file`](mod@file)) with an annotated picture ([`overlay`]).
+//!
+//! # Layers
+//! Each module uses only modules on its own line or below (`tests/tests/layers.rs` checks it):
+//! ```text
+//! print
+//! overlay
+//! intrinsics  identify  file
+//! corners  lattice  board
+//! detect  blur  text_file  image_file
+//! ```
 #![deny(missing_docs)]
 
 /// A number for a message: as is when short, in scientific notation when it would run to many

@@ -35,6 +35,14 @@
 //!
 //! Scenes can be read from TOML ([`Scene::from_toml`]); `scanner-device render` writes a scene's
 //! frames as PNG files with their ground truth.
+//!
+//! # Layers
+//! Each module uses only modules on its own line or below (`tests/tests/layers.rs` checks it):
+//! ```text
+//! report  file  compare  target
+//! surface
+//! mesh
+//! ```
 
 #![deny(missing_docs)]
 

@@ -8,23 +8,15 @@
 
 use kiddo::{KdTree, SquaredEuclidean};
 use scanner_core::nalgebra::{
-    Isometry3, Matrix3, Matrix6, Point3, Rotation3, SymmetricEigen, Translation3, Unit,
-    UnitQuaternion, Vector3, Vector6,
+    Isometry3, Matrix3, Matrix6, Point3, Rotation3, Translation3, UnitQuaternion, Vector3, Vector6,
 };
+
+use crate::spatial::{Cloud, across, centre, thin, tree, tree_of};
 
 /// Bins per angle feature of a descriptor (three features: 33 values).
 const BINS: usize = 11;
 /// Descriptor length.
-pub const FPFH_LEN: usize = 3 * BINS;
-
-/// Points with unit normals (facing their camera).
-#[derive(Debug, Clone, Default, PartialEq)]
-pub struct Cloud {
-    /// Positions, mm.
-    pub points: Vec<Point3<f64>>,
-    /// Unit normals.
-    pub normals: Vec<Vector3<f64>>,
-}
+const FPFH_LEN: usize = 3 * BINS;
 
 /// Why two views could not be registered.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
@@ -90,75 +82,8 @@ pub struct Registration {
     pub rms_mm: f64,
 }
 
-/// A k-d tree of `points`, items their indices.
-pub(crate) fn tree(points: &[Point3<f64>]) -> KdTree<f64, 3> {
-    tree_of(points.iter().map(|p| [p.x, p.y, p.z]))
-}
-
-/// Copies of one exact point a k-d tree takes: kiddo's leaves hold 32 items and cannot split
-/// identical ones (it panics at the 33rd), and a journal can hold any number of the same point.
-/// A query then finds one of the copies kept, at the same distance.
-const MAX_SAME: usize = 16;
-
-/// A k-d tree of `items`, each under its index, with at most [`MAX_SAME`] copies of any one.
-fn tree_of<A: kiddo::float::kdtree::Axis + Into<f64>, const K: usize>(
-    items: impl Iterator<Item = [A; K]>,
-) -> KdTree<A, K> {
-    let mut t: KdTree<A, K> = KdTree::new();
-    let mut copies: std::collections::HashMap<[u64; K], usize> = std::collections::HashMap::new();
-    for (i, item) in items.enumerate() {
-        let n = copies.entry(item.map(|a| a.into().to_bits())).or_default();
-        if *n < MAX_SAME {
-            *n += 1;
-            t.add(&item, i as u64);
-        }
-    }
-    t
-}
-
-/// Thins a cloud to one point per `voxel` mm cube (the mean of the points and normals in it).
-pub fn thin(c: &Cloud, voxel: f64) -> Cloud {
-    crate::merge::thin_view(c, &[], &[], voxel).0
-}
-
-/// The indices of `points` grouped by the `voxel` mm cube they lie in, cubes in a fixed order.
-pub fn voxel_groups(points: &[Point3<f64>], voxel: f64) -> Vec<Vec<u32>> {
-    let mut cells: std::collections::HashMap<[i64; 3], Vec<u32>> = std::collections::HashMap::new();
-    for (i, p) in points.iter().enumerate() {
-        let key = [p.x, p.y, p.z].map(|v| (v / voxel).floor() as i64);
-        cells.entry(key).or_default().push(i as u32);
-    }
-    let mut keys: Vec<_> = cells.into_iter().collect();
-    keys.sort_by_key(|(k, _)| *k);
-    keys.into_iter().map(|(_, v)| v).collect()
-}
-
-/// Unit normals from the `k` nearest neighbours (the direction of least spread), turned to face
-/// the camera at the origin.
-pub fn normals(points: &[Point3<f64>], k: usize) -> Vec<Vector3<f64>> {
-    let t = tree(points);
-    points
-        .iter()
-        .map(|p| {
-            let nn = t.nearest_n::<SquaredEuclidean>(&[p.x, p.y, p.z], k.max(3));
-            let mean = nn
-                .iter()
-                .fold(Vector3::zeros(), |a, n| a + points[n.item as usize].coords)
-                / nn.len() as f64;
-            let cov = nn.iter().fold(Matrix3::zeros(), |a, n| {
-                let d = points[n.item as usize].coords - mean;
-                a + d * d.transpose()
-            });
-            let e = SymmetricEigen::new(cov);
-            let i = e.eigenvalues.imin();
-            let n: Vector3<f64> = e.eigenvectors.column(i).into_owned();
-            if n.dot(&p.coords) > 0.0 { -n } else { n }
-        })
-        .collect()
-}
-
 /// The FPFH descriptor of every point within `radius` mm.
-pub fn fpfh(c: &Cloud, radius: f64) -> Vec<[f32; FPFH_LEN]> {
+fn fpfh(c: &Cloud, radius: f64) -> Vec<[f32; FPFH_LEN]> {
     let t = tree(&c.points);
     let r2 = radius * radius;
     let neighbours: Vec<Vec<(usize, f64)>> = c
@@ -311,7 +236,7 @@ fn coarse(src: &Cloud, dst: &Cloud, o: &RegisterOptions) -> Vec<(Isometry3<f64>,
 }
 
 /// Source points paired in the fine fit.
-pub const FINE_POINTS: usize = 10_000;
+const FINE_POINTS: usize = 10_000;
 
 /// Coarse hypotheses kept for refinement: a wrong match can outscore the right one on the thinned
 /// clouds (noisy normals blur the descriptors), and the refinement tells them apart.
@@ -407,12 +332,8 @@ pub fn turntable_motions(
     dst: &Cloud,
     angle_deg: f64,
 ) -> [Isometry3<f64>; 2] {
-    use scanner_core::nalgebra::{Translation3, Unit, UnitQuaternion};
-    let axis = Unit::new_normalize(*up);
-    let centroid = |c: &Cloud| {
-        c.points.iter().fold(Vector3::zeros(), |a, p| a + p.coords) / c.points.len().max(1) as f64
-    };
-    let (cs, cd) = (centroid(src), centroid(dst));
+    let axis = scanner_core::nalgebra::Unit::new_normalize(*up);
+    let (cs, cd) = (centre(&src.points).coords, centre(&dst.points).coords);
     let a = angle_deg.to_radians();
     [a, -a].map(|a| {
         let r = UnitQuaternion::from_axis_angle(&axis, a);
@@ -530,15 +451,6 @@ pub fn candidates(
     Ok(out)
 }
 
-/// Two unit directions across `axis`, square to it and to each other.
-pub(crate) fn across(axis: &Unit<Vector3<f64>>) -> (Vector3<f64>, Vector3<f64>) {
-    let e1 = axis
-        .cross(&Vector3::x())
-        .try_normalize(1e-6)
-        .unwrap_or_else(|| axis.cross(&Vector3::y()).normalize());
-    (e1, axis.cross(&e1))
-}
-
 /// `hint` moved across the plane its rotation keeps (perpendicular to the axis; a turn about an
 /// axis of that direction, wherever it stands, moves nothing along it) to where it brings the most
 /// of `src` within 1.5 voxels of `dst`: first a grid of 4 voxels over as far as `src` reaches
@@ -558,12 +470,7 @@ fn place_turn(
     else {
         return *hint;
     };
-    let n = src.points.len().max(1) as f64;
-    let centre = src
-        .points
-        .iter()
-        .fold(Vector3::zeros(), |a, p| a + p.coords)
-        / n;
+    let centre = centre(&src.points).coords;
     let reach = src
         .points
         .iter()

@@ -9,23 +9,23 @@
 //! the others' surface count less (Cauchy's weights on the last round's robust spread of the
 //! residuals). Each view's k-d tree is built once in its own frame; a point is paired in every
 //! other view within the pairing distance. The merge passes the views' points clear of their
-//! edges only ([`crate::merge::clear_cloud`]).
+//! edges only ([`crate::view::View::clear_cloud`]).
 //!
 //! The loop-closure error says how well it worked: a view that also overlaps view 0 directly is
 //! registered onto it by ICP from its pose, and the difference between that direct pose and its
 //! pose through the chain is the error (before and after the refinement).
 
-use kiddo::{KdTree, SquaredEuclidean};
+use kiddo::KdTree;
 use scanner_core::nalgebra::{
     DMatrix, DVector, Isometry3, Matrix3, Matrix6, Point3, Translation3, Unit, UnitQuaternion,
     Vector3, Vector6,
 };
 
-use crate::register::Cloud;
+use crate::spatial::{Cloud, across, nearest_within, tree};
 
 /// At most this many points of a view are paired (evenly spaced; the others' trees hold all
 /// their points), so that a round costs the same for dense and sparse views.
-pub const MAX_POINTS: usize = 4_000;
+const MAX_POINTS: usize = 4_000;
 
 /// Cauchy's scale of the pairs' weights in robust spreads of their residuals: a pair that many
 /// spreads off its partner's surface pulls half as hard as one on it.
@@ -43,7 +43,7 @@ struct Part<'a> {
 
 impl<'a> Part<'a> {
     fn new(cloud: &'a Cloud) -> Part<'a> {
-        let tree = crate::register::tree(&cloud.points);
+        let tree = tree(&cloud.points);
         let step = cloud.points.len().div_ceil(MAX_POINTS).max(1);
         Part {
             cloud,
@@ -72,16 +72,8 @@ fn partner(
     normal: &Vector3<f64>,
     max_dist: f64,
 ) -> Option<(Point3<f64>, Vector3<f64>)> {
-    let local = inverse * q;
-    // Searched within the distance only: most points of a view lie far from most other views,
-    // and an unbounded nearest-point search from far away visits much of the tree.
-    let nn = part.tree.nearest_n_within::<SquaredEuclidean>(
-        &[local.x, local.y, local.z],
-        max_dist * max_dist,
-        std::num::NonZero::<usize>::MIN,
-        false,
-    );
-    let k = nn.first()?.item as usize;
+    // Searched within the distance only: most points of a view lie far from most other views.
+    let (k, _) = nearest_within(&part.tree, &(inverse * q), max_dist)?;
     let n = pose * part.cloud.normals[k];
     // Normals face their cameras, so one surface seen from two views has normals on the same
     // side; a pair across a thin part (the two sides of an ear) has them opposed.
@@ -229,7 +221,7 @@ impl Turns {
 
     /// Two unit directions across the axis.
     fn across(&self) -> (Vector3<f64>, Vector3<f64>) {
-        crate::register::across(&self.axis)
+        across(&self.axis)
     }
 }
 
@@ -503,7 +495,7 @@ fn refine_paired(
 
 /// Without `--turntable`, views count as a turntable's when at least this many besides view 0
 /// are turns about one axis within [`FOUND`] ([`found_turns`]).
-pub const FOUND_MIN_VIEWS: usize = 2;
+const FOUND_MIN_VIEWS: usize = 2;
 
 /// How near the jointly refined poses must come to turns about one axis for [`found_turns`] to
 /// try them, and the turns refined to the free poses to keep them: on the 360° demo's views the
@@ -511,7 +503,7 @@ pub const FOUND_MIN_VIEWS: usize = 2;
 /// uneven steps within 0.083° and 0.043 mm; an object turned by hand on a table slides by a
 /// millimetre or more (views slid by 1 mm fit no turns; by 0.2 mm they fit, but refined as turns
 /// move by up to 1.4° and agree 66 % worse: refused).
-pub const FOUND: TurnTolerance = TurnTolerance {
+const FOUND: TurnTolerance = TurnTolerance {
     axis_deg: 0.5,
     off_deg: 0.2,
     off_mm: 0.5,
@@ -520,7 +512,7 @@ pub const FOUND: TurnTolerance = TurnTolerance {
 /// The views' surfaces may lie this much farther apart ([`disagreement`]) kept as turns than
 /// free for [`found_turns`] to keep the turns (the demo's lie 0.1 % farther, on uneven steps
 /// 0.3 %).
-pub const FOUND_SLACK: f64 = 0.01;
+const FOUND_SLACK: f64 = 0.01;
 
 /// Rounds of [`found_turns`]'s refinement. It starts from converged poses and pairs as near as
 /// the free refinement ends: on six noisy views the worst view was 0.048°, 0.050°, 0.052°,
@@ -571,7 +563,7 @@ pub fn found_turns(
 }
 
 /// Pairs of points of two views this near count in [`disagreement`], mm.
-pub const AGREE_MM: f64 = 1.0;
+pub(crate) const AGREE_MM: f64 = 1.0;
 
 /// How far the views' surfaces lie apart where they overlap: the RMS distance of each view's
 /// points (at most [`MAX_POINTS`], evenly spaced) from the tangent plane of the nearest point of
@@ -591,13 +583,7 @@ fn agreement(parts: &[Part<'_>], poses: &[Isometry3<f64>]) -> Option<f64> {
             for &s in &src.sample {
                 let q = poses[k] * src.cloud.points[s];
                 let local = inverses[j] * q;
-                let nn = dst.tree.nearest_n_within::<SquaredEuclidean>(
-                    &[local.x, local.y, local.z],
-                    AGREE_MM * AGREE_MM,
-                    std::num::NonZero::<usize>::MIN,
-                    false,
-                );
-                let Some(i) = nn.first().map(|n| n.item as usize) else {
+                let Some((i, _)) = nearest_within(&dst.tree, &local, AGREE_MM) else {
                     continue;
                 };
                 sum2 += (local - dst.cloud.points[i])
@@ -611,7 +597,7 @@ fn agreement(parts: &[Part<'_>], poses: &[Isometry3<f64>]) -> Option<f64> {
 }
 
 /// How far a loop of views is from closing.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
 pub struct LoopError {
     /// The view whose direct registration onto [`LoopError::onto`] was compared with its pose.
     pub view: usize,

@@ -13,8 +13,20 @@
 use kiddo::SquaredEuclidean;
 use scanner_core::nalgebra::{Point3, Vector3};
 
-use crate::mesh::Mesh;
 use crate::winding::Winding;
+
+/// A triangle mesh, mm: what the fusion makes, in the frame of the points it was fused from.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Model {
+    /// Vertex positions.
+    pub vertices: Vec<Point3<f32>>,
+    /// Unit vertex normals, outwards.
+    pub normals: Vec<Vector3<f32>>,
+    /// Vertex colours (empty without colour).
+    pub colours: Vec<[u8; 3]>,
+    /// Triangles, counter-clockwise seen from outside.
+    pub faces: Vec<[u32; 3]>,
+}
 
 /// Why the fusion failed.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
@@ -66,24 +78,24 @@ const MARGIN: usize = 5;
 /// Pieces of the fused surface apart from the largest are kept when they have at least this
 /// share of its faces: specks of noise go, a part seen from one side only that the fusion could
 /// not join (an ear seen from the front alone) stays, as a piece of its own.
-pub const MIN_PIECE: f64 = 0.02;
+const MIN_PIECE: f64 = 0.02;
 /// Points averaged for a grid point's signed distance. More smooth more: 24 took the 1280×960
 /// demo's mesh p99 against the truth from 0.216 to 0.194 %, but the 640×480 merge test's means
 /// from 0.020 / 0.022 % to 0.025 / 0.028 % and the sphere's from 0.010 to 0.024 mm.
 const NEIGHBOURS: usize = 8;
 /// Grid points within this many cells of a point (and over it) take its signed distance.
-pub const BAND: f64 = 2.0;
+const BAND: f64 = 2.0;
 /// Points of a smaller weight are less sure ([`afloat`]; `merge` gives the points on a view's
 /// edge 0.05).
-pub const SURE: f64 = 0.5;
+const SURE: f64 = 0.5;
 
 /// Most grid points of a fusion (512³). The fine grid is never stored whole — two slices of
 /// it at a time (2 MB at most) — and the coarse grid holds one point in 64 (17 MB at most); the
 /// rest of the memory is the points' trees and the mesh.
-pub const MAX_CELLS: usize = 512 * 512 * 512;
+const MAX_CELLS: usize = 512 * 512 * 512;
 
 /// Quality of a fused mesh.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
 pub struct MeshCheck {
     /// Every edge in exactly two faces.
     pub watertight: bool,
@@ -107,7 +119,7 @@ pub fn fuse(
     points: &[Point3<f64>],
     normals: &[Vector3<f64>],
     cell: f64,
-) -> Result<Mesh, FuseError> {
+) -> Result<Model, FuseError> {
     fuse_with(points, normals, &[], cell, |_, _| {})
 }
 
@@ -124,7 +136,7 @@ pub fn fuse_with(
     weights: &[f64],
     cell: f64,
     progress: impl FnMut(usize, usize),
-) -> Result<Mesh, FuseError> {
+) -> Result<Model, FuseError> {
     fuse_cut(points, normals, weights, cell, None, progress)
 }
 
@@ -151,7 +163,7 @@ pub fn fuse_cut(
     cell: f64,
     keep: Option<HalfSpace>,
     mut progress: impl FnMut(usize, usize),
-) -> Result<Mesh, FuseError> {
+) -> Result<Model, FuseError> {
     if normals.len() != points.len() || !(weights.is_empty() || weights.len() == points.len()) {
         return Err(FuseError::Lengths {
             points: points.len(),
@@ -189,7 +201,7 @@ pub fn fuse_cut(
     if nx.saturating_mul(ny).saturating_mul(nz) > MAX_CELLS {
         return Err(FuseError::TooLarge(nx, ny, nz));
     }
-    let tree = crate::register::tree(points);
+    let tree = crate::spatial::tree(points);
     let area = crate::winding::spacing_areas(points, &tree);
     let winding = Winding::of_cloud(points, normals, &tree, &area);
     let at = |i: usize, j: usize, k: usize| lo + Vector3::new(i as f64, j as f64, k as f64) * cell;
@@ -296,14 +308,14 @@ pub fn fuse_cut(
 
 /// How far from ½ the winding number of all the points may be where a less sure point lies
 /// ([`afloat`]).
-pub const AFLOAT_MARGIN: f64 = 0.35;
+pub(crate) const AFLOAT_MARGIN: f64 = 0.35;
 
 /// For each point, whether it is less sure (weight under [`SURE`]) and the generalized winding
 /// number of all the points puts it clearly inside or outside the surface they wind around (more
 /// than [`AFLOAT_MARGIN`] from ½, where a point on the surface has about ½). A stripe cut by
 /// an occluding edge places a point up to 2 mm off the surface, mostly nearer the camera; its
 /// plane would raise a bead of surface of its own, and where no other view saw the surface clear
-/// nothing else contradicts it ([`crate::merge::contradicted_edges`]). The margin is wide because
+/// nothing else contradicts it ([`crate::fusion::contradicted`]). The margin is wide because
 /// near a large hole the winding number of points on the surface falls well below ½ (a median of
 /// 0.39 for the 360° demo's edge points moved onto the true surface, 5 % of them under 0.15): at
 /// 0.30 the three-view merge test lost surface along its holes (its mesh p99 0.39 % against
@@ -315,7 +327,7 @@ pub fn afloat(points: &[Point3<f64>], normals: &[Vector3<f64>], weights: &[f64])
     if (0..points.len()).all(sure) {
         return vec![false; points.len()];
     }
-    let tree = crate::register::tree(points);
+    let tree = crate::spatial::tree(points);
     let spacing = crate::winding::spacing_areas(points, &tree);
     let winding = Winding::of_cloud(points, normals, &tree, &spacing);
     points
@@ -418,7 +430,7 @@ fn thin_weighted(
     // saw it.
     let weight = |i: u32| weights.get(i as usize).map_or(1.0, |w| w.max(1e-3));
     let (mut p_out, mut n_out, mut w_out) = (Vec::new(), Vec::new(), Vec::new());
-    for group in crate::register::voxel_groups(points, voxel) {
+    for group in crate::spatial::voxel_groups(points, voxel) {
         let (mut p, mut n, mut sum, mut most) = (Vector3::zeros(), Vector3::zeros(), 0.0, 0.0f64);
         for &i in &group {
             let w = weight(i);
@@ -460,7 +472,7 @@ struct Tetrahedra {
     /// The vertex on each crossed grid edge of the current layer's slices (by the edge's grid
     /// point indices).
     vertex_of: std::collections::HashMap<(usize, usize), u32>,
-    mesh: Mesh,
+    mesh: Model,
 }
 
 impl Tetrahedra {
@@ -468,7 +480,7 @@ impl Tetrahedra {
         Tetrahedra {
             dims,
             vertex_of: std::collections::HashMap::new(),
-            mesh: Mesh::default(),
+            mesh: Model::default(),
         }
     }
 
@@ -546,8 +558,8 @@ impl Tetrahedra {
 
 /// Marks the faces no view saw: those with a vertex farther than `max_dist` mm from every
 /// point (where the fusion closed a gap between the views).
-pub fn unseen_faces(m: &Mesh, points: &[Point3<f64>], max_dist: f64) -> Vec<bool> {
-    let tree = crate::register::tree(points);
+pub fn unseen_faces(m: &Model, points: &[Point3<f64>], max_dist: f64) -> Vec<bool> {
+    let tree = crate::spatial::tree(points);
     let seen: Vec<bool> = m
         .vertices
         .iter()
@@ -570,14 +582,14 @@ pub fn unseen_faces(m: &Mesh, points: &[Point3<f64>], max_dist: f64) -> Vec<bool
 }
 
 /// A face's area, mm².
-fn face_area(m: &Mesh, f: &[u32; 3]) -> f64 {
+fn face_area(m: &Model, f: &[u32; 3]) -> f64 {
     let [a, b, c] = f.map(|i| m.vertices[i as usize].cast::<f64>());
     (b - a).cross(&(c - a)).norm() / 2.0
 }
 
 /// The area of `m`'s faces whose corners all lie within `tol` mm of the plane bounding `h` (a
 /// flat cut's cap), mm².
-pub fn area_on(m: &Mesh, h: &HalfSpace, tol: f64) -> f64 {
+pub fn area_on(m: &Model, h: &HalfSpace, tol: f64) -> f64 {
     m.faces
         .iter()
         .filter(|f| {
@@ -590,7 +602,7 @@ pub fn area_on(m: &Mesh, h: &HalfSpace, tol: f64) -> f64 {
 }
 
 /// The share of `m`'s area in the faces marked in `marked` (0 for a mesh without area).
-pub fn area_share(m: &Mesh, marked: &[bool]) -> f64 {
+pub fn area_share(m: &Model, marked: &[bool]) -> f64 {
     let (mut part, mut all) = (0.0, 0.0);
     for (f, &x) in m.faces.iter().zip(marked) {
         let a = face_area(m, f);
@@ -605,7 +617,7 @@ pub fn area_share(m: &Mesh, marked: &[bool]) -> f64 {
 /// Removes the faces marked in `marked` (from [`unseen_faces`]), then the specks left (pieces
 /// under [`MIN_PIECE`] of the largest). Returns the number of faces removed. The mesh is then
 /// open where the views left gaps.
-pub fn trim(m: &mut Mesh, marked: &[bool]) -> usize {
+pub fn trim(m: &mut Model, marked: &[bool]) -> usize {
     let before = m.faces.len();
     let mut k = 0;
     m.faces.retain(|_| {
@@ -619,11 +631,11 @@ pub fn trim(m: &mut Mesh, marked: &[bool]) -> usize {
 
 /// Colours each vertex of `m` with the colour of the nearest of `points` (`colours`, one per
 /// point); nothing when there are no colours.
-pub fn colour_from(m: &mut Mesh, points: &[Point3<f64>], colours: &[[u8; 3]]) {
+pub fn colour_from(m: &mut Model, points: &[Point3<f64>], colours: &[[u8; 3]]) {
     if colours.len() != points.len() || colours.is_empty() {
         return;
     }
-    let tree = crate::register::tree(points);
+    let tree = crate::spatial::tree(points);
     m.colours = m
         .vertices
         .iter()
@@ -638,7 +650,7 @@ pub fn colour_from(m: &mut Mesh, points: &[Point3<f64>], colours: &[[u8; 3]]) {
 /// the median of that distance (stray points far from the surface would make surfaces of
 /// their own).
 pub fn inliers(points: &[Point3<f64>]) -> Vec<usize> {
-    let tree = crate::register::tree(points);
+    let tree = crate::spatial::tree(points);
     let d8: Vec<f64> = points
         .iter()
         .map(|p| {
@@ -657,7 +669,7 @@ pub fn inliers(points: &[Point3<f64>]) -> Vec<usize> {
 
 /// Keeps the connected pieces with at least `min_share` of the largest one's faces, and the
 /// vertices they use.
-fn keep_pieces(m: &mut Mesh, min_share: f64) {
+fn keep_pieces(m: &mut Model, min_share: f64) {
     let n = m.vertices.len();
     let mut parent: Vec<u32> = (0..n as u32).collect();
     for f in &m.faces {
@@ -707,7 +719,7 @@ fn root(p: &mut [u32], mut i: u32) -> u32 {
 }
 
 /// Area-weighted vertex normals from the faces.
-fn vertex_normals(m: &Mesh) -> Vec<Vector3<f32>> {
+fn vertex_normals(m: &Model) -> Vec<Vector3<f32>> {
     let mut n = vec![Vector3::zeros(); m.vertices.len()];
     for f in &m.faces {
         let [a, b, c] = f.map(|i| m.vertices[i as usize]);
@@ -723,7 +735,7 @@ fn vertex_normals(m: &Mesh) -> Vec<Vector3<f32>> {
 
 /// Vertices whose faces do not form one closed fan: around each vertex the edges opposite it
 /// must make one cycle.
-fn nonmanifold_vertices(m: &Mesh) -> usize {
+fn nonmanifold_vertices(m: &Model) -> usize {
     let mut link: Vec<(u32, u32, u32)> = Vec::with_capacity(3 * m.faces.len());
     for f in &m.faces {
         for k in 0..3 {
@@ -753,7 +765,7 @@ fn nonmanifold_vertices(m: &Mesh) -> usize {
 }
 
 /// Watertightness, components and the enclosed volume of a mesh.
-pub fn check(m: &Mesh) -> MeshCheck {
+pub fn check(m: &Model) -> MeshCheck {
     let mut edges: std::collections::HashMap<(u32, u32), u32> = std::collections::HashMap::new();
     for f in &m.faces {
         for k in 0..3 {

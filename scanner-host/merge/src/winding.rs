@@ -11,13 +11,13 @@ use scanner_core::nalgebra::{Point3, Vector3};
 
 /// A node is summed as one dipole when the query lies farther than `BETA` × its radius from
 /// its centre (the paper's accuracy parameter; 2 gives errors well under 1 %).
-pub const BETA: f64 = 3.0;
+const BETA: f64 = 3.0;
 /// Points per leaf (summed exactly).
 const LEAF: usize = 16;
 /// Neighbours counted for a point's spacing: the disc to its `AREA_K`th neighbour holds
 /// `AREA_K + 1` points. Wide enough to span several stripes of a sweep, so that the spacing is
 /// the surface's and not one stripe's.
-pub const AREA_K: usize = 32;
+const AREA_K: usize = 32;
 
 /// Each point's share of the surface by the density around it, mm²: the disc to its
 /// [`AREA_K`]th neighbour shared by the points in it. Smooth from point to point (the fusion
@@ -38,7 +38,7 @@ pub fn spacing_areas(points: &[Point3<f64>], tree: &kiddo::KdTree<f64, 3>) -> Ve
 }
 
 /// Neighbours whose bisectors bound a point's cell in [`areas`].
-pub const CELL_K: usize = 16;
+const CELL_K: usize = 16;
 
 /// Each point's share of the surface, mm²: its Voronoi cell among its [`CELL_K`] nearest
 /// neighbours that face its way (normals within 60°), in its tangent plane (Barill et al.'s
@@ -307,7 +307,7 @@ mod tests {
                 nn.push(d);
             }
         }
-        let tree = crate::register::tree(&p);
+        let tree = crate::spatial::tree(&p);
         let a = areas(&p, &nn, &spacing_areas(&p, &tree), &tree);
         Winding::new(&p, &nn, &a)
     }

@@ -4,7 +4,8 @@
 //! view of another object that must be reported, not merged.
 
 use scanner_core::nalgebra::Isometry3;
-use scanner_host::register::{Cloud, RegisterError, RegisterOptions, normals, register};
+use scanner_merge::register::{RegisterError, RegisterOptions, register};
+use scanner_merge::spatial::{Cloud, normals};
 use scanner_rig::{Rig, Scene, SurfaceId};
 
 fn bunny_views() -> Scene {
@@ -78,7 +79,7 @@ fn views_turned_by_large_angles_register_without_a_guess() {
 
 #[test]
 fn a_turntable_hint_registers_alone_and_is_never_required() {
-    use scanner_host::register::{register_hinted, turntable_motions};
+    use scanner_merge::register::{register_hinted, turntable_motions};
     let scene = bunny_views();
     let (target, pose0) = view_cloud(&scene, 0);
     let (source, pose1) = view_cloud(&scene, 1);
@@ -133,7 +134,7 @@ fn views_with_many_copies_of_one_point_register_without_a_panic() {
     ));
     // The same point 200 times in both views, beside their own: a thinned view keeps one of
     // them, the fine fit's trees hold 16.
-    let r = scanner_host::register::fine(&source, &target, r.pose, &RegisterOptions::default());
+    let r = scanner_merge::register::fine(&source, &target, r.pose, &RegisterOptions::default());
     assert!(r.is_ok(), "{r:?}");
 }
 
@@ -171,7 +172,7 @@ fn a_view_of_another_object_is_reported_not_merged() {
     }
 }
 
-type Loop = scanner_host::refine::LoopError;
+type Loop = scanner_merge::refine::LoopError;
 
 /// The views that close the chain's loop: those not registered onto view 0 (all but view 1),
 /// each onto view 0 directly.
@@ -182,7 +183,7 @@ const LOOPS: &[(usize, usize)] = &[(2, 0), (3, 0), (4, 0), (5, 0)];
 /// closure before and after, and the worst view's (rotation °, translation mm) against the truth
 /// before and after.
 fn chain_and_joint(sigma: f64) -> (Loop, Loop, (f64, f64), (f64, f64)) {
-    use scanner_host::refine::{loop_error, refine};
+    use scanner_merge::refine::{loop_error, refine};
     let (clouds, chain, truth) = noisy_chain(sigma);
     let refs: Vec<&Cloud> = clouds.iter().collect();
     let before = loop_error(&refs, &chain, LOOPS, 3.0, 0.25).expect("view 5 overlaps view 0");
@@ -258,7 +259,7 @@ fn noisy_chain(sigma: f64) -> (Vec<Cloud>, Vec<Isometry3<f64>>, Vec<Isometry3<f6
 /// turn's angle stays).
 #[test]
 fn views_on_a_turntable_are_refined_as_turns_about_one_axis() {
-    use scanner_host::refine::{HINTED, Turns, refine, refine_turns};
+    use scanner_merge::refine::{HINTED, Turns, refine, refine_turns};
     let (clouds, chain, truth) = noisy_chain(0.15);
     let refs: Vec<&Cloud> = clouds.iter().collect();
     let free = refine(&refs, &chain, 3.0, 8, |_| {});
@@ -319,7 +320,7 @@ fn views_on_a_turntable_are_refined_as_turns_about_one_axis() {
 #[test]
 fn turns_about_one_axis_are_found_without_a_hint_and_slid_views_are_not() {
     use scanner_core::nalgebra::{Translation3, Vector3};
-    use scanner_host::refine::{found_turns, refine};
+    use scanner_merge::refine::{found_turns, refine};
     let (clouds, chain, truth) = noisy_chain(0.15);
     let refs: Vec<&Cloud> = clouds.iter().collect();
     let free = refine(&refs, &chain, 3.0, 8, |_| {});
@@ -403,7 +404,7 @@ fn the_joint_refinement_spreads_a_noisy_chains_error_over_the_loop() {
 #[test]
 fn a_view_without_partners_stays_put_in_the_joint_refinement() {
     use scanner_core::nalgebra::{Translation3, UnitQuaternion, Vector3};
-    use scanner_host::refine::refine;
+    use scanner_merge::refine::refine;
     let scene = bunny_views();
     let (c0, p0) = view_cloud(&scene, 0);
     let (c1, p1) = view_cloud(&scene, 1);
@@ -442,7 +443,7 @@ fn a_view_without_partners_stays_put_in_the_joint_refinement() {
 /// bunny, and are named as a group apart.
 #[test]
 fn views_chosen_together_are_placed_right_and_a_group_apart_is_named() {
-    use scanner_host::merge::{Unplaced, register_clouds};
+    use scanner_merge::poses::{Unplaced, register_clouds};
     let scene = bunny_views();
     let order = [3usize, 0, 5, 1, 6, 2, 4];
     let (clouds, poses): (Vec<Cloud>, Vec<Isometry3<f64>>) =
@@ -455,7 +456,7 @@ fn views_chosen_together_are_placed_right_and_a_group_apart_is_named() {
     let placed = register_clouds(&refs, &o, |_, _| Vec::new(), |_| None, |_, _| {})
         .unwrap_or_else(|e| panic!("the bunny's views: {e:?}"));
     let chosen: Vec<Isometry3<f64>> = placed.iter().map(|r| r.pose).collect();
-    let joint = scanner_host::refine::refine(&refs, &chosen, 3.0, 8, |_| {});
+    let joint = scanner_merge::refine::refine(&refs, &chosen, 3.0, 8, |_| {});
     for (i, r) in placed.iter().enumerate() {
         let truth = poses[0] * poses[i].inverse();
         let (deg, mm) = angle_deg(&truth, &r.pose);

@@ -24,9 +24,9 @@ pub struct Edge {
 }
 
 /// Poses agree when they differ by under this angle, degrees...
-pub const AGREE_DEG: f64 = 5.0;
+pub(crate) const AGREE_DEG: f64 = 5.0;
 /// ...and move the view's centre by under this many voxels.
-pub const AGREE_VOXELS: f64 = 3.0;
+const AGREE_VOXELS: f64 = 3.0;
 /// Partial sets of placements kept at each step.
 const BEAM: usize = 256;
 

@@ -1,22 +1,27 @@
-//! Speed of a 360° merge (issue 17's target: 8 views of 50 000 points each registered and fused
-//! in ≤ 10 s on one core): `cargo bench -p scanner-host --bench merge` (run it pinned,
-//! `taskset -c 1`). The stages `scanner-host merge` runs after reading the views — every pair
-//! registered without a guess and the agreeing candidates chosen, the joint refinement (and the
-//! turns about one axis it finds), the outlier filter and the fusion — on eight synthetic views
-//! of a lumpy closed surface (about 60 mm across) turned by 45° about the vertical, each view
-//! the half of the surface that faces its camera, 50 000 points with exact normals. Prints each
-//! stage's time and each view's error against the truth; then, not in the total, the
-//! registration and the joint refinement again with the turntable's step (`merge --turntable
+//! Speed of a 360° merge (the target: 8 views of 50 000 points each registered and fused in
+//! ≤ 10 s on one core): `cargo bench -p scanner-merge --bench merge` (run it pinned,
+//! `taskset -c 1`). On eight synthetic views of a lumpy closed surface (about 60 mm across)
+//! turned by 45° about the vertical, each view the half of the surface that faces its camera,
+//! 50 000 points with exact normals: first the stages one by one as [`scanner_merge::run`] runs
+//! them after the views are read — thinning, every pair registered without a guess and the
+//! agreeing candidates chosen, the joint refinement (and the turns about one axis it finds), the
+//! free-space check, the edge points, the outlier filter and the fusion — each stage's time and
+//! each view's error against the truth; then the whole of `run` (which adds the loop-closure
+//! check and the free-space check inside the registration's choice); then, not in the total,
+//! the registration and the joint refinement with the turntable's step (`merge --turntable
 //! 45`).
 
 use std::time::Instant;
 
 use scanner_core::nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
-use scanner_host::fuse::{check, fuse_with};
-use scanner_host::merge::{contradicted, fused_points, register_clouds};
-use scanner_host::refine::{HINTED, Turns, found_turns, refine, refine_turns};
-use scanner_host::register::{Cloud, RegisterOptions};
-use scanner_host::seen::{DepthMap, conflicts};
+use scanner_merge::fuse::{check, fuse_with};
+use scanner_merge::fusion::{contradicted, edge_weight, fused_points};
+use scanner_merge::poses::register_clouds;
+use scanner_merge::refine::{HINTED, Turns, found_turns, refine, refine_turns};
+use scanner_merge::register::RegisterOptions;
+use scanner_merge::seen::{DepthMap, conflicts};
+use scanner_merge::spatial::Cloud;
+use scanner_merge::{MergeOptions, Surface, View};
 
 const VIEWS: usize = 8;
 const POINTS: usize = 50_000;
@@ -121,11 +126,19 @@ fn main() {
     );
     let o = RegisterOptions::default();
     let t0 = Instant::now();
-    // As `merge` reads each view: thinned to one point per THIN_MM cube.
-    let clouds: Vec<Cloud> = clouds
+    // As `merge` takes each view: thinned when it is made.
+    let views: Vec<View> = clouds
         .iter()
-        .map(|c| scanner_host::register::thin(c, scanner_host::merge::THIN_MM))
+        .enumerate()
+        .map(|(k, c)| {
+            let surface = Surface {
+                cloud: c.clone(),
+                ..Surface::default()
+            };
+            View::new(format!("view {k}"), header(), &surface, None)
+        })
         .collect();
+    let clouds: Vec<Cloud> = views.iter().map(|v| v.cloud.clone()).collect();
     let t_thin = t0.elapsed().as_secs_f64();
     let refs: Vec<&Cloud> = clouds.iter().collect();
     // As `merge` registers: every pair's candidates, the agreeing set chosen, the fine fits.
@@ -143,7 +156,7 @@ fn main() {
     // As `merge` checks the poses: every view's points against every other's free space, seen
     // by a 1280×960 camera of f = 1120 px.
     let t4 = Instant::now();
-    let tol = scanner_host::merge::SEEN_TOL_VOXELS * o.voxel_mm;
+    let tol = scanner_merge::free::tolerance(o.voxel_mm);
     let worst = conflicts(&refs, &poses, tol, |k| {
         DepthMap::of(
             &clouds[k].points,
@@ -182,7 +195,7 @@ fn main() {
     let weights: Vec<f64> = clear
         .iter()
         .flatten()
-        .map(|&c| scanner_host::merge::edge_weight(Some(c)))
+        .map(|&c| edge_weight(Some(c)))
         .collect();
     let (keep, afloat_count) = fused_points(&points, &normals, &weights, &off);
     let points: Vec<Point3<f64>> = keep.iter().map(|&i| points[i]).collect();
@@ -197,8 +210,7 @@ fn main() {
     let c = check(&mesh);
     println!("| stage | seconds |\n|---|---|");
     println!(
-        "| thinning to {} mm cubes ({} points a view) | {t_thin:.2} |",
-        scanner_host::merge::THIN_MM,
+        "| thinning to 0.75 mm cubes ({} points a view) | {t_thin:.2} |",
         clouds[0].points.len()
     );
     println!(
@@ -227,37 +239,21 @@ fn main() {
         c.components
     );
     println!("| **total** (target ≤ 10 s) | **{total:.2}** |");
-    // Not in the total: `merge --sheet` corrects each view's samples as it reads the view (a
-    // second pass over its journal): the surface fitted at each of the view's grid points, each
-    // sample moved along its ray. Here view 0's 50 000 points stand for its samples, its thinned
-    // points for its grid, each sample's plane through a source above the camera.
-    let source = Point3::new(20.0, -150.0, 30.0);
-    let raw = view(0);
-    let t6 = Instant::now();
-    let sheet = scanner_host::sheet::Correction::new(
-        &clouds[0].points,
-        &clouds[0].normals,
-        1120.0,
-        0.6,
-        Some(source),
-    );
-    let t_fits = t6.elapsed().as_secs_f64();
-    let mut moved = 0;
-    for p in &raw.points {
-        let m = Vector3::x().cross(&(p - source)).normalize();
-        let plane = [m.x as f32, m.y as f32, m.z as f32, -m.dot(&p.coords) as f32];
-        moved += sheet.apply(plane, &mut [p.cast::<f32>()]);
-    }
-    let t_sheet = t6.elapsed().as_secs_f64();
-    println!(
-        "| not in the total: the sheet's correction of one view (`merge --sheet`): fits at its {} points {t_fits:.2} s, {moved} of {} samples moved | {t_sheet:.2} |",
-        clouds[0].points.len(),
-        raw.points.len()
-    );
     let worst = worst_view(&poses);
     println!(
         "worst view against the truth: {:.4}° {:.3} mm",
         worst.0, worst.1
+    );
+    // The whole entry point, as `scanner-host merge` calls it once the views are read.
+    let t9 = Instant::now();
+    let merged = scanner_merge::run(&views, &MergeOptions::default(), &mut ()).expect("run");
+    let t_run = t9.elapsed().as_secs_f64();
+    let worst = worst_view(&merged.poses);
+    println!(
+        "`scanner_merge::run` on the same views (thinning included; also the loop closure and the free-space check inside the choice): {t_run:.2} s; worst view {:.4}° {:.3} mm; model watertight: {}",
+        worst.0,
+        worst.1,
+        merged.report.fusion.is_some_and(|f| f.check.watertight)
     );
     // With the turntable's step (`merge --turntable 45`): each pair also tries the step's turns
     // (placed across the axis, as `merge` places them), and the views on the turntable are
@@ -265,7 +261,7 @@ fn main() {
     let t7 = Instant::now();
     let hints = |a: usize, b: usize| {
         let angle = 45.0 * (a as f64 - b as f64);
-        scanner_host::register::turntable_motions(&Vector3::y(), refs[a], refs[b], angle).to_vec()
+        scanner_merge::register::turntable_motions(&Vector3::y(), refs[a], refs[b], angle).to_vec()
     };
     let stepped = register_clouds(&refs, &o, hints, |_| None, |_, _| {})
         .expect("the views register with the step");
@@ -284,4 +280,29 @@ fn main() {
          {:.4}° {:.3} mm",
         worst.0, worst.1
     );
+}
+
+/// The header of a 1280×960 camera of f = 1120 px before a board 600 mm away.
+fn header() -> scanner_core::wire::Header {
+    let camera = scanner_core::Camera::new(
+        1120.0,
+        1120.0,
+        639.5,
+        479.5,
+        scanner_core::Distortion::none(),
+    )
+    .expect("a camera");
+    let plane = |x: f64| {
+        scanner_core::geometry::Plane::new(Vector3::new(x, 0.0, -0.707), 600.0 * 0.707)
+            .expect("a plane")
+    };
+    let board = scanner_core::geometry::Board::new(plane(0.707), plane(-0.707)).expect("a board");
+    scanner_core::wire::Header::new(
+        1,
+        (1280, 960),
+        &camera,
+        &board,
+        false,
+        scanner_core::wire::PlaneMethod::LeastSquares,
+    )
 }

@@ -4,7 +4,7 @@
 //! number where no view saw, marching tetrahedra).
 
 use scanner_core::nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
-use scanner_host::fuse::{area_share, check, fuse, unseen_faces};
+use scanner_merge::fuse::{area_share, check, fuse, unseen_faces};
 use scanner_rig::{Rig, Scene, SurfaceId};
 
 /// The demo's sphere (centre, radius) and its true lit points and normals from several views.
@@ -157,7 +157,7 @@ fn points_of_low_weight_give_way_where_sure_points_saw_the_same_surface() {
     // here a cap of the sphere gets a second layer 1 mm outside, as such points would lie. At
     // the merge's edge weight the sure points place the surface; at full weight the layer pulls
     // it out.
-    use scanner_host::fuse::{FuseError, fuse_with};
+    use scanner_merge::fuse::{FuseError, fuse_with};
     let (centre, radius, mut points, mut normals) = sphere_views(&SIX_SIDES);
     let cap = |p: &Point3<f64>| (p - centre).normalize().x > 0.8;
     let sure = points.len();
@@ -183,7 +183,7 @@ fn points_of_low_weight_give_way_where_sure_points_saw_the_same_surface() {
             .collect();
         off.iter().sum::<f64>() / off.len() as f64
     };
-    let edge = scanner_host::merge::EDGE_WEIGHT;
+    let edge = scanner_merge::fusion::edge_weight(Some(0.0));
     let weighted: Vec<f64> = (0..points.len())
         .map(|i| if i < sure { 1.0 } else { edge })
         .collect();
@@ -213,7 +213,7 @@ fn points_of_low_weight_give_way_where_sure_points_saw_the_same_surface() {
 /// (π (r² − (r/2)²)); the volume is the cut sphere's.
 #[test]
 fn a_plane_cuts_the_fused_sphere_and_closes_it_flat() {
-    use scanner_host::fuse::{HalfSpace, area_on, fuse_cut};
+    use scanner_merge::fuse::{HalfSpace, area_on, fuse_cut};
     let (centre, radius, points, normals) = sphere_views(&SIX_SIDES);
     // Camera y points down: keep y ≤ centre + r/2, i.e. (−y)·x ≥ −(centre.y + r/2).
     let keep = HalfSpace {

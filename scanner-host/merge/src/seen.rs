@@ -15,12 +15,12 @@
 use scanner_core::nalgebra::{Isometry3, Point3};
 use scanner_core::wire::Header;
 
-use crate::register::Cloud;
+use crate::spatial::Cloud;
 
 /// Side of a depth map's bins, pixels: about 1.9 mm at the 360° demo's 540 mm, two to three of
 /// a view's points thinned to 0.75 mm across, so that a bin inside the seen surface holds a
 /// depth.
-pub const BIN_PX: f64 = 4.0;
+const BIN_PX: f64 = 4.0;
 
 /// The nearest depth a view saw in each bin of its image.
 #[derive(Debug, Clone)]
@@ -116,7 +116,7 @@ impl DepthMap {
 }
 
 /// One view's points against what another view saw.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
 pub struct Conflict {
     /// The view whose points were tested.
     pub view: usize,

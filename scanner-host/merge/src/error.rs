@@ -1,0 +1,134 @@
+//! Why views could not be merged: each reason names the views, the figures and what to do.
+
+use crate::fuse::FuseError;
+use crate::register::RegisterError;
+
+/// Why views cannot be merged.
+#[derive(Debug, Clone, thiserror::Error)]
+pub enum MergeError {
+    /// An option out of its range ([`crate::MergeOptions::check`]).
+    #[error("--{option} must be {must_be}, found {found}")]
+    Option {
+        /// The option, as the command line names it.
+        option: &'static str,
+        /// Its range, in words.
+        must_be: &'static str,
+        /// The value given.
+        found: f64,
+    },
+    /// Fewer than two views.
+    #[error("merge needs at least two views (sweeps of the object turned between them), got {0}")]
+    TooFewViews(usize),
+    /// Views from different cameras or calibrations cannot share a frame.
+    #[error(
+        "view {view} ({name}) was scanned with another camera or image size than view 0: merge views of one calibrated set-up"
+    )]
+    OtherCamera {
+        /// Which view (from 0).
+        view: usize,
+        /// Its name.
+        name: String,
+    },
+    /// A flat base needs the object's up, which view 0's board gives.
+    #[error(
+        "--flat-base needs to know which way is up: view 0's scan carries no board calibration"
+    )]
+    NoUp,
+    /// A view registers onto none of the others.
+    #[error("view {view} ({name}) overlaps no other view; best try: {best}")]
+    NoMatch {
+        /// Which view.
+        view: usize,
+        /// Its name.
+        name: String,
+        /// The best attempt's reason.
+        best: RegisterError,
+    },
+    /// Some views match one another but none of view 0's group.
+    #[error(
+        "views {apart:?} match one another but none of views {placed:?} (view 0's group): scan a view that overlaps both groups, or merge the groups apart"
+    )]
+    Apart {
+        /// Views registered into view 0's frame.
+        placed: Vec<usize>,
+        /// Views that could not be.
+        apart: Vec<usize>,
+    },
+    /// The loop of views does not close after the joint refinement: some view is registered
+    /// wrongly (views of flat faces that share too little can fit one another turned the wrong
+    /// way), and a model from them would be wrong however watertight.
+    #[error(
+        "the views do not close into one object: view {view} registered onto view {onto} directly lands {rotation_deg:.2}° and {translation_mm:.1} mm from where the other views put it (a merge accepts at most {max_deg}° and {max_mm:.1} mm): at least one view is registered wrongly, so no model was written; views.png and views.ply show each view in its colour, merge-report.txt each registration (a part of large flat faces registers wrongly so: docs/reports.md)"
+    )]
+    LoopOpen {
+        /// The view that closes the loop.
+        view: usize,
+        /// The view it was registered onto directly.
+        onto: usize,
+        /// Its rotation error, degrees.
+        rotation_deg: f64,
+        /// Its translation error, mm.
+        translation_mm: f64,
+        /// The rotation allowed, degrees.
+        max_deg: f64,
+        /// The translation allowed, mm.
+        max_mm: f64,
+    },
+    /// A view's points lie in the space another view saw empty: one of the two is registered
+    /// wrongly (see [`crate::seen`]), even where the loops of views close.
+    #[error(
+        "view {view} ({name})'s points lie in front of what view {seen_by} ({seen_by_name}) saw: {in_front} of the {tested} that fall on its seen surface ({:.1} %) are more than {tol_mm:.1} mm nearer its camera than the surface it saw (a merge accepts at most {:.0} %): at least one of the two views is registered wrongly, so no model was written; views.png and views.ply show each view in its colour, merge-report.txt each registration",
+        100.0 * *in_front as f64 / (*tested).max(1) as f64,
+        100.0 * max_share
+    )]
+    SeenThrough {
+        /// The view whose points were tested.
+        view: usize,
+        /// Its name.
+        name: String,
+        /// The view whose free space they lie in.
+        seen_by: usize,
+        /// Its name.
+        seen_by_name: String,
+        /// Points tested.
+        tested: usize,
+        /// Points in front.
+        in_front: usize,
+        /// The tolerance, mm.
+        tol_mm: f64,
+        /// The largest share in front a merge accepts.
+        max_share: f64,
+    },
+    /// `--sheet auto` found no overlap to measure the views' agreement on.
+    #[error(
+        "--sheet auto: the views nowhere overlap within {agree_mm} mm of each other, so they tell no sheet thickness; give it with --sheet MM"
+    )]
+    NoSheet {
+        /// How near points of two views must lie to count, mm.
+        agree_mm: f64,
+    },
+    /// The views were read at other sheet thicknesses than the search tries.
+    #[error(
+        "--sheet auto: {views} sets of views given for {tries} thicknesses to try: one set per thickness"
+    )]
+    SheetTries {
+        /// Sets given.
+        views: usize,
+        /// Thicknesses tried.
+        tries: usize,
+    },
+    /// The fusion failed.
+    #[error("fusing the views")]
+    Fuse(#[source] FuseError),
+}
+
+impl MergeError {
+    /// Whether this is a refusal of views registered wrongly (the plausibility checks), after
+    /// which the registered views and the report are worth a look.
+    pub fn is_implausible(&self) -> bool {
+        matches!(
+            self,
+            MergeError::LoopOpen { .. } | MergeError::SeenThrough { .. }
+        )
+    }
+}

@@ -1,0 +1,156 @@
+//! The bottom of the merge: clouds of oriented points, k-d trees over them (`kiddo`), voxel
+//! thinning and normals from neighbours. It imports nothing else of the crate, and the host's
+//! single-view code (the sheet's correction, the artefact check) uses it without reaching the
+//! registration.
+
+use kiddo::{KdTree, SquaredEuclidean};
+use scanner_core::nalgebra::{Matrix3, Point3, SymmetricEigen, Unit, Vector3};
+
+/// Points with unit normals (facing their camera).
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Cloud {
+    /// Positions, mm.
+    pub points: Vec<Point3<f64>>,
+    /// Unit normals.
+    pub normals: Vec<Vector3<f64>>,
+}
+
+/// A k-d tree of `points`, items their indices.
+pub fn tree(points: &[Point3<f64>]) -> KdTree<f64, 3> {
+    tree_of(points.iter().map(|p| [p.x, p.y, p.z]))
+}
+
+/// Copies of one exact point a k-d tree takes: kiddo's leaves hold 32 items and cannot split
+/// identical ones (it panics at the 33rd), and a journal can hold any number of the same point.
+/// A query then finds one of the copies kept, at the same distance.
+const MAX_SAME: usize = 16;
+
+/// A k-d tree of `items`, each under its index, with at most [`MAX_SAME`] copies of any one.
+pub fn tree_of<A: kiddo::float::kdtree::Axis + Into<f64>, const K: usize>(
+    items: impl Iterator<Item = [A; K]>,
+) -> KdTree<A, K> {
+    let mut t: KdTree<A, K> = KdTree::new();
+    let mut copies: std::collections::HashMap<[u64; K], usize> = std::collections::HashMap::new();
+    for (i, item) in items.enumerate() {
+        let n = copies.entry(item.map(|a| a.into().to_bits())).or_default();
+        if *n < MAX_SAME {
+            *n += 1;
+            t.add(&item, i as u64);
+        }
+    }
+    t
+}
+
+/// The indices of `points` grouped by the `voxel` mm cube they lie in, cubes in a fixed order.
+pub fn voxel_groups(points: &[Point3<f64>], voxel: f64) -> Vec<Vec<u32>> {
+    let mut cells: std::collections::HashMap<[i64; 3], Vec<u32>> = std::collections::HashMap::new();
+    for (i, p) in points.iter().enumerate() {
+        let key = [p.x, p.y, p.z].map(|v| (v / voxel).floor() as i64);
+        cells.entry(key).or_default().push(i as u32);
+    }
+    let mut keys: Vec<_> = cells.into_iter().collect();
+    keys.sort_by_key(|(k, _)| *k);
+    keys.into_iter().map(|(_, v)| v).collect()
+}
+
+/// Thins a cloud to one point per `voxel` mm cube (the mean of the points and normals in it).
+pub fn thin(c: &Cloud, voxel: f64) -> Cloud {
+    thin_with(c, &[], &[], voxel).0
+}
+
+/// [`thin`], with the mean of each cube's colours and of each kind of `values` (each kind a
+/// list with one value per point; a list of another length is left out) beside it.
+pub fn thin_with(
+    c: &Cloud,
+    colours: &[[u8; 3]],
+    values: &[&[f64]],
+    voxel: f64,
+) -> (Cloud, Vec<[u8; 3]>, Vec<Vec<f64>>) {
+    let coloured = colours.len() == c.points.len() && !colours.is_empty();
+    let mut out = Cloud::default();
+    let mut rgb = Vec::new();
+    let mut means: Vec<Vec<f64>> = vec![Vec::new(); values.len()];
+    for group in voxel_groups(&c.points, voxel) {
+        let n: Vector3<f64> = group.iter().map(|&i| c.normals[i as usize]).sum();
+        if n.norm() <= 1e-9 {
+            continue;
+        }
+        let p: Vector3<f64> = group.iter().map(|&i| c.points[i as usize].coords).sum();
+        out.points.push(Point3::from(p / group.len() as f64));
+        out.normals.push(n.normalize());
+        for (mean, v) in means.iter_mut().zip(values) {
+            if v.len() == c.points.len() && !v.is_empty() {
+                mean.push(group.iter().map(|&i| v[i as usize]).sum::<f64>() / group.len() as f64);
+            }
+        }
+        if coloured {
+            let mut sum = [0u32; 3];
+            for &i in &group {
+                for (s, v) in sum.iter_mut().zip(colours[i as usize]) {
+                    *s += u32::from(v);
+                }
+            }
+            let k = group.len() as u32;
+            rgb.push(sum.map(|s| ((s + k / 2) / k) as u8));
+        }
+    }
+    (out, rgb, means)
+}
+
+/// Unit normals from the `k` nearest neighbours (the direction of least spread), turned to face
+/// the camera at the origin.
+pub fn normals(points: &[Point3<f64>], k: usize) -> Vec<Vector3<f64>> {
+    let t = tree(points);
+    points
+        .iter()
+        .map(|p| {
+            let nn = t.nearest_n::<SquaredEuclidean>(&[p.x, p.y, p.z], k.max(3));
+            let mean = nn
+                .iter()
+                .fold(Vector3::zeros(), |a, n| a + points[n.item as usize].coords)
+                / nn.len() as f64;
+            let cov = nn.iter().fold(Matrix3::zeros(), |a, n| {
+                let d = points[n.item as usize].coords - mean;
+                a + d * d.transpose()
+            });
+            let e = SymmetricEigen::new(cov);
+            let i = e.eigenvalues.imin();
+            let n: Vector3<f64> = e.eigenvectors.column(i).into_owned();
+            if n.dot(&p.coords) > 0.0 { -n } else { n }
+        })
+        .collect()
+}
+
+/// The index of the nearest of `tree`'s items to `q` within `max_dist` mm (searched within the
+/// distance only: an unbounded search from far away visits much of the tree), with its squared
+/// distance.
+pub fn nearest_within(
+    tree: &KdTree<f64, 3>,
+    q: &Point3<f64>,
+    max_dist: f64,
+) -> Option<(usize, f64)> {
+    tree.nearest_n_within::<SquaredEuclidean>(
+        &[q.x, q.y, q.z],
+        max_dist * max_dist,
+        std::num::NonZero::<usize>::MIN,
+        false,
+    )
+    .first()
+    .map(|n| (n.item as usize, n.distance))
+}
+
+/// The mean of a cloud's points (the origin for none).
+pub fn centre(points: &[Point3<f64>]) -> Point3<f64> {
+    Point3::from(
+        points.iter().fold(Vector3::zeros(), |a, p| a + p.coords) / points.len().max(1) as f64,
+    )
+}
+
+/// Two unit directions across `axis`, square to it and to each other.
+pub fn across(axis: &Unit<Vector3<f64>>) -> (Vector3<f64>, Vector3<f64>) {
+    let e1 = axis
+        .cross(&Vector3::x())
+        .try_normalize(1e-6)
+        .unwrap_or_else(|| axis.cross(&Vector3::y()).normalize());
+    (e1, axis.cross(&e1))
+}

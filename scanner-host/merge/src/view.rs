@@ -1,0 +1,128 @@
+//! One view as the merge takes it: a sweep's surface points with their normals, colours,
+//! uncertainties and how clear of the view's edges each lies, and the scan's header (its
+//! camera, image and board). The caller reads it (the host from a journal); the merge thins it
+//! to one point per [`THIN_MM`] cube when it is made.
+
+use scanner_core::nalgebra::{Point3, Vector3};
+use scanner_core::wire::Header;
+
+use crate::seen::DepthMap;
+use crate::spatial::{Cloud, thin_with};
+
+/// Each view is thinned to one point per cube of this size, mm: finer than the fusion's cells,
+/// so nothing the model could show is lost; denser views only slow the searches (eight views of
+/// 49 000 points merge in 8 s instead of 21, `cargo bench -p scanner-merge --bench merge`).
+const THIN_MM: f64 = 0.75;
+
+/// Points at least this clear of their view's edges ([`View::clear`]) register; the others
+/// only fill in the fusion where nothing better saw the surface.
+pub(crate) const CLEAR: f64 = 0.5;
+
+/// One view: its points in its own camera frame (mm), thinned.
+#[derive(Debug, Clone)]
+pub struct View {
+    /// What the report calls it (the path it was read from).
+    pub name: String,
+    /// Its session header: the camera, the image's size and the board.
+    pub header: Header,
+    /// Its points and unit normals (facing its camera).
+    pub cloud: Cloud,
+    /// The surface's colour at each point (empty: the scan carried no colour).
+    pub colours: Vec<[u8; 3]>,
+    /// How far each point is from the view's edges: the share of the grid cells averaged into
+    /// it that lie away from an occluding edge, a shadow's border or the view's outline; 0 on an
+    /// edge, 1 clear of it. The joint refinement pairs only points at least half clear; the
+    /// fusion weighs them by it.
+    pub clear: Vec<f64>,
+    /// Each point's standard uncertainty, mm (empty: the scan carried none).
+    pub sigma: Vec<f64>,
+    /// With the laser sheet's correction: the samples it moved, of all; `None`: not asked.
+    pub sheet_moved: Option<(u64, u64)>,
+}
+
+/// What a view is read from, before it is thinned ([`View::new`]).
+#[derive(Debug, Clone, Default)]
+pub struct Surface {
+    /// Points and unit normals, the view's camera frame.
+    pub cloud: Cloud,
+    /// Colours, one per point, or none.
+    pub colours: Vec<[u8; 3]>,
+    /// Each point's share clear of the view's edges ([`View::clear`]), one per point, or none
+    /// (all clear).
+    pub clear: Vec<f64>,
+    /// Each point's standard uncertainty, mm, one per point, or none.
+    pub sigma: Vec<f64>,
+}
+
+impl View {
+    /// The view of `surface` seen by the camera of `header`, thinned to one point per 0.75 mm
+    /// cube (the mean of the points, normals, colours, clear shares and uncertainties in it).
+    pub fn new(
+        name: impl Into<String>,
+        header: Header,
+        surface: &Surface,
+        sheet_moved: Option<(u64, u64)>,
+    ) -> View {
+        let (cloud, colours, mut values) = thin_with(
+            &surface.cloud,
+            &surface.colours,
+            &[&surface.clear, &surface.sigma],
+            THIN_MM,
+        );
+        let sigma = values.pop().unwrap_or_default();
+        let clear = values.pop().unwrap_or_default();
+        View {
+            name: name.into(),
+            header,
+            cloud,
+            colours,
+            clear,
+            sigma,
+            sheet_moved,
+        }
+    }
+
+    /// Whether point `i` lies at least half clear of the view's edges (a point without a share
+    /// counts as clear).
+    pub(crate) fn is_clear(&self, i: usize) -> bool {
+        self.clear.get(i).is_none_or(|&c| c >= CLEAR)
+    }
+
+    /// The view's points clear of its edges ([`CLEAR`]; all of them when fewer than half are:
+    /// a view that is all edge registers as it is).
+    pub fn clear_cloud(&self) -> Cloud {
+        let keep: Vec<usize> = (0..self.cloud.points.len())
+            .filter(|&i| self.is_clear(i))
+            .collect();
+        if 2 * keep.len() < self.cloud.points.len() {
+            return self.cloud.clone();
+        }
+        Cloud {
+            points: keep.iter().map(|&i| self.cloud.points[i]).collect(),
+            normals: keep.iter().map(|&i| self.cloud.normals[i]).collect(),
+        }
+    }
+
+    /// What the view saw: its nearest depth per bin of its image ([`crate::seen`]).
+    pub fn depth_map(&self) -> DepthMap {
+        DepthMap::new(&self.cloud.points, &self.header)
+    }
+
+    /// Its points clear of its edges, counted.
+    pub fn clear_points(&self) -> usize {
+        (0..self.cloud.points.len())
+            .filter(|&i| self.is_clear(i))
+            .count()
+    }
+
+    /// Up in the view's camera frame (the board's crease, pointing up the image): `None` when
+    /// its header carries no usable board.
+    pub fn up(&self) -> Option<Vector3<f64>> {
+        self.header.board().ok().map(|b| b.up().cast())
+    }
+
+    /// The mean of its points.
+    pub fn centre(&self) -> Point3<f64> {
+        crate::spatial::centre(&self.cloud.points)
+    }
+}

@@ -1,0 +1,321 @@
+//! Views for the 360° merge, read from the host's files: each view a receive output folder or
+//! a journal/recording, gridded and meshed as `replay` does ([`load_view`]); a session's journal
+//! of several sweeps split into one view each ([`split_scans`]); and the merge of view folders
+//! ([`merge_folders`]), which reads the views as the merge's options ask and hands them to
+//! [`scanner_merge::run`].
+
+use std::path::{Path, PathBuf};
+
+use scanner_merge::spatial::Cloud;
+use scanner_merge::{MergeError, MergeOptions, Merged, Progress, Surface, View};
+
+use crate::collect::CollectOptions;
+use crate::grid::Cell;
+use crate::mesh::{self, MeshOptions};
+use crate::outputs::{OutputError, OutputOptions};
+
+/// Why views could not be read or merged.
+#[derive(Debug, thiserror::Error)]
+pub enum ViewsError {
+    /// A view could not be read.
+    #[error("view {view} ({})", path.display())]
+    Read {
+        /// Which view (from 0).
+        view: usize,
+        /// Its path.
+        path: PathBuf,
+        /// Why.
+        #[source]
+        source: OutputError,
+    },
+    /// A view has no scan in it.
+    #[error("view {view} ({}): no scan in it (no session header): is this a receive output folder or a journal?", path.display())]
+    Empty {
+        /// Which view.
+        view: usize,
+        /// Its path.
+        path: PathBuf,
+    },
+    /// A view's scan sent no point (the laser never seen on the board, or every frame skipped).
+    #[error("view {view} ({}): the scan holds no point ({frames} frames received): nothing to register", path.display())]
+    NoPoints {
+        /// Which view.
+        view: usize,
+        /// Its path.
+        path: PathBuf,
+        /// Frames in its stream.
+        frames: u64,
+    },
+    /// A journal holds more scans than [`MAX_VIEWS`].
+    #[error("the journal holds more than {MAX_VIEWS} scans: split into views only up to that many")]
+    TooManyScans,
+    /// A journal could not be split into its scans.
+    #[error("splitting {} into its scans", path.display())]
+    Split {
+        /// The journal.
+        path: PathBuf,
+        /// Why.
+        #[source]
+        source: crate::journal::JournalError,
+    },
+    /// The sheet's thickness is out of range.
+    #[error(transparent)]
+    Sheet(#[from] crate::sheet::ThicknessError),
+    /// The merge refused the views or failed.
+    #[error(transparent)]
+    Merge(#[from] MergeError),
+}
+
+/// Cells within this many steps of a view's edge count as on it ([`mesh::edge_cells`]): on the
+/// 360° demo at 2-pixel cells, one step takes in 741 of the 756 points more than 0.5 mm off the
+/// true surface (stripes cut at an edge) and a quarter of all (`merge_report`,
+/// docs/reports.md).
+const EDGE_REACH: usize = 1;
+
+/// Most scans a journal is split into ([`split_scans`]).
+pub const MAX_VIEWS: usize = 64;
+
+/// Splits a journal that holds several scans (sweeps with the object turned between them) into
+/// one journal per scan, in the order their first frames came: `dir/view-1/journal.stream`, …
+/// Every frame goes to its scan's journal unchanged. Returns the view folders.
+///
+/// # Errors
+/// The journal cannot be read, a view's journal cannot be written, or more than [`MAX_VIEWS`]
+/// scans.
+pub fn split_scans(journal: &Path, dir: &Path) -> Result<Vec<PathBuf>, ViewsError> {
+    use crate::journal::{Journal, JournalError};
+    use std::io::Read;
+    let split = |source| ViewsError::Split {
+        path: journal.to_path_buf(),
+        source,
+    };
+    let mut file = crate::link::open_file(journal).map_err(|e| ViewsError::Read {
+        view: 0,
+        path: journal.to_path_buf(),
+        source: e.into(),
+    })?;
+    let mut decoder = Box::new(scanner_core::wire::Decoder::<
+        { scanner_core::wire::MAX_ENCODED },
+    >::new());
+    let mut views: Vec<(u32, PathBuf, Journal)> = Vec::new();
+    let mut failed: Option<ViewsError> = None;
+    let mut buf = vec![0u8; 1 << 16];
+    loop {
+        let n = file.read(&mut buf).map_err(|source| ViewsError::Read {
+            view: 0,
+            path: journal.to_path_buf(),
+            source: OutputError::Input {
+                path: journal.to_path_buf(),
+                source,
+            },
+        })?;
+        if n == 0 {
+            break;
+        }
+        decoder.feed(&buf[..n], |m| {
+            let Ok(msg) = m else { return };
+            if failed.is_some() {
+                return;
+            }
+            let id = msg.scan_id();
+            let k = match views.iter().position(|(s, _, _)| *s == id) {
+                Some(k) => k,
+                None if views.len() >= MAX_VIEWS => {
+                    failed = Some(ViewsError::TooManyScans);
+                    return;
+                }
+                None => {
+                    let folder = dir.join(format!("view-{}", views.len() + 1));
+                    let opened = std::fs::create_dir_all(&folder)
+                        .map_err(|source| JournalError::Open {
+                            path: folder.clone(),
+                            source,
+                        })
+                        .and_then(|()| Journal::open(&folder.join("journal.stream")));
+                    match opened {
+                        Ok(j) => views.push((id, folder, j)),
+                        Err(e) => {
+                            failed = Some(split(e));
+                            return;
+                        }
+                    }
+                    views.len() - 1
+                }
+            };
+            if let Err(e) = views[k].2.append(&msg) {
+                failed = Some(split(e));
+            }
+        });
+        if let Some(e) = failed.take() {
+            return Err(e);
+        }
+    }
+    let mut folders = Vec::new();
+    for (_, folder, mut j) in views {
+        j.sync().map_err(split)?;
+        folders.push(folder);
+    }
+    Ok(folders)
+}
+
+/// The journal inside a receive output folder, or the file itself.
+fn stream_of(path: &Path) -> PathBuf {
+    if path.is_dir() {
+        path.join("journal.stream")
+    } else {
+        path.to_path_buf()
+    }
+}
+
+/// Reads view `k` from `path`: replays it into a grid (cells of `cell`) and takes its mesh: the
+/// vertices, normals, colours and uncertainties, and how clear of the view's edges each lies.
+/// With `sheet_mm` (the laser sheet's Gaussian thickness, mm) above zero the scan is replayed a
+/// second time, each frame's points moved to where the sheet's middle crosses the surface the
+/// first pass found (see [`crate::sheet`]).
+///
+/// # Errors
+/// The file cannot be read, holds no scan, or its scan holds no point.
+pub fn load_view(k: usize, path: &Path, cell: Cell, sheet_mm: f64) -> Result<View, ViewsError> {
+    let opts = CollectOptions {
+        cell,
+        ..CollectOptions::default()
+    };
+    let c = crate::outputs::replay(opts, &stream_of(path), sheet_mm).map_err(|source| {
+        ViewsError::Read {
+            view: k,
+            path: path.to_path_buf(),
+            source,
+        }
+    })?;
+    let (Some(grid), Some(m), Some(header)) = (
+        c.grid(),
+        crate::outputs::mesh_of(&c, &OutputOptions::default()),
+        c.header(),
+    ) else {
+        return Err(ViewsError::Empty {
+            view: k,
+            path: path.to_path_buf(),
+        });
+    };
+    if c.counts().points == 0 {
+        return Err(ViewsError::NoPoints {
+            view: k,
+            path: path.to_path_buf(),
+            frames: c.counts().decode.frames,
+        });
+    }
+    let fx = f64::from(header.camera.fx);
+    let edges = mesh::edge_cells(grid, fx, &MeshOptions::default(), EDGE_REACH);
+    let surface = Surface {
+        cloud: Cloud {
+            points: m.vertices.iter().map(|p| p.cast()).collect(),
+            normals: m.normals.iter().map(|n| n.cast()).collect(),
+        },
+        clear: m
+            .cells
+            .iter()
+            .map(|&(c, r)| f64::from(u8::from(!edges[r as usize * grid.cols + c as usize])))
+            .collect(),
+        sigma: m.quality.iter().map(|&q| f64::from(q)).collect(),
+        colours: m.colours,
+    };
+    Ok(View::new(
+        path.display().to_string(),
+        *header,
+        &surface,
+        c.sheet_corrected().map(|moved| (moved, c.counts().points)),
+    ))
+}
+
+/// Reads every view of `paths` ([`load_view`]), `reading(k)` told as view `k`'s turn comes.
+///
+/// # Errors
+/// As [`load_view`].
+pub fn load_views(
+    paths: &[PathBuf],
+    cell: Cell,
+    sheet_mm: f64,
+    mut reading: impl FnMut(usize),
+) -> Result<Vec<View>, ViewsError> {
+    paths
+        .iter()
+        .enumerate()
+        .map(|(k, p)| {
+            reading(k);
+            load_view(k, p, cell, sheet_mm)
+        })
+        .collect()
+}
+
+/// The laser sheet's thickness for a merge: given (mm; 0 leaves the points as the head sent
+/// them), or found where the views agree best ([`scanner_merge::find_sheet`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Sheet {
+    /// Given, mm.
+    Mm(f64),
+    /// Found by the merge.
+    Auto,
+}
+
+impl std::str::FromStr for Sheet {
+    type Err = String;
+    /// A thickness in mm, or `auto`.
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        if s == "auto" {
+            return Ok(Sheet::Auto);
+        }
+        s.parse::<f64>().map(Sheet::Mm).map_err(|_| {
+            format!(
+                "expected the sheet's thickness in mm (0 to {}) or \"auto\"",
+                crate::sheet::MAX_SIGMA_MM
+            )
+        })
+    }
+}
+
+/// What the merge of view folders tells as it goes: the merge's own stages, and which view
+/// is being read (for a given sheet thickness, mm).
+pub trait MergeProgress: Progress {
+    /// View `view` is being read with the sheet's thickness `sheet_mm`.
+    fn reading(&mut self, view: usize, sheet_mm: f64);
+}
+
+/// Merges the views in `paths` (cells of `cell`): reads them with the sheet's thickness
+/// (`Sheet::Auto`: each thickness [`scanner_merge::sheet_tries`] names, to find the one where
+/// they agree best; then again with it) and runs [`scanner_merge::run`] on them.
+///
+/// # Errors
+/// A view that cannot be read, or the merge's own [`MergeError`].
+pub fn merge_folders(
+    paths: &[PathBuf],
+    cell: Cell,
+    sheet: Sheet,
+    options: &MergeOptions,
+    progress: &mut impl MergeProgress,
+) -> Result<Merged, ViewsError> {
+    options.check()?;
+    if let Sheet::Mm(mm) = sheet {
+        crate::sheet::check_thickness(mm)?;
+    }
+    if paths.len() < 2 {
+        return Err(MergeError::TooFewViews(paths.len()).into());
+    }
+    let mut options = options.clone();
+    let sheet_mm = match sheet {
+        Sheet::Mm(mm) => mm,
+        Sheet::Auto => {
+            let mut tries = Vec::new();
+            for &sigma in scanner_merge::sheet_tries() {
+                tries.push(load_views(paths, cell, sigma, |k| {
+                    progress.reading(k, sigma)
+                })?);
+            }
+            let found = scanner_merge::find_sheet(&tries, &options, progress)?;
+            let sigma = found.sigma_mm;
+            options.sheet = Some(found);
+            sigma
+        }
+    };
+    let views = load_views(paths, cell, sheet_mm, |k| progress.reading(k, sheet_mm))?;
+    Ok(scanner_merge::run(&views, &options, progress)?)
+}
