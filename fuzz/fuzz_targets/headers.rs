@@ -6,13 +6,13 @@
 use libfuzzer_sys::fuzz_target;
 use scanner_core::wire::{self, Header, MAX_ENCODED, Message, PlaneMethod};
 use scanner_host::collect::{CollectOptions, Collector};
-use scanner_tests::{live_bytes, peak_bytes, reset_peak};
+use scanner_alloc::{live_bytes, peak_bytes, reset_peak};
 
 /// The host's peak memory limit with default options (README, reliability), bytes.
 const LIMIT: usize = 1 << 30;
 
 #[global_allocator]
-static A: scanner_tests::Peak = scanner_tests::Peak;
+static A: scanner_alloc::Peak = scanner_alloc::Peak;
 
 fn through_host(h: &Header, rest: &[u8]) {
     let (mut scratch, mut out) = (vec![0u8; wire::MAX_FRAME], vec![0u8; MAX_ENCODED]);

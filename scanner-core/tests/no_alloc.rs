@@ -8,9 +8,9 @@ use scanner_core::stripe::{Axis, Estimator, Extractor, Frame, Method, PixelForma
 use scanner_core::{Camera, Distortion};
 
 #[global_allocator]
-static GLOBAL: scanner_tests::Counting = scanner_tests::Counting;
+static GLOBAL: scanner_alloc::Counting = scanner_alloc::Counting;
 
-use scanner_tests::allocations_during;
+use scanner_alloc::allocations_during;
 
 #[test]
 fn per_frame_calls_do_not_allocate() {

@@ -12,7 +12,7 @@ use scanner_device::source::{FrameSource, RigSource};
 use scanner_rig::{Rig, Scene};
 
 #[global_allocator]
-static GLOBAL: scanner_tests::Counting = scanner_tests::Counting;
+static GLOBAL: scanner_alloc::Counting = scanner_alloc::Counting;
 
 #[test]
 fn the_steady_state_allocates_nothing() {
@@ -43,7 +43,7 @@ fn the_steady_state_allocates_nothing() {
         for f in &frames[..4] {
             session.frame(f, &mut link, |_, _| {}).unwrap();
         }
-        let before = scanner_tests::allocations();
+        let before = scanner_alloc::allocations();
         let mut points = 0;
         for f in &frames[4..] {
             session
@@ -52,7 +52,7 @@ fn the_steady_state_allocates_nothing() {
             // Let the writer catch up, as a camera's frame period would.
             std::thread::sleep(std::time::Duration::from_millis(2));
         }
-        let n = scanner_tests::allocations() - before;
+        let n = scanner_alloc::allocations() - before;
         assert!(points > 500, "{format:?}: only {points} points");
         assert_eq!(
             n,
@@ -63,7 +63,7 @@ fn the_steady_state_allocates_nothing() {
         link.finish().unwrap();
     }
     // The counter works.
-    let before = scanner_tests::allocations();
+    let before = scanner_alloc::allocations();
     std::hint::black_box(vec![0u8; 3]);
-    assert!(scanner_tests::allocations() > before);
+    assert!(scanner_alloc::allocations() > before);
 }

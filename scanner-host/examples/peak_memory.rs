@@ -5,15 +5,15 @@
 //! Prints the peak of live heap bytes, counted by a global allocator:
 //! `cargo run --release -p scanner-host --example peak_memory`.
 
+use scanner_alloc::peak_bytes;
 use scanner_core::geometry::{Board, Plane};
 use scanner_core::nalgebra::{Point2, Vector3};
 use scanner_core::wire::{self, Header, MAX_ENCODED, Message, PlaneMethod, Points, points};
 use scanner_core::{Camera, Distortion};
 use scanner_host::collect::{CollectOptions, Collector};
-use scanner_tests::peak_bytes;
 
 #[global_allocator]
-static A: scanner_tests::Peak = scanner_tests::Peak;
+static A: scanner_alloc::Peak = scanner_alloc::Peak;
 
 const MB: f64 = 1024.0 * 1024.0;
 

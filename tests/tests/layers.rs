@@ -602,6 +602,58 @@ fn problems(name: &str, root: &Path) -> Vec<String> {
     out
 }
 
+/// The layers the README's layout table gives the crate in folder `folder`: its row
+/// `` | `folder` | … | a → b, c → d | `` (the last cell: layers top first, modules of a layer
+/// split by commas).
+fn readme_layers(readme: &str, folder: &str) -> Option<Vec<Vec<String>>> {
+    let row = readme
+        .lines()
+        .find(|l| l.starts_with(&format!("| `{folder}` |")))?;
+    let cell = row.trim_end().trim_end_matches('|').rsplit('|').next()?;
+    Some(
+        cell.split('→')
+            .map(|layer| {
+                layer
+                    .split(',')
+                    .map(|m| m.trim().trim_matches('`').to_string())
+                    .filter(|m| !m.is_empty())
+                    .collect()
+            })
+            .collect(),
+    )
+}
+
+/// The README's layout table states every crate's layers as its root file does.
+#[test]
+fn the_readmes_layout_table_states_each_crates_layers() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).parent().unwrap();
+    let readme = std::fs::read_to_string(root.join("README.md")).unwrap();
+    let mut wrong = Vec::new();
+    for (name, file) in crates() {
+        let Some(stated) = layers(&std::fs::read_to_string(&file).unwrap()) else {
+            continue;
+        };
+        let folder = name
+            .trim_end_matches("/src/lib.rs")
+            .trim_end_matches("/src/main.rs");
+        let sorted = |l: &[Vec<String>]| -> Vec<Vec<String>> {
+            l.iter()
+                .map(|x| {
+                    let mut x = x.clone();
+                    x.sort();
+                    x
+                })
+                .collect()
+        };
+        match readme_layers(&readme, folder) {
+            Some(table) if sorted(&table) == sorted(&stated) => {}
+            Some(table) => wrong.push(format!("{folder}: README {table:?}, {name} {stated:?}")),
+            None => wrong.push(format!("{folder}: no row in the README's layout table")),
+        }
+    }
+    assert!(wrong.is_empty(), "{}", wrong.join("\n"));
+}
+
 #[test]
 fn no_crate_has_a_module_cycle_or_an_arrow_against_its_layers() {
     let mut all = Vec::new();

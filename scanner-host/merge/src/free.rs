@@ -39,7 +39,7 @@ pub fn seen_through(c: &Conflict) -> bool {
 /// Every view's points clear of its edges ([`View::clear_cloud`]: those on them lie off the
 /// surface, as a stripe cut at an occluding edge does) at `poses` against every other view's
 /// free space ([`crate::seen::conflicts`], points more than [`tolerance`] in front): the pair
-/// with the largest share in front among those with at least [`SEEN_MIN_TESTED`] points tested
+/// with the largest share in front among those with at least `SEEN_MIN_TESTED` points tested
 /// (`None`: no pair has so many).
 pub fn free_space(views: &[View], poses: &[Isometry3<f64>], voxel_mm: f64) -> Option<Conflict> {
     let clear: Vec<Cloud> = views.iter().map(View::clear_cloud).collect();
@@ -57,7 +57,7 @@ pub fn free_space(views: &[View], poses: &[Isometry3<f64>], voxel_mm: f64) -> Op
 ///
 /// # Errors
 /// [`MergeError::SeenThrough`] naming the two views.
-pub fn check_free_space(
+pub(crate) fn check_free_space(
     worst: Option<Conflict>,
     views: &[View],
     voxel_mm: f64,

@@ -1,11 +1,11 @@
 //! Fusion of registered views into one closed mesh (issue 17): a field on a regular grid whose
 //! zero surface is the model, cut by marching tetrahedra (a closed manifold by construction); the
-//! largest piece is kept with any others of some size ([`MIN_PIECE`]). Near the points (within
-//! [`BAND`] cells, over a point) the field is the signed distance along the nearest points'
+//! largest piece is kept with any others of some size (`MIN_PIECE`). Near the points (within
+//! `BAND` cells, over a point) the field is the signed distance along the nearest points'
 //! normals (positive outside): precise where the views saw the surface. Elsewhere its sign is the
 //! points' generalized winding number's ([`crate::winding`]): inside where it exceeds ½, which
 //! closes the gaps the views left with a smooth patch instead of letting tangent planes run on
-//! as sheets. Points that are less sure ([`SURE`]: on a view's edge) do not set the side against
+//! as sheets. Points that are less sure (`SURE`: on a view's edge) do not set the side against
 //! a clear verdict of the winding number ([`afloat`]). Checked after: edges in exactly two
 //! faces, fans around vertices, components, the enclosed volume; [`unseen_faces`] says which
 //! surface no view saw (for the report, or [`trim`]).
@@ -310,9 +310,9 @@ pub fn fuse_cut(
 /// ([`afloat`]).
 pub(crate) const AFLOAT_MARGIN: f64 = 0.35;
 
-/// For each point, whether it is less sure (weight under [`SURE`]) and the generalized winding
+/// For each point, whether it is less sure (weight under `SURE`) and the generalized winding
 /// number of all the points puts it clearly inside or outside the surface they wind around (more
-/// than [`AFLOAT_MARGIN`] from ½, where a point on the surface has about ½). A stripe cut by
+/// than `AFLOAT_MARGIN` from ½, where a point on the surface has about ½). A stripe cut by
 /// an occluding edge places a point up to 2 mm off the surface, mostly nearer the camera; its
 /// plane would raise a bead of surface of its own, and where no other view saw the surface clear
 /// nothing else contradicts it ([`crate::fusion::contradicted`]). The margin is wide because
@@ -615,7 +615,7 @@ pub fn area_share(m: &Model, marked: &[bool]) -> f64 {
 }
 
 /// Removes the faces marked in `marked` (from [`unseen_faces`]), then the specks left (pieces
-/// under [`MIN_PIECE`] of the largest). Returns the number of faces removed. The mesh is then
+/// under `MIN_PIECE` of the largest). Returns the number of faces removed. The mesh is then
 /// open where the views left gaps.
 pub fn trim(m: &mut Model, marked: &[bool]) -> usize {
     let before = m.faces.len();
@@ -631,7 +631,7 @@ pub fn trim(m: &mut Model, marked: &[bool]) -> usize {
 
 /// Colours each vertex of `m` with the colour of the nearest of `points` (`colours`, one per
 /// point); nothing when there are no colours.
-pub fn colour_from(m: &mut Model, points: &[Point3<f64>], colours: &[[u8; 3]]) {
+pub(crate) fn colour_from(m: &mut Model, points: &[Point3<f64>], colours: &[[u8; 3]]) {
     if colours.len() != points.len() || colours.is_empty() {
         return;
     }

@@ -26,7 +26,7 @@ const COLOURS: [[u8; 3]; 8] = [
 ];
 
 /// Each point's view colour, views in order (as [`registered_points`] lists the points).
-pub fn view_colours(views: &[View]) -> Vec<[u8; 3]> {
+pub(crate) fn view_colours(views: &[View]) -> Vec<[u8; 3]> {
     views
         .iter()
         .enumerate()
@@ -35,7 +35,7 @@ pub fn view_colours(views: &[View]) -> Vec<[u8; 3]> {
 }
 
 /// All views' points and normals in view 0's frame.
-pub fn registered_points(
+pub(crate) fn registered_points(
     views: &[View],
     poses: &[Isometry3<f64>],
 ) -> (Vec<Point3<f64>>, Vec<Vector3<f64>>) {
@@ -59,11 +59,11 @@ pub struct FusionInput {
     pub colours: Vec<[u8; 3]>,
     /// The surface's colour at each point (empty unless every view carried colour).
     pub surface: Vec<[u8; 3]>,
-    /// The fusion's weight of each point: 1 clear of its view's edges, down to [`EDGE_WEIGHT`]
+    /// The fusion's weight of each point: 1 clear of its view's edges, down to `EDGE_WEIGHT`
     /// on one.
     pub weights: Vec<f64>,
     /// Points on views' edges left out: off the surface another view saw clear
-    /// ([`contradicted_edges`]).
+    /// (`contradicted_edges`).
     pub contradicted: usize,
     /// Points on views' edges left out: clearly off the surface all the points wind around
     /// ([`crate::fuse::afloat`]).
@@ -84,13 +84,13 @@ const CONFIRM_MM: f64 = 2.0;
 /// it lies on its view's edge ([`View::clear`] under [`crate::view::CLEAR`]) and, at the merged poses, more
 /// than [`EDGE_OFF_MM`] off the tangent plane of the nearest point clear of another view's edges
 /// within [`CONFIRM_MM`] ([`contradicted`]).
-pub fn contradicted_edges(views: &[View], poses: &[Isometry3<f64>]) -> Vec<bool> {
+pub(crate) fn contradicted_edges(views: &[View], poses: &[Isometry3<f64>]) -> Vec<bool> {
     let clouds: Vec<&Cloud> = views.iter().map(|v| &v.cloud).collect();
     let clear: Vec<&[f64]> = views.iter().map(|v| &v.clear[..]).collect();
     contradicted(&clouds, &clear, poses)
 }
 
-/// [`contradicted_edges`] of views' `clouds` (each in its own frame, placed by `poses`) with
+/// `contradicted_edges` of views' `clouds` (each in its own frame, placed by `poses`) with
 /// their points' shares clear of the edges `clear` (a missing share counts as clear). An edge
 /// point no other view saw clear stays.
 pub fn contradicted(clouds: &[&Cloud], clear: &[&[f64]], poses: &[Isometry3<f64>]) -> Vec<bool> {
@@ -137,7 +137,7 @@ pub fn contradicted(clouds: &[&Cloud], clear: &[&[f64]], poses: &[Isometry3<f64>
 }
 
 /// The fusion's weight of a point clear of its view's edges by the share `clear` (`None`:
-/// clear): 1 clear of them, down to [`EDGE_WEIGHT`] on one.
+/// clear): 1 clear of them, down to `EDGE_WEIGHT` on one.
 pub fn edge_weight(clear: Option<f64>) -> f64 {
     EDGE_WEIGHT + (1.0 - EDGE_WEIGHT) * clear.unwrap_or(1.0)
 }
@@ -172,7 +172,7 @@ pub fn fused_points(
 /// [`registered_points`] without isolated points and without the edge points that another view's
 /// clear surface contradicts ([`contradicted_edges`]) or that float off the surface of all the
 /// points ([`crate::fuse::afloat`]), with their view colours.
-pub fn fusion_input(views: &[View], poses: &[Isometry3<f64>]) -> FusionInput {
+pub(crate) fn fusion_input(views: &[View], poses: &[Isometry3<f64>]) -> FusionInput {
     let (points, normals) = registered_points(views, poses);
     let off = contradicted_edges(views, poses);
     let colours = view_colours(views);
@@ -227,7 +227,7 @@ const UNSEEN_CELLS: f64 = 3.0;
 /// What the report says of a fusion.
 #[derive(Debug, Clone, PartialEq, serde::Serialize)]
 pub struct FusionFigures {
-    /// Points on the views' edges left out: more than [`EDGE_OFF_MM`] off the surface another
+    /// Points on the views' edges left out: more than `EDGE_OFF_MM` off the surface another
     /// view saw clear of its edges.
     pub contradicted: usize,
     /// The distance off that surface that leaves an edge point out, mm.
@@ -272,7 +272,7 @@ pub struct Fused {
 ///
 /// # Errors
 /// [`FuseError`] from the fusion.
-pub fn fuse_views(
+pub(crate) fn fuse_views(
     input: &FusionInput,
     cell: f64,
     (closing, up): (Closing, Option<Vector3<f64>>),

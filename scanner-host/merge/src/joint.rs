@@ -11,7 +11,7 @@ use crate::register::RegisterOptions;
 use crate::spatial::Cloud;
 use crate::view::View;
 
-/// The loop closure before and after [`refine_views`].
+/// The loop closure before and after `refine_views`.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Closure {
     /// Pairs of views checked: those that close loops ([`ViewResult::agrees`]).
@@ -28,7 +28,7 @@ pub(crate) const ROUNDS: usize = 8;
 /// Refines all views' poses together ([`crate::refine`]) from those [`crate::poses::register_views`] found,
 /// pairs within `voxel_mm`; returns the loop closure before and after, over the pairs of views
 /// that agree without one registered onto the other ([`ViewResult::agrees`]).
-pub fn refine_views(
+pub(crate) fn refine_views(
     views: &[View],
     results: &mut [ViewResult],
     o: &RegisterOptions,
@@ -84,18 +84,18 @@ pub fn refine_views(
 /// thickest a scanning line laser's line usually is (a line 5.7 mm wide at half its brightness).
 pub(crate) const SHEET_TRIES: [f64; 7] = [0.0, 0.2, 0.4, 0.6, 0.8, 1.0, 1.2];
 
-/// How far the views' surfaces lie apart where they overlap ([`crate::refine::disagreement`] of
+/// How far the views' surfaces lie apart where they overlap ([`crate::refine::surface_gap`] of
 /// their points clear of their edges, placed by `results`); `None` where no view overlaps
 /// another.
 ///
 /// Each view's stripe centres are off the surface by an amount that depends on how its own
 /// sweep met the surface, so views that see the same surface from different sides disagree by
 /// it; moved by the right sheet thickness (`--sheet`), they agree best.
-pub fn disagreement(views: &[View], results: &[ViewResult]) -> Option<f64> {
+pub(crate) fn disagreement(views: &[View], results: &[ViewResult]) -> Option<f64> {
     let clear: Vec<Cloud> = views.iter().map(View::clear_cloud).collect();
     let clouds: Vec<&Cloud> = clear.iter().collect();
     let poses: Vec<Isometry3<f64>> = results.iter().map(|r| r.pose).collect();
-    crate::refine::disagreement(&clouds, &poses)
+    crate::refine::surface_gap(&clouds, &poses)
 }
 
 /// The sheet thickness where the views agree best, from `tried` (σ ascending, with the views'
@@ -104,7 +104,7 @@ pub fn disagreement(views: &[View], results: &[ViewResult]) -> Option<f64> {
 /// order, so the squared disagreement is a parabola in σ² where the bias dominates), its vertex
 /// kept between the neighbours; at either end of the list, that end. `None` when no thickness
 /// was measured.
-pub fn best_sheet(tried: &[(f64, f64)]) -> Option<f64> {
+pub(crate) fn best_sheet(tried: &[(f64, f64)]) -> Option<f64> {
     let (i, _) = tried
         .iter()
         .enumerate()
@@ -137,7 +137,7 @@ const LOOP_MAX_VOXELS: f64 = 1.0;
 ///
 /// # Errors
 /// [`MergeError::LoopOpen`] naming the view and its error.
-pub fn check_closure(c: &Closure, voxel_mm: f64) -> Result<(), MergeError> {
+pub(crate) fn check_closure(c: &Closure, voxel_mm: f64) -> Result<(), MergeError> {
     let max_mm = LOOP_MAX_VOXELS * voxel_mm;
     match c.after {
         Some(e) if !(e.rotation_deg <= LOOP_MAX_DEG && e.translation_mm <= max_mm) => {

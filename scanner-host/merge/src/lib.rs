@@ -38,7 +38,7 @@ pub mod poses;
 pub mod refine;
 pub mod register;
 pub mod report;
-pub mod run;
+mod run;
 pub mod seen;
 pub mod select;
 pub mod spatial;

@@ -29,7 +29,7 @@ pub struct ViewResult {
     pub on_turntable: bool,
     /// Its angle about the turntable's axis, degrees (0–360, the first view turned forwards),
     /// when the joint refinement kept the views on the turntable turns about one axis
-    /// ([`refine_views`]).
+    /// (`refine_views`).
     pub turn_deg: Option<f64>,
 }
 
@@ -56,7 +56,7 @@ const PAIR_REACH: usize = 7;
 /// # Errors
 /// Fewer than two views, views of another camera, a view that overlaps none of the others, views
 /// that match one another but not view 0's group.
-pub fn register_views(
+pub(crate) fn register_views(
     views: &[View],
     o: &RegisterOptions,
     turntable_deg: Option<f64>,
@@ -117,7 +117,7 @@ pub enum Unplaced {
     },
 }
 
-/// [`register_views`] on the views' clouds: `hints(a, b)` gives motions of view `a` onto view `b`
+/// `register_views` on the views' clouds: `hints(a, b)` gives motions of view `a` onto view `b`
 /// to try beside the descriptors' (a turntable's step), `implausible(results)` two views whose
 /// placements contradict each other (one's points where the other saw empty space), `progress`
 /// the pairs done and in all.

@@ -509,7 +509,7 @@ const FOUND: TurnTolerance = TurnTolerance {
     off_mm: 0.5,
 };
 
-/// The views' surfaces may lie this much farther apart ([`disagreement`]) kept as turns than
+/// The views' surfaces may lie this much farther apart ([`surface_gap`]) kept as turns than
 /// free for [`found_turns`] to keep the turns (the demo's lie 0.1 % farther, on uneven steps
 /// 0.3 %).
 const FOUND_SLACK: f64 = 0.01;
@@ -522,13 +522,13 @@ const FOUND_SLACK: f64 = 0.01;
 const FOUND_ROUNDS: usize = 3;
 
 /// Turns found without a hint: where the freely refined poses `free` of at least
-/// [`FOUND_MIN_VIEWS`] views besides view 0 are turns about one axis within [`FOUND`] (the object
+/// `FOUND_MIN_VIEWS` views besides view 0 are turns about one axis within `FOUND` (the object
 /// on a turntable whose step the user did not give), they are refined again as such turns —
 /// one axis and an angle each in place of six unknowns each, so that each view's noise is
 /// averaged over all of them — pairs as near as [`refine_turns`]'s last rounds with `max_dist`
 /// pair them. The turns are
-/// kept only where every turned view stays within [`FOUND`] of its free pose and the views'
-/// surfaces agree as well as free (within [`FOUND_SLACK`]); else `free` is returned as it is.
+/// kept only where every turned view stays within `FOUND` of its free pose and the views'
+/// surfaces agree as well as free (within `FOUND_SLACK`); else `free` is returned as it is.
 pub fn found_turns(
     clouds: &[&Cloud],
     free: Vec<Isometry3<f64>>,
@@ -562,19 +562,19 @@ pub fn found_turns(
     }
 }
 
-/// Pairs of points of two views this near count in [`disagreement`], mm.
+/// Pairs of points of two views this near count in [`surface_gap`], mm.
 pub(crate) const AGREE_MM: f64 = 1.0;
 
 /// How far the views' surfaces lie apart where they overlap: the RMS distance of each view's
 /// points (at most [`MAX_POINTS`], evenly spaced) from the tangent plane of the nearest point of
 /// every other view within [`AGREE_MM`], the views placed by `poses`; `None` where no view
 /// overlaps another.
-pub fn disagreement(clouds: &[&Cloud], poses: &[Isometry3<f64>]) -> Option<f64> {
+pub(crate) fn surface_gap(clouds: &[&Cloud], poses: &[Isometry3<f64>]) -> Option<f64> {
     let parts: Vec<Part<'_>> = clouds.iter().map(|c| Part::new(c)).collect();
     agreement(&parts, poses)
 }
 
-/// [`disagreement`] of the views' parts.
+/// [`surface_gap`] of the views' parts.
 fn agreement(parts: &[Part<'_>], poses: &[Isometry3<f64>]) -> Option<f64> {
     let inverses: Vec<Isometry3<f64>> = poses.iter().map(Isometry3::inverse).collect();
     let (mut sum2, mut pairs) = (0.0, 0usize);

@@ -501,13 +501,13 @@ fn place_turn(
 }
 
 /// Whether two motions differ by under 2° and 2 voxels.
-pub fn same_motion(a: &Isometry3<f64>, b: &Isometry3<f64>, voxel: f64) -> bool {
+pub(crate) fn same_motion(a: &Isometry3<f64>, b: &Isometry3<f64>, voxel: f64) -> bool {
     let d = a.inverse() * b;
     d.rotation.angle() < 2f64.to_radians() && d.translation.vector.norm() < 2.0 * voxel
 }
 
 /// The fine fit of `src` onto `dst` from `init`: point-to-plane ICP pairing at most
-/// [`FINE_POINTS`] of the source (evenly spaced) with the whole target, within a voxel.
+/// `FINE_POINTS` of the source (evenly spaced) with the whole target, within a voxel.
 ///
 /// # Errors
 /// [`RegisterError::NoOverlap`] when the refined fit covers less than `min_overlap`: a wrong match

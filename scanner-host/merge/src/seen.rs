@@ -5,7 +5,7 @@
 //! cannot tell where no loop closes, or where a wrong group of views closes its own loop; the
 //! views' own measurements can.
 //!
-//! Each view's points give a map of the nearest depth it saw per bin of [`BIN_PX`] pixels of its
+//! Each view's points give a map of the nearest depth it saw per bin of `BIN_PX` pixels of its
 //! image (the ideal pinhole projection of its points, so that the lens's distortion, already
 //! taken out of the points, plays no part). Another view's point, moved into this view's camera
 //! frame, is tested where the bins around it all hold a depth (inside the seen surface, not at
@@ -142,7 +142,7 @@ impl Conflict {
 /// `cloud`'s points (its camera frame), moved by `pose` into the camera frame of `map`'s view,
 /// against what that view saw: `(tested, in front)` — the points that project inside its seen
 /// surface, and those of them more than `tol_mm` nearer than it.
-pub fn in_front(
+pub(crate) fn in_front(
     cloud: &Cloud,
     pose: &Isometry3<f64>,
     map: &DepthMap,
@@ -161,7 +161,7 @@ pub fn in_front(
 /// Every view's points (`clouds`, each in its own camera frame, placed into a common frame by
 /// `poses`) against every other view's free space (`map_of(k)`: view `k`'s [`DepthMap`], made
 /// when its turn comes and dropped after, so that one map is held at a time): one [`Conflict`]
-/// per ordered pair of views with at least one point tested ([`in_front`]).
+/// per ordered pair of views with at least one point tested (`in_front`).
 pub fn conflicts(
     clouds: &[&Cloud],
     poses: &[Isometry3<f64>],

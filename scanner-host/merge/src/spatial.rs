@@ -26,7 +26,7 @@ pub fn tree(points: &[Point3<f64>]) -> KdTree<f64, 3> {
 const MAX_SAME: usize = 16;
 
 /// A k-d tree of `items`, each under its index, with at most [`MAX_SAME`] copies of any one.
-pub fn tree_of<A: kiddo::float::kdtree::Axis + Into<f64>, const K: usize>(
+pub(crate) fn tree_of<A: kiddo::float::kdtree::Axis + Into<f64>, const K: usize>(
     items: impl Iterator<Item = [A; K]>,
 ) -> KdTree<A, K> {
     let mut t: KdTree<A, K> = KdTree::new();
@@ -42,7 +42,7 @@ pub fn tree_of<A: kiddo::float::kdtree::Axis + Into<f64>, const K: usize>(
 }
 
 /// The indices of `points` grouped by the `voxel` mm cube they lie in, cubes in a fixed order.
-pub fn voxel_groups(points: &[Point3<f64>], voxel: f64) -> Vec<Vec<u32>> {
+pub(crate) fn voxel_groups(points: &[Point3<f64>], voxel: f64) -> Vec<Vec<u32>> {
     let mut cells: std::collections::HashMap<[i64; 3], Vec<u32>> = std::collections::HashMap::new();
     for (i, p) in points.iter().enumerate() {
         let key = [p.x, p.y, p.z].map(|v| (v / voxel).floor() as i64);
@@ -60,7 +60,7 @@ pub fn thin(c: &Cloud, voxel: f64) -> Cloud {
 
 /// [`thin`], with the mean of each cube's colours and of each kind of `values` (each kind a
 /// list with one value per point; a list of another length is left out) beside it.
-pub fn thin_with(
+pub(crate) fn thin_with(
     c: &Cloud,
     colours: &[[u8; 3]],
     values: &[&[f64]],

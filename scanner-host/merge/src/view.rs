@@ -1,7 +1,7 @@
 //! One view as the merge takes it: a sweep's surface points with their normals, colours,
 //! uncertainties and how clear of the view's edges each lies, and the scan's header (its
 //! camera, image and board). The caller reads it (the host from a journal); the merge thins it
-//! to one point per [`THIN_MM`] cube when it is made.
+//! to one point per `THIN_MM` cube when it is made.
 
 use scanner_core::nalgebra::{Point3, Vector3};
 use scanner_core::wire::Header;
@@ -88,7 +88,7 @@ impl View {
         self.clear.get(i).is_none_or(|&c| c >= CLEAR)
     }
 
-    /// The view's points clear of its edges ([`CLEAR`]; all of them when fewer than half are:
+    /// The view's points clear of its edges (`CLEAR`; all of them when fewer than half are:
     /// a view that is all edge registers as it is).
     pub fn clear_cloud(&self) -> Cloud {
         let keep: Vec<usize> = (0..self.cloud.points.len())

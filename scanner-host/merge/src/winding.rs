@@ -4,7 +4,7 @@
 //! 0; where the surface has holes it falls smoothly from 1 to 0 across them, so `w = ½` closes
 //! the holes (the fusion uses it where no view saw the surface). Evaluated by Barnes–Hut: a
 //! binary tree of the points, each node summed as one dipole (its area-weighted centre and the
-//! sum of its `aᵢ nᵢ`) when the query is farther than [`BETA`] times the node's radius.
+//! sum of its `aᵢ nᵢ`) when the query is farther than `BETA` times the node's radius.
 
 use kiddo::SquaredEuclidean;
 use scanner_core::nalgebra::{Point3, Vector3};
@@ -24,7 +24,7 @@ const AREA_K: usize = 32;
 /// takes its square root as the points' local spacing), but short of the area: on the 360°
 /// demo's points its sum falls about 3 % short, which moves the closure of a hole 60 mm wide
 /// by half a millimetre inwards; [`areas`] gives the area.
-pub fn spacing_areas(points: &[Point3<f64>], tree: &kiddo::KdTree<f64, 3>) -> Vec<f64> {
+pub(crate) fn spacing_areas(points: &[Point3<f64>], tree: &kiddo::KdTree<f64, 3>) -> Vec<f64> {
     points
         .iter()
         .map(|p| {
@@ -46,7 +46,7 @@ const CELL_K: usize = 16;
 /// (`√spacing[i]`, [`spacing_areas`]) — so that a point on the rim of a hole stands for half a
 /// spacing beyond itself, not for the hole. Points at one place share their cell; where views
 /// overlap, their points share the area instead of counting it twice.
-pub fn areas(
+pub(crate) fn areas(
     points: &[Point3<f64>],
     normals: &[Vector3<f64>],
     spacing: &[f64],
@@ -152,7 +152,7 @@ pub struct Winding {
 
 impl Winding {
     /// Builds the tree of `points` with outward `normals` and each point's `area` (mm², from
-    /// [`areas`]).
+    /// `areas`).
     pub fn new(points: &[Point3<f64>], normals: &[Vector3<f64>], area: &[f64]) -> Self {
         let mut order: Vec<u32> = (0..points.len() as u32).collect();
         let mut w = Winding {
@@ -189,7 +189,7 @@ impl Winding {
     }
 
     /// The winding number of oriented `points` (their k-d tree `tree`, their spacing areas
-    /// `spacing` from [`spacing_areas`]), each weighed by its Voronoi cell ([`areas`]).
+    /// `spacing` from `spacing_areas`), each weighed by its Voronoi cell (`areas`).
     pub fn of_cloud(
         points: &[Point3<f64>],
         normals: &[Vector3<f64>],

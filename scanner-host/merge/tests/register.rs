@@ -10,7 +10,7 @@ use scanner_rig::{Rig, Scene, SurfaceId};
 
 fn bunny_views() -> Scene {
     let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../scanner-device/scenes/bunny-360.toml");
+        .join("../../scanner-device/scenes/bunny-360.toml");
     let text = std::fs::read_to_string(&path).unwrap();
     Scene::from_toml_in(&text, path.parent().unwrap()).unwrap()
 }
@@ -473,7 +473,7 @@ fn views_chosen_together_are_placed_right_and_a_group_apart_is_named() {
     }
     // Two views of the part join the first two of the bunny.
     let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../scanner-device/scenes/part-360.toml");
+        .join("../../scanner-device/scenes/part-360.toml");
     let part = Scene::from_toml_in(
         &std::fs::read_to_string(&path).unwrap(),
         path.parent().unwrap(),

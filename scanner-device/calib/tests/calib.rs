@@ -406,7 +406,7 @@ fn a_marker_partly_behind_the_object_is_dropped_however_little_it_pulls() {
     // a sheet's pose absorbs most of such an error (residual 0.23 px, rms 0.13 px): kept, it
     // tilted the left plane by 0.036° and put the planes 0.08–0.14 mm nearer the camera, which
     // moved every scanned depth by about as much.
-    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/bunny-360.toml");
+    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../scenes/bunny-360.toml");
     let text = std::fs::read_to_string(path).unwrap();
     let scene = Scene::from_toml_in(&text, std::path::Path::new(path).parent().unwrap())
         .unwrap()
