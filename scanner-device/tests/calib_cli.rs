@@ -30,18 +30,25 @@ fn calibrate_the_rig_from_its_images() {
         &*Box::leak(p(d, "camera.toml").into_boxed_str()),
     ];
     args.extend(grids.iter().map(String::as_str));
-    let (ok, out, err) = run(&args);
+    let (ok, _, err) = run(&args);
     assert!(ok, "{err}");
-    assert!(out.contains("rms"), "{out}");
-    // The rig's twelve shots sweep the target round the middle of the view: the border stays
-    // unsampled, and the command says where.
+    let report = json(&d.join("camera-report.json"));
     assert!(
-        out.contains("coverage: the features used fall in")
-            && out.contains("0 of the 24 on its border")
-            && out.contains("none in the top left, top right, bottom left, bottom right corners"),
-        "{out}"
+        report["rms_px"].as_f64().is_some_and(|r| r < 0.5),
+        "{report}"
     );
-    k3_is_fixed_without_the_border(d, &grids, &out);
+    assert_eq!(report["used"], 12, "{report}");
+    // The rig's twelve shots sweep the target round the middle of the view: the border stays
+    // unsampled, and the report says where.
+    let coverage = &report["coverage"];
+    assert!(coverage["cells"].as_u64() > Some(0), "{coverage}");
+    assert_eq!(coverage["border"], 0, "{coverage}");
+    assert_eq!(
+        coverage["empty_corners"],
+        serde_json::json!(["top left", "top right", "bottom left", "bottom right"]),
+        "{coverage}"
+    );
+    k3_is_fixed_without_the_border(d, &grids, &report);
     let (ok, out, err) = run(&[
         "calibrate",
         "board",
@@ -53,8 +60,14 @@ fn calibrate_the_rig_from_its_images() {
         &p(d, "overlay.png"),
         &p(d, "board.png"),
     ]);
-    assert!(ok, "{err}");
-    assert!(out.contains("left sheet: 5/6 markers"), "{out}");
+    assert!(ok, "{err}\n{out}");
+    let board = json(&d.join("calibration-report.json"));
+    assert_eq!(board["sheets"][0]["side"], "left", "{board}");
+    assert_eq!(
+        (&board["sheets"][0]["used"], &board["sheets"][0]["markers"]),
+        (&serde_json::json!(5), &serde_json::json!(6)),
+        "{board}"
+    );
     let cal = CalibrationFile::load(&d.join("calibration.toml")).unwrap();
     assert_eq!((cal.image.width, cal.image.height), (640, 480));
     let board = cal.board().unwrap().unwrap();
@@ -140,11 +153,9 @@ fn calibrate_the_rig_from_its_images() {
 /// With no feature on the image's border `calibrate intrinsics` fixes k3 at 0 and says so, and
 /// the lens's distortion it finds is then right out where the board's markers and stripes lie
 /// (0.5–0.6 of the focal length from the centre), where a fit with k3 free extrapolates worse.
-fn k3_is_fixed_without_the_border(d: &Path, grids: &[String], out: &str) {
-    assert!(
-        out.contains("k3 fixed at 0: no feature used lies on the image's border"),
-        "{out}"
-    );
+fn k3_is_fixed_without_the_border(d: &Path, grids: &[String], report: &serde_json::Value) {
+    assert_eq!(report["k3_fixed"], true, "{report}");
+    assert_eq!(report["camera"]["k3"], 0.0, "{report}");
     let found = CalibrationFile::load(&d.join("camera.toml"))
         .unwrap()
         .camera()
@@ -278,8 +289,14 @@ fn a_board_file_with_a_chessboard_sheet_end_to_end() {
         &p(d, "overlay.png"),
         &p(d, "cal/board.png"),
     ]);
-    assert!(ok, "{err}");
-    assert!(out.contains("right sheet: 49/49 markers"), "{out}");
+    assert!(ok, "{err}\n{out}");
+    let board = json(&d.join("calibration-report.json"));
+    assert_eq!(board["sheets"][1]["side"], "right", "{board}");
+    assert_eq!(
+        (&board["sheets"][1]["used"], &board["sheets"][1]["markers"]),
+        (&serde_json::json!(49), &serde_json::json!(49)),
+        "{board}"
+    );
     // The printed sheet shows the squares.
     let (ok, _, err) = run(&[
         "board",
@@ -364,8 +381,13 @@ fn render_calibration_takes_3_to_64_shots() {
         std::fs::read_dir(d).unwrap().next().is_none(),
         "nothing written on bad input"
     );
-    let (ok, out, err) = run(&["render-calibration", "--out", &p(d, ""), "--shots", "3"]);
+    let (ok, _, err) = run(&["render-calibration", "--out", &p(d, ""), "--shots", "3"]);
     assert!(ok, "{err}");
-    assert!(out.contains("grid-00..02.png"), "{out}");
     assert!(d.join("grid-02.png").exists() && !d.join("grid-03.png").exists());
+}
+
+/// A JSON report a command wrote.
+fn json(path: &Path) -> serde_json::Value {
+    let text = std::fs::read_to_string(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    serde_json::from_str(&text).unwrap()
 }

@@ -30,16 +30,21 @@ fn capture_keeps_the_usable_shots_and_says_why_of_the_others() {
             "capture", "--source", "dir:cam", "--count", "3", "--out", "kept",
         ],
     );
-    assert!(ok, "{err}");
-    assert!(
-        out.contains("frame 0: not usable: dot grid not found"),
-        "{out}"
+    assert!(ok, "{err}\n{out}");
+    let r = json(&d.join("kept/capture-report.json"));
+    let shots = r["shots"].as_array().unwrap();
+    assert_eq!(shots[0]["refused"]["reason"], "no_grid", "{r}");
+    assert!(shots[0]["kept_as"].is_null(), "{r}");
+    assert_eq!(
+        shots[1]["grid"],
+        serde_json::json!({"points": 63, "cols": 9, "rows": 7, "complete": true}),
+        "{r}"
     );
-    assert!(
-        out.contains("frame 1: grid found: 63 points identified over 9×7, complete"),
-        "{out}"
+    assert_eq!(shots[1]["kept_as"], "grid-00.png", "{r}");
+    assert_eq!(
+        (r["kept"].as_u64(), r["count"].as_u64()),
+        (Some(3), Some(3))
     );
-    assert!(out.contains("3 shots in kept"), "{out}");
     for i in 0..3 {
         assert!(d.join(format!("kept/grid-{i:02}.png")).exists());
     }
@@ -70,10 +75,16 @@ fn capture_keeps_the_usable_shots_and_says_why_of_the_others() {
             "keptb",
         ],
     );
-    assert!(ok, "{err}");
+    assert!(ok, "{err}\n{out}");
+    let r = json(&d.join("keptb/capture-report.json"));
+    let shot = &r["shots"][0];
+    assert_eq!(shot["kept_as"], "board.png", "{r}");
+    assert_eq!(shot["sheets"].as_array().map(Vec::len), Some(2), "{r}");
     assert!(
-        out.contains("left sheet: ") && out.contains("the sheets meet at"),
-        "{out}"
+        shot["angle_deg"]
+            .as_f64()
+            .is_some_and(|a| a > 30.0 && a < 150.0),
+        "{r}"
     );
     let (ok, _, err) = run(
         d,
@@ -115,13 +126,16 @@ fn capture_checks_real_webcam_photographs_of_a_chessboard() {
             "kept",
         ],
     );
-    assert!(ok, "{err}");
-    assert_eq!(
-        out.matches("grid found: 54 points identified over 9×6, complete")
-            .count(),
-        3,
-        "{out}"
-    );
+    assert!(ok, "{err}\n{out}");
+    let r = json(&d.join("kept/capture-report.json"));
+    for shot in r["shots"].as_array().unwrap() {
+        assert_eq!(
+            shot["grid"],
+            serde_json::json!({"points": 54, "cols": 9, "rows": 6, "complete": true}),
+            "{r}"
+        );
+    }
+    assert_eq!(r["kept"], 3, "{r}");
     // A count smaller than the board shows (a 9x6 board given as 8x5) finds no usable shot and
     // says so (a larger count is a partial view of a bigger board, which is allowed).
     let (ok, out, err) = run(
@@ -138,6 +152,17 @@ fn capture_checks_real_webcam_photographs_of_a_chessboard() {
             "wrong",
         ],
     );
-    assert!(!ok && err.contains("0 of 1 usable shots kept"), "{err}");
-    assert!(out.contains("frame 0: not usable"), "{out}");
+    assert!(
+        !ok && err.contains("0 of 1 usable shots kept"),
+        "{err}\n{out}"
+    );
+    let r = json(&d.join("wrong/capture-report.json"));
+    assert_eq!(r["shots"][0]["refused"]["reason"], "count_mismatch", "{r}");
+    assert_eq!(r["kept"], 0, "{r}");
+}
+
+/// A JSON report a command wrote.
+fn json(path: &Path) -> serde_json::Value {
+    let text = std::fs::read_to_string(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    serde_json::from_str(&text).unwrap()
 }

@@ -331,47 +331,47 @@ fn the_command_says_for_every_real_image_what_it_used_and_draws_each() {
         &out,
         &real_paths(),
     ));
-    assert!(ok, "{err}");
-    for n in IMAGES {
-        let line = text
-            .lines()
-            .find(|l| l.contains(&format!("{n}.jpg")))
-            .unwrap();
-        assert!(line.contains("used: 54 features"), "{line}");
+    assert!(ok, "{err}\n{text}");
+    let r = json(&dir.path().join("camera-report.json"));
+    let images = r["images"].as_array().unwrap();
+    for (n, image) in IMAGES.iter().zip(images) {
+        assert!(
+            image["path"]
+                .as_str()
+                .unwrap()
+                .ends_with(&format!("{n}.jpg"))
+                && image["features"] == 54
+                && image["refused"].is_null(),
+            "{image}"
+        );
         let overlay = dir
             .path()
             .join("camera-overlays")
             .join(format!("{n}-overlay.png"));
         assert_eq!(image::open(&overlay).unwrap().width(), 640);
     }
-    assert!(text.contains("over 13 images"), "{text}");
+    assert_eq!(r["used"], 13, "{r}");
     // OpenCV's photographs put corners on half the image's border: k3 is fitted there, as
     // OpenCV fits it, not fixed.
-    assert!(
-        text.contains("12 of the 24 on its border") && !text.contains("k3 fixed"),
-        "{text}"
+    let coverage = &r["coverage"];
+    assert_eq!(
+        (&coverage["border"], &coverage["ring"], &r["k3_fixed"]),
+        (
+            &serde_json::json!(12),
+            &serde_json::json!(24),
+            &serde_json::json!(false)
+        ),
+        "{r}"
     );
     // Where the corners fell: this series holds the board near the middle, and the corners of
-    // the view stay unsampled (the distortion there extrapolated), which the command says.
-    let coverage = text
-        .lines()
-        .find(|l| l.starts_with("coverage: "))
-        .unwrap_or_else(|| panic!("a coverage line:\n{text}"));
-    let count = |after: &str| -> usize {
-        coverage
-            .split(after)
-            .next()
-            .and_then(|s| s.rsplit(' ').next())
-            .and_then(|v| v.parse().ok())
-            .unwrap_or_else(|| panic!("{coverage}"))
-    };
-    let (cells, border) = (
-        count(" of the image's 48 cells"),
-        count(" of the 24 on its border"),
-    );
-    assert!((20..48).contains(&cells) && border < 24, "{coverage}");
+    // the view stay unsampled (the distortion there extrapolated), which the report says.
+    let cells = coverage["cells"].as_u64().unwrap();
     assert!(
-        coverage.contains("corner") && coverage.contains("extrapolated"),
+        coverage["of"] == 48 && (20..48).contains(&cells),
+        "{coverage}"
+    );
+    assert!(
+        !coverage["empty_corners"].as_array().unwrap().is_empty(),
         "{coverage}"
     );
     // Squares or corners: the same board, the same camera.
@@ -381,17 +381,9 @@ fn the_command_says_for_every_real_image_what_it_used_and_draws_each() {
         &out2,
         &real_paths(),
     ));
-    assert!(ok, "{err}");
-    let fx = |t: &str| {
-        t.lines()
-            .last()
-            .unwrap()
-            .split(" fy")
-            .next()
-            .unwrap()
-            .to_string()
-    };
-    assert_eq!(fx(&text), fx(&text2));
+    assert!(ok, "{err}\n{text2}");
+    let r2 = json(&dir.path().join("camera2-report.json"));
+    assert_eq!(r["camera"], r2["camera"], "the same camera either way");
 }
 
 #[test]
@@ -429,10 +421,10 @@ fn a_chessboard_count_that_does_not_match_the_board_is_refused_with_what_was_see
         &real_paths(),
     ));
     assert!(!ok, "{text}");
-    assert!(
-        text.contains("refused: chessboard: the image shows a grid of 9×6 inner corners, more than the 8×5 given"),
-        "{text}"
-    );
+    let r = json(&dir.path().join("camera-report.json"));
+    for image in r["images"].as_array().unwrap() {
+        assert_eq!(image["refused"]["reason"], "count_mismatch", "{image}");
+    }
     assert!(err.contains("camera-overlays"), "{err}");
     assert!(
         dir.path()
@@ -470,17 +462,21 @@ fn images_that_do_not_fit_one_camera_are_refused_and_the_rest_calibrate() {
         &all,
     ));
     assert!(ok, "{err}\n{text}");
+    let r = json(&dir.path().join("camera-report.json"));
+    let images = r["images"].as_array().unwrap();
     for s in &squeezed {
-        let line = text.lines().find(|l| l.contains(s.as_str())).unwrap();
-        assert!(line.contains("refused: reprojection error"), "{line}");
+        let image = images.iter().find(|i| i["path"] == s.as_str()).unwrap();
+        assert_eq!(image["refused"]["reason"], "reprojection", "{image}");
     }
-    let repeated = text
-        .lines()
-        .filter(|l| l.contains("right01.jpg"))
-        .nth(1)
-        .unwrap();
-    assert!(repeated.contains("refused: the same view as"), "{repeated}");
-    assert!(text.contains("over 13 images"), "{text}");
+    let repeated = &images[IMAGES.len()];
+    assert!(
+        repeated["refused"]["reason"] == "same_view"
+            && repeated["refused"]["same_as"]
+                .as_str()
+                .is_some_and(|p| p.ends_with("right01.jpg")),
+        "{repeated}"
+    );
+    assert_eq!(r["used"], 13, "{r}");
     // Too few good ones: an error, not a camera.
     let mut few = real_paths()[..3].to_vec();
     few.extend(squeezed);
@@ -491,4 +487,10 @@ fn images_that_do_not_fit_one_camera_are_refused_and_the_rest_calibrate() {
     ));
     assert!(!ok, "{text}");
     assert!(err.contains("do not fit one camera"), "{err}");
+}
+
+/// A JSON report a command wrote.
+fn json(path: &std::path::Path) -> serde_json::Value {
+    let text = std::fs::read_to_string(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    serde_json::from_str(&text).unwrap()
 }

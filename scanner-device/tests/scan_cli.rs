@@ -19,6 +19,7 @@ fn a_rig_scan_into_a_file_reports_its_figures() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("scan.stream");
     let truth = truth_file(dir.path(), 320, 240);
+    let report = dir.path().join("scan.json");
     let (ok, stdout, err) = run(&[
         "scan",
         "--source",
@@ -27,14 +28,17 @@ fn a_rig_scan_into_a_file_reports_its_figures() {
         &truth,
         "--out",
         out.to_str().unwrap(),
+        "--report",
+        report.to_str().unwrap(),
         "-q",
     ]);
     assert!(ok, "{err}");
-    assert!(
-        stdout.contains("60 frames") && stdout.contains("bytes per point"),
-        "{stdout}"
-    );
-    assert!(stdout.contains("115200 baud UART:"), "{stdout}");
+    let r = json(&report);
+    assert_eq!(r["frames"], 60, "{stdout}");
+    let bpp = r["bytes_per_point"]
+        .as_f64()
+        .unwrap_or_else(|| panic!("{r}"));
+    assert!(bpp > 0.0 && bpp < 20.0, "{r}");
     assert!(std::fs::metadata(&out).unwrap().len() > 1000);
 }
 
@@ -187,12 +191,18 @@ fn frame_and_time_limits_end_the_scan_with_a_final_stopped_status() {
         out.to_str().unwrap(),
         "--frames",
         "7",
+        "--report",
+        dir.path().join("a.json").to_str().unwrap(),
         "-q",
     ]);
-    assert!(ok, "{err}");
+    assert!(ok, "{err}\n{stdout}");
+    let r = json(&dir.path().join("a.json"));
+    assert_eq!(r["frames"], 7, "{r}");
     assert!(
-        stdout.contains("7 frames") && stdout.contains("--frames"),
-        "{stdout}"
+        r["stopped"]
+            .as_str()
+            .is_some_and(|s| s.contains("--frames")),
+        "the limit named: {r}"
     );
     let s = final_status(&out);
     assert!(
@@ -229,6 +239,7 @@ fn sigterm_and_sigint_end_the_scan_with_a_final_status() {
     let truth = truth_file(dir.path(), 640, 480);
     for signal in ["TERM", "INT"] {
         let out = dir.path().join(format!("{signal}.stream"));
+        let report = dir.path().join(format!("{signal}.json"));
         let child = std::process::Command::new(env!("CARGO_BIN_EXE_scanner-device"))
             .args([
                 "scan",
@@ -238,6 +249,8 @@ fn sigterm_and_sigint_end_the_scan_with_a_final_status() {
                 &truth,
                 "--out",
                 out.to_str().unwrap(),
+                "--report",
+                report.to_str().unwrap(),
                 "-q",
             ])
             .stdout(std::process::Stdio::piped())
@@ -263,7 +276,11 @@ fn sigterm_and_sigint_end_the_scan_with_a_final_status() {
             result.status,
             String::from_utf8_lossy(&result.stderr)
         );
-        assert!(stdout.contains("stopped by a signal"), "{stdout}");
+        let r = json(&report);
+        assert!(
+            r["stopped"].is_string() && r["ended_early"].is_null(),
+            "SIG{signal}: {r}\n{stdout}"
+        );
         let s = final_status(&out);
         assert!(
             s.done && s.ended == EndReason::Stopped,
@@ -311,8 +328,13 @@ fn a_recorded_scan_reprocesses_to_the_same_stream_and_with_a_new_calibration() {
     assert!(meta.contains("yuyv") && meta.contains("320"), "{meta}");
     // Reprocessed with the calibration it was made with: the very same bytes.
     let source = format!("record:{rec}");
-    let out = scan(&source, &truth, &d("again.stream"), &[]);
-    assert!(out.contains("60 frames"), "{out}");
+    scan(
+        &source,
+        &truth,
+        &d("again.stream"),
+        &["--report", &d("again.json")],
+    );
+    assert_eq!(json(&dir.path().join("again.json"))["frames"], 60);
     let (a, b) = (
         std::fs::read(d("live.stream")).unwrap(),
         std::fs::read(d("again.stream")).unwrap(),
@@ -439,4 +461,10 @@ fn waiting_for_the_laser_skips_the_frames_before_it() {
         !ok && err.contains("the source ended before the laser appeared"),
         "{err}"
     );
+}
+
+/// A JSON report a command wrote.
+fn json(path: &std::path::Path) -> serde_json::Value {
+    let text = std::fs::read_to_string(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    serde_json::from_str(&text).unwrap()
 }

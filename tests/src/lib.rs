@@ -35,14 +35,21 @@ pub fn check_cli(exe: &str, name: &str) {
     assert!(err.contains("--no-such-flag"), "{err}");
 }
 
+/// A JSON report a command wrote.
+///
+/// # Panics
+/// When it is missing or no JSON: this is a test helper.
+pub fn json(path: &std::path::Path) -> serde_json::Value {
+    let text = std::fs::read_to_string(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    serde_json::from_str(&text).unwrap_or_else(|e| panic!("{}: {e}", path.display()))
+}
+
 /// The summary (`summary.json`) a receive or a replay wrote into `dir`.
 ///
 /// # Panics
 /// When it is missing or no JSON: this is a test helper.
 pub fn summary(dir: &std::path::Path) -> serde_json::Value {
-    let path = dir.join("summary.json");
-    let text = std::fs::read_to_string(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
-    serde_json::from_str(&text).unwrap_or_else(|e| panic!("{}: {e}", path.display()))
+    json(&dir.join("summary.json"))
 }
 
 /// Frames the link rejected or lost, by kind, from a summary ([`summary`]): every count of its

@@ -573,12 +573,24 @@ fn scans_that_give_nothing_or_share_stdout_say_so_plainly() {
             "cal.toml",
             "--out",
             "y.stream",
+            "--report",
+            "y.json",
         ],
     );
-    assert_eq!(code, 0, "{err}");
-    assert!(out.contains("1 frame, 0 point packets, 0 points"), "{out}");
-    assert!(out.contains("no points were sent"), "{out}");
-    assert!(!out.contains("bytes per point"), "{out}");
+    assert_eq!(code, 0, "{err}\n{out}");
+    let r: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(d.join("y.json")).unwrap()).unwrap();
+    assert_eq!(
+        (&r["frames"], &r["packets"], &r["points"]),
+        (
+            &serde_json::json!(1),
+            &serde_json::json!(0),
+            &serde_json::json!(0)
+        ),
+        "{r}"
+    );
+    // no point sent: no bytes per point to tell
+    assert!(r["bytes_per_point"].is_null(), "{r}");
     // `--out -`: stdout carries the stream alone, the summary goes to stderr.
     let out = Command::new(workspace_bin("scanner-device"))
         .args([
@@ -691,9 +703,15 @@ fn a_board_calibration_from_a_dot_grid_image_is_refused() {
             "c.png",
         ],
     );
+    let r: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(d.join("cam-report.json")).unwrap()).unwrap();
+    let b = &r["images"][1];
     assert!(
-        out.contains("b.png: refused: the same view as a.png"),
-        "{out}"
+        b["path"] == "b.png"
+            && b["refused"]["reason"] == "same_view"
+            && b["refused"]["same_as"] == "a.png",
+        "{r}\n{out}"
     );
+    assert!(r["camera"].is_null() && r["error"].is_string(), "{r}");
     assert!(!d.join("cam.toml").exists());
 }

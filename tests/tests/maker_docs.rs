@@ -182,7 +182,8 @@ fn the_pi_guide_and_the_build_section_run_as_written() {
         }
         let out = run(d, &words);
         if words[1] == "capture" && !words.contains(&"--board".to_string()) {
-            assert!(out.contains("12 shots in shots"), "{out}");
+            let r = scanner_tests::json(&d.join("shots/capture-report.json"));
+            assert_eq!(r["kept"], 12, "{out}");
         }
     }
     let cal = std::fs::read_to_string(d.join("etc/scanner/calibration.toml")).unwrap();

@@ -15,6 +15,11 @@ use scanner_calib::{
     intrinsics_auto, overlay, print, short,
 };
 
+use super::report::{
+    self, BoardData, CameraData, CoverageData, DistanceData, IntrinsicsData, IntrinsicsImage,
+    SheetData, write_json,
+};
+
 /// The intrinsics target: a dot grid (default) or a chessboard, with its sizes.
 #[derive(Debug, Clone, clap::Args)]
 pub struct TargetArgs {
@@ -326,7 +331,11 @@ fn distance_command(
         d.epsilon_mm,
         out.display()
     );
-    Ok(())
+    let data = DistanceData {
+        d_z_px: d.d_z,
+        epsilon_mm: d.epsilon_mm,
+    };
+    write_json(&report::beside(out), &data)
 }
 
 /// The files of `calibrate board`.
@@ -355,13 +364,25 @@ fn board_planes_command(p: &BoardPaths, method: PlaneMethod) -> Result<()> {
     })?;
     let outcome = board_planes(&img, &b, &cam);
     save_png(&overlay::board_overlay(&img, &outcome, &b, &cam), p.overlay)?;
-    let fit = outcome.result.with_context(|| {
-        format!(
-            "board calibration from {} (see {})",
-            p.image.display(),
-            p.overlay.display()
-        )
-    })?;
+    let fit = match outcome.result {
+        Ok(fit) => fit,
+        Err(e) => {
+            let data = BoardData {
+                sheets: Vec::new(),
+                method: None,
+                angle_deg: None,
+                error: Some(e.to_string()),
+            };
+            write_json(&report::beside(p.out), &data)?;
+            return Err(e).with_context(|| {
+                format!(
+                    "board calibration from {} (see {})",
+                    p.image.display(),
+                    p.overlay.display()
+                )
+            });
+        }
+    };
     let mut file = cam_file;
     let used = file.set_board(&fit, &b, &cam, method);
     if used != method {
@@ -380,7 +401,18 @@ fn board_planes_command(p: &BoardPaths, method: PlaneMethod) -> Result<()> {
         p.out.display(),
         p.overlay.display()
     );
-    Ok(())
+    let data = BoardData {
+        sheets: fit
+            .sheets
+            .iter()
+            .zip(["left", "right"])
+            .map(|(s, side)| SheetData::of(s, side))
+            .collect(),
+        method: Some(used.name()),
+        angle_deg: Some(angle),
+        error: None,
+    };
+    write_json(&report::beside(p.out), &data)
 }
 
 /// `calibrate intrinsics`: a line and an overlay per image (also when the calibration fails),
@@ -397,6 +429,20 @@ fn intrinsics_command(
     for (i, r) in outcome.images.iter().enumerate() {
         outln!("  {}: {}", name(i), image_line(&r.status, name));
     }
+    let mut data = IntrinsicsData {
+        images: outcome
+            .images
+            .iter()
+            .enumerate()
+            .map(|(i, r)| IntrinsicsImage::of(name(i), &r.status, name))
+            .collect(),
+        used: 0,
+        camera: None,
+        rms_px: None,
+        k3_fixed,
+        coverage: None,
+        error: None,
+    };
     let dir = overlays.map_or_else(|| default_overlays(out), Path::to_path_buf);
     std::fs::create_dir_all(&dir).with_context(|| format!("cannot create {}", dir.display()))?;
     for ((p, img), r) in images.iter().zip(&imgs).zip(&outcome.images) {
@@ -409,9 +455,14 @@ fn intrinsics_command(
         )?;
     }
     let overlays_note = format!("(pictures: {})", dir.display());
-    let fit = outcome
-        .into_fit()
-        .with_context(|| format!("no camera calibrated {overlays_note}"))?;
+    let fit = match outcome.into_fit() {
+        Ok(fit) => fit,
+        Err(e) => {
+            data.error = Some(e.to_string());
+            write_json(&report::beside(out), &data)?;
+            return Err(e).with_context(|| format!("no camera calibrated {overlays_note}"));
+        }
+    };
     let used = fit.views.iter().filter(|v| v.is_ok()).count();
     let file = CalibrationFile::from_camera(
         &fit.camera,
@@ -457,7 +508,11 @@ fn intrinsics_command(
             "k3 fixed at 0: no feature used lies on the image's border, and only there does k3 show apart from k1 and k2 (shots with the target in the corners let it be fitted)"
         );
     }
-    Ok(())
+    data.used = used;
+    data.camera = Some(CameraData::of(&fit.camera));
+    data.rms_px = Some(fit.rms_px);
+    data.coverage = Some(CoverageData::of(&fit));
+    write_json(&report::beside(out), &data)
 }
 
 /// What `calibrate intrinsics` says about one image.

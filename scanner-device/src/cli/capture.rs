@@ -11,6 +11,7 @@ use scanner_calib::{Target, board_planes, find_grid};
 use scanner_core::stripe::PixelFormat;
 
 use super::calibrate::{TargetArgs, load_board};
+use super::report::{CaptureData, GridData, Refusal, SheetData, ShotData, write_json};
 use crate::source::OwnedFrame;
 
 /// `capture`'s options.
@@ -56,36 +57,71 @@ enum Check {
 }
 
 impl Check {
-    /// Whether the shot is usable, and one line saying what the detector found.
-    fn run(&self, gray: &image::GrayImage) -> (bool, String) {
+    /// What the detector found in a shot (its `frame` number): usable when nothing refused it.
+    fn run(&self, frame: u32, gray: &image::GrayImage) -> ShotData {
+        let mut shot = ShotData {
+            frame,
+            kept_as: None,
+            grid: None,
+            sheets: Vec::new(),
+            angle_deg: None,
+            refused: None,
+        };
         match self {
             Check::Board { board, camera } => match board_planes(gray, board, camera).result {
-                Ok(fit) => (
-                    true,
-                    format!(
-                        "{}; {}; the sheets meet at {:.1}°",
-                        fit.sheets[0].summary("left"),
-                        fit.sheets[1].summary("right"),
-                        fit.board.angle().to_degrees()
-                    ),
-                ),
-                Err(e) => (false, format!("not usable: {e}")),
+                Ok(fit) => {
+                    shot.sheets = fit
+                        .sheets
+                        .iter()
+                        .zip(["left", "right"])
+                        .map(|(s, side)| SheetData::of(s, side))
+                        .collect();
+                    shot.angle_deg = Some(fit.board.angle().to_degrees());
+                }
+                Err(e) => shot.refused = Some(Refusal::of(&e, |i| i.to_string())),
             },
             Check::Grid(target) => match find_grid(gray, target) {
-                Ok(v) => (
-                    true,
-                    format!(
-                        "grid found: {} points identified over {}×{}{}",
-                        v.found.len(),
-                        v.extent.0,
-                        v.extent.1,
-                        if v.complete { ", complete" } else { "" }
-                    ),
-                ),
-                Err(e) => (false, format!("not usable: {e}")),
+                Ok(v) => shot.grid = Some(GridData::of(&v)),
+                Err(e) => shot.refused = Some(Refusal::of(&e, |i| i.to_string())),
             },
         }
+        shot
     }
+}
+
+/// One line saying what the detector found in a shot.
+fn shot_line(shot: &ShotData) -> String {
+    if let Some(r) = &shot.refused {
+        return format!("not usable: {}", r.message);
+    }
+    if let Some(g) = &shot.grid {
+        return format!(
+            "grid found: {} points identified over {}×{}{}",
+            g.points,
+            g.cols,
+            g.rows,
+            if g.complete { ", complete" } else { "" }
+        );
+    }
+    let sheets: Vec<String> = shot
+        .sheets
+        .iter()
+        .map(|s| {
+            let mut line = format!(
+                "{} sheet: {}/{} markers, rms {:.3} px",
+                s.side, s.used, s.markers, s.rms_px
+            );
+            if !s.missing.is_empty() {
+                line += &format!(", missing or dropped {:?}", s.missing);
+            }
+            line
+        })
+        .collect();
+    format!(
+        "{}; the sheets meet at {:.1}°",
+        sheets.join("; "),
+        shot.angle_deg.unwrap_or(f64::NAN)
+    )
 }
 
 /// Runs `capture`: takes frames until `--count` usable shots are kept or `--tries` frames were
@@ -114,6 +150,7 @@ pub fn capture(a: &CaptureArgs) -> Result<()> {
         .with_context(|| format!("cannot create the output folder {}", a.out.display()))?;
     crate::outln!("capturing from {}", source.describe());
     let mut kept = 0u32;
+    let mut shots = Vec::new();
     for shot in 0..a.tries {
         if kept == a.count {
             break;
@@ -125,13 +162,17 @@ pub fn capture(a: &CaptureArgs) -> Result<()> {
             break;
         };
         let rgb = to_image(&frame)?;
-        let (usable, what) = check.run(&image::DynamicImage::ImageRgb8(rgb.clone()).to_luma8());
-        let name = match (&check, usable) {
+        let mut found = check.run(
+            shot,
+            &image::DynamicImage::ImageRgb8(rgb.clone()).to_luma8(),
+        );
+        let name = match (&check, found.refused.is_none()) {
             (_, false) => None,
             (Check::Board { .. }, true) if kept == 0 => Some("board.png".to_string()),
             (Check::Board { .. }, true) => Some(format!("board-{kept:02}.png")),
             (Check::Grid(_), true) => Some(format!("grid-{kept:02}.png")),
         };
+        let what = shot_line(&found);
         match name {
             Some(name) => {
                 let path = a.out.join(&name);
@@ -140,10 +181,18 @@ pub fn capture(a: &CaptureArgs) -> Result<()> {
                     .with_context(|| format!("cannot write {}", path.display()))?;
                 kept += 1;
                 crate::outln!("frame {shot}: {what} → kept as {name}");
+                found.kept_as = Some(name);
             }
             None => crate::outln!("frame {shot}: {what}"),
         }
+        shots.push(found);
     }
+    let data = CaptureData {
+        shots,
+        kept,
+        count: a.count,
+    };
+    write_json(&a.out.join("capture-report.json"), &data)?;
     if kept < a.count {
         bail!(
             "{kept} of {} usable shots kept (see the line of each frame): check the target is in view, lit and in focus",

@@ -4,6 +4,7 @@ pub mod calibrate;
 pub mod capture;
 #[cfg(feature = "rig")]
 pub mod render;
+pub mod report;
 pub mod scan;
 
 use std::path::PathBuf;
@@ -162,9 +163,12 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
         }
         Some(Command::Calibrate(c)) => calibrate::calibrate(c)?,
         Some(Command::Scan(a)) => {
-            let report = scan::scan(a)?;
-            scan::print_report(&report, a.out.trim() == "-");
-            if let Some(e) = report.ended_early {
+            let done = scan::scan(a)?;
+            scan::print_report(&done, a.out.trim() == "-");
+            if let Some(path) = &a.report {
+                report::write_json(path, &report::ScanData::from(&done))?;
+            }
+            if let Some(e) = done.ended_early {
                 anyhow::bail!("{e}");
             }
         }

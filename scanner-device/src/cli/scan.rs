@@ -88,6 +88,9 @@ pub struct ScanArgs {
     /// Scan id (random without).
     #[arg(long)]
     pub scan_id: Option<u32>,
+    /// Also write the end-of-scan summary as JSON to this file (fields: docs/reports.md).
+    #[arg(long, value_name = "FILE")]
+    pub report: Option<PathBuf>,
     /// No progress lines.
     #[arg(long, short)]
     pub quiet: bool,

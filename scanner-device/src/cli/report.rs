@@ -1,0 +1,366 @@
+//! The head's reports as data: what `scan`, `capture` and `calibrate …` tell on the terminal,
+//! written as JSON beside their outputs (the fields: docs/reports.md). Built from the results
+//! here at the edge; the library crates stay free of the file formats.
+
+use std::path::{Path, PathBuf};
+
+use anyhow::{Context, Result};
+use scanner_calib::{CalibError, Coverage, GridView, IntrinsicsFit, SheetFit, ViewFit};
+use scanner_core::wire::Skip;
+use serde::Serialize;
+
+use crate::session::ScanReport;
+
+/// Writes `report` as pretty JSON to `path`, whole or not at all.
+///
+/// # Errors
+/// The file cannot be written.
+pub fn write_json(path: &Path, report: &impl Serialize) -> Result<()> {
+    let bytes = serde_json::to_vec_pretty(report).context("a report as JSON")?;
+    scanner_calib::file::write_atomic(path, &bytes)
+        .with_context(|| format!("cannot write {}", path.display()))
+}
+
+/// `<stem>-report.json` beside a calibration file `out` (`camera.toml` → `camera-report.json`).
+pub fn beside(out: &Path) -> PathBuf {
+    let stem = out
+        .file_stem()
+        .map_or("calibration".into(), |s| s.to_string_lossy());
+    out.with_file_name(format!("{stem}-report.json"))
+}
+
+/// A scan's end, as `scan --report` writes it.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct ScanData {
+    /// The scan's id.
+    pub scan_id: u32,
+    /// Frames taken after the reference.
+    pub frames: u32,
+    /// Point packets sent.
+    pub packets: u32,
+    /// Points sent.
+    pub points: u64,
+    /// Bytes sent, the final status included.
+    pub bytes: u64,
+    /// Wall time, seconds.
+    pub seconds: f64,
+    /// Point packets dropped because the link was busy.
+    pub dropped: u64,
+    /// Bytes per point on the link (framing and headers included); `None`: no point sent.
+    pub bytes_per_point: Option<f64>,
+    /// Why the scan ended early (the camera failed).
+    pub ended_early: Option<String>,
+    /// What stopped it (Ctrl-C, a signal, `--frames`, `--duration`).
+    pub stopped: Option<String>,
+    /// Frames the head skipped, per reason (reasons with none left out).
+    pub skipped: Vec<Skipped>,
+}
+
+/// Frames skipped for one reason.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Skipped {
+    /// The reason, as the head names it.
+    pub reason: &'static str,
+    /// Frames.
+    pub frames: u32,
+}
+
+impl From<&ScanReport> for ScanData {
+    fn from(r: &ScanReport) -> ScanData {
+        let s = &r.status;
+        ScanData {
+            scan_id: s.scan_id,
+            frames: s.frames,
+            packets: s.packets,
+            points: u64::from(s.points),
+            bytes: r.bytes,
+            seconds: r.seconds,
+            dropped: r.dropped,
+            bytes_per_point: r.bytes_per_point(),
+            ended_early: r.ended_early.clone(),
+            stopped: r.stopped.clone(),
+            skipped: Skip::ALL
+                .iter()
+                .filter(|&&k| s.skipped[k as usize] > 0)
+                .map(|&k| Skipped {
+                    reason: k.name(),
+                    frames: u32::from(s.skipped[k as usize]),
+                })
+                .collect(),
+        }
+    }
+}
+
+/// One sheet of the board as fitted.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct SheetData {
+    /// `left` or `right`.
+    pub side: &'static str,
+    /// Markers used in the fit.
+    pub used: usize,
+    /// Markers of the sheet's layout.
+    pub markers: usize,
+    /// RMS reprojection error of those used, pixels.
+    pub rms_px: f64,
+    /// Layout indices not found or dropped.
+    pub missing: Vec<usize>,
+}
+
+impl SheetData {
+    /// The sheet `s` on `side`.
+    pub fn of(s: &SheetFit, side: &'static str) -> SheetData {
+        SheetData {
+            side,
+            used: s.used(),
+            markers: s.markers.len(),
+            rms_px: s.rms_px,
+            missing: s.missing(),
+        }
+    }
+}
+
+/// Why an image or a shot was not used.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Refusal {
+    /// A short name of the reason: `same_view`, `count_mismatch` (a grid larger than the target
+    /// given), `reprojection` (the fit's error too high), `no_grid`, `no_markers`,
+    /// `too_few_markers`, `size` (another image size), or `other`.
+    pub reason: &'static str,
+    /// The image it repeats (with `same_view`).
+    pub same_as: Option<String>,
+    /// What the refusal says.
+    pub message: String,
+}
+
+impl Refusal {
+    /// The refusal `e`; `name(i)` names image `i`.
+    pub fn of(e: &CalibError, name: impl Fn(usize) -> String) -> Refusal {
+        let (reason, same_as) = match e {
+            CalibError::SameView { other } => ("same_view", Some(name(*other))),
+            CalibError::CountMismatch { .. } | CalibError::CountTooLarge { .. } => {
+                ("count_mismatch", None)
+            }
+            CalibError::ResidualTooHigh { .. } => ("reprojection", None),
+            CalibError::NoGrid { .. } => ("no_grid", None),
+            CalibError::NoMarkers { .. } => ("no_markers", None),
+            CalibError::TooFewMarkers { .. } => ("too_few_markers", None),
+            CalibError::ImageSize { .. } => ("size", None),
+            _ => ("other", None),
+        };
+        Refusal {
+            reason,
+            same_as,
+            message: e.to_string(),
+        }
+    }
+}
+
+/// One image of `calibrate intrinsics`.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct IntrinsicsImage {
+    /// Its path.
+    pub path: String,
+    /// Features used in the fit (`None`: refused).
+    pub features: Option<usize>,
+    /// RMS reprojection error of those, pixels.
+    pub rms_px: Option<f64>,
+    /// The largest, pixels.
+    pub max_px: Option<f64>,
+    /// Features identified but left out of the fit, far off it: (layout index, error px).
+    pub dropped: Vec<(usize, f64)>,
+    /// Why it was not used.
+    pub refused: Option<Refusal>,
+}
+
+impl IntrinsicsImage {
+    /// Image `path` with its outcome `status`; `name(i)` names image `i`.
+    pub fn of(
+        path: String,
+        status: &Result<ViewFit, CalibError>,
+        name: impl Fn(usize) -> String,
+    ) -> IntrinsicsImage {
+        match status {
+            Ok(v) => IntrinsicsImage {
+                path,
+                features: Some(v.found.len()),
+                rms_px: Some(v.rms_px),
+                max_px: Some(v.max_px),
+                dropped: v.dropped.iter().map(|&(k, _, e)| (k, e)).collect(),
+                refused: None,
+            },
+            Err(e) => IntrinsicsImage {
+                path,
+                features: None,
+                rms_px: None,
+                max_px: None,
+                dropped: Vec::new(),
+                refused: Some(Refusal::of(e, name)),
+            },
+        }
+    }
+}
+
+/// The camera found, as numbers.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct CameraData {
+    /// Focal lengths, pixels.
+    pub fx: f64,
+    /// …
+    pub fy: f64,
+    /// Principal point, pixels.
+    pub cx: f64,
+    /// …
+    pub cy: f64,
+    /// Radial and tangential distortion (Brown–Conrady).
+    pub k1: f64,
+    /// …
+    pub k2: f64,
+    /// …
+    pub p1: f64,
+    /// …
+    pub p2: f64,
+    /// …
+    pub k3: f64,
+}
+
+impl CameraData {
+    /// The numbers of `c`.
+    pub fn of(c: &scanner_core::Camera<f64>) -> CameraData {
+        let (d, p) = (c.distortion(), c.principal_point());
+        CameraData {
+            fx: c.fx(),
+            fy: c.fy(),
+            cx: p.x,
+            cy: p.y,
+            k1: d.k1,
+            k2: d.k2,
+            p1: d.p1,
+            p2: d.p2,
+            k3: d.k3,
+        }
+    }
+}
+
+/// Where the features used fell over the image.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct CoverageData {
+    /// Cells of the image's grid holding a feature used.
+    pub cells: usize,
+    /// Cells in all.
+    pub of: usize,
+    /// Of those on the image's border, the cells holding one.
+    pub border: usize,
+    /// Border cells in all.
+    pub ring: usize,
+    /// The image's corners with none (`top left`, …): the distortion is extrapolated there.
+    pub empty_corners: Vec<&'static str>,
+}
+
+impl CoverageData {
+    /// The coverage of a fit.
+    pub fn of(fit: &IntrinsicsFit) -> CoverageData {
+        let cover = Coverage::of(fit);
+        let ((cells, of), (border, ring)) = (cover.cells(), cover.border());
+        CoverageData {
+            cells,
+            of,
+            border,
+            ring,
+            empty_corners: cover.empty_corners(),
+        }
+    }
+}
+
+/// `calibrate intrinsics`' report (`<out>-report.json`).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct IntrinsicsData {
+    /// Each image, in the order given.
+    pub images: Vec<IntrinsicsImage>,
+    /// Images used.
+    pub used: usize,
+    /// The camera (`None`: none calibrated, see `error`).
+    pub camera: Option<CameraData>,
+    /// RMS reprojection error over the images used, pixels.
+    pub rms_px: Option<f64>,
+    /// Whether k3 was held at 0 (no feature on the image's border).
+    pub k3_fixed: bool,
+    /// Where the features used fell.
+    pub coverage: Option<CoverageData>,
+    /// Why no camera was calibrated.
+    pub error: Option<String>,
+}
+
+/// A shot `capture` looked at.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct ShotData {
+    /// The frame's number, from 0.
+    pub frame: u32,
+    /// The file it was kept as (`None`: not usable).
+    pub kept_as: Option<String>,
+    /// With the intrinsics target: the grid found.
+    pub grid: Option<GridData>,
+    /// With the board: each sheet as fitted.
+    pub sheets: Vec<SheetData>,
+    /// With the board: the angle the sheets meet at, degrees.
+    pub angle_deg: Option<f64>,
+    /// Why it is not usable.
+    pub refused: Option<Refusal>,
+}
+
+/// A grid found in a shot.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct GridData {
+    /// Points identified.
+    pub points: usize,
+    /// Columns and rows of the target seen.
+    pub cols: usize,
+    /// …
+    pub rows: usize,
+    /// Every grid point in that rectangle was found.
+    pub complete: bool,
+}
+
+impl GridData {
+    /// The grid of a view.
+    pub fn of(v: &GridView) -> GridData {
+        GridData {
+            points: v.found.len(),
+            cols: v.extent.0,
+            rows: v.extent.1,
+            complete: v.complete,
+        }
+    }
+}
+
+/// `capture`'s report (`capture-report.json` in its folder).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct CaptureData {
+    /// Each frame looked at.
+    pub shots: Vec<ShotData>,
+    /// Usable shots kept.
+    pub kept: u32,
+    /// Usable shots asked for.
+    pub count: u32,
+}
+
+/// `calibrate board`'s report (`<out>-report.json`).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct BoardData {
+    /// Each sheet as fitted (none when the calibration failed).
+    pub sheets: Vec<SheetData>,
+    /// How the planes were found: `layout-pose` or `paper-lines`.
+    pub method: Option<&'static str>,
+    /// The angle between the planes, degrees.
+    pub angle_deg: Option<f64>,
+    /// Why no board was calibrated.
+    pub error: Option<String>,
+}
+
+/// `calibrate distance`'s report (`<out>-report.json`).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct DistanceData {
+    /// The image distance d_z, pixels.
+    pub d_z_px: f64,
+    /// The marks' common offset ε, mm (eq. 7).
+    pub epsilon_mm: f64,
+}
