@@ -72,7 +72,7 @@ impl From<&ScanReport> for ScanData {
             scan_id: s.scan_id,
             frames: s.frames,
             packets: s.packets,
-            points: u64::from(s.points),
+            points: s.points,
             bytes: r.bytes,
             seconds: r.seconds,
             dropped: r.dropped,
@@ -84,7 +84,7 @@ impl From<&ScanReport> for ScanData {
                 .filter(|&&k| s.skipped[k as usize] > 0)
                 .map(|&k| Skipped {
                     reason: k.name(),
-                    frames: u32::from(s.skipped[k as usize]),
+                    frames: s.skipped[k as usize],
                 })
                 .collect(),
         }
