@@ -129,3 +129,30 @@ fn the_laser_is_found_by_its_colour_on_the_board_and_nowhere_else() {
         );
     }
 }
+
+/// The whole board at once, both stripes in every row (OpenCV's chessboard under the Ciclop's
+/// two lasers, dark laser-tuned exposure: `tests/data/real-stripes`, the same frames as
+/// `real-ciclop/pattern_laser_pairs`): every valid centre lies on one of the two stripes — no
+/// point from a colour fringe at a square's edge or a speck — in every pixel format.
+#[test]
+fn across_the_whole_board_no_centre_comes_from_anything_but_the_stripes() {
+    use scanner_core::stripe::PixelFormat;
+    use support::real::full_width;
+    for image in ["board-two-lasers", "board-two-lasers-b"] {
+        for format in [PixelFormat::Rgb24, PixelFormat::Yuyv, PixelFormat::Gray8] {
+            let o = full_width(image, format);
+            println!(
+                "{image} {format:?}: {} of {} rows valid, {:?}",
+                o.valid, o.rows, o.statuses
+            );
+            assert!(
+                o.off.is_empty(),
+                "{image} {format:?}: centres off both stripes {:?}",
+                o.off
+            );
+            // both stripes are in every row: one is taken where the other is weak on a dark
+            // square, the rows where both are strong are ambiguous
+            assert!(o.valid > 0, "{image} {format:?}: {o:?}");
+        }
+    }
+}

@@ -113,6 +113,7 @@ fn main() {
             header_every: 30,
             status_every: 30,
             scan_id: 1,
+            find_axis: false,
         };
         let mut session = Session::new(&cal, reference.clone(), opts).expect("session");
         let mut decoded = reference.clone();

@@ -61,6 +61,7 @@ fn main() {
                 header_every: 30,
                 status_every: 30,
                 scan_id: 1,
+                find_axis: false,
             };
             let mut session = Session::new(&cal, reference.clone(), opts).expect("session");
             let mut link = Link::spawn(Box::new(std::io::sink()), 64, MAX_ENCODED);

@@ -26,6 +26,9 @@ pub struct ScanOptions {
     pub status_every: u32,
     /// Scan id (random per scan unless given).
     pub scan_id: u32,
+    /// Find which way the stripe runs from the first laser frame ([`crate::source::stripe_axis`])
+    /// instead of taking `head.stripe.axis`.
+    pub find_axis: bool,
 }
 
 /// Why a scan could not start or go on.
@@ -58,6 +61,12 @@ pub enum SessionError {
     /// The laser never appeared after the reference (or the wait was stopped).
     #[error("{0}")]
     NoLaser(String),
+    /// The first laser frame could not be read.
+    #[error("the first laser frame")]
+    FirstFrame(#[source] SourceError),
+    /// The first laser frame does not tell which way the stripe runs.
+    #[error("{0}")]
+    Axis(String),
     /// A message did not fit its buffer (a bug: the buffers are sized for the largest).
     #[error("encoding a message")]
     Encode(#[source] wire::WireError),
@@ -475,6 +484,17 @@ pub fn run_scan_until(
     if let Some(limit) = stop.wait_for_laser {
         first =
             Some(wait_for_laser(source, &reference, limit, stop).map_err(SessionError::NoLaser)?);
+    }
+    let mut opts = opts;
+    if opts.find_axis {
+        if first.is_none() {
+            first = source.next_frame().map_err(SessionError::FirstFrame)?;
+        }
+        if let Some(frame) = &first {
+            opts.head.stripe.axis =
+                crate::source::stripe_axis(frame, &reference, &opts.head.stripe)
+                    .map_err(SessionError::Axis)?;
+        }
     }
     let mut session = Session::new(cal, reference, opts)?;
     session.set_controls(source.controls());

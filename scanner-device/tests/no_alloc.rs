@@ -36,6 +36,7 @@ fn the_steady_state_allocates_nothing() {
             header_every: 3,
             status_every: 2,
             scan_id: 1,
+            find_axis: false,
         };
         let mut session = Session::new(&cal, reference, opts).unwrap();
         let mut link = Link::spawn(Box::new(std::io::sink()), 4, MAX_ENCODED);

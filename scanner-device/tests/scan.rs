@@ -22,6 +22,7 @@ fn options(scan_id: u32) -> ScanOptions {
         header_every: 10,
         status_every: 10,
         scan_id,
+        find_axis: false,
     }
 }
 

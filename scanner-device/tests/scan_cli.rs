@@ -377,6 +377,8 @@ fn a_recorded_scan_reprocesses_to_the_same_stream_and_with_a_new_calibration() {
         "scan",
         "--source",
         &source,
+        "--format",
+        "gray",
         "--calibration",
         &truth,
         "--out",

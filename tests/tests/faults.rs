@@ -43,6 +43,7 @@ fn clean_frames() -> &'static Vec<Vec<u8>> {
             header_every: 10,
             status_every: 10,
             scan_id: 21,
+            find_axis: false,
         };
         scanner_tests::record_scan(
             &mut src,
@@ -380,6 +381,7 @@ fn faults_on_a_pseudo_terminal_link_between_head_and_host() {
         header_every: 10,
         status_every: 10,
         scan_id: 31,
+        find_axis: false,
     };
     run_scan(&mut src, &cal, opts, &mut link, |_| {}, |_, _| {}).unwrap();
     link.finish().unwrap();

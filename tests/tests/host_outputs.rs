@@ -44,6 +44,7 @@ fn record(w: u32, h: u32, frames: usize, colour: bool, path: &Path) -> Rig {
         header_every: 30,
         status_every: 30,
         scan_id: 5,
+        find_axis: false,
     };
     scanner_tests::record_scan(
         &mut source,

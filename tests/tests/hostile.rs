@@ -111,6 +111,7 @@ fn record(w: u32, h: u32, id: u32, path: &Path) {
         header_every: 30,
         status_every: 30,
         scan_id: id,
+        find_axis: false,
     };
     scanner_tests::record_scan(
         &mut source,

@@ -94,13 +94,18 @@ pub struct Refinement {
     pub iterations: usize,
 }
 
-fn params(c: &Camera<f64>) -> [f64; INTRINSICS] {
+/// A camera's intrinsics in [`Covariance`]'s order: `fx, fy, cx, cy, k1, k2, p1, p2, k3`.
+pub fn params(c: &Camera<f64>) -> [f64; INTRINSICS] {
     let d = c.distortion();
     let pp = c.principal_point();
     [c.fx(), c.fy(), pp.x, pp.y, d.k1, d.k2, d.p1, d.p2, d.k3]
 }
 
-fn camera_from(p: &[f64; INTRINSICS]) -> Result<Camera<f64>, GeomError> {
+/// The camera of intrinsics `p` in [`params`]' order.
+///
+/// # Errors
+/// As [`Camera::new`].
+pub fn camera_from(p: &[f64; INTRINSICS]) -> Result<Camera<f64>, GeomError> {
     Camera::new(
         p[0],
         p[1],
@@ -309,6 +314,70 @@ pub fn refine(
         rms_px: libm::sqrt(cost / count as f64),
         max_px,
         iterations,
+    })
+}
+
+/// The uncertainty of a calibration's intrinsics, from the fit's normal equations at its
+/// solution and the scatter of its residuals.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Covariance {
+    /// Covariance of `fx, fy, cx, cy, k1, k2, p1, p2, k3` (pixels², pixels and unitless; zero
+    /// rows and columns for the parameters held fixed), the poses' share eliminated.
+    pub matrix: [[f64; INTRINSICS]; INTRINSICS],
+    /// Standard deviation of a feature's position per coordinate, pixels: the residuals' root
+    /// sum of squares over the degrees of freedom (observations less unknowns).
+    pub noise_px: f64,
+}
+
+/// The covariance of the free intrinsics of `camera` at a solution of [`refine`] (`views` at
+/// `poses`): `σ² S⁻¹`, `S` the normal matrix of the intrinsics with every pose eliminated (the
+/// Schur complement [`refine`] steps with, undamped) and `σ` the residuals' scatter. It assumes
+/// independent, equal noise on every feature coordinate and a model that fits: the scatter of
+/// two calibrations from disjoint images tells whether it does.
+///
+/// # Errors
+/// As [`refine`]; [`GeomError::IllConditioned`] when the normal matrix is singular (a
+/// parameter the views do not determine).
+pub fn covariance(
+    camera: &Camera<f64>,
+    free: Free,
+    views: &[View],
+    poses: &[Pose],
+    radius: f64,
+) -> Result<Covariance, GeomError> {
+    check_problem(free, views, poses, radius)?;
+    let mut s = Mat9::zeros();
+    let mut cost = 0.0;
+    let mut count = 0usize;
+    for (v, p) in views.iter().zip(poses) {
+        let bl = blocks(camera, free, v, p, radius)?;
+        let ainv = damped6(&bl.a, 0.0)?;
+        s += bl.c - bl.b.transpose() * ainv * bl.b;
+        cost += bl.cost;
+        count += v.layout.len();
+    }
+    let n_free = free.0.iter().filter(|&&f| f).count();
+    for (i, f) in free.0.iter().enumerate() {
+        if !f {
+            s.row_mut(i).fill(0.0);
+            s.column_mut(i).fill(0.0);
+            s[(i, i)] = 1.0;
+        }
+    }
+    let dof = (2 * count).saturating_sub(6 * views.len() + n_free).max(1);
+    let noise2 = cost / dof as f64;
+    let inv = s.cholesky().ok_or(GeomError::IllConditioned)?.inverse();
+    let mut matrix = [[0.0; INTRINSICS]; INTRINSICS];
+    for (i, row) in matrix.iter_mut().enumerate() {
+        for (j, m) in row.iter_mut().enumerate() {
+            if free.0[i] && free.0[j] {
+                *m = noise2 * inv[(i, j)];
+            }
+        }
+    }
+    Ok(Covariance {
+        matrix,
+        noise_px: libm::sqrt(noise2),
     })
 }
 

@@ -10,5 +10,5 @@ pub mod bundle;
 pub mod distance;
 pub mod model;
 
-pub use bundle::{Free, Refinement, View};
+pub use bundle::{Covariance, Free, Refinement, View};
 pub use distance::{CrossShot, ImageDistance, image_distance};

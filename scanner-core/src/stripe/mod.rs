@@ -135,6 +135,70 @@ fn mark_cut(points: &mut [StripePoint], fraction: f32) {
     }
 }
 
+/// Lines a stripe may skip between two of its centres (invalid lines in between).
+const CONTINUITY_GAP: usize = 2;
+
+/// How far a stripe's centre may move from one line to the next, pixels (a stripe crossing the
+/// lines at up to 63°, beyond which the other axis is the one to scan).
+const CONTINUITY_SLOPE: f32 = 2.0;
+
+/// Fewest lines of a run of continuous centres: the light sheet meets a surface in a curve
+/// over many lines, while a colour fringe at a printed edge, a glint or a speck shows in one to
+/// three (the real two-plane frames' fringes run along a square's side for two or three rows).
+const MIN_RUN: u16 = 4;
+
+/// Whether centres `a` on line `i` and `b` on line `j` can be one stripe.
+fn continuous((i, a): (usize, f32), (j, b): (usize, f32)) -> bool {
+    (a - b).abs() <= CONTINUITY_SLOPE * i.abs_diff(j) as f32 + 1.0
+}
+
+/// The root of `i` in a union-find forest `parent`.
+fn root(parent: &mut [u16], mut i: usize) -> usize {
+    while usize::from(parent[i]) != i {
+        let up = usize::from(parent[usize::from(parent[i])]);
+        parent[i] = up as u16;
+        i = up;
+    }
+    i
+}
+
+/// Groups the valid centres of `points` into runs (each centre joined to every valid centre up
+/// to [`CONTINUITY_GAP`] lines before it that it continues) and leaves in `size[i]` the length of
+/// the run of line `i` (0 for an invalid line); `parent` is scratch.
+fn runs(points: &[StripePoint], parent: &mut [u16], size: &mut [u16]) {
+    let n = points.len();
+    for i in 0..n {
+        parent[i] = i as u16;
+        size[i] = 0;
+    }
+    let valid = |i: usize| points[i].status == Status::Valid;
+    for i in (0..n).filter(|&i| valid(i)) {
+        for j in i.saturating_sub(CONTINUITY_GAP + 1)..i {
+            if valid(j) && continuous((i, points[i].centre), (j, points[j].centre)) {
+                let (a, b) = (root(parent, i), root(parent, j));
+                parent[a] = b as u16;
+            }
+        }
+    }
+    for i in (0..n).filter(|&i| valid(i)) {
+        let r = root(parent, i);
+        size[r] += 1;
+    }
+    for i in (0..n).filter(|&i| valid(i)) {
+        let r = root(parent, i);
+        size[i] = size[r];
+    }
+}
+
+/// Whether a centre at `centre` on `line` continues a run of at least [`MIN_RUN`] lines beside
+/// it (`size` from [`runs`]).
+fn joins_run(points: &[StripePoint], size: &[u16], line: usize, centre: f32) -> bool {
+    let hi = (line + CONTINUITY_GAP + 1).min(points.len().saturating_sub(1));
+    (line.saturating_sub(CONTINUITY_GAP + 1)..=hi)
+        .filter(|&j| j != line && size[j] >= MIN_RUN)
+        .any(|j| continuous((line, centre), (j, points[j].centre)))
+}
+
 /// The automatic thresholds sample every this many rows.
 pub const SAMPLE_STEP: usize = 32;
 
@@ -238,11 +302,16 @@ pub enum Status {
     /// sheet falling off a surface's border, so that only part of its profile lies on the
     /// surface, with its centre pulled inwards).
     Cut,
+    /// Its centre belongs to no run of continuous centres over at least four lines: the light
+    /// sheet meets a surface in a curve over many lines, so a lone peak or two is something
+    /// else (a colour fringe at a printed edge, a glint, a speck); nor did the line's second
+    /// peak continue the stripe.
+    Isolated,
 }
 
 impl Status {
     /// Every status, in a fixed order (for tables and counters).
-    pub const ALL: [Status; 8] = [
+    pub const ALL: [Status; 9] = [
         Status::Valid,
         Status::NoStripe,
         Status::Ambiguous,
@@ -251,6 +320,7 @@ impl Status {
         Status::TooNarrow,
         Status::BadProfile,
         Status::Cut,
+        Status::Isolated,
     ];
 }
 
@@ -265,6 +335,7 @@ impl fmt::Display for Status {
             Self::TooNarrow => "too narrow",
             Self::BadProfile => "no fit",
             Self::Cut => "cut by an edge",
+            Self::Isolated => "isolated",
         })
     }
 }
@@ -380,7 +451,7 @@ impl core::error::Error for StripeError {}
 
 /// Fixed-memory state of the extraction for at most `W` lines of at most `W` samples.
 ///
-/// About `W × 31` bytes: own it once (a `static`, a `Box`, or the device's frame loop) and reuse
+/// About `W × 35` bytes: own it once (a `static`, a `Box`, or the device's frame loop) and reuse
 /// it for every frame.
 pub struct Extractor<const W: usize> {
     rows: [[u16; W]; 3],
@@ -390,6 +461,9 @@ pub struct Extractor<const W: usize> {
     second: [u16; W],
     second_at: [u16; W],
     out: [StripePoint; W],
+    /// Runs of continuous centres: union-find parents, then each line's run length.
+    parent: [u16; W],
+    run: [u16; W],
 }
 
 impl<const W: usize> Default for Extractor<W> {
@@ -487,6 +561,8 @@ impl<const W: usize> Extractor<W> {
             second: [0; W],
             second_at: [0; W],
             out: [StripePoint::NONE; W],
+            parent: [0; W],
+            run: [0; W],
         }
     }
 
@@ -546,14 +622,52 @@ impl<const W: usize> Extractor<W> {
         let mut sig = [0u16; MAX_WINDOW];
         let mut clipped = [false; MAX_WINDOW];
         for line in 0..lines {
+            let rough = usize::from(self.best_at[line]);
             self.out[line] = self.judge(
                 &io,
                 cfg,
-                line,
+                (line, rough),
                 length,
                 (threshold, noise),
                 (&mut sig, &mut clipped),
             );
+        }
+        // A centre in a run of fewer than MIN_RUN lines is no stripe: its line's second peak
+        // takes its place where that continues a run, else the line has none.
+        runs(
+            &self.out[..lines],
+            &mut self.parent[..lines],
+            &mut self.run[..lines],
+        );
+        let origin = match cfg.axis {
+            Axis::Columns => roi.y,
+            Axis::Rows => roi.x,
+        };
+        for line in 0..lines {
+            let p = self.out[line];
+            if p.status != Status::Valid || self.run[line] >= MIN_RUN {
+                continue;
+            }
+            let second = usize::from(self.second_at[line]);
+            let continues = |c: f32| joins_run(&self.out[..lines], &self.run[..lines], line, c);
+            let candidate = (self.second[line] > 0 && continues((origin + second) as f32))
+                .then(|| {
+                    self.judge(
+                        &io,
+                        cfg,
+                        (line, second),
+                        length,
+                        (threshold, noise),
+                        (&mut sig, &mut clipped),
+                    )
+                })
+                .filter(|q| q.status == Status::Valid && continues(q.centre));
+            self.out[line] = candidate.unwrap_or(StripePoint {
+                centre: 0.0,
+                sigma: 0.0,
+                status: Status::Isolated,
+                ..p
+            });
         }
         mark_cut(&mut self.out[..lines], cfg.cut_width);
         Ok(Extraction {
@@ -748,12 +862,12 @@ impl<const W: usize> Extractor<W> {
         }
     }
 
-    /// Reads the window around the peak of `line` and decides its status and centre.
+    /// Reads the window around the peak at `rough` of `line` and decides its status and centre.
     fn judge(
         &self,
         io: &Io<'_, '_>,
         cfg: &StripeConfig,
-        line: usize,
+        (line, rough): (usize, usize),
         length: usize,
         (threshold, noise): (u16, f32),
         scratch: (&mut [u16; MAX_WINDOW], &mut [bool; MAX_WINDOW]),
@@ -762,7 +876,6 @@ impl<const W: usize> Extractor<W> {
         if self.best[line] == 0 {
             return point;
         }
-        let rough = usize::from(self.best_at[line]);
         let (sig, clipped) = scratch;
         // A narrow window first; the full one only when the profile has not come down to the
         // background at its ends (a wide stripe, or a halo around it).

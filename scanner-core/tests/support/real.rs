@@ -98,7 +98,7 @@ pub struct Outcome {
     pub statuses: Vec<(Status, usize)>,
 }
 
-fn fit_quadratic(pts: &[(f64, f64)]) -> impl Fn(f64) -> f64 + use<> {
+pub fn fit_quadratic(pts: &[(f64, f64)]) -> impl Fn(f64) -> f64 + use<> {
     use scanner_core::nalgebra::{Matrix3, Vector3};
     let y0 = pts.iter().map(|p| p.0).sum::<f64>() / pts.len() as f64;
     let (mut a, mut b) = (Matrix3::zeros(), Vector3::zeros());
@@ -260,4 +260,104 @@ pub fn full_height(case: &Case, method: Method, colour: LaserColour, to: usize) 
         }
     }
     out
+}
+
+/// A whole photograph's board rows extracted at once, across the full width (both stripes in
+/// every row, the chessboard's squares and their edges between): where each row's valid centre
+/// lies against the two stripes' curves (each fitted from its own band, [`analyse`]).
+#[derive(Debug, Clone)]
+pub struct FullWidth {
+    /// Board rows, and rows with a valid centre.
+    pub rows: usize,
+    pub valid: usize,
+    /// Valid centres farther than 2.5 px from both stripes outside a glint's rows: points from
+    /// something else (a colour fringe at a square's edge, a speck), with their rows and
+    /// columns.
+    pub off: Vec<(usize, f32)>,
+    /// Status counts over the rows.
+    pub statuses: Vec<(Status, usize)>,
+}
+
+/// [`FullWidth`] of the photograph `image` (its two cases in [`CASES`]) in `format`.
+pub fn full_width(image: &str, format: PixelFormat) -> FullWidth {
+    let cases: Vec<&Case> = CASES.iter().filter(|c| c.image == image).collect();
+    let curves: Vec<_> = cases
+        .iter()
+        .map(|c| {
+            let (frame, w, h) = load(c.image);
+            let (reference, _, _) = load(&format!("{}-background", c.image));
+            let f = Frame::packed(&frame, w, h, PixelFormat::Rgb24).unwrap();
+            let r = Frame::packed(&reference, w, h, PixelFormat::Rgb24).unwrap();
+            let mut ex = Box::new(Extractor::<2048>::new());
+            let cfg = StripeConfig {
+                roi: Some(c.roi),
+                ..StripeConfig::new(Method::Dim, Axis::Rows)
+            };
+            let res = ex.extract(&f, Some(&r), &cfg).unwrap();
+            let pts: Vec<(f64, f64)> = res
+                .valid()
+                .filter(|(y, _)| !c.glint.is_some_and(|(a, b)| (a..b).contains(y)))
+                .map(|(y, p)| (y as f64, f64::from(p.centre)))
+                .collect();
+            fit_quadratic(&pts)
+        })
+        .collect();
+    let (frame, w, h) = load(image);
+    let (reference, _, _) = load(&format!("{image}-background"));
+    let (frame, reference) = (convert(&frame, format), convert(&reference, format));
+    let f = Frame::packed(&frame, w, h, format).unwrap();
+    let r = Frame::packed(&reference, w, h, format).unwrap();
+    let top = cases.iter().map(|c| c.roi.y).max().unwrap();
+    let bottom = cases.iter().map(|c| c.roi.y + c.roi.height).min().unwrap();
+    let mut ex = Box::new(Extractor::<2048>::new());
+    let cfg = StripeConfig {
+        roi: Some(Roi {
+            x: 0,
+            y: top,
+            width: w,
+            height: bottom - top,
+        }),
+        ..StripeConfig::new(Method::Dim, Axis::Rows)
+    };
+    let res = ex.extract(&f, Some(&r), &cfg).unwrap();
+    // (a glint's rows pull the stripe's centre by up to 2.5 px: judged by [`analyse`])
+    let in_glint = |y: usize| {
+        cases
+            .iter()
+            .any(|c| c.glint.is_some_and(|(a, b)| (a..b).contains(&y)))
+    };
+    let off = res
+        .valid()
+        .filter(|(y, p)| {
+            !in_glint(*y)
+                && curves
+                    .iter()
+                    .all(|c| (f64::from(p.centre) - c(*y as f64)).abs() > 2.5)
+        })
+        .map(|(y, p)| (y, p.centre))
+        .collect();
+    let statuses = Status::ALL
+        .iter()
+        .map(|&s| (s, res.points.iter().filter(|p| p.status == s).count()))
+        .filter(|(_, n)| *n > 0)
+        .collect();
+    FullWidth {
+        rows: res.points.len(),
+        valid: res.valid().count(),
+        off,
+        statuses,
+    }
+}
+
+/// Packed RGB24 bytes in `format` (gray by BT.601 luma, YUYV as a webcam packs pairs).
+pub fn convert(rgb: &[u8], format: PixelFormat) -> Vec<u8> {
+    use scanner_core::colour::{luma, rgb_pair_to_yuyv};
+    match format {
+        PixelFormat::Rgb24 => rgb.to_vec(),
+        PixelFormat::Gray8 => rgb.chunks(3).map(|p| luma([p[0], p[1], p[2]])).collect(),
+        PixelFormat::Yuyv => rgb
+            .chunks(6)
+            .flat_map(|p| rgb_pair_to_yuyv([p[0], p[1], p[2]], [p[3], p[4], p[5]]))
+            .collect(),
+    }
 }

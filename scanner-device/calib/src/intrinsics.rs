@@ -83,14 +83,23 @@ pub fn find_grid(img: &GrayImage, target: &Target) -> Result<GridView, CalibErro
     }
     let (cols, rows) = target.grid();
     let layout_len = cols * rows;
-    let Some(lattice) = lattices(&features, layout_len).into_iter().next() else {
+    let found_lattices = lattices(&features, (cols, rows));
+    let Some(largest) = found_lattices.first() else {
         return Err(CalibError::NoGrid {
             what: target.name().into(),
             features: features.len(),
         });
     };
-    let placed = lattice
-        .place(&features, cols, rows, target.dark_even())
+    // The largest lattice that fits the target; else the largest with a line of clutter beside
+    // it left out ([`Lattice::place_in`]).
+    let dark_even = target.dark_even();
+    let placed = found_lattices
+        .iter()
+        .find_map(|l| l.place(&features, cols, rows, dark_even).ok())
+        .map_or_else(
+            || largest.place_in(&features, (cols, rows), dark_even, true),
+            Ok,
+        )
         .map_err(|e| CalibError::CountMismatch {
             what: target.name().into(),
             seen: e.seen,

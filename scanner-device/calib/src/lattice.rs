@@ -405,6 +405,23 @@ impl Lattice {
         rows: usize,
         dark_even: Option<bool>,
     ) -> Result<Placement, TooLarge> {
+        self.place_in(feats, (cols, rows), dark_even, false)
+    }
+
+    /// [`Lattice::place`], and with `window` a lattice one line longer than the target one way
+    /// (a chessboard's only) placed too: something beside the target that continues its rows —
+    /// a striped shirt, keys, a second pattern — made one more line of corners; the squares'
+    /// colours tell which end is the target's, and the extra line is left out.
+    ///
+    /// # Errors
+    /// As [`Lattice::place`].
+    pub fn place_in(
+        &self,
+        feats: &[Blob],
+        (cols, rows): (usize, usize),
+        dark_even: Option<bool>,
+        window: bool,
+    ) -> Result<Placement, TooLarge> {
         let l = self.normalised(feats).trimmed_to(cols, rows);
         let rotations: [fn(Cell) -> Cell; 4] = [
             |(c, r)| (c, r),
@@ -417,7 +434,13 @@ impl Lattice {
         for rot in rotations {
             let lr = l.map(rot);
             let (w, h) = lr.extent();
-            if w > cols || h > rows {
+            // One line too many one way: something beside the target continues its rows; each
+            // offset of the target on it shifts the squares' colours by one, so they tell which
+            // end is the target's. Dots have no colours to tell; more than a line more is a
+            // count that is wrong.
+            let fits_in = w <= cols && h <= rows;
+            let one_more = (w == cols + 1 && h <= rows) || (h == rows + 1 && w <= cols);
+            if !(fits_in || (window && one_more && dark_even.is_some())) {
                 continue;
             }
             let colours: Vec<(Cell, bool)> = match dark_even {
@@ -433,24 +456,36 @@ impl Lattice {
                 .keys()
                 .find_map(|&c| lr.axes_at(feats, c))
                 .map_or(0.0, |(gx, _)| gx.normalize().x);
-            for oy in 0..=(rows - h) as i32 {
-                for ox in 0..=(cols - w) as i32 {
-                    let expect_dark =
-                        |c: i32, r: i32| ((c + ox + r + oy) % 2 == 0) == dark_even.unwrap_or(true);
+            // Offsets of the lattice on the target (negative: the target is a window of it).
+            let span = |n: usize, of: usize| {
+                let d = of as i32 - n as i32;
+                d.min(0)..=d.max(0)
+            };
+            for oy in span(h, rows) {
+                for ox in span(w, cols) {
+                    let inside = |c: i32, r: i32| {
+                        (0..cols as i32).contains(&(c + ox)) && (0..rows as i32).contains(&(r + oy))
+                    };
+                    let expect_dark = |c: i32, r: i32| {
+                        (((c + ox + r + oy) % 2 + 2) % 2 == 0) == dark_even.unwrap_or(true)
+                    };
                     let score: i64 = colours
                         .iter()
+                        .filter(|((c, r), _)| inside(*c, *r))
                         .map(|&((c, r), dark)| if dark == expect_dark(c, r) { 1 } else { -1 })
                         .sum();
                     let mut found: Vec<(usize, usize)> = lr
                         .nodes
                         .iter()
+                        .filter(|(cell, _)| inside(cell.0, cell.1))
                         .map(|(&(c, r), &f)| ((r + oy) as usize * cols + (c + ox) as usize, f))
                         .collect();
                     found.sort_unstable();
+                    let (ew, eh) = (w.min(cols), h.min(rows));
                     let placement = Placement {
+                        complete: found.len() == ew * eh,
                         found,
-                        extent: (w, h),
-                        complete: lr.len() == w * h,
+                        extent: (ew, eh),
                         ambiguous: false,
                     };
                     fits.push((score, align, placement));
@@ -474,9 +509,10 @@ impl Lattice {
 }
 
 /// The largest lattices among `feats`, largest first, each feature in at most one; a lattice
-/// needs a seed plus (five features). `stop_at`: stop searching once a lattice has this many
-/// nodes (the whole target).
-pub fn lattices(feats: &[Blob], stop_at: usize) -> Vec<Lattice> {
+/// needs a seed plus (five features). The search stops once a lattice holds the whole target
+/// of `cols × rows` nodes and fits it (a larger pattern beside the target, found first, does
+/// not end it).
+pub fn lattices(feats: &[Blob], (cols, rows): (usize, usize)) -> Vec<Lattice> {
     if feats.len() < 5 || feats.len() > MAX_FEATURES {
         return Vec::new();
     }
@@ -513,7 +549,9 @@ pub fn lattices(feats: &[Blob], stop_at: usize) -> Vec<Lattice> {
         // target's lattice but never seed from them again.
         if l.len() >= 9 {
             used = trial;
-            let done = l.len() >= stop_at;
+            let (w, h) = l.extent();
+            let fits = (w <= cols && h <= rows) || (w <= rows && h <= cols);
+            let done = l.len() >= cols * rows && fits;
             out.push(l);
             if done {
                 break;
@@ -567,7 +605,7 @@ mod tests {
     #[test]
     fn a_distorted_sheared_chessboard_is_found_whole_and_numbered_as_printed() {
         let feats = warped_chessboard(9, 6);
-        let ls = lattices(&feats, 54);
+        let ls = lattices(&feats, (9, 6));
         assert_eq!(ls[0].len(), 54);
         let p = ls[0].place(&feats, 9, 6, Some(true)).unwrap();
         assert!(p.complete && !p.ambiguous, "{p:?}");
@@ -586,7 +624,7 @@ mod tests {
             .filter(|(i, _)| i % 9 != 0)
             .map(|(_, b)| *b)
             .collect();
-        let ls = lattices(&feats, 48);
+        let ls = lattices(&feats, (8, 6));
         let p = ls[0].place(&feats, 9, 6, Some(true)).unwrap();
         assert_eq!(p.extent, (8, 6));
         assert!(!p.ambiguous);
@@ -596,7 +634,7 @@ mod tests {
     #[test]
     fn a_grid_larger_than_the_target_is_refused_with_what_was_seen() {
         let feats = warped_chessboard(9, 6);
-        let ls = lattices(&feats, 54);
+        let ls = lattices(&feats, (9, 6));
         assert_eq!(
             ls[0].place(&feats, 8, 5, Some(true)),
             Err(TooLarge { seen: (9, 6) })
@@ -614,7 +652,7 @@ mod tests {
             let p = a + (a - b);
             feats.push(blob(p.x, p.y, feats[r * 9 + 1].dark_axis));
         }
-        let ls = lattices(&feats, 54);
+        let ls = lattices(&feats, (9, 6));
         assert_eq!(ls[0].len(), 56);
         let p = ls[0].place(&feats, 9, 6, Some(true)).unwrap();
         assert_eq!((p.found.len(), p.extent), (54, (9, 6)));
@@ -631,7 +669,7 @@ mod tests {
             let m = Point2::from((a.centre.coords + b.centre.coords) / 2.0);
             feats.push(blob(m.x, m.y, a.dark_axis));
         }
-        let ls = lattices(&feats, 54);
+        let ls = lattices(&feats, (9, 6));
         let p = ls[0].place(&feats, 9, 6, Some(true)).unwrap();
         assert_eq!(p.found.len(), 54);
         assert!(p.found.iter().all(|(_, f)| *f < 54));
@@ -652,7 +690,7 @@ mod tests {
                 ));
             }
         }
-        let ls = lattices(&feats, 63);
+        let ls = lattices(&feats, (9, 7));
         assert_eq!(ls[0].len(), 63);
         let p = ls[0].place(&feats, 9, 7, None).unwrap();
         assert_eq!(p.extent, (9, 7));

@@ -9,7 +9,7 @@ use scanner_calib::{DotGrid, Target, board_planes, find_grid, intrinsics_outcome
 use scanner_core::calib::Free;
 use scanner_core::nalgebra::{Point3, Vector3};
 use scanner_core::{Camera, Distortion};
-use scanner_rig::target::{Clutter, Pattern, Shot, Surroundings, TargetPose};
+use scanner_rig::target::{Beside, BesideKind, Clutter, Pattern, Shot, Surroundings, TargetPose};
 use scanner_rig::{Object, Rig, Scene, Shape, SurfaceId};
 
 /// A webcam: 640×480, wide lens with strong barrel distortion, bright room, sensor noise.
@@ -48,6 +48,7 @@ fn around(i: usize) -> Surroundings {
             seed: i as u64,
         }),
         hand,
+        beside: None,
     }
 }
 
@@ -311,4 +312,52 @@ fn board_markers_under_a_webcams_lens_with_clutter_and_an_occluder() {
             }
         }
     }
+}
+
+/// Regular clutter right beside the chessboard, in its plane and lined up with its rows —
+/// stripes, keys, a second chessboard of the same squares — where a lattice of the board's
+/// corners could grow on: every corner found is the board's, numbered as printed, in every shot;
+/// and the intrinsics use every shot.
+#[test]
+fn clutter_that_continues_the_boards_rows_is_not_taken_for_more_board() {
+    let rig = Rig::new(webcam()).unwrap();
+    let mut images = Vec::new();
+    for (k, kind) in [BesideKind::Stripes, BesideKind::Keys, BesideKind::Checker]
+        .into_iter()
+        .enumerate()
+    {
+        for i in 0..4 {
+            // (a second chessboard within a tenth of a square of the first is one larger
+            // chessboard to the corner detector, its seam blurred away)
+            let gaps = match kind {
+                BesideKind::Checker => [0.25, 0.4, 0.75, 1.0],
+                _ => [0.0, 0.1, 0.25, 0.4],
+            };
+            let beside = Beside { kind, gap: gaps[i] };
+            let around = Surroundings {
+                margin: Some(12.0),
+                clutter: None,
+                hand: None,
+                beside: Some(beside),
+            };
+            let seed = 200 + (4 * k + i) as u64;
+            let shot = rig.shot_in(&CHESS, &pose(4 * k + i), &around, seed);
+            let n = check(
+                &format!("{beside:?} shot {i}"),
+                &shot,
+                &CHESS_TARGET,
+                0.5,
+                true,
+            );
+            println!("{beside:?} shot {i}: {n} corners identified");
+            images.push(shot.image.to_gray_image());
+        }
+    }
+    let out = intrinsics_outcome(&images, &CHESS_TARGET, Free::ALL);
+    for (i, r) in out.images.iter().enumerate() {
+        if let Err(e) = &r.status {
+            panic!("shot {i} refused: {e}");
+        }
+    }
+    assert!(out.result.is_ok());
 }

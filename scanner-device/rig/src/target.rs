@@ -213,6 +213,32 @@ pub struct Surroundings {
     /// A hand holding the sheet, its fingers reaching over the pattern from this point (pattern
     /// coordinates, mm) towards the pattern's centre, 25 mm in front of the sheet.
     pub hand: Option<[f64; 2]>,
+    /// Something regular beside the sheet, in its plane and aligned with its rows.
+    pub beside: Option<Beside>,
+}
+
+/// Regular clutter right beside the target (to its right, `gap` of a row's pitch from the
+/// pattern's edge, over the sheet's margin there), in the sheet's plane and lined up with the
+/// pattern's rows — a striped shirt, a keyboard, a second printed pattern laid next to the
+/// first: what a lattice of the pattern's features could take for more of itself.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Beside {
+    /// What it is.
+    pub kind: BesideKind,
+    /// Its distance from the pattern's edge, in rows' pitches.
+    pub gap: f64,
+}
+
+/// The kinds of [`Beside`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum BesideKind {
+    /// Dark bands as wide as the pattern's rows, one row apart, their edges on the rows' lines.
+    Stripes,
+    /// Dark keys of 70 % of a row's pitch on a grid of that pitch, lined up with the rows.
+    Keys,
+    /// A second chessboard of the same squares, its rows continuing the pattern's (six squares
+    /// wide, as high as the pattern).
+    Checker,
 }
 
 /// A mid-gray wall behind the target with dark things on it: discs the size of markers, bars,
@@ -456,6 +482,9 @@ struct ShotView<'a> {
     hand: Option<Hand>,
     /// The clutter wall: its depth, mm, and the dark things on it.
     wall: Option<(f64, Vec<Thing>)>,
+    /// Regular clutter beside the sheet: what, where it starts (sheet x, mm), the pattern's row
+    /// pitch and where a row line lies (sheet y, mm).
+    beside: Option<(BesideKind, f64, f64, f64)>,
 }
 
 impl<'a> ShotView<'a> {
@@ -484,6 +513,11 @@ impl<'a> ShotView<'a> {
             );
             (z, clutter_things(c.seed, span))
         });
+        let pitch = match *pattern {
+            Pattern::Chessboard { square, .. } => square,
+            Pattern::DotGrid { pitch, .. } => pitch,
+            Pattern::Cross { arm, .. } => arm / 2.0,
+        };
         ShotView {
             pattern,
             centre: pose.centre,
@@ -493,6 +527,9 @@ impl<'a> ShotView<'a> {
             half_sheet: around.margin.map(|m| (hx + m, hy + m)),
             hand,
             wall,
+            beside: around
+                .beside
+                .map(|b| (b.kind, hx + b.gap * pitch, pitch, -hy)),
         }
     }
 
@@ -522,6 +559,22 @@ impl<'a> ShotView<'a> {
         if let Some(t) = meet(d, &self.centre, &self.n) {
             let q = Point3::from(d * t) - self.centre;
             let (x, y) = (q.dot(&self.ex), q.dot(&self.ey));
+            if let Some((kind, from, pitch, row)) = self.beside
+                && x >= from
+                && x <= from + 6.0 * pitch
+                && y.abs() <= row.abs()
+            {
+                let (u, v) = ((x - from) / pitch, (y - row) / pitch);
+                let dark = match kind {
+                    BesideKind::Stripes => v.floor().rem_euclid(2.0) == 0.0,
+                    BesideKind::Keys => {
+                        (u.rem_euclid(1.0) - 0.5).abs() < 0.35
+                            && (v.rem_euclid(1.0) - 0.5).abs() < 0.35
+                    }
+                    BesideKind::Checker => (u.floor() + v.floor()).rem_euclid(2.0) == 0.0,
+                };
+                return if dark { DARK } else { PAPER };
+            }
             if self
                 .half_sheet
                 .is_none_or(|(hx, hy)| x.abs() <= hx && y.abs() <= hy)

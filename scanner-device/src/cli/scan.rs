@@ -28,9 +28,11 @@ pub struct ScanArgs {
     /// With the virtual rig: this view of a scene with `[[views]]` (a 360° scan), from 0.
     #[arg(long)]
     pub view: Option<usize>,
-    /// Pixel format the pipeline reads.
-    #[arg(long, value_enum, default_value_t = FormatArg::Gray)]
-    pub format: FormatArg,
+    /// Pixel format the pipeline reads. [default: the source's own: a camera's as it sends
+    /// them (YUYV, GREY; MJPEG and RGB3 decoded to RGB), an image folder's as its first image
+    /// (RGB for colour, gray for gray); the virtual rig renders gray]
+    #[arg(long, value_enum)]
+    pub format: Option<FormatArg>,
     /// How a camera is opened.
     #[command(flatten)]
     pub camera: CameraArgs,
@@ -59,9 +61,13 @@ pub struct ScanArgs {
     /// by brightness alone. Gray frames show no colour: there it is ignored. [default: red]
     #[arg(long, value_enum)]
     pub laser: Option<LaserArg>,
-    /// The stripe runs vertically (the laser sweeps sideways): scan rows.
-    #[arg(long)]
+    /// The stripe runs vertically (the laser sweeps sideways): scan rows. [default: the way
+    /// the first laser frame shows the stripe running]
+    #[arg(long, conflicts_with = "columns")]
     pub rows: bool,
+    /// The stripe runs horizontally (the laser sweeps up and down): scan columns.
+    #[arg(long)]
+    pub columns: bool,
     /// Send the stripe's board points too.
     #[arg(long)]
     pub keep_board: bool,
@@ -282,7 +288,6 @@ pub fn scan(a: &ScanArgs) -> Result<ScanReport> {
 /// # Errors
 /// A bad option, an unreadable or unsuitable calibration, a source or link that cannot open.
 pub fn plan(a: &ScanArgs) -> Result<ScanPlan> {
-    let format = PixelFormat::from(a.format);
     if let Some(f) = &a.camera.fourcc {
         CameraFormat::parse(f)?;
     }
@@ -296,6 +301,18 @@ pub fn plan(a: &ScanArgs) -> Result<ScanPlan> {
         reference_frames: a.reference_frames,
         ..a.camera.options()?
     };
+    let format = match a.format {
+        Some(f) => PixelFormat::from(f),
+        None if a.scene.is_some() || a.source.starts_with("rig") => PixelFormat::Gray8,
+        None => crate::source::native_format(&a.source, &opts)
+            .with_context(|| format!("opening the frame source {:?}", a.source))?,
+    };
+    if a.laser.is_some() && format == PixelFormat::Gray8 {
+        crate::errln!(
+            "note: --laser {} has no effect on gray frames: a gray camera sees no colour",
+            a.laser.map_or(LaserColour::Red, LaserColour::from).name()
+        );
+    }
     let mut source = open_source(a, format, &opts)?;
     if let Some(dir) = &a.record {
         source = Box::new(
@@ -306,6 +323,7 @@ pub fn plan(a: &ScanArgs) -> Result<ScanPlan> {
     let calibration = read_calibration(cal_path, source.as_ref(), &a.source)?;
     let options = ScanOptions {
         head: head_config(a),
+        find_axis: !(a.rows || a.columns),
         header_every: 30,
         status_every: 30,
         scan_id: a.scan_id.unwrap_or_else(rand::random),
@@ -406,12 +424,6 @@ fn head_config(a: &ScanArgs) -> HeadConfig {
     let method = if a.lim { Method::Lim } else { Method::Dim };
     let axis = if a.rows { Axis::Rows } else { Axis::Columns };
     let colour = a.laser.map_or(LaserColour::Red, LaserColour::from);
-    if a.laser.is_some() && a.format == FormatArg::Gray {
-        crate::errln!(
-            "note: --laser {} has no effect on gray frames (--format gray): a gray camera sees no colour",
-            colour.name()
-        );
-    }
     let mut head = HeadConfig::new(StripeConfig {
         colour,
         ..StripeConfig::new(method, axis)

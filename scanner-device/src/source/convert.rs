@@ -50,6 +50,17 @@ impl CameraFormat {
             .ok_or_else(|| UnsupportedFormat(s.chars().take(16).collect()))
     }
 
+    /// The pixel format its frames are read in when none is asked: as the camera sends them
+    /// (GREY as gray, YUYV in place), decoded to RGB otherwise — colour kept, so that the
+    /// laser's colour counts.
+    pub fn native(self) -> PixelFormat {
+        match self {
+            CameraFormat::Grey => PixelFormat::Gray8,
+            CameraFormat::Yuyv => PixelFormat::Yuyv,
+            CameraFormat::Rgb3 | CameraFormat::Mjpeg => PixelFormat::Rgb24,
+        }
+    }
+
     /// The FourCC code.
     pub fn fourcc(self) -> [u8; 4] {
         match self {

@@ -52,24 +52,38 @@ pub struct ImageDir {
     reference_frames: usize,
 }
 
+/// The pixel format of an image file's frames when none is asked: gray for a gray image, RGB
+/// for any other (the laser's colour kept).
+///
+/// # Errors
+/// [`SourceError::Image`] naming the file.
+pub fn native_format(path: &std::path::Path) -> Result<PixelFormat, SourceError> {
+    let img = scanner_calib::image_file::open(path).map_err(SourceError::Image)?;
+    Ok(match img.color() {
+        image::ColorType::L8
+        | image::ColorType::L16
+        | image::ColorType::La8
+        | image::ColorType::La16 => PixelFormat::Gray8,
+        _ => PixelFormat::Rgb24,
+    })
+}
+
 impl ImageDir {
-    /// Lists a folder.
+    /// The folder's images (PNG and JPEG, in name order) and its reference image, if any.
     ///
     /// # Errors
     /// [`SourceError::Folder`] for an unreadable folder, [`SourceError::Images`] for one without
-    /// images, or the first image's error for an unreadable first
-    /// image.
-    pub fn open(
+    /// images.
+    fn list(
         dir: &std::path::Path,
-        format: PixelFormat,
-        opts: &SourceOptions,
-    ) -> Result<ImageDir, SourceError> {
+        reference: Option<std::path::PathBuf>,
+    ) -> Result<(Vec<std::path::PathBuf>, Option<std::path::PathBuf>), SourceError> {
         let io = |source: std::io::Error| SourceError::Folder {
             path: dir.to_path_buf(),
             source,
         };
         let mut files = Vec::new();
-        let mut reference = opts.reference.clone();
+        let mut reference = reference;
         for entry in std::fs::read_dir(dir).map_err(io)? {
             let path = entry.map_err(io)?.path();
             let ext = path
@@ -86,10 +100,38 @@ impl ImageDir {
             files.push(path);
         }
         files.sort();
-        let first = files.first().ok_or_else(|| {
-            SourceError::Images(format!("{}: no PNG or JPEG images", dir.display()))
-        })?;
-        let f = load_frame(first, format, 0)?;
+        if files.is_empty() {
+            return Err(SourceError::Images(format!(
+                "{}: no PNG or JPEG images",
+                dir.display()
+            )));
+        }
+        Ok((files, reference))
+    }
+
+    /// The pixel format of the folder's frames when none is asked ([`native_format`] of its
+    /// first image).
+    ///
+    /// # Errors
+    /// As [`ImageDir::open`].
+    pub fn native_format(dir: &std::path::Path) -> Result<PixelFormat, SourceError> {
+        let (files, _) = Self::list(dir, None)?;
+        native_format(&files[0])
+    }
+
+    /// Lists a folder.
+    ///
+    /// # Errors
+    /// [`SourceError::Folder`] for an unreadable folder, [`SourceError::Images`] for one without
+    /// images, or the first image's error for an unreadable first
+    /// image.
+    pub fn open(
+        dir: &std::path::Path,
+        format: PixelFormat,
+        opts: &SourceOptions,
+    ) -> Result<ImageDir, SourceError> {
+        let (files, reference) = Self::list(dir, opts.reference.clone())?;
+        let f = load_frame(&files[0], format, 0)?;
         Ok(ImageDir {
             dir: dir.to_path_buf(),
             files,
@@ -124,6 +166,15 @@ impl FrameSource for ImageDir {
     fn reference(&mut self) -> Result<OwnedFrame, SourceError> {
         let r = match &self.reference {
             Some(p) => load_frame(p, self.format, u64::MAX)?,
+            // Without a laser-off photo the first images make the reference: some must be left.
+            None if self.files.len() <= self.reference_frames => {
+                return Err(SourceError::Images(format!(
+                    "{}: {} image(s) and no reference: without a laser-off photo the first {} images are averaged into the reference, which leaves none to scan; give --reference FILE (a photo of the same view with the laser off) or put it in the folder as reference.png",
+                    self.dir.display(),
+                    self.files.len(),
+                    self.reference_frames
+                )));
+            }
             None => {
                 let n = self.reference_frames.min(self.files.len());
                 let frames = self.files[..n]

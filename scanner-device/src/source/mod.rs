@@ -20,7 +20,7 @@ pub mod v4l2;
 
 use scanner_core::stripe::{Frame, FrameError, PixelFormat};
 
-pub use images::{ImageDir, load_frame};
+pub use images::{ImageDir, load_frame, native_format as image_format};
 #[cfg(feature = "rig")]
 pub use rig::RigSource;
 
@@ -277,6 +277,70 @@ pub fn stripe_lines(frame: &OwnedFrame, reference: &OwnedFrame) -> Option<(usize
     best
 }
 
+/// Which way the stripe runs in a laser frame: the axis along which the extractor (with the
+/// scan's settings `cfg`, its axis aside) finds a valid centre on the larger share of the lines
+/// — a stripe across the lines is found on most of them, one along them on few. It must be found
+/// on at least a tenth of the lines one way, and on twice the share of the other.
+///
+/// # Errors
+/// Why the frame does not tell, with what to give instead (`--rows` or `--columns`).
+pub fn stripe_axis(
+    frame: &OwnedFrame,
+    reference: &OwnedFrame,
+    cfg: &scanner_core::stripe::StripeConfig,
+) -> Result<scanner_core::stripe::Axis, String> {
+    use scanner_core::stripe::{Axis, Extractor, Status, StripeConfig};
+    let (Ok(f), Ok(r)) = (frame.view(), reference.view()) else {
+        return Err("the first laser frame does not match the reference".into());
+    };
+    let mut ex = Box::new(Extractor::<{ scanner_core::config::MAX_LINES }>::new());
+    let mut share = |axis: Axis| {
+        let c = StripeConfig { axis, ..*cfg };
+        ex.extract(&f, Some(&r), &c).map_or(0.0, |found| {
+            let valid = found
+                .points
+                .iter()
+                .filter(|p| p.status == Status::Valid)
+                .count();
+            valid as f64 / found.points.len().max(1) as f64
+        })
+    };
+    let (columns, rows) = (share(Axis::Columns), share(Axis::Rows));
+    let pct = |s: f64| 100.0 * s;
+    if columns >= 0.1 && columns >= 2.0 * rows {
+        Ok(Axis::Columns)
+    } else if rows >= 0.1 && rows >= 2.0 * columns {
+        Ok(Axis::Rows)
+    } else {
+        Err(format!(
+            "the first laser frame does not tell which way the stripe runs (a stripe found on {:.0} % of the columns and {:.0} % of the rows): give --columns for a horizontal stripe (the laser sweeps up and down) or --rows for a vertical one (it sweeps sideways), and check the laser is on after the reference",
+            pct(columns),
+            pct(rows)
+        ))
+    }
+}
+
+/// The pixel format a source's frames are read in when none is asked: a camera's as it sends
+/// them, an image folder's as its first image (see [`convert::CameraFormat::native`],
+/// [`images::native_format`]), a recording's as it was recorded.
+///
+/// # Errors
+/// The source cannot be opened or its first image read.
+pub fn native_format(name: &str, opts: &SourceOptions) -> Result<PixelFormat, SourceError> {
+    if name.starts_with("/dev/video") || name.starts_with("v4l:") {
+        return v4l2::native_format(name.strip_prefix("v4l:").unwrap_or(name), opts);
+    }
+    if let Some(dir) = name.strip_prefix("record:") {
+        return Ok(record::RecordingSource::open(std::path::Path::new(dir))?.format());
+    }
+    let dir = name.strip_prefix("dir:").unwrap_or(name);
+    if std::path::Path::new(dir).is_dir() {
+        return ImageDir::native_format(std::path::Path::new(dir));
+    }
+    // the virtual rig and unknown names: gray, and `open` names a wrong one
+    Ok(PixelFormat::Gray8)
+}
+
 /// Averages frames of one shape into one.
 ///
 /// # Errors
@@ -328,7 +392,7 @@ pub fn open_with(
         let r = record::RecordingSource::open(std::path::Path::new(dir))?;
         if r.format() != format {
             return Err(SourceError::BadSpec(format!(
-                "{name:?} was recorded as {:?}: give the scan the same --format",
+                "{name:?} was recorded as {:?}: leave --format out (a recording is read in its own format) or give the same --format",
                 r.format()
             )));
         }

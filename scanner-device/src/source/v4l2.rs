@@ -44,7 +44,7 @@ mod imp {
 
     /// The camera format asked for (`fourcc`), or the first the camera offers of those this head
     /// reads, in order of preference.
-    fn choose_format(
+    pub(super) fn choose_format(
         path: &str,
         dev: &Device,
         fourcc: Option<&str>,
@@ -356,6 +356,27 @@ pub fn open(
             what: "this build has no V4L2 support (built without the `v4l` feature)".into(),
             source: None,
         })
+    }
+}
+
+/// The pixel format a camera's frames are read in when none is asked: that of the camera format
+/// it would be opened with ([`super::convert::CameraFormat::native`]).
+///
+/// # Errors
+/// As [`open`].
+pub fn native_format(path: &str, opts: &SourceOptions) -> Result<PixelFormat, SourceError> {
+    #[cfg(feature = "v4l")]
+    {
+        let dev = v4l::Device::with_path(path).map_err(|e| SourceError::Camera {
+            device: path.to_string(),
+            what: "cannot open the device".into(),
+            source: Some(e),
+        })?;
+        Ok(imp::choose_format(path, &dev, opts.fourcc.as_deref())?.native())
+    }
+    #[cfg(not(feature = "v4l"))]
+    {
+        open(path, PixelFormat::Gray8, opts).map(|s| s.format())
     }
 }
 

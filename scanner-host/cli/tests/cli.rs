@@ -34,6 +34,7 @@ fn recording(dir: &std::path::Path) -> std::path::PathBuf {
         header_every: 10,
         status_every: 10,
         scan_id: 3,
+        find_axis: false,
     };
     scanner_device::session::run_scan(&mut src, &cal, opts, &mut link, |_| {}, |_, _| {}).unwrap();
     let stats = link.finish().unwrap();
@@ -244,6 +245,7 @@ fn head_to_host_over_a_pseudo_terminal() {
         header_every: 10,
         status_every: 10,
         scan_id: 8,
+        find_axis: false,
     };
     let report =
         scanner_device::session::run_scan(&mut source, &cal, opts, &mut link, |_| {}, |_, _| {})

@@ -1,0 +1,157 @@
+//! Real frames of a red line laser across a real two-plane board (`tests/data/real-two-plane`:
+//! a Basler camera's 1920×1200 RGB frames, two ChArUco boards in a corner, no object in front):
+//! scanned as a user would, with only the calibration file and the reference given, every frame
+//! is taken, no object point is sent (there is no object: each would be false), and the laser
+//! plane lies within 0.1° of an independent extraction's. The stripe crosses black squares where
+//! it adds ≤ 15 DN of red, next to colour fringes of +30…+65 DN at the squares' edges: those must
+//! not become points.
+
+use std::path::{Path, PathBuf};
+
+use scanner_core::pipeline::{Head, HeadConfig};
+use scanner_core::stripe::{Axis, Method, PixelFormat, StripeConfig};
+use scanner_device::source::{image_format, load_frame, stripe_axis};
+
+const PAIRS: [&str; 2] = ["20220331_faa7cdf", "20220405_9eb8eaa"];
+
+fn pair(name: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("tests/data/real-two-plane")
+        .join(name)
+}
+
+/// The independent extraction's laser plane normal of a pair (its file's `normal = [...]`).
+fn reference_normal(dir: &Path) -> [f64; 3] {
+    let text = std::fs::read_to_string(dir.join("reference-laser-plane.txt")).unwrap();
+    let line = text.lines().find(|l| l.starts_with("normal = ")).unwrap();
+    let v: Vec<f64> = line["normal = ".len()..]
+        .trim_matches(|c| c == '[' || c == ']')
+        .split(',')
+        .map(|x| x.trim().parse().unwrap())
+        .collect();
+    [v[0], v[1], v[2]]
+}
+
+/// The angle between two plane normals, either sign, degrees.
+fn angle_deg(a: [f64; 3], b: [f64; 3]) -> f64 {
+    let dot: f64 = a.iter().zip(&b).map(|(x, y)| x * y).sum();
+    let n = |v: [f64; 3]| v.iter().map(|x| x * x).sum::<f64>().sqrt();
+    (dot.abs() / (n(a) * n(b))).min(1.0).acos().to_degrees()
+}
+
+/// The head on a pair, as `scan` runs it: the format the frames come in unless `format` is
+/// given, the axis the laser frame shows; its object points and its laser plane's angle to the
+/// reference's.
+fn head_on(name: &str, format: Option<PixelFormat>) -> (usize, f64) {
+    let dir = pair(name);
+    let on = dir.join("laser-on.png");
+    let format = format.unwrap_or_else(|| image_format(&on).unwrap());
+    let frame = load_frame(&on, format, 0).unwrap();
+    let reference = load_frame(&dir.join("laser-off.png"), format, u64::MAX).unwrap();
+    let file = scanner_calib::file::CalibrationFile::load(&dir.join("calibration.toml")).unwrap();
+    let camera = file.camera().unwrap().cast::<f32>();
+    let board = file.board().unwrap().unwrap().cast::<f32>();
+    let mut cfg = HeadConfig::new(StripeConfig::new(Method::Dim, Axis::Columns));
+    cfg.stripe.axis = stripe_axis(&frame, &reference, &cfg.stripe).unwrap();
+    assert_eq!(
+        cfg.stripe.axis,
+        Axis::Rows,
+        "{name}: the stripe is vertical"
+    );
+    let mut head = Box::new(Head::<{ scanner_core::config::MAX_LINES }>::new(
+        camera, board, cfg,
+    ));
+    let out = head
+        .process(&frame.view().unwrap(), Some(&reference.view().unwrap()))
+        .unwrap_or_else(|skip| panic!("{name} {format:?}: the frame skipped: {}", skip.name()));
+    let p = out.plane;
+    let found = [f64::from(p[0]), f64::from(p[1]), f64::from(p[2])];
+    (out.points.len(), angle_deg(found, reference_normal(&dir)))
+}
+
+#[test]
+fn the_head_sends_no_false_point_and_finds_the_laser_plane() {
+    for name in PAIRS {
+        let (objects, angle) = head_on(name, None);
+        println!("{name}: {objects} object points, laser plane {angle:.4}° off the reference");
+        assert_eq!(objects, 0, "{name}: object points where there is no object");
+        assert!(
+            angle < 0.1,
+            "{name}: laser plane {angle}° off the reference"
+        );
+        // Asked for another format, still no false point.
+        for format in [PixelFormat::Gray8, PixelFormat::Yuyv] {
+            let (objects, angle) = head_on(name, Some(format));
+            println!("{name} {format:?}: {objects} object points, plane {angle:.4}°");
+            assert_eq!(objects, 0, "{name} {format:?}: object points");
+        }
+    }
+}
+
+/// Through the command line with only the calibration and the reference: the frames' colour
+/// and the stripe's direction found by themselves, the frame taken, nothing sent as an object.
+#[test]
+fn scan_with_only_the_calibration_takes_the_frame_and_sends_no_object_point() {
+    for name in PAIRS {
+        let dir = pair(name);
+        let t = tempfile::tempdir().unwrap();
+        std::fs::create_dir(t.path().join("frames")).unwrap();
+        std::fs::copy(
+            dir.join("laser-on.png"),
+            t.path().join("frames/laser-on.png"),
+        )
+        .unwrap();
+        let report = t.path().join("scan.json");
+        let out = std::process::Command::new(env!("CARGO_BIN_EXE_scanner-device"))
+            .args(["scan", "--source"])
+            .arg(t.path().join("frames"))
+            .arg("--reference")
+            .arg(dir.join("laser-off.png"))
+            .arg("--calibration")
+            .arg(dir.join("calibration.toml"))
+            .arg("--out")
+            .arg(t.path().join("scan.stream"))
+            .arg("--report")
+            .arg(&report)
+            .arg("-q")
+            .output()
+            .unwrap();
+        assert!(
+            out.status.success(),
+            "{name}: {}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        let r: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
+        assert_eq!(r["frames"], 1, "{r}");
+        assert_eq!(r["points"], 0, "{name}: object points {r}");
+        assert!(
+            r["skipped"].as_array().unwrap().is_empty(),
+            "{name}: the frame skipped {r}"
+        );
+    }
+}
+
+/// One laser frame in a folder and no reference: refused, saying why and what to give.
+#[test]
+fn a_folder_of_one_frame_without_a_reference_is_refused_with_the_fix() {
+    let t = tempfile::tempdir().unwrap();
+    let dir = pair(PAIRS[0]);
+    std::fs::create_dir(t.path().join("one")).unwrap();
+    std::fs::copy(dir.join("laser-on.png"), t.path().join("one/laser-on.png")).unwrap();
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_scanner-device"))
+        .args(["scan", "--source"])
+        .arg(t.path().join("one"))
+        .arg("--calibration")
+        .arg(dir.join("calibration.toml"))
+        .arg("--out")
+        .arg(t.path().join("x.stream"))
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success(), "{err}");
+    assert!(
+        err.contains("no reference") && err.contains("--reference"),
+        "{err}"
+    );
+}
