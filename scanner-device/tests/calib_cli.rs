@@ -48,6 +48,16 @@ fn calibrate_the_rig_from_its_images() {
         serde_json::json!(["top left", "top right", "bottom left", "bottom right"]),
         "{coverage}"
     );
+    // On rendered shots the lens model is the rig's and the noise independent: the halves
+    // agree as the noise predicts (no warning), and the map asks for shots in the corners.
+    let halves = &report["self_check"]["halves"];
+    assert_eq!(halves["warning"], false, "{halves}");
+    assert!(halves["ratio"].as_f64().unwrap() < 2.0, "{halves}");
+    let more = report["self_check"]["more_shots"].as_array().unwrap();
+    assert!(
+        more.iter().any(|r| r["region"].as_str().unwrap().contains(' ')),
+        "{more:?}"
+    );
     k3_is_fixed_without_the_border(d, &grids, &report);
     let (ok, out, err) = run(&[
         "calibrate",

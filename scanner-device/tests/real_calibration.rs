@@ -374,6 +374,43 @@ fn the_command_says_for_every_real_image_what_it_used_and_draws_each() {
         !coverage["empty_corners"].as_array().unwrap().is_empty(),
         "{coverage}"
     );
+    // The self-check: halves of 7 and 6 images calibrated apart differ by 0.46 px where the
+    // corners were, 2.2× what the corner noise (0.13 px) predicts — a real lens and real corner
+    // bias, not the model's independent noise — so it warns, and the file's covariance is
+    // scaled by the ratio² to cover what the halves showed. The map is drawn, and the unsampled
+    // corners of the view are where it asks for more shots.
+    let check = &r["self_check"];
+    let halves = &check["halves"];
+    let f = |v: &serde_json::Value| v.as_f64().unwrap();
+    assert_eq!(halves["images"], serde_json::json!([7, 6]), "{check}");
+    assert!(
+        (0.05..1.0).contains(&f(&halves["features_rms_px"]))
+            && f(&halves["image_rms_px"]) > f(&halves["features_rms_px"])
+            && f(&halves["image_max_px"]) >= f(&halves["image_rms_px"]),
+        "{halves}"
+    );
+    let ratio = f(&halves["ratio"]);
+    assert_eq!(halves["warning"], serde_json::json!(ratio > 2.0), "{halves}");
+    assert!(
+        f(&check["uncertainty_max_px"]) > 3.0 * f(&check["uncertainty_median_px"]),
+        "{check}"
+    );
+    let more: Vec<&str> = check["more_shots"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|r| r["region"].as_str().unwrap())
+        .collect();
+    for corner in coverage["empty_corners"].as_array().unwrap() {
+        assert!(more.contains(&corner.as_str().unwrap()), "{more:?} {coverage}");
+    }
+    let picture = image::open(dir.path().join("camera-overlays/uncertainty.png")).unwrap();
+    assert_eq!((picture.width(), picture.height()), (640, 480));
+    let file = scanner_calib::file::CalibrationFile::load(&out).unwrap();
+    let cov = file.covariance().expect("the file keeps the covariance");
+    let scale = ratio.max(1.0).powi(2);
+    let fx_var = f(&check["covariance"][0][0]);
+    assert!((cov[0][0] - scale * fx_var).abs() <= 1e-9 * cov[0][0], "{cov:?}");
     // Squares or corners: the same board, the same camera.
     let out2 = dir.path().join("camera2.toml");
     let (ok, text2, err) = run(&intrinsics_args(

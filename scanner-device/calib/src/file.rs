@@ -27,6 +27,7 @@ use scanner_core::config::MAX_PLANE_OFFSET_MM;
 use crate::short;
 use std::path::Path;
 
+use scanner_core::calib::bundle::Covariance;
 use scanner_core::calib::model::predict;
 use scanner_core::geometry::{Board, Plane, Pose};
 use scanner_core::nalgebra::{Point2, Vector3};
@@ -76,6 +77,18 @@ pub struct CameraSection {
     /// RMS reprojection error of the calibration, pixels.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub rms_px: Option<f64>,
+    /// A feature's position noise per coordinate the fit saw, pixels.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub noise_px: Option<f64>,
+    /// How much more two calibrations from disjoint halves of the images differed than the
+    /// noise explains (`covariance` is scaled by its square where above 1).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub cross_validation_ratio: Option<f64>,
+    /// Covariance of `fx, fy, cx, cy, k1, k2, p1, p2, k3` from the fit (rows; zero for a
+    /// parameter held fixed), scaled up where the cross-validation showed more scatter than the
+    /// fit's: what the head's per-point uncertainty takes the calibration's share from.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub covariance: Option<Vec<[f64; 9]>>,
 }
 
 /// A plane `normal · x + offset = 0`.
@@ -291,10 +304,28 @@ impl CalibrationFile {
                 k3: d.k3,
                 source,
                 rms_px,
+                noise_px: None,
+                cross_validation_ratio: None,
+                covariance: None,
             },
             board: None,
             regions: None,
         }
+    }
+
+    /// Keeps the intrinsics' covariance, scaled by the square of `ratio` (the
+    /// cross-validation's, if there was one) where that is above 1.
+    pub fn set_covariance(&mut self, c: &Covariance, ratio: Option<f64>) {
+        let scale = ratio.map_or(1.0, |r| r.max(1.0).powi(2));
+        self.camera.noise_px = Some(c.noise_px);
+        self.camera.cross_validation_ratio = ratio;
+        self.camera.covariance = Some(c.matrix.map(|row| row.map(|v| v * scale)).to_vec());
+    }
+
+    /// The intrinsics' covariance, if the file keeps one.
+    pub fn covariance(&self) -> Option<[[f64; 9]; 9]> {
+        let rows = self.camera.covariance.as_ref()?;
+        rows.as_slice().try_into().ok()
     }
 
     /// The camera.
@@ -408,6 +439,9 @@ impl CalibrationFile {
         f.camera()
             .and_then(|cam| cam.check_plausible(w, h))
             .map_err(|e| invalid(format!("[camera]: {e} ({values})")))?;
+        if let Some(rows) = &c.covariance {
+            check_covariance(rows).map_err(|why| invalid(format!("[camera] covariance: {why}")))?;
+        }
         if let Some(b) = &f.board {
             for (name, s) in [("left", &b.left), ("right", &b.right)] {
                 if !(s.offset.abs() <= MAX_PLANE_OFFSET_MM) {
@@ -441,6 +475,28 @@ impl CalibrationFile {
 }
 
 pub use scanner_io::write_atomic;
+
+/// A covariance the head can use: 9 rows, finite, symmetric, no negative variance.
+fn check_covariance(rows: &[[f64; 9]]) -> Result<(), String> {
+    if rows.len() != 9 {
+        return Err(format!("{} rows, 9 expected (fx, fy, cx, cy, k1, k2, p1, p2, k3)", rows.len()));
+    }
+    for i in 0..9 {
+        for j in 0..9 {
+            let (a, b) = (rows[i][j], rows[j][i]);
+            if !a.is_finite() {
+                return Err(format!("row {}, column {}: {} is not a number", i + 1, j + 1, short(a)));
+            }
+            if (a - b).abs() > 1e-9 * (a.abs() + b.abs()).max(1e-300) {
+                return Err(format!("not symmetric at row {}, column {}", i + 1, j + 1));
+            }
+        }
+        if rows[i][i] < 0.0 {
+            return Err(format!("negative variance in row {}", i + 1));
+        }
+    }
+    Ok(())
+}
 
 /// A sheet's plane and its markers as the file records them.
 fn sheet_section(s: &SheetFit, plane: &Plane<f64>) -> SheetSection {

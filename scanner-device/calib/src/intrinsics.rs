@@ -166,6 +166,8 @@ pub struct IntrinsicsOutcome {
     pub images: Vec<ImageReport>,
     /// The camera and the RMS reprojection error over all features used (pixels).
     pub result: Result<(Camera<f64>, f64), CalibError>,
+    /// The intrinsics estimated (the others held at their start).
+    pub free: Free,
 }
 
 /// Full intrinsics from several images of a grid target.
@@ -179,6 +181,8 @@ pub struct IntrinsicsFit {
     pub rms_px: f64,
     /// Per image (in the order given; `Err` for an image that was left out, and why).
     pub views: Vec<Result<ViewFit, CalibError>>,
+    /// The intrinsics estimated (the others held at their start).
+    pub free: Free,
 }
 
 impl IntrinsicsOutcome {
@@ -193,6 +197,7 @@ impl IntrinsicsOutcome {
             camera,
             rms_px,
             views: self.images.into_iter().map(|r| r.status).collect(),
+            free: self.free,
         })
     }
 }
@@ -382,6 +387,7 @@ fn solve_outcome(
         size,
         images: reports,
         result,
+        free,
     }
 }
 

@@ -18,6 +18,7 @@
 //! ```text
 //! print
 //! overlay
+//! selfcheck
 //! intrinsics  identify  file
 //! corners  lattice  board
 //! detect  blur  text_file  image_file
@@ -45,6 +46,7 @@ pub mod intrinsics;
 pub mod lattice;
 pub mod overlay;
 pub mod print;
+pub mod selfcheck;
 pub mod text_file;
 
 use image::GrayImage;

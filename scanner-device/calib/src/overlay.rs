@@ -486,3 +486,91 @@ pub fn grid_overlay(img: &GrayImage, report: &super::ImageReport) -> RgbImage {
     cv.legend(&lines, scale);
     cv.image
 }
+
+/// Colour of a projection uncertainty `sigma` (pixels) on a log scale: blue at 0.01 px and
+/// below, through green (0.1 px) and yellow, to red at 1 px and above.
+pub fn uncertainty_colour(sigma: f64) -> Rgb<u8> {
+    const STOPS: [(f64, [f64; 3]); 5] = [
+        (-2.0, [40.0, 60.0, 220.0]),
+        (-1.5, [0.0, 170.0, 220.0]),
+        (-1.0, [40.0, 200.0, 60.0]),
+        (-0.5, [240.0, 220.0, 0.0]),
+        (0.0, [230.0, 30.0, 30.0]),
+    ];
+    if !sigma.is_finite() {
+        return Rgb([90, 90, 90]);
+    }
+    let l = sigma.max(1e-6).log10().clamp(STOPS[0].0, STOPS[4].0);
+    let k = STOPS
+        .windows(2)
+        .position(|w| l <= w[1].0)
+        .unwrap_or(STOPS.len() - 2);
+    let ((l0, c0), (l1, c1)) = (STOPS[k], STOPS[k + 1]);
+    let t = (l - l0) / (l1 - l0);
+    Rgb(core::array::from_fn(|i| {
+        (c0[i] + t * (c1[i] - c0[i])).round() as u8
+    }))
+}
+
+/// The projection-uncertainty map over an image of the target: each pixel tinted by the
+/// uncertainty there ([`uncertainty_colour`]), the features used as white dots, a legend with
+/// the scale, the halves' difference and where more shots would help.
+pub fn uncertainty_overlay(
+    img: &GrayImage,
+    check: &super::selfcheck::SelfCheck,
+    features: impl Iterator<Item = Point2<f64>>,
+) -> RgbImage {
+    let map = &check.map;
+    let mut cv = Canvas::from_gray(img);
+    for (x, y, p) in cv.image.enumerate_pixels_mut() {
+        let c = uncertainty_colour(map.at(f64::from(x) + 0.5, f64::from(y) + 0.5));
+        *p = Rgb(core::array::from_fn(|i| {
+            (0.4 * f64::from(p[i]) + 0.6 * f64::from(c[i])).round() as u8
+        }));
+    }
+    for f in features {
+        cv.disc((f.x, f.y), 1.5, colour::TEXT);
+    }
+    let scale = font_scale(img);
+    let mut lines = vec![(
+        format!(
+            "projection uncertainty (1 sigma, worst direction): {:.3} px median where the features were, {:.3} px at most",
+            map.covered_median(),
+            map.max()
+        ),
+        colour::TEXT,
+    )];
+    for s in [0.01, 0.03, 0.1, 0.3, 1.0] {
+        lines.push((format!("  {s} px"), uncertainty_colour(s)));
+    }
+    match &check.halves {
+        Ok(h) => lines.push((
+            format!(
+                "halves of {} and {} images differ by {:.3} px rms where the features were ({:.3} px expected), {:.3} px over the image",
+                h.images.0,
+                h.images.1,
+                h.features_rms_px,
+                h.expected_features_rms_px,
+                h.image_rms_px
+            ),
+            if h.too_far() {
+                colour::DROPPED
+            } else {
+                colour::USED
+            },
+        )),
+        Err(e) => lines.push((format!("no cross-validation: {e}"), colour::DROPPED)),
+    }
+    let more = map.more_shots();
+    if !more.is_empty() {
+        lines.push((
+            format!(
+                "more shots with the target in the {} would help",
+                more.iter().map(|r| r.name).collect::<Vec<_>>().join(", ")
+            ),
+            colour::DROPPED,
+        ));
+    }
+    cv.legend(&lines, scale);
+    cv.image
+}

@@ -9,6 +9,7 @@ use scanner_core::Camera;
 use scanner_io::outln;
 
 use scanner_calib::board::BoardFile;
+use scanner_calib::selfcheck::{Halves, SelfCheck, self_check};
 use scanner_calib::file::{CalibrationFile, write_atomic};
 use scanner_calib::{
     CalibError, Coverage, DotGrid, PlaneMethod, Target, ViewFit, board_planes, check_size,
@@ -17,7 +18,7 @@ use scanner_calib::{
 
 use super::report::{
     self, BoardData, CameraData, CoverageData, DistanceData, IntrinsicsData, IntrinsicsImage,
-    SheetData, write_json,
+    SelfCheckData, SheetData, write_json,
 };
 
 /// The intrinsics target: a dot grid (default) or a chessboard, with its sizes.
@@ -441,6 +442,7 @@ fn intrinsics_command(
         rms_px: None,
         k3_fixed,
         coverage: None,
+        self_check: None,
         error: None,
     };
     let dir = overlays.map_or_else(|| default_overlays(out), Path::to_path_buf);
@@ -464,12 +466,16 @@ fn intrinsics_command(
         }
     };
     let used = fit.views.iter().filter(|v| v.is_ok()).count();
-    let file = CalibrationFile::from_camera(
+    let check = self_check(&fit, target);
+    let mut file = CalibrationFile::from_camera(
         &fit.camera,
         fit.size,
         source_note(target, used),
         Some(fit.rms_px),
     );
+    if let Ok(c) = &check {
+        file.set_covariance(&c.covariance, c.halves.as_ref().ok().map(Halves::ratio));
+    }
     file.save(out)?;
     let c = &fit.camera;
     let d = c.distortion();
@@ -508,11 +514,71 @@ fn intrinsics_command(
             "k3 fixed at 0: no feature used lies on the image's border, and only there does k3 show apart from k1 and k2 (shots with the target in the corners let it be fitted)"
         );
     }
+    match &check {
+        Ok(c) => {
+            let picture = dir.join("uncertainty.png");
+            let first = fit.views.iter().position(Result::is_ok).unwrap_or(0);
+            let features = fit.views.iter().flatten().flat_map(|v| v.found.iter().map(|f| f.1));
+            save_png(
+                &overlay::uncertainty_overlay(&imgs[first], c, features),
+                &picture,
+            )?;
+            print_self_check(c, &picture);
+            data.self_check = Some(SelfCheckData::of(c));
+        }
+        Err(e) => outln!("self-check: not possible ({e})"),
+    }
     data.used = used;
     data.camera = Some(CameraData::of(&fit.camera));
     data.rms_px = Some(fit.rms_px);
     data.coverage = Some(CoverageData::of(&fit));
     write_json(&report::beside(out), &data)
+}
+
+/// The self-check's lines: the halves' difference, the uncertainty and where to add shots.
+fn print_self_check(c: &SelfCheck, picture: &Path) {
+    match &c.halves {
+        Ok(h) => {
+            outln!(
+                "cross-validation: halves of {} and {} images differ by {:.3} px rms where the features were ({:.3} px expected from the corner noise of {:.3} px), {:.3} px rms and {:.3} px at most over the whole image",
+                h.images.0,
+                h.images.1,
+                h.features_rms_px,
+                h.expected_features_rms_px,
+                c.covariance.noise_px,
+                h.image_rms_px,
+                h.image_max_px
+            );
+            if h.too_far() {
+                outln!(
+                    "warning: the halves differ {:.1}× more than the corner noise explains: the lens model does not fit, the target is not flat, or some shots moved or blurred — check the overlays, retake the worst images",
+                    h.ratio()
+                );
+            }
+        }
+        Err(e) => outln!(
+            "cross-validation: not possible ({e}): with {} or more usable images each half is calibrated apart and the two compared",
+            2 * scanner_calib::selfcheck::MIN_HALF_IMAGES
+        ),
+    }
+    let more = c.map.more_shots();
+    let advice = if more.is_empty() {
+        String::new()
+    } else {
+        format!(
+            "; more shots with the target in the {} would help",
+            more.iter()
+                .map(|r| format!("{} ({:.2} px)", r.name, r.sigma_px))
+                .collect::<Vec<_>>()
+                .join(", ")
+        )
+    };
+    outln!(
+        "projection uncertainty: {:.3} px median where the features were, {:.3} px at most{advice} (map: {})",
+        c.map.covered_median(),
+        c.map.max(),
+        picture.display()
+    );
 }
 
 /// What `calibrate intrinsics` says about one image.

@@ -5,6 +5,7 @@
 use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result};
+use scanner_calib::selfcheck::SelfCheck;
 use scanner_calib::{CalibError, Coverage, GridView, IntrinsicsFit, SheetFit, ViewFit};
 use scanner_core::wire::Skip;
 use serde::Serialize;
@@ -286,8 +287,98 @@ pub struct IntrinsicsData {
     pub k3_fixed: bool,
     /// Where the features used fell.
     pub coverage: Option<CoverageData>,
+    /// The calibration's check of itself.
+    pub self_check: Option<SelfCheckData>,
     /// Why no camera was calibrated.
     pub error: Option<String>,
+}
+
+/// The calibration's check of itself (`scanner_calib::selfcheck`).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct SelfCheckData {
+    /// A feature's position noise per coordinate, from the residuals, pixels.
+    pub noise_px: f64,
+    /// Covariance of `fx, fy, cx, cy, k1, k2, p1, p2, k3`.
+    pub covariance: [[f64; 9]; 9],
+    /// The halves compared (`None`: see `halves_error`).
+    pub halves: Option<HalvesData>,
+    /// Why the halves were not compared.
+    pub halves_error: Option<String>,
+    /// The projection uncertainty's median over the cells the features covered, pixels.
+    pub uncertainty_median_px: f64,
+    /// Its largest value over the image, pixels.
+    pub uncertainty_max_px: f64,
+    /// The map: cells across and down, and per cell (row by row) the uncertainty in pixels
+    /// (`null` where no ray leaves the pixel).
+    pub map_cells: (usize, usize),
+    /// Per cell, pixels.
+    pub map_px: Vec<f64>,
+    /// Where more shots would help, worst first: region and its uncertainty.
+    pub more_shots: Vec<RegionData>,
+}
+
+/// One region of the image and its projection uncertainty.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct RegionData {
+    /// "top left" … "bottom right".
+    pub region: &'static str,
+    /// Mean uncertainty, pixels.
+    pub sigma_px: f64,
+}
+
+/// The halves' cross-validation.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct HalvesData {
+    /// Images in each half.
+    pub images: (usize, usize),
+    /// RMS projection difference where the features were, pixels.
+    pub features_rms_px: f64,
+    /// What the halves' covariances predict there, pixels.
+    pub expected_features_rms_px: f64,
+    /// The ratio of the two.
+    pub ratio: f64,
+    /// Above the warning's ratio: the model or the data is wrong.
+    pub warning: bool,
+    /// RMS difference over the whole image, pixels.
+    pub image_rms_px: f64,
+    /// Largest difference over the whole image, pixels.
+    pub image_max_px: f64,
+    /// What the covariances predict over the whole image, pixels.
+    pub expected_image_rms_px: f64,
+}
+
+impl SelfCheckData {
+    /// The report of a self-check.
+    pub fn of(c: &SelfCheck) -> SelfCheckData {
+        SelfCheckData {
+            noise_px: c.covariance.noise_px,
+            covariance: c.covariance.matrix,
+            halves: c.halves.as_ref().ok().map(|h| HalvesData {
+                images: h.images,
+                features_rms_px: h.features_rms_px,
+                expected_features_rms_px: h.expected_features_rms_px,
+                ratio: h.ratio(),
+                warning: h.too_far(),
+                image_rms_px: h.image_rms_px,
+                image_max_px: h.image_max_px,
+                expected_image_rms_px: h.expected_image_rms_px,
+            }),
+            halves_error: c.halves.as_ref().err().map(ToString::to_string),
+            uncertainty_median_px: c.map.covered_median(),
+            uncertainty_max_px: c.map.max(),
+            map_cells: scanner_calib::selfcheck::MAP_CELLS,
+            map_px: c.map.sigma_px.clone(),
+            more_shots: c
+                .map
+                .more_shots()
+                .into_iter()
+                .map(|r| RegionData {
+                    region: r.name,
+                    sigma_px: r.sigma_px,
+                })
+                .collect(),
+        }
+    }
 }
 
 /// A shot `capture` looked at.
