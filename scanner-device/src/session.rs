@@ -106,6 +106,12 @@ pub struct ScanReport {
     /// Why the operator's limit stopped it, if one did (Ctrl-C, a signal, `--frames`,
     /// `--duration`: a clean end).
     pub stopped: Option<String>,
+    /// The stripe's direction the scan read: along columns (a horizontal line) or rows.
+    pub axis: scanner_core::stripe::Axis,
+    /// Whether that direction was found from the first laser frame (not given).
+    pub axis_found: bool,
+    /// The direction the first laser frame's stripe runs, where it tells.
+    pub axis_seen: Option<scanner_core::stripe::Axis>,
 }
 
 /// How a scan ends.
@@ -162,6 +168,12 @@ impl StopWhen {
 }
 
 impl ScanReport {
+    /// Most frames saw the stripe on one board sheet only (a laser line that does not cross
+    /// the crease, or the stripe read the wrong way).
+    pub fn one_sheet_only(&self) -> bool {
+        2 * self.status.skipped[wire::Skip::OnePlaneOnly as usize] > self.status.frames
+    }
+
     /// Bytes on the link per point sent, headers and framing included; `None` when no point
     /// was sent (there is no rate to give).
     pub fn bytes_per_point(&self) -> Option<f64> {
@@ -183,6 +195,8 @@ pub struct Session {
     started: Instant,
     /// The latest frame's capture time, µs.
     last_us: u64,
+    /// The direction the first laser frame's stripe runs, where it tells.
+    axis_seen: Option<scanner_core::stripe::Axis>,
     frames_since_header: u32,
     frames_since_status: u32,
     /// The laser planes fitted since the last status: count, RMS sum and largest, mm.
@@ -235,6 +249,7 @@ impl Session {
             xyz: vec![0; scanner_core::config::MAX_XYZ_BYTES_PER_POINT * MAX_LINES],
             started: Instant::now(),
             last_us: 0,
+            axis_seen: None,
             frames_since_header: 0,
             frames_since_status: 0,
             planes: (0, 0.0, 0.0),
@@ -416,6 +431,9 @@ impl Session {
             seconds: self.started.elapsed().as_secs_f64(),
             ended_early,
             stopped,
+            axis: self.opts.head.stripe.axis,
+            axis_found: self.opts.find_axis,
+            axis_seen: self.axis_seen,
         })
     }
 }
@@ -486,17 +504,24 @@ pub fn run_scan_until(
             Some(wait_for_laser(source, &reference, limit, stop).map_err(SessionError::NoLaser)?);
     }
     let mut opts = opts;
-    if opts.find_axis {
-        if first.is_none() {
-            first = source.next_frame().map_err(SessionError::FirstFrame)?;
+    // The first laser frame tells which way the stripe runs: the scan reads it that way when
+    // asked to find it, and says so when it was told the other way.
+    if first.is_none() {
+        first = source.next_frame().map_err(SessionError::FirstFrame)?;
+    }
+    let mut axis_seen = None;
+    if let Some(frame) = &first {
+        match crate::source::stripe_axis(frame, &reference, &opts.head.stripe) {
+            Ok(axis) => axis_seen = Some(axis),
+            Err(e) if opts.find_axis => return Err(SessionError::Axis(e)),
+            Err(_) => {}
         }
-        if let Some(frame) = &first {
-            opts.head.stripe.axis =
-                crate::source::stripe_axis(frame, &reference, &opts.head.stripe)
-                    .map_err(SessionError::Axis)?;
+        if let (true, Some(axis)) = (opts.find_axis, axis_seen) {
+            opts.head.stripe.axis = axis;
         }
     }
     let mut session = Session::new(cal, reference, opts)?;
+    session.axis_seen = axis_seen;
     session.set_controls(source.controls());
     session.send_header(link)?;
     if let Some(frame) = first {

@@ -55,7 +55,8 @@ fn calibrate_the_rig_from_its_images() {
     assert!(halves["ratio"].as_f64().unwrap() < 2.0, "{halves}");
     let more = report["self_check"]["more_shots"].as_array().unwrap();
     assert!(
-        more.iter().any(|r| r["region"].as_str().unwrap().contains(' ')),
+        more.iter()
+            .any(|r| r["region"].as_str().unwrap().contains(' ')),
         "{more:?}"
     );
     k3_is_fixed_without_the_border(d, &grids, &report);
@@ -400,4 +401,62 @@ fn render_calibration_takes_3_to_64_shots() {
 fn json(path: &Path) -> serde_json::Value {
     let text = std::fs::read_to_string(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
     serde_json::from_str(&text).unwrap()
+}
+
+/// The paper's large set-up (sheets of 1.68 × 1.25 m, markers 480 mm apart, the board at
+/// 3.2 m) is a board file like any other: it prints, and calibrates from its image; a sheet
+/// whose picture would pass the limit is refused naming `--dpi`.
+#[test]
+fn the_papers_large_set_up_is_a_board_like_any_other() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let (scene, board) = scanner_rig::report::scene(1280, 960, 3200.0, 4);
+    assert!(board.sheet.width > 1500.0, "{:?}", board.sheet);
+    std::fs::write(d.join("big.toml"), board.to_toml().unwrap()).unwrap();
+    let (ok, _, err) = run(&[
+        "board",
+        "--board",
+        &p(d, "big.toml"),
+        "--out",
+        &p(d, "print"),
+        "--dpi",
+        "25",
+    ]);
+    assert!(ok, "{err}");
+    // A sheet of 9 m prints only at a resolution that keeps its picture within the limit.
+    let mut huge = board.clone();
+    huge.sheet.width = 9000.0;
+    std::fs::write(d.join("huge.toml"), huge.to_toml().unwrap()).unwrap();
+    let (ok, _, err) = run(&["board", "--board", &p(d, "huge.toml"), "--out", &p(d, "x")]);
+    assert!(!ok && err.contains("--dpi"), "{err}");
+    let rig = scanner_rig::Rig::new(scene).unwrap();
+    rig.reference()
+        .to_gray_image()
+        .save(d.join("board.png"))
+        .unwrap();
+    rig.truth_calibration()
+        .save(&d.join("camera.toml"))
+        .unwrap();
+    let (ok, out, err) = run(&[
+        "calibrate",
+        "board",
+        "--board",
+        &p(d, "big.toml"),
+        "--camera",
+        &p(d, "camera.toml"),
+        "--out",
+        &p(d, "calibration.toml"),
+        &p(d, "board.png"),
+    ]);
+    assert!(ok, "{err}\n{out}");
+    let cal = CalibrationFile::load(&d.join("calibration.toml")).unwrap();
+    let got = cal.board().unwrap().unwrap();
+    let truth = rig.board_planes();
+    for (g, t) in [got.left(), got.right()].iter().zip(&truth) {
+        assert!(
+            g.normal().angle(t.normal()).to_degrees() < 0.1
+                && (g.offset() - t.offset()).abs() < 0.002 * 3200.0,
+            "{g:?} {t:?}"
+        );
+    }
 }

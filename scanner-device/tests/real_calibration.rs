@@ -390,7 +390,11 @@ fn the_command_says_for_every_real_image_what_it_used_and_draws_each() {
         "{halves}"
     );
     let ratio = f(&halves["ratio"]);
-    assert_eq!(halves["warning"], serde_json::json!(ratio > 2.0), "{halves}");
+    assert_eq!(
+        halves["warning"],
+        serde_json::json!(ratio > 2.0),
+        "{halves}"
+    );
     assert!(
         f(&check["uncertainty_max_px"]) > 3.0 * f(&check["uncertainty_median_px"]),
         "{check}"
@@ -402,7 +406,10 @@ fn the_command_says_for_every_real_image_what_it_used_and_draws_each() {
         .map(|r| r["region"].as_str().unwrap())
         .collect();
     for corner in coverage["empty_corners"].as_array().unwrap() {
-        assert!(more.contains(&corner.as_str().unwrap()), "{more:?} {coverage}");
+        assert!(
+            more.contains(&corner.as_str().unwrap()),
+            "{more:?} {coverage}"
+        );
     }
     let picture = image::open(dir.path().join("camera-overlays/uncertainty.png")).unwrap();
     assert_eq!((picture.width(), picture.height()), (640, 480));
@@ -410,7 +417,10 @@ fn the_command_says_for_every_real_image_what_it_used_and_draws_each() {
     let cov = file.covariance().expect("the file keeps the covariance");
     let scale = ratio.max(1.0).powi(2);
     let fx_var = f(&check["covariance"][0][0]);
-    assert!((cov[0][0] - scale * fx_var).abs() <= 1e-9 * cov[0][0], "{cov:?}");
+    assert!(
+        (cov[0][0] - scale * fx_var).abs() <= 1e-9 * cov[0][0],
+        "{cov:?}"
+    );
     // Squares or corners: the same board, the same camera.
     let out2 = dir.path().join("camera2.toml");
     let (ok, text2, err) = run(&intrinsics_args(
@@ -530,4 +540,59 @@ fn images_that_do_not_fit_one_camera_are_refused_and_the_rest_calibrate() {
 fn json(path: &std::path::Path) -> serde_json::Value {
     let text = std::fs::read_to_string(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
     serde_json::from_str(&text).unwrap()
+}
+
+/// Two photographs one pixel wider and taller than the rest (a known quirk of some cameras'
+/// files) are used, cropped back, and say so; the camera is the one the unpadded set gives. An
+/// image of another size is refused, the fix named.
+#[test]
+fn images_one_pixel_off_are_cropped_and_other_sizes_refused_with_the_fix() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut paths = real_paths();
+    for (k, n) in [(2, "right03"), (7, "right08")] {
+        let img = image::open(data().join(format!("{n}.jpg")))
+            .unwrap()
+            .to_luma8();
+        let padded =
+            image::GrayImage::from_fn(641, 481, |x, y| *img.get_pixel(x.min(639), y.min(479)));
+        let p = dir.path().join(format!("{n}-odd.png"));
+        padded.save(&p).unwrap();
+        paths[k] = p.display().to_string();
+    }
+    let big = dir.path().join("big.png");
+    image::GrayImage::new(800, 600).save(&big).unwrap();
+    paths.push(big.display().to_string());
+    let out = dir.path().join("camera.toml");
+    let (ok, text, err) = run(&intrinsics_args(
+        &["--chessboard-corners", "9x6"],
+        &out,
+        &paths,
+    ));
+    assert!(ok, "{err}\n{text}");
+    let r = json(&dir.path().join("camera-report.json"));
+    let images = r["images"].as_array().unwrap();
+    for k in [2, 7] {
+        assert_eq!(
+            images[k]["cropped_from"],
+            serde_json::json!([641, 481]),
+            "{}",
+            images[k]
+        );
+        assert_eq!(images[k]["features"], 54, "{}", images[k]);
+    }
+    assert!(images[0]["cropped_from"].is_null());
+    let refused = &images[13]["refused"];
+    assert_eq!(refused["reason"], "size", "{refused}");
+    assert!(
+        refused["message"].as_str().unwrap().contains("800×600")
+            && refused["message"]
+                .as_str()
+                .unwrap()
+                .contains("one resolution"),
+        "{refused}"
+    );
+    assert_eq!(r["used"], 13, "{r}");
+    let plain = ours().result.as_ref().unwrap().0;
+    let fx = r["camera"]["fx"].as_f64().unwrap();
+    assert!((fx - plain.fx()).abs() < 1e-6 * fx, "{fx} {}", plain.fx());
 }

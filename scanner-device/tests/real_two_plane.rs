@@ -129,6 +129,42 @@ fn scan_with_only_the_calibration_takes_the_frame_and_sends_no_object_point() {
             r["skipped"].as_array().unwrap().is_empty(),
             "{name}: the frame skipped {r}"
         );
+        assert_eq!(
+            (&r["axis"], &r["axis_found"]),
+            (&serde_json::json!("rows"), &serde_json::json!(true)),
+            "{r}"
+        );
+        assert_eq!(r["one_sheet_only"], false, "{r}");
+        // Told the wrong direction, the frame is skipped, and the summary says which flag.
+        let wrong = t.path().join("wrong.json");
+        let out = std::process::Command::new(env!("CARGO_BIN_EXE_scanner-device"))
+            .args(["scan", "--columns", "--source"])
+            .arg(t.path().join("frames"))
+            .arg("--reference")
+            .arg(dir.join("laser-off.png"))
+            .arg("--calibration")
+            .arg(dir.join("calibration.toml"))
+            .arg("--out")
+            .arg(t.path().join("wrong.stream"))
+            .arg("--report")
+            .arg(&wrong)
+            .output()
+            .unwrap();
+        let text = String::from_utf8_lossy(&out.stdout);
+        let r: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(&wrong).unwrap()).unwrap();
+        println!("{name} with --columns: {r}");
+        assert_eq!(
+            (&r["axis"], &r["axis_found"], &r["axis_seen"]),
+            (
+                &serde_json::json!("columns"),
+                &serde_json::json!(false),
+                &serde_json::json!("rows")
+            ),
+            "{r}"
+        );
+        assert_eq!(r["points"], 0, "{name}: {r}");
+        assert!(text.contains("give --rows"), "{text}");
     }
 }
 

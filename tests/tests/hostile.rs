@@ -177,7 +177,7 @@ fn board_files_and_options_that_would_panic_or_allocate_without_bound() {
         d,
         &["board", "--board", s(&big), "--out", "x2"],
         1,
-        &["[sheet]", "between 0 and 1500 mm", "1.0000e9"],
+        &["[sheet]", "between 0 and 10000 mm", "1.0000e9"],
     );
     assert!(
         !d.join("x2").exists(),
@@ -563,11 +563,30 @@ fn scans_that_give_nothing_or_share_stdout_say_so_plainly() {
             .save(one.join(name))
             .unwrap();
     }
+    // Without a stripe the first frame cannot tell its direction: the error names the flags.
+    let (code, _, err) = run_in(
+        d,
+        "scanner-device",
+        &[
+            "scan",
+            "--source",
+            "dir:one",
+            "--calibration",
+            "cal.toml",
+            "--out",
+            "x.stream",
+        ],
+    );
+    assert!(
+        code == 1 && err.contains("--columns") && err.contains("--rows"),
+        "{err}"
+    );
     let (code, out, err) = run_in(
         d,
         "scanner-device",
         &[
             "scan",
+            "--columns",
             "--source",
             "dir:one",
             "--calibration",

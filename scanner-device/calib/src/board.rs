@@ -32,8 +32,10 @@ use scanner_core::nalgebra::Point2;
 
 use crate::short;
 
-/// The largest sheet side, mm (A0's long side is 1189 mm).
-pub const MAX_SHEET_MM: f64 = 1500.0;
+/// The largest sheet side, mm: any board a room holds (the paper's set-up at 3.2 m has sheets
+/// of 1.65 × 1.55 m). It bounds the numbers, not the work: that is bounded by the markers per
+/// sheet ([`MAX_MARKERS`]) and, when printing, by the picture's size (`--dpi`).
+pub const MAX_SHEET_MM: f64 = 10_000.0;
 use serde::{Deserialize, Serialize};
 
 /// A grid of markers on a sheet: `cols` along `u` from `u0` in steps of `du`, `rows` along `v`

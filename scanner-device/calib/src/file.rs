@@ -479,19 +479,27 @@ pub use scanner_io::write_atomic;
 /// A covariance the head can use: 9 rows, finite, symmetric, no negative variance.
 fn check_covariance(rows: &[[f64; 9]]) -> Result<(), String> {
     if rows.len() != 9 {
-        return Err(format!("{} rows, 9 expected (fx, fy, cx, cy, k1, k2, p1, p2, k3)", rows.len()));
+        return Err(format!(
+            "{} rows, 9 expected (fx, fy, cx, cy, k1, k2, p1, p2, k3)",
+            rows.len()
+        ));
     }
-    for i in 0..9 {
-        for j in 0..9 {
-            let (a, b) = (rows[i][j], rows[j][i]);
+    for (i, row) in rows.iter().enumerate() {
+        for (j, &a) in row.iter().enumerate() {
+            let b = rows[j][i];
             if !a.is_finite() {
-                return Err(format!("row {}, column {}: {} is not a number", i + 1, j + 1, short(a)));
+                return Err(format!(
+                    "row {}, column {}: {} is not a number",
+                    i + 1,
+                    j + 1,
+                    short(a)
+                ));
             }
             if (a - b).abs() > 1e-9 * (a.abs() + b.abs()).max(1e-300) {
                 return Err(format!("not symmetric at row {}, column {}", i + 1, j + 1));
             }
         }
-        if rows[i][i] < 0.0 {
+        if row[i] < 0.0 {
             return Err(format!("negative variance in row {}", i + 1));
         }
     }

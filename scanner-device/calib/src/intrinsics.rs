@@ -155,6 +155,23 @@ pub struct ImageReport {
     pub grid: Option<GridView>,
     /// Used with its fit, or refused and why.
     pub status: Result<ViewFit, CalibError>,
+    /// Its size where it was one pixel larger than the rest and cropped to theirs (its last
+    /// column or row dropped).
+    pub cropped_from: Option<(u32, u32)>,
+}
+
+/// The most common size among `images` (the first among equals; 0×0 for none).
+fn common_size(images: &[GrayImage]) -> (u32, u32) {
+    let sizes: Vec<(u32, u32)> = images.iter().map(GrayImage::dimensions).collect();
+    let count = |s: &(u32, u32)| sizes.iter().filter(|t| *t == s).count();
+    sizes
+        .iter()
+        .copied()
+        .fold(None, |best: Option<(u32, u32)>, s| match best {
+            Some(b) if count(&b) >= count(&s) => Some(b),
+            _ => Some(s),
+        })
+        .unwrap_or((0, 0))
 }
 
 /// Intrinsics from several images: every image's outcome, and the result.
@@ -344,26 +361,47 @@ pub fn intrinsics_auto(images: &[GrayImage], target: &Target) -> (IntrinsicsOutc
     }
 }
 
-/// The image size (of the first image) and each image's grid, or why there is none.
+/// The images' size (the most common; the first among equals) and each image's grid, or why
+/// there is none. An image at most one pixel wider and taller than that is a known quirk of some
+/// cameras' files (1281×721 among 1280×720): its last column and row are dropped, and its report
+/// says so. Any other size is refused.
 fn find_grids(images: &[GrayImage], target: &Target) -> ((u32, u32), Vec<ImageReport>) {
-    let size = images.first().map_or((0, 0), |i| i.dimensions());
+    let size = common_size(images);
     let mut reports: Vec<ImageReport> = images
         .iter()
         .map(|img| {
-            if let Err(e) = super::check_size(size, img) {
+            let (w, h) = img.dimensions();
+            let cropped_from = ((w, h) != size
+                && (size.0..=size.0 + 1).contains(&w)
+                && (size.1..=size.1 + 1).contains(&h))
+            .then_some((w, h));
+            if cropped_from.is_none() && (w, h) != size {
                 return ImageReport {
                     grid: None,
-                    status: Err(e),
+                    status: Err(CalibError::MixedSizes {
+                        found: (w, h),
+                        most: size,
+                    }),
+                    cropped_from,
                 };
             }
-            match find_grid(img, target) {
+            let found = match cropped_from {
+                Some(_) => find_grid(
+                    &image::imageops::crop_imm(img, 0, 0, size.0, size.1).to_image(),
+                    target,
+                ),
+                None => find_grid(img, target),
+            };
+            match found {
                 Ok(g) => ImageReport {
                     grid: Some(g),
                     status: pending(),
+                    cropped_from,
                 },
                 Err(e) => ImageReport {
                     grid: None,
                     status: Err(e),
+                    cropped_from,
                 },
             }
         })
@@ -830,6 +868,7 @@ mod tests {
                     complete: true,
                 }),
                 status: pending(),
+                cropped_from: None,
             })
             .collect();
         let (got, rms) = solve(&mut reports, &layout, 0.0, (640, 480), Free::ALL).unwrap();

@@ -130,6 +130,18 @@ pub enum CalibError {
         /// Image height.
         found_h: u32,
     },
+    /// An image of another size than most of the others (more than the one pixel that is
+    /// cropped).
+    #[error(
+        "image is {}×{} while most are {}×{}: take every image at one resolution, or leave this one out",
+        found.0, found.1, most.0, most.1
+    )]
+    MixedSizes {
+        /// Its size.
+        found: (u32, u32),
+        /// The most common size.
+        most: (u32, u32),
+    },
     /// The geometry could not be solved.
     #[error("{what}: {reason}")]
     Geometry {

@@ -15,8 +15,10 @@
 //!   small the reprojection error.
 
 use scanner_core::Camera;
-use scanner_core::calib::bundle::{Covariance, INTRINSICS, camera_from, covariance, params, refine};
 use scanner_core::calib::View;
+use scanner_core::calib::bundle::{
+    Covariance, INTRINSICS, camera_from, covariance, params, refine,
+};
 use scanner_core::geometry::Pose;
 use scanner_core::nalgebra::{Matrix2, Matrix3, Point2, Point3, Rotation3, SMatrix, Vector3};
 
@@ -196,7 +198,8 @@ impl Used {
             poses: Vec::new(),
         };
         for v in fit.views.iter().flatten() {
-            u.layout.push(v.found.iter().map(|(k, _)| points[*k]).collect());
+            u.layout
+                .push(v.found.iter().map(|(k, _)| points[*k]).collect());
             u.pixels.push(v.found.iter().map(|(_, p)| *p).collect());
             u.poses.push(v.pose);
         }

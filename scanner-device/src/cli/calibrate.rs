@@ -9,8 +9,8 @@ use scanner_core::Camera;
 use scanner_io::outln;
 
 use scanner_calib::board::BoardFile;
-use scanner_calib::selfcheck::{Halves, SelfCheck, self_check};
 use scanner_calib::file::{CalibrationFile, write_atomic};
+use scanner_calib::selfcheck::{Halves, SelfCheck, self_check};
 use scanner_calib::{
     CalibError, Coverage, DotGrid, PlaneMethod, Target, ViewFit, board_planes, check_size,
     intrinsics_auto, overlay, print, short,
@@ -428,14 +428,24 @@ fn intrinsics_command(
     let (outcome, k3_fixed) = intrinsics_auto(&imgs, target);
     let name = |i: usize| images[i].display().to_string();
     for (i, r) in outcome.images.iter().enumerate() {
-        outln!("  {}: {}", name(i), image_line(&r.status, name));
+        let cropped = r.cropped_from.map_or(String::new(), |(w, h)| {
+            format!(
+                " ({w}×{h}, one pixel more than the rest: its last {} dropped)",
+                match (w > outcome.size.0, h > outcome.size.1) {
+                    (true, true) => "column and row",
+                    (true, false) => "column",
+                    _ => "row",
+                }
+            )
+        });
+        outln!("  {}: {}{cropped}", name(i), image_line(&r.status, name));
     }
     let mut data = IntrinsicsData {
         images: outcome
             .images
             .iter()
             .enumerate()
-            .map(|(i, r)| IntrinsicsImage::of(name(i), &r.status, name))
+            .map(|(i, r)| IntrinsicsImage::of(name(i), r, name))
             .collect(),
         used: 0,
         camera: None,
@@ -518,7 +528,11 @@ fn intrinsics_command(
         Ok(c) => {
             let picture = dir.join("uncertainty.png");
             let first = fit.views.iter().position(Result::is_ok).unwrap_or(0);
-            let features = fit.views.iter().flatten().flat_map(|v| v.found.iter().map(|f| f.1));
+            let features = fit
+                .views
+                .iter()
+                .flatten()
+                .flat_map(|v| v.found.iter().map(|f| f.1));
             save_png(
                 &overlay::uncertainty_overlay(&imgs[first], c, features),
                 &picture,

@@ -6,7 +6,9 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result};
 use scanner_calib::selfcheck::SelfCheck;
-use scanner_calib::{CalibError, Coverage, GridView, IntrinsicsFit, SheetFit, ViewFit};
+use scanner_calib::{
+    CalibError, Coverage, GridView, ImageReport, IntrinsicsFit, SheetFit, ViewFit,
+};
 use scanner_core::wire::Skip;
 use serde::Serialize;
 
@@ -55,6 +57,22 @@ pub struct ScanData {
     pub stopped: Option<String>,
     /// Frames the head skipped, per reason (reasons with none left out).
     pub skipped: Vec<Skipped>,
+    /// The stripe's direction read: `columns` (a horizontal line) or `rows`.
+    pub axis: &'static str,
+    /// Whether it was found from the first laser frame rather than given.
+    pub axis_found: bool,
+    /// The direction the first laser frame's stripe runs, where it tells (`columns`, `rows`):
+    /// other than `axis`, the summary names the flag to give.
+    pub axis_seen: Option<&'static str>,
+    /// Most frames saw the stripe on one sheet only: the summary says what to change.
+    pub one_sheet_only: bool,
+}
+
+fn axis_name(a: scanner_core::stripe::Axis) -> &'static str {
+    match a {
+        scanner_core::stripe::Axis::Columns => "columns",
+        scanner_core::stripe::Axis::Rows => "rows",
+    }
 }
 
 /// Frames skipped for one reason.
@@ -88,6 +106,10 @@ impl From<&ScanReport> for ScanData {
                     frames: s.skipped[k as usize],
                 })
                 .collect(),
+            axis: axis_name(r.axis),
+            axis_found: r.axis_found,
+            axis_seen: r.axis_seen.map(axis_name),
+            one_sheet_only: r.one_sheet_only(),
         }
     }
 }
@@ -145,7 +167,7 @@ impl Refusal {
             CalibError::NoGrid { .. } => ("no_grid", None),
             CalibError::NoMarkers { .. } => ("no_markers", None),
             CalibError::TooFewMarkers { .. } => ("too_few_markers", None),
-            CalibError::ImageSize { .. } => ("size", None),
+            CalibError::ImageSize { .. } | CalibError::MixedSizes { .. } => ("size", None),
             _ => ("other", None),
         };
         Refusal {
@@ -171,11 +193,24 @@ pub struct IntrinsicsImage {
     pub dropped: Vec<(usize, f64)>,
     /// Why it was not used.
     pub refused: Option<Refusal>,
+    /// Its size where it was one pixel larger than the rest and was cropped to theirs.
+    pub cropped_from: Option<(u32, u32)>,
 }
 
 impl IntrinsicsImage {
-    /// Image `path` with its outcome `status`; `name(i)` names image `i`.
+    /// Image `path` with its outcome; `name(i)` names image `i`.
     pub fn of(
+        path: String,
+        report: &ImageReport,
+        name: impl Fn(usize) -> String,
+    ) -> IntrinsicsImage {
+        IntrinsicsImage {
+            cropped_from: report.cropped_from,
+            ..Self::of_status(path, &report.status, name)
+        }
+    }
+
+    fn of_status(
         path: String,
         status: &Result<ViewFit, CalibError>,
         name: impl Fn(usize) -> String,
@@ -188,6 +223,7 @@ impl IntrinsicsImage {
                 max_px: Some(v.max_px),
                 dropped: v.dropped.iter().map(|&(k, _, e)| (k, e)).collect(),
                 refused: None,
+                cropped_from: None,
             },
             Err(e) => IntrinsicsImage {
                 path,
@@ -196,6 +232,7 @@ impl IntrinsicsImage {
                 max_px: None,
                 dropped: Vec::new(),
                 refused: Some(Refusal::of(e, name)),
+                cropped_from: None,
             },
         }
     }

@@ -258,7 +258,38 @@ pub fn report_lines(r: &ScanReport) -> Vec<String> {
             ));
         }
     }
+    if let Some(seen) = r.axis_seen.filter(|&a| a != r.axis) {
+        lines.push(format!(
+            "the first laser frame's stripe is a {} line but the scan read a {} one: give {}",
+            axis_words(seen).1,
+            axis_words(r.axis).1,
+            axis_words(seen).0
+        ));
+    } else if r.one_sheet_only() {
+        lines.push(one_plane_hint(r));
+    }
     lines
+}
+
+/// An axis's flag and the line it reads.
+fn axis_words(a: Axis) -> (&'static str, &'static str) {
+    match a {
+        Axis::Columns => ("--columns", "horizontal"),
+        Axis::Rows => ("--rows", "vertical"),
+    }
+}
+
+/// What to do when most frames saw the stripe on one board sheet only.
+fn one_plane_hint(r: &ScanReport) -> String {
+    let (flag, line) = axis_words(r.axis);
+    format!(
+        "most frames showed the stripe on one sheet only: the laser line must cross the crease onto both sheets (the scan read a {line} line, {flag}, {})",
+        if r.axis_found {
+            "found from the first laser frame"
+        } else {
+            "as given"
+        }
+    )
 }
 
 /// Prints the end-of-scan summary: on standard output, or on standard error when standard
