@@ -9,6 +9,7 @@
 use heapless::Vec;
 use nalgebra::{Point2, Point3, Vector3};
 
+use crate::calib::spread::CalibrationSpread;
 use crate::geometry::{Board, LaserFitConfig, LaserPlane, Limits, Plane, Surface, laser};
 use crate::stripe::{Axis, Extraction, Extractor, Frame, PixelFormat, StripeConfig, StripeError};
 pub use crate::wire::PlaneMethod;
@@ -125,6 +126,10 @@ pub struct Head<const W: usize> {
     rgb: Vec<[u8; 3], W>,
     uncertainty: Vec<u8, W>,
     verdicts: Vec<Verdict, W>,
+    /// The calibration's modes, when its covariance is known.
+    spread: Option<CalibrationSpread>,
+    /// Each stripe pixel's calibration share, mm.
+    moves: Vec<f32, W>,
 }
 
 /// A valid stripe pixel, its ray, and (once the plane is known) its 3-D point, how far that
@@ -139,6 +144,8 @@ struct StripePixel {
     sigma_px: f32,
     uncertainty: f32,
     peak: u16,
+    /// The ray's point on a board sheet (0 left, 1 right), when it meets one within range.
+    on_board: Option<(Point3<f32>, usize)>,
 }
 
 impl<const W: usize> Head<W> {
@@ -156,7 +163,15 @@ impl<const W: usize> Head<W> {
             rgb: Vec::new(),
             uncertainty: Vec::new(),
             verdicts: Vec::new(),
+            spread: None,
+            moves: Vec::new(),
         }
+    }
+
+    /// Adds the calibration's share to every point's uncertainty (see [`CalibrationSpread`]);
+    /// `None` leaves it out.
+    pub fn set_spread(&mut self, spread: Option<CalibrationSpread>) {
+        self.spread = spread;
     }
 
     /// The settings.
@@ -194,6 +209,9 @@ impl<const W: usize> Head<W> {
             Axis::Rows => Vector3::new(1.0 / self.camera.fx(), 0.0, 0.0),
         };
         triangulate(&fit, &self.cfg.limits, step, &mut self.stripe);
+        if let Some(spread) = &self.spread {
+            add_calibration_share(spread, &self.board, &fit, &mut self.stripe, &mut self.moves);
+        }
         self.keep(reference);
         let nv = plane.normal();
         Ok(FrameOutput {
@@ -384,6 +402,7 @@ fn board_points<const W: usize>(
                 sigma_px: p.sigma,
                 uncertainty: f32::INFINITY,
                 peak: p.peak,
+                on_board: None,
             })
             .is_err()
         {
@@ -393,11 +412,14 @@ fn board_points<const W: usize>(
             if q.coords.norm() > cfg.limits.max_range {
                 continue;
             }
-            let _ = match s {
-                Surface::Left => left.push(q),
-                Surface::Right => right.push(q),
-                Surface::Object => Ok(()),
+            let side = match s {
+                Surface::Left => left.push(q).map(|()| 0),
+                Surface::Right => right.push(q).map(|()| 1),
+                Surface::Object => continue,
             };
+            if let (Ok(side), Some(last)) = (side, stripe.last_mut()) {
+                last.on_board = Some((q, side));
+            }
         }
     }
 }
@@ -458,6 +480,48 @@ fn triangulate<const W: usize>(
             let plane_part = fit.quality.at(&p) / along;
             s.uncertainty = libm::sqrtf(stripe_part * stripe_part + plane_part * plane_part);
         }
+    }
+}
+
+/// The calibration's share ([`CalibrationSpread::point_moves`]) added in quadrature to each
+/// stripe point's uncertainty. The board points the laser plane rests on are those within three
+/// of its residual σ (never less than the inlier tolerance) of it.
+fn add_calibration_share<const W: usize>(
+    spread: &CalibrationSpread,
+    board: &Board<f32>,
+    fit: &LaserPlane<f32>,
+    stripe: &mut Vec<StripePixel, W>,
+    moves: &mut Vec<f32, W>,
+) {
+    let plane = &fit.plane;
+    let near = 3.0 * fit.quality.sigma;
+    let on_plane = stripe.iter().filter_map(|s| {
+        let (b, side) = s.on_board?;
+        (libm::fabsf(plane.signed_distance(&b)) <= near).then_some((s.px, s.ray, b, side))
+    });
+    let sheets = [board.left(), board.right()].map(|p| (*p.normal(), p.offset()));
+    let objects = stripe
+        .iter()
+        .filter_map(|s| s.point.map(|p| (s.px, s.ray, p)));
+    moves.clear();
+    let with_point = stripe.iter().filter(|s| s.point.is_some()).count();
+    // one per stripe pixel, at most W: the pushes cannot fail
+    for _ in 0..with_point {
+        let _ = moves.push(0.0);
+    }
+    spread.point_moves(
+        on_plane,
+        &sheets,
+        (*plane.normal(), plane.offset()),
+        objects,
+        moves,
+    );
+    for (s, m) in stripe
+        .iter_mut()
+        .filter(|s| s.point.is_some())
+        .zip(moves.iter())
+    {
+        s.uncertainty = libm::sqrtf(s.uncertainty * s.uncertainty + m * m);
     }
 }
 

@@ -2,7 +2,8 @@
 //! fitted quadratic), and the glint on stripe b-left rejected rather than taken as the stripe.
 //! Bounds are the figures measured with `cargo run --release -p scanner-core --example
 //! real_stripes` (README) with a margin: coverage 98.5–100 %, centroid RMS 0.31–0.41 px and max
-//! 1.03–1.38 px, 36 of 71 glint rows rejected and the rest within 1.75 px.
+//! 1.03–1.38 px, 36 of 71 glint rows rejected and the rest within 1.75 px; the stated centre
+//! uncertainty, speckle included, within 1.25× of the residuals.
 
 mod support;
 
@@ -53,18 +54,18 @@ fn real_stripes_are_found_straight_and_the_glint_is_rejected() {
                 o.glint_max_off
             );
         }
-        // The stated centre uncertainty on real stripes: positive and finite, but measured at
-        // 0.08–0.12 px RMS against residuals of 0.30–0.40 px — 2.7–4.7× too small. The model
-        // (sensor noise through the Cramér–Rao bound) has no laser speckle, which dominates a
-        // real webcam's stripe; stated here so that a change of either shows.
+        // The stated centre uncertainty on real stripes: the sensor noise's share alone
+        // (0.08–0.12 px RMS) is 2.7–4.7× too small against residuals of 0.30–0.40 px; with
+        // the speckle's share (`SPECKLE_PX`, fitted on these four stripes) the residuals are
+        // within 1.25× of it. Its check on photographs it was not fitted to is in
+        // `scanner-device/tests/real_two_plane.rs`.
         let ratio = o.rms / o.stated_rms;
         println!(
-            "{} {}: residual / stated σ {ratio:.1}",
+            "{} {}: residual / stated σ {ratio:.2}",
             case.image, case.stripe
         );
-        assert!(o.stated_rms > 0.02 && o.stated_rms.is_finite(), "{o:?}");
         assert!(
-            (1.5..=8.0).contains(&ratio),
+            (0.8..=1.25).contains(&ratio),
             "{} {}: {ratio}",
             case.image,
             case.stripe

@@ -87,6 +87,9 @@ pub struct Calibration {
     pub board: Board<f64>,
     /// Image size, pixels.
     pub size: (u32, u32),
+    /// The calibration's modes, when its file keeps the covariances: every point's uncertainty
+    /// then carries the calibration's share.
+    pub spread: Option<scanner_core::calib::spread::CalibrationSpread>,
 }
 
 /// How a scan went.
@@ -235,8 +238,10 @@ impl Session {
             opts.head.colour,
             opts.head.method,
         );
+        let mut head = Box::new(Head::new(camera.cast(), board.cast(), opts.head));
+        head.set_spread(cal.spread);
         Ok(Session {
-            head: Box::new(Head::new(camera.cast(), board.cast(), opts.head)),
+            head,
             reference,
             header,
             controls: None,
@@ -558,6 +563,7 @@ pub fn truth_calibration(rig: &scanner_rig::Rig) -> Calibration {
         camera: s.camera,
         board: scanner_core::geometry::Board::new(l, r).expect("the rig's board is valid"),
         size: (s.width, s.height),
+        spread: None,
     }
 }
 

@@ -81,6 +81,11 @@ fn calibrate_the_rig_from_its_images() {
     );
     let cal = CalibrationFile::load(&d.join("calibration.toml")).unwrap();
     assert_eq!((cal.image.width, cal.image.height), (640, 480));
+    // The file keeps what the head needs for the calibration's share of each point's
+    // uncertainty: the intrinsics' covariance (k3 fixed: eight modes) and both sheets' spreads
+    // (three modes each).
+    let spread = cal.spread().expect("covariances kept").unwrap();
+    assert_eq!(spread.modes(), 8 + 3 + 3);
     let board = cal.board().unwrap().unwrap();
     assert!((board.angle().to_degrees() - 90.0).abs() < 0.2);
     let regions = cal.regions.as_ref().unwrap();

@@ -9,27 +9,38 @@
 //! the distance to the nearest surface. The rig's true calibration is used, so that calibration
 //! error (not part of a point's stated uncertainty) does not enter.
 
-use scanner_core::pipeline::HeadConfig;
-use scanner_core::stripe::{Axis, Method, StripeConfig};
+use scanner_core::Camera;
+use scanner_core::geometry::Board;
+use scanner_core::nalgebra::Point3;
+use scanner_core::pipeline::{Head, HeadConfig};
+use scanner_core::stripe::{Axis, Frame, Method, PixelFormat, StripeConfig};
 use scanner_core::wire::points::uncertainty_mm;
 use scanner_rig::{Rig, report};
 
-/// Every point's (error, stated uncertainty), mm.
+/// A point's error along its ray (see the module's docs), mm.
+fn error(rig: &Rig, p: &Point3<f64>) -> f64 {
+    let nearest = rig.surface_distance(p);
+    let along = rig
+        .cast(&p.coords.normalize())
+        .map_or(f64::INFINITY, |hit| (p.coords.norm() - hit.t).abs());
+    if along <= 10.0 * nearest {
+        along
+    } else {
+        nearest
+    }
+}
+
+/// Every point's (error, stated uncertainty), mm, with the rig's true calibration and its own
+/// speckle measured.
 fn scan(rig: &Rig) -> Vec<(f64, f64)> {
     let mut out = Vec::new();
-    let cfg = HeadConfig::new(StripeConfig::new(Method::Dim, Axis::Columns));
+    let mut cfg = HeadConfig::new(StripeConfig::new(Method::Dim, Axis::Columns));
+    let truth = rig.truth_calibration();
+    let (camera, board) = (truth.camera().unwrap(), truth.board().unwrap().unwrap());
+    cfg.stripe.speckle_px = rig_speckle(rig.scene(), (&camera, &board));
     report::scan_truth(rig, cfg, |_, pts| {
         for (p, u) in pts {
-            let nearest = rig.surface_distance(p);
-            let along = rig
-                .cast(&p.coords.normalize())
-                .map_or(f64::INFINITY, |hit| (p.coords.norm() - hit.t).abs());
-            let e = if along <= 10.0 * nearest {
-                along
-            } else {
-                nearest
-            };
-            out.push((e, f64::from(uncertainty_mm(*u))));
+            out.push((error(rig, p), f64::from(uncertainty_mm(*u))));
         }
     });
     out
@@ -97,4 +108,122 @@ fn stated_point_uncertainties_match_the_errors_near_far_and_with_a_weak_laser() 
     assert!(u(1) > 3.0 * u(0) && u(2) > u(1), "{fits:?}");
     // And it tells the better points from the worse within a scan.
     assert!(fits.iter().all(|f| f.2.spread > 1.2), "{fits:?}");
+}
+
+/// The speckle's share the rig's own stripes show: [`scanner_calib::speckle::stripe_scatter`]
+/// on frames of the scene's bare board (objects taken away), pooled over a few sweep positions.
+fn rig_speckle(scene: &scanner_rig::Scene, cal: (&Camera<f64>, &Board<f64>)) -> f32 {
+    let mut bare = scene.clone();
+    bare.objects.clear();
+    let rig = Rig::new(bare).unwrap();
+    let (w, h) = (scene.width as usize, scene.height as usize);
+    let reference = rig.reference().to_format(PixelFormat::Gray8);
+    let rf = Frame::packed(&reference, w, h, PixelFormat::Gray8).unwrap();
+    let n = scene.laser.frames;
+    let mut sq = Vec::new();
+    for k in [n / 4, n / 2, 3 * n / 4] {
+        let data = rig.frame(k).unwrap().to_format(PixelFormat::Gray8);
+        let f = Frame::packed(&data, w, h, PixelFormat::Gray8).unwrap();
+        let cfg = StripeConfig::new(Method::Dim, Axis::Columns);
+        if let Ok(s) = scanner_calib::speckle::stripe_scatter(&f, &rf, cal.0, cal.1, &cfg) {
+            sq.push(s.speckle_px * s.speckle_px);
+        }
+    }
+    assert!(!sq.is_empty(), "no bare-board frame measured");
+    (sq.iter().sum::<f64>() / sq.len() as f64).sqrt() as f32
+}
+
+/// With the intrinsics, the board and the speckle calibrated from the rig's images (not its
+/// truth), each point's stated uncertainty — stripe, laser plane and the calibration's share —
+/// against its real error near, middle and far. A calibration's error is one draw that moves a
+/// whole scan together, so the errors are pooled over eight calibrations, each from images with
+/// another sensor noise.
+#[test]
+fn stated_uncertainties_with_a_calibration_from_images_match_the_errors() {
+    use scanner_calib::selfcheck::self_check;
+    use scanner_calib::{DotGrid, Target, board_planes, intrinsics_auto};
+    use scanner_core::calib::spread::CalibrationSpread;
+    use scanner_rig::target::{Pattern, TargetPose};
+    let (w, h) = (1280u32, 960u32);
+    let demo = Rig::new(scanner_rig::Scene::demo(w, h)).unwrap();
+    let grid = DotGrid::RIG;
+    let target = Target::Dots(grid);
+    const DRAWS: u64 = 8;
+    const DISTANCES: [f64; 3] = [280.0, 800.0, 3200.0];
+    // One calibration and its three scans; the draws run on two threads.
+    let draw_once = |draw: u64| -> Vec<Vec<(f64, f64)>> {
+        let shots: Vec<image::GrayImage> = (0..12)
+            .map(|i| {
+                let pose = TargetPose::sweep(i, 12);
+                let seed = 1000 * draw + i as u64;
+                demo.shot(&Pattern::from(&grid), &pose, seed)
+                    .image
+                    .to_gray_image()
+            })
+            .collect();
+        let (outcome, _) = intrinsics_auto(&shots, &target);
+        let intrinsics = outcome.into_fit().unwrap();
+        let check = self_check(&intrinsics, &target).unwrap();
+        // as `calibrate intrinsics` keeps it
+        let scale = check.halves.as_ref().map_or(1.0, |h| h.covariance_scale());
+        let cov = check.covariance.matrix.map(|r| r.map(|v| v * scale));
+        let camera = intrinsics.camera;
+        DISTANCES
+            .iter()
+            .map(|&d| {
+                let (mut scene, board_file) = scanner_rig::report::scene(w, h, d, 16);
+                // another sensor noise for the board's image and the sweep in each draw
+                scene.sensor.seed ^= 0x5EED * (draw + 1);
+                let rig = Rig::new(scene.clone()).unwrap();
+                let b = board_planes(&rig.reference().to_gray_image(), &board_file, &camera)
+                    .result
+                    .unwrap();
+                let board = Board::new(b.sheets[0].plane, b.sheets[1].plane).unwrap();
+                let sheets = scanner_calib::spread::board_spread(&b, &board_file, &camera).unwrap();
+                let spread = CalibrationSpread::new(&camera, (w, h), &cov, &sheets).unwrap();
+                let speckle = rig_speckle(&scene, (&camera, &board));
+                let mut cfg = HeadConfig::new(StripeConfig::new(Method::Dim, Axis::Columns));
+                cfg.stripe.speckle_px = speckle;
+                let mut head = Box::new(Head::<4096>::new(camera.cast(), board.cast(), cfg));
+                head.set_spread(Some(spread));
+                let mut pts = Vec::new();
+                report::scan_with(&rig, &mut head, |_, got| {
+                    for (p, u) in got {
+                        pts.push((error(&rig, p), f64::from(uncertainty_mm(*u))));
+                    }
+                });
+                println!(
+                    "draw {draw}, {d} mm, speckle {speckle:.3} px: {:?}",
+                    fit(pts.clone())
+                );
+                pts
+            })
+            .collect()
+    };
+    let mut pooled: Vec<Vec<(f64, f64)>> = vec![Vec::new(); DISTANCES.len()];
+    let results: Vec<Vec<Vec<(f64, f64)>>> = std::thread::scope(|s| {
+        let halves: Vec<_> = [0, 1]
+            .map(|t| {
+                s.spawn(move || {
+                    (0..DRAWS)
+                        .filter(|d| d % 2 == t)
+                        .map(draw_once)
+                        .collect::<Vec<_>>()
+                })
+            })
+            .into_iter()
+            .collect();
+        halves.into_iter().flat_map(|h| h.join().unwrap()).collect()
+    });
+    for draw in results {
+        for (k, pts) in draw.into_iter().enumerate() {
+            pooled[k].extend(pts);
+        }
+    }
+    for (d, pts) in DISTANCES.iter().zip(pooled) {
+        let f = fit(pts);
+        println!("{d} mm, {DRAWS} calibrations: {f:?}");
+        assert!(f.points > 10000, "{d}: {f:?}");
+        assert!((0.8..=1.25).contains(&f.z68), "{d}: {f:?}");
+    }
 }

@@ -121,7 +121,9 @@ pub fn camera_from(p: &[f64; INTRINSICS]) -> Result<Camera<f64>, GeomError> {
     )
 }
 
-fn step_pose(pose: &Pose, d: &Vector6<f64>) -> Pose {
+/// `pose` moved by `d`: a rotation by the vector `d[0..3]` applied in camera coordinates, then
+/// the translation `d[3..6]` added (the step [`refine`] and [`pose_spread`] use).
+pub fn step_pose(pose: &Pose, d: &Vector6<f64>) -> Pose {
     Pose {
         rotation: Rotation3::new(Vector3::new(d[0], d[1], d[2])) * pose.rotation,
         translation: pose.translation + Vector3::new(d[3], d[4], d[5]),
@@ -378,6 +380,47 @@ pub fn covariance(
     Ok(Covariance {
         matrix,
         noise_px: libm::sqrt(noise2),
+    })
+}
+
+/// How a view's pose, fitted with the camera held ([`refine`] with [`Free::NONE`]), answers to
+/// the intrinsics and to its features' noise.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PoseSpread {
+    /// The pose's change ([`step_pose`]'s `d`) per unit change of each intrinsic, the pose
+    /// refitted: `−A⁻¹B`, `A` the pose's normal matrix and `B` its cross terms.
+    pub from_intrinsics: SMatrix<f64, 6, INTRINSICS>,
+    /// `A⁻¹`: the pose's covariance per unit variance of a feature coordinate.
+    pub per_noise: Matrix6<f64>,
+    /// The residuals' sum of squares, pixels².
+    pub cost: f64,
+    /// Features.
+    pub features: usize,
+}
+
+/// The [`PoseSpread`] of `view` at `pose` (a solution for `camera`).
+///
+/// # Errors
+/// As [`refine`]; [`GeomError::IllConditioned`] when the features do not determine the pose.
+pub fn pose_spread(
+    camera: &Camera<f64>,
+    view: &View,
+    pose: &Pose,
+    radius: f64,
+) -> Result<PoseSpread, GeomError> {
+    check_problem(
+        Free::NONE,
+        core::slice::from_ref(view),
+        core::slice::from_ref(pose),
+        radius,
+    )?;
+    let bl = blocks(camera, Free::ALL, view, pose, radius)?;
+    let ainv = bl.a.cholesky().ok_or(GeomError::IllConditioned)?.inverse();
+    Ok(PoseSpread {
+        from_intrinsics: -(ainv * bl.b),
+        per_noise: ainv,
+        cost: bl.cost,
+        features: view.layout.len(),
     })
 }
 

@@ -253,7 +253,19 @@ pub struct StripeConfig {
     /// A valid line narrower than this fraction of the median width of the frame's valid lines,
     /// and weaker than half their median peak, is [`Status::Cut`] (0 keeps every line).
     pub cut_width: f32,
+    /// The laser speckle's share of a centre's standard uncertainty, pixels, added in
+    /// quadrature to the sensor noise's ([`centre_sigma`]): [`SPECKLE_PX`] unless measured for
+    /// the camera and laser at hand.
+    pub speckle_px: f32,
 }
+
+/// A real webcam's speckle share of a stripe centre's uncertainty, pixels: the scatter of the
+/// centres of real stripes on a flat board about a smooth curve, beyond the sensor noise's share
+/// — 0.34 px on the four stripes of the Ciclop photographs (`scanner-core/tests/real_stripes.rs`),
+/// checked on another camera and laser (`scanner-device/tests/real_two_plane.rs`). Coherent light
+/// on a rough surface makes a grain the size of the lens's blur spot, and the stripe's centre
+/// follows the grain, whatever the sensor noise.
+pub const SPECKLE_PX: f32 = 0.34;
 
 impl StripeConfig {
     /// Defaults for a method and axis: whole frame, a red laser, centroid estimator (the most robust on real
@@ -275,6 +287,7 @@ impl StripeConfig {
             separation: 10,
             half_window: 24,
             cut_width: 0.5,
+            speckle_px: SPECKLE_PX,
         }
     }
 }
@@ -350,7 +363,8 @@ pub struct StripePoint {
     pub peak: u16,
     /// Full width at half maximum, pixels.
     pub width: f32,
-    /// Standard uncertainty of `centre`, pixels ([`centre_sigma`]); 0 unless valid.
+    /// Standard uncertainty of `centre`, pixels: the sensor noise's ([`centre_sigma`]) and the
+    /// speckle's ([`StripeConfig::speckle_px`]) in quadrature; 0 unless valid.
     pub sigma: f32,
     /// Valid, or why not.
     pub status: Status,
@@ -948,7 +962,10 @@ impl<const W: usize> Extractor<W> {
                 } else {
                     noise
                 };
-                point.sigma = centre_sigma(shape.height, shape.fwhm, noise);
+                point.sigma = libm::hypotf(
+                    centre_sigma(shape.height, shape.fwhm, noise),
+                    cfg.speckle_px,
+                );
             }
             _ => point.status = Status::BadProfile,
         }

@@ -29,6 +29,7 @@ use std::path::Path;
 
 use scanner_core::calib::bundle::Covariance;
 use scanner_core::calib::model::predict;
+use scanner_core::calib::spread::{CalibrationSpread, SheetSpread};
 use scanner_core::geometry::{Board, Plane, Pose};
 use scanner_core::nalgebra::{Point2, Vector3};
 use scanner_core::{Camera, Distortion};
@@ -81,12 +82,13 @@ pub struct CameraSection {
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub noise_px: Option<f64>,
     /// How much more two calibrations from disjoint halves of the images differed than the
-    /// noise explains (`covariance` is scaled by its square where above 1).
+    /// noise explains (`covariance` is scaled by its square where above the self-check's
+    /// warning ratio).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub cross_validation_ratio: Option<f64>,
     /// Covariance of `fx, fy, cx, cy, k1, k2, p1, p2, k3` from the fit (rows; zero for a
-    /// parameter held fixed), scaled up where the cross-validation showed more scatter than the
-    /// fit's: what the head's per-point uncertainty takes the calibration's share from.
+    /// parameter held fixed), scaled up where the cross-validation showed more scatter than
+    /// chance gives: what the head's per-point uncertainty takes the calibration's share from.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub covariance: Option<Vec<[f64; 9]>>,
 }
@@ -129,6 +131,13 @@ pub struct SheetSection {
     pub offset: f64,
     /// RMS reprojection error of the used markers, pixels.
     pub rms_px: f64,
+    /// Covariance of `(n_x, n_y, n_z, offset)` from the markers' noise (layout pose only).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub plane_covariance: Option<[[f64; 4]; 4]>,
+    /// How `(n_x, n_y, n_z, offset)` moves per unit change of `fx, fy, cx, cy, k1, k2, p1, p2,
+    /// k3` (the sheet refitted with the changed camera; layout pose only).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub plane_from_intrinsics: Option<[[f64; 9]; 4]>,
     /// Every layout marker.
     pub markers: Vec<MarkerEntry>,
 }
@@ -313,10 +322,10 @@ impl CalibrationFile {
         }
     }
 
-    /// Keeps the intrinsics' covariance, scaled by the square of `ratio` (the
-    /// cross-validation's, if there was one) where that is above 1.
-    pub fn set_covariance(&mut self, c: &Covariance, ratio: Option<f64>) {
-        let scale = ratio.map_or(1.0, |r| r.max(1.0).powi(2));
+    /// Keeps the intrinsics' covariance scaled by `scale` (the cross-validation's
+    /// [`Halves::covariance_scale`](crate::selfcheck::Halves::covariance_scale)) and the
+    /// cross-validation's `ratio`.
+    pub fn set_covariance(&mut self, c: &Covariance, ratio: Option<f64>, scale: f64) {
         self.camera.noise_px = Some(c.noise_px);
         self.camera.cross_validation_ratio = ratio;
         self.camera.covariance = Some(c.matrix.map(|row| row.map(|v| v * scale)).to_vec());
@@ -371,17 +380,60 @@ impl CalibrationFile {
             right: fit.paper[1].as_ref().map(plane_eq),
         });
         let board_geom = Board::new(planes[0], planes[1]).unwrap_or(fit.board);
+        let spread = match used {
+            PlaneMethod::LayoutPose => crate::spread::board_spread(fit, board, camera).ok(),
+            PlaneMethod::PaperLines => None,
+        };
+        let mut sections = [&fit.sheets[0], &fit.sheets[1]]
+            .iter()
+            .zip(&planes)
+            .map(|(s, p)| sheet_section(s, p))
+            .collect::<Vec<_>>();
+        if let Some(spread) = spread {
+            for (sec, sp) in sections.iter_mut().zip(spread) {
+                sec.plane_covariance = Some(sp.noise);
+                sec.plane_from_intrinsics = Some(sp.from_intrinsics);
+            }
+        }
+        let right = sections.pop().expect("two sheets");
+        let left = sections.pop().expect("two sheets");
         self.board = Some(BoardSection {
             method: used.name().into(),
             angle_deg: board_geom.angle().to_degrees(),
             crease_point: crease.point().coords.into(),
             crease_direction: (*crease.direction()).into(),
-            left: sheet_section(&fit.sheets[0], &planes[0]),
-            right: sheet_section(&fit.sheets[1], &planes[1]),
+            left,
+            right,
             paper,
         });
         self.regions = Some(regions(fit, board, camera));
         used
+    }
+
+    /// The calibration's modes for the head ([`CalibrationSpread`]), when the file keeps the
+    /// intrinsics' covariance and both sheets' spreads.
+    ///
+    /// # Errors
+    /// As [`CalibrationSpread::new`] for covariances that are not numbers or move the camera
+    /// out of what is a camera.
+    pub fn spread(&self) -> Option<Result<CalibrationSpread, scanner_core::GeomError>> {
+        let cov = self.covariance()?;
+        let b = self.board.as_ref()?;
+        let sheet = |s: &SheetSection| {
+            Some(SheetSpread {
+                noise: s.plane_covariance?,
+                from_intrinsics: s.plane_from_intrinsics?,
+            })
+        };
+        let sheets = [sheet(&b.left)?, sheet(&b.right)?];
+        Some(self.camera().and_then(|camera| {
+            CalibrationSpread::new(
+                &camera,
+                (self.image.width, self.image.height),
+                &cov,
+                &sheets,
+            )
+        }))
     }
 
     /// The board planes, if calibrated.
@@ -526,6 +578,8 @@ fn sheet_section(s: &SheetFit, plane: &Plane<f64>) -> SheetSection {
         normal: (*plane.normal()).into(),
         offset: plane.offset(),
         rms_px: s.rms_px,
+        plane_covariance: None,
+        plane_from_intrinsics: None,
         markers: s.markers.iter().enumerate().map(marker).collect(),
     }
 }

@@ -19,9 +19,9 @@
 //! print
 //! overlay
 //! selfcheck
-//! intrinsics  identify  file
+//! intrinsics  identify  file  spread
 //! corners  lattice  board
-//! detect  blur  text_file  image_file
+//! detect  blur  text_file  image_file  speckle
 //! ```
 #![deny(missing_docs)]
 
@@ -47,6 +47,8 @@ pub mod lattice;
 pub mod overlay;
 pub mod print;
 pub mod selfcheck;
+pub mod speckle;
+pub mod spread;
 pub mod text_file;
 
 use image::GrayImage;

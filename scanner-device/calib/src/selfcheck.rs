@@ -81,6 +81,17 @@ impl Halves {
     pub fn too_far(&self) -> bool {
         self.ratio() > WARN_RATIO
     }
+
+    /// What the fit's covariance is scaled by to explain the halves' difference: the ratio
+    /// squared when it is [`too_far`](Self::too_far), else 1 (a smaller ratio is what chance
+    /// gives a model that fits: 0.44–1.40 on synthetic corners).
+    pub fn covariance_scale(&self) -> f64 {
+        if self.too_far() {
+            self.ratio().powi(2)
+        } else {
+            1.0
+        }
+    }
 }
 
 /// The projection's standard deviation in its worst direction, pixels, at the centre of each of

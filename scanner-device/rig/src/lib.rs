@@ -1373,6 +1373,8 @@ impl Rig {
             normal: (*p.normal()).into(),
             offset: p.offset(),
             rms_px: 0.0,
+            plane_covariance: None,
+            plane_from_intrinsics: None,
             markers: Vec::new(),
         };
         let board = scanner_core::geometry::Board::new(l, r).expect("the rig's board is valid");

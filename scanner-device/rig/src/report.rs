@@ -479,9 +479,7 @@ pub fn table(rows: &[Row]) -> String {
 /// (gray, with the rig's laser-off reference), handing `each` the frame number and the points
 /// (mm, camera frame) with their coded uncertainties of each frame that gave points: the edge,
 /// fringe and uncertainty tests measure the head this way, with only the stripe left to err.
-pub fn scan_truth(rig: &Rig, cfg: HeadConfig, mut each: impl FnMut(usize, &[(Point3<f64>, u8)])) {
-    let scene = rig.scene();
-    let (w, h) = (scene.width as usize, scene.height as usize);
+pub fn scan_truth(rig: &Rig, cfg: HeadConfig, each: impl FnMut(usize, &[(Point3<f64>, u8)])) {
     let cal = rig.truth_calibration();
     let mut head = Box::new(Head::<4096>::new(
         cal.camera().expect("the rig's camera").cast(),
@@ -491,6 +489,17 @@ pub fn scan_truth(rig: &Rig, cfg: HeadConfig, mut each: impl FnMut(usize, &[(Poi
             .cast(),
         cfg,
     ));
+    scan_with(rig, &mut head, each);
+}
+
+/// Runs `head` over every laser frame of `rig` as [`scan_truth`] does.
+pub fn scan_with(
+    rig: &Rig,
+    head: &mut Head<4096>,
+    mut each: impl FnMut(usize, &[(Point3<f64>, u8)]),
+) {
+    let scene = rig.scene();
+    let (w, h) = (scene.width as usize, scene.height as usize);
     let reference = rig.reference().to_format(PixelFormat::Gray8);
     let rf = Frame::packed(&reference, w, h, PixelFormat::Gray8).expect("reference");
     let mut pts = Vec::new();

@@ -484,7 +484,12 @@ fn intrinsics_command(
         Some(fit.rms_px),
     );
     if let Ok(c) = &check {
-        file.set_covariance(&c.covariance, c.halves.as_ref().ok().map(Halves::ratio));
+        let halves = c.halves.as_ref().ok();
+        file.set_covariance(
+            &c.covariance,
+            halves.map(Halves::ratio),
+            halves.map_or(1.0, Halves::covariance_scale),
+        );
     }
     file.save(out)?;
     let c = &fit.camera;

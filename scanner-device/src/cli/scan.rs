@@ -443,10 +443,15 @@ fn read_calibration(
         );
     };
     let board = board.with_context(|| format!("board in {}", path.display()))?;
+    let spread = file
+        .spread()
+        .transpose()
+        .with_context(|| format!("the covariances in {}", path.display()))?;
     Ok(Calibration {
         camera,
         board,
         size: (file.image.width, file.image.height),
+        spread,
     })
 }
 
