@@ -90,6 +90,9 @@ pub struct Calibration {
     /// The calibration's modes, when its file keeps the covariances: every point's uncertainty
     /// then carries the calibration's share.
     pub spread: Option<scanner_core::calib::spread::CalibrationSpread>,
+    /// The camera's speckle share of a stripe centre's uncertainty, pixels, when measured
+    /// (the head's default otherwise).
+    pub speckle_px: Option<f32>,
 }
 
 /// How a scan went.
@@ -238,7 +241,11 @@ impl Session {
             opts.head.colour,
             opts.head.method,
         );
-        let mut head = Box::new(Head::new(camera.cast(), board.cast(), opts.head));
+        let mut config = opts.head;
+        if let Some(s) = cal.speckle_px {
+            config.stripe.speckle_px = s;
+        }
+        let mut head = Box::new(Head::new(camera.cast(), board.cast(), config));
         head.set_spread(cal.spread);
         Ok(Session {
             head,
@@ -564,6 +571,7 @@ pub fn truth_calibration(rig: &scanner_rig::Rig) -> Calibration {
         board: scanner_core::geometry::Board::new(l, r).expect("the rig's board is valid"),
         size: (s.width, s.height),
         spread: None,
+        speckle_px: None,
     }
 }
 

@@ -696,6 +696,7 @@ fn bad_views_are_refused_and_named() {
         "scanner-device",
         &[
             "scan",
+            "--columns",
             "--source",
             "rig",
             "--scene",

@@ -6,14 +6,14 @@
 //! The error is taken along the camera's ray, as the uncertainty states it: the distance from the
 //! point to where its ray meets the true surface — or, where that ray passes the object's
 //! silhouette and meets the board behind (more than ten times further than the nearest surface),
-//! the distance to the nearest surface. The rig's true calibration is used, so that calibration
-//! error (not part of a point's stated uncertainty) does not enter.
+//! the distance to the nearest surface. The first test uses the rig's true calibration (only the
+//! stripe and the laser plane err); the second calibrates from the rig's images and states the
+//! calibration's share too.
 
-use scanner_core::Camera;
 use scanner_core::geometry::Board;
 use scanner_core::nalgebra::Point3;
 use scanner_core::pipeline::{Head, HeadConfig};
-use scanner_core::stripe::{Axis, Frame, Method, PixelFormat, StripeConfig};
+use scanner_core::stripe::{Axis, Method, StripeConfig};
 use scanner_core::wire::points::uncertainty_mm;
 use scanner_rig::{Rig, report};
 
@@ -37,7 +37,7 @@ fn scan(rig: &Rig) -> Vec<(f64, f64)> {
     let mut cfg = HeadConfig::new(StripeConfig::new(Method::Dim, Axis::Columns));
     let truth = rig.truth_calibration();
     let (camera, board) = (truth.camera().unwrap(), truth.board().unwrap().unwrap());
-    cfg.stripe.speckle_px = rig_speckle(rig.scene(), (&camera, &board));
+    cfg.stripe.speckle_px = rig.speckle(&camera, &board).unwrap() as f32;
     report::scan_truth(rig, cfg, |_, pts| {
         for (p, u) in pts {
             out.push((error(rig, p), f64::from(uncertainty_mm(*u))));
@@ -110,29 +110,6 @@ fn stated_point_uncertainties_match_the_errors_near_far_and_with_a_weak_laser() 
     assert!(fits.iter().all(|f| f.2.spread > 1.2), "{fits:?}");
 }
 
-/// The speckle's share the rig's own stripes show: [`scanner_calib::speckle::stripe_scatter`]
-/// on frames of the scene's bare board (objects taken away), pooled over a few sweep positions.
-fn rig_speckle(scene: &scanner_rig::Scene, cal: (&Camera<f64>, &Board<f64>)) -> f32 {
-    let mut bare = scene.clone();
-    bare.objects.clear();
-    let rig = Rig::new(bare).unwrap();
-    let (w, h) = (scene.width as usize, scene.height as usize);
-    let reference = rig.reference().to_format(PixelFormat::Gray8);
-    let rf = Frame::packed(&reference, w, h, PixelFormat::Gray8).unwrap();
-    let n = scene.laser.frames;
-    let mut sq = Vec::new();
-    for k in [n / 4, n / 2, 3 * n / 4] {
-        let data = rig.frame(k).unwrap().to_format(PixelFormat::Gray8);
-        let f = Frame::packed(&data, w, h, PixelFormat::Gray8).unwrap();
-        let cfg = StripeConfig::new(Method::Dim, Axis::Columns);
-        if let Ok(s) = scanner_calib::speckle::stripe_scatter(&f, &rf, cal.0, cal.1, &cfg) {
-            sq.push(s.speckle_px * s.speckle_px);
-        }
-    }
-    assert!(!sq.is_empty(), "no bare-board frame measured");
-    (sq.iter().sum::<f64>() / sq.len() as f64).sqrt() as f32
-}
-
 /// With the intrinsics, the board and the speckle calibrated from the rig's images (not its
 /// truth), each point's stated uncertainty — stripe, laser plane and the calibration's share —
 /// against its real error near, middle and far. A calibration's error is one draw that moves a
@@ -181,7 +158,7 @@ fn stated_uncertainties_with_a_calibration_from_images_match_the_errors() {
                 let board = Board::new(b.sheets[0].plane, b.sheets[1].plane).unwrap();
                 let sheets = scanner_calib::spread::board_spread(&b, &board_file, &camera).unwrap();
                 let spread = CalibrationSpread::new(&camera, (w, h), &cov, &sheets).unwrap();
-                let speckle = rig_speckle(&scene, (&camera, &board));
+                let speckle = rig.speckle(&camera, &board).unwrap() as f32;
                 let mut cfg = HeadConfig::new(StripeConfig::new(Method::Dim, Axis::Columns));
                 cfg.stripe.speckle_px = speckle;
                 let mut head = Box::new(Head::<4096>::new(camera.cast(), board.cast(), cfg));

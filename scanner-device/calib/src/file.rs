@@ -9,12 +9,16 @@
 //! fx = 1119.84 ...         # fy, cx, cy, k1, k2, p1, p2, k3
 //! source = "intrinsics from 12 dot-grid images"
 //! rms_px = 0.023
+//! noise_px = 0.015         # the corners' noise the fit saw
+//! cross_validation_ratio = 0.77  # halves' difference over what the noise explains
+//! covariance = [[...], ...] # 9×9, fx … k3 (scaled by the ratio² above 2)
 //! [board]                  # camera coordinates, mm; planes n·x + d = 0, n towards the camera
 //! method = "layout-pose"   # or "paper-lines"
 //! angle_deg = 89.99
 //! crease_point = [...]     # L_c
 //! crease_direction = [...]
-//! [board.left]             # normal, offset, rms_px, and every marker:
+//! [board.left]             # normal, offset, rms_px, plane_covariance (4×4 of n, offset),
+//!                          # plane_from_intrinsics (4×9), and every marker:
 //! [[board.left.markers]]   # index, sheet [u, v] mm, pixel, residual_px (predicted − found),
 //!                          # status "used" | "missing" | "dropped"
 //! [board.paper]            # the paper's construction, where it applies (for comparison)
@@ -78,6 +82,11 @@ pub struct CameraSection {
     /// RMS reprojection error of the calibration, pixels.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub rms_px: Option<f64>,
+    /// The laser speckle's share of a stripe centre's uncertainty with this camera, pixels
+    /// (`scanner_calib::speckle` measures it on a stripe across the bare board); the head takes
+    /// `scanner_core::stripe::SPECKLE_PX` without it.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub speckle_px: Option<f64>,
     /// A feature's position noise per coordinate the fit saw, pixels.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub noise_px: Option<f64>,
@@ -313,6 +322,7 @@ impl CalibrationFile {
                 k3: d.k3,
                 source,
                 rms_px,
+                speckle_px: None,
                 noise_px: None,
                 cross_validation_ratio: None,
                 covariance: None,
@@ -491,6 +501,14 @@ impl CalibrationFile {
         f.camera()
             .and_then(|cam| cam.check_plausible(w, h))
             .map_err(|e| invalid(format!("[camera]: {e} ({values})")))?;
+        if let Some(sp) = c.speckle_px
+            && !(0.0..=10.0).contains(&sp)
+        {
+            return Err(invalid(format!(
+                "[camera] speckle_px {} is not a stripe centre's uncertainty (0 to 10 px)",
+                short(sp)
+            )));
+        }
         if let Some(rows) = &c.covariance {
             check_covariance(rows).map_err(|why| invalid(format!("[camera] covariance: {why}")))?;
         }

@@ -1354,8 +1354,40 @@ impl From<&scanner_calib::board::BoardFile> for Markers {
 }
 
 impl Rig {
+    /// The laser speckle's share of a stripe centre's uncertainty on this rig, pixels, as
+    /// [`scanner_calib::speckle::stripe_scatter`] measures it with `camera` and `board` on frames
+    /// of the scene's bare board (objects taken away) at a quarter, half and three quarters of
+    /// the sweep; `None` when no frame shows the stripe across a sheet.
+    pub fn speckle(
+        &self,
+        camera: &Camera<f64>,
+        board: &scanner_core::geometry::Board<f64>,
+    ) -> Option<f64> {
+        use scanner_core::stripe::{Axis, Frame, Method, PixelFormat, StripeConfig};
+        let mut bare = self.scene.clone();
+        bare.objects.clear();
+        let rig = Rig::new(bare).ok()?;
+        let (w, h) = (self.scene.width as usize, self.scene.height as usize);
+        let reference = rig.reference().to_format(PixelFormat::Gray8);
+        let rf = Frame::packed(&reference, w, h, PixelFormat::Gray8).ok()?;
+        let n = self.scene.laser.frames;
+        let cfg = StripeConfig::new(Method::Dim, Axis::Columns);
+        let sq: Vec<f64> = [n / 4, n / 2, 3 * n / 4]
+            .into_iter()
+            .filter_map(|k| {
+                let data = rig.frame(k).ok()?.to_format(PixelFormat::Gray8);
+                let f = Frame::packed(&data, w, h, PixelFormat::Gray8).ok()?;
+                let s =
+                    scanner_calib::speckle::stripe_scatter(&f, &rf, camera, board, &cfg).ok()?;
+                Some(s.speckle_px * s.speckle_px)
+            })
+            .collect();
+        (!sq.is_empty()).then(|| (sq.iter().sum::<f64>() / sq.len() as f64).sqrt())
+    }
+
     /// The rig's true camera and board as a calibration file (what a perfect calibration
-    /// would give; for tests and benches that want the truth, not an estimate).
+    /// would give; for tests and benches that want the truth, not an estimate), with the rig's
+    /// speckle measured ([`Rig::speckle`]).
     ///
     /// # Panics
     /// Never for a rig built from a valid scene (its board's planes meet).
@@ -1368,6 +1400,9 @@ impl Rig {
             "the virtual rig's true camera".into(),
             None,
         );
+        let [l, r] = self.board_planes();
+        let board = scanner_core::geometry::Board::new(l, r).expect("the rig's board is valid");
+        f.camera.speckle_px = self.speckle(&s.camera, &board);
         let [l, r] = self.board_planes();
         let sheet = |p: &Plane<f64>| SheetSection {
             normal: (*p.normal()).into(),

@@ -452,6 +452,7 @@ fn read_calibration(
         board,
         size: (file.image.width, file.image.height),
         spread,
+        speckle_px: file.camera.speckle_px.map(|s| s as f32),
     })
 }
 
