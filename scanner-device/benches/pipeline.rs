@@ -114,6 +114,7 @@ fn main() {
             status_every: 30,
             scan_id: 1,
             find_axis: false,
+            disc: None,
         };
         let mut session = Session::new(&cal, reference.clone(), opts).expect("session");
         let mut decoded = reference.clone();

@@ -7,7 +7,10 @@ use crate::source::SourceError;
 use scanner_core::Camera;
 use scanner_core::geometry::Board;
 use scanner_core::pipeline::{Head, HeadConfig};
-use scanner_core::wire::{self, Controls, Header, Message, Planes, Points, Skip, Status};
+use scanner_core::stripe::PixelFormat;
+use scanner_core::wire::{
+    self, Controls, DiscFound, DiscPose, Header, Message, Planes, Points, Skip, Status,
+};
 
 use crate::link::Link;
 use crate::source::{FrameSource, OwnedFrame};
@@ -29,6 +32,8 @@ pub struct ScanOptions {
     /// Find which way the stripe runs from the first laser frame ([`crate::source::stripe_axis`])
     /// instead of taking `head.stripe.axis`.
     pub find_axis: bool,
+    /// Look for this turntable disc in the reference frame and send its pose after each header.
+    pub disc: Option<scanner_calib::disc::Disc>,
 }
 
 /// Why a scan could not start or go on.
@@ -118,6 +123,8 @@ pub struct ScanReport {
     pub axis_found: bool,
     /// The direction the first laser frame's stripe runs, where it tells.
     pub axis_seen: Option<scanner_core::stripe::Axis>,
+    /// What was found of the turntable disc, when the scan looked for one.
+    pub disc: Option<DiscOutcome>,
 }
 
 /// How a scan ends.
@@ -207,6 +214,102 @@ pub struct Session {
     frames_since_status: u32,
     /// The laser planes fitted since the last status: count, RMS sum and largest, mm.
     planes: (u32, f64, f32),
+    /// The turntable disc's message, sent after each header, when one was looked for.
+    disc: Option<DiscPose>,
+    /// What was found of it, for the report.
+    disc_found: Option<DiscOutcome>,
+}
+
+/// What the head found of the turntable disc in the reference frame.
+#[derive(Debug, Clone, PartialEq)]
+pub enum DiscOutcome {
+    /// Found: its pose, dots used of those printed, RMS reprojection error in pixels.
+    Found {
+        /// Disc → camera.
+        pose: scanner_core::geometry::Pose,
+        /// Dots used.
+        markers: usize,
+        /// Dots printed.
+        of: usize,
+        /// RMS reprojection error, pixels.
+        rms_px: f64,
+    },
+    /// Not found, and why.
+    Missed(scanner_calib::disc::DiscMiss),
+}
+
+impl DiscOutcome {
+    /// The wire message for scan `scan_id`.
+    pub fn message(&self, scan_id: u32) -> DiscPose {
+        use scanner_calib::disc::DiscMiss;
+        match self {
+            DiscOutcome::Found {
+                pose,
+                markers,
+                of,
+                rms_px,
+            } => {
+                let q =
+                    scanner_core::nalgebra::UnitQuaternion::from_rotation_matrix(&pose.rotation);
+                DiscPose {
+                    scan_id,
+                    found: DiscFound::Found as u8,
+                    rotation: [q.i as f32, q.j as f32, q.k as f32, q.w as f32],
+                    translation: pose.translation.map(|v| v as f32).into(),
+                    markers: u16::try_from(*markers).unwrap_or(u16::MAX),
+                    of: u16::try_from(*of).unwrap_or(u16::MAX),
+                    rms_px: *rms_px as f32,
+                }
+            }
+            DiscOutcome::Missed(m) => DiscPose {
+                scan_id,
+                found: match m {
+                    DiscMiss::TooFewMarkers { .. } => DiscFound::TooFewMarkers,
+                    DiscMiss::Ambiguous { .. } => DiscFound::Ambiguous,
+                    DiscMiss::Tilted { .. } => DiscFound::Tilted,
+                    DiscMiss::PoorFit(_) => DiscFound::PoorFit,
+                } as u8,
+                rotation: [0.0, 0.0, 0.0, 1.0],
+                ..DiscPose::default()
+            },
+        }
+    }
+}
+
+/// Looks for `disc` in the laser-off reference frame (its luma).
+fn find_disc(
+    reference: &OwnedFrame,
+    disc: &scanner_calib::disc::Disc,
+    camera: &scanner_core::Camera<f64>,
+) -> DiscOutcome {
+    let bpp = reference.format.bytes_per_pixel();
+    let luma: Vec<u8> = reference
+        .data
+        .chunks_exact(bpp)
+        .map(|p| match reference.format {
+            PixelFormat::Rgb24 => {
+                ((u32::from(p[0]) * 77 + u32::from(p[1]) * 150 + u32::from(p[2]) * 29) >> 8) as u8
+            }
+            _ => p[0],
+        })
+        .collect();
+    let Some(img) =
+        image::GrayImage::from_raw(reference.width as u32, reference.height as u32, luma)
+    else {
+        return DiscOutcome::Missed(scanner_calib::disc::DiscMiss::TooFewMarkers {
+            found: 0,
+            of: disc.layout().len(),
+        });
+    };
+    match scanner_calib::disc::find_disc(&img, disc, camera) {
+        Ok(f) => DiscOutcome::Found {
+            pose: f.pose,
+            markers: f.used,
+            of: f.of,
+            rms_px: f.rms_px,
+        },
+        Err(m) => DiscOutcome::Missed(m),
+    }
 }
 
 impl Session {
@@ -265,6 +368,8 @@ impl Session {
             frames_since_header: 0,
             frames_since_status: 0,
             planes: (0, 0.0, 0.0),
+            disc: None,
+            disc_found: None,
         })
     }
 
@@ -336,6 +441,9 @@ impl Session {
         self.send(link, &h, false)?;
         if let Some(k) = self.controls {
             self.send(link, &Message::Controls(k), false)?;
+        }
+        if let Some(d) = self.disc {
+            self.send(link, &Message::Disc(d), false)?;
         }
         self.frames_since_header = 0;
         Ok(())
@@ -446,6 +554,7 @@ impl Session {
             axis: self.opts.head.stripe.axis,
             axis_found: self.opts.find_axis,
             axis_seen: self.axis_seen,
+            disc: self.disc_found,
         })
     }
 }
@@ -532,8 +641,11 @@ pub fn run_scan_until(
             opts.head.stripe.axis = axis;
         }
     }
+    let disc = opts.disc.map(|d| find_disc(&reference, &d, &cal.camera));
     let mut session = Session::new(cal, reference, opts)?;
     session.axis_seen = axis_seen;
+    session.disc = disc.as_ref().map(|d| d.message(opts.scan_id));
+    session.disc_found = disc;
     session.set_controls(source.controls());
     session.send_header(link)?;
     if let Some(frame) = first {

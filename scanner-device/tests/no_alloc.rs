@@ -37,6 +37,7 @@ fn the_steady_state_allocates_nothing() {
             status_every: 2,
             scan_id: 1,
             find_axis: false,
+            disc: None,
         };
         let mut session = Session::new(&cal, reference, opts).unwrap();
         let mut link = Link::spawn(Box::new(std::io::sink()), 4, MAX_ENCODED);

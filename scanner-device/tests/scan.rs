@@ -23,6 +23,7 @@ fn options(scan_id: u32) -> ScanOptions {
         status_every: 10,
         scan_id,
         find_axis: false,
+        disc: None,
     }
 }
 
@@ -47,7 +48,7 @@ fn decode(bytes: &[u8]) -> Decoded {
                 frames.insert(p.frame, v);
             }
             Message::Status(s) => last = Some(s),
-            Message::Controls(_) | Message::Planes(_) => {}
+            Message::Controls(_) | Message::Planes(_) | Message::Disc(_) => {}
         });
     }
     (frames, headers, last, d.stats())

@@ -4,10 +4,12 @@
 
 use std::collections::{BTreeMap, BTreeSet, VecDeque};
 
-use scanner_core::nalgebra::Point3;
+use scanner_core::nalgebra::{
+    Isometry3, Point3, Quaternion, Translation3, UnitQuaternion, Vector3,
+};
 use scanner_core::wire::{
-    Controls, DecodeStats, Decoder, Header, MAX_ENCODED, Message, Planes, SKIP_REASONS, Status,
-    points,
+    Controls, DecodeStats, Decoder, DiscFound, DiscPose, Header, MAX_ENCODED, Message, Planes,
+    SKIP_REASONS, Status, points,
 };
 use scanner_core::{Camera, GeomError};
 
@@ -92,6 +94,8 @@ pub struct Counts {
     pub controls: BTreeMap<u32, Controls>,
     /// The latest laser-plane fit of each scan, as its head reported it.
     pub planes: BTreeMap<u32, Planes>,
+    /// What the head found of the turntable disc in each scan, as it reported it.
+    pub discs: BTreeMap<u32, DiscPose>,
     /// Capture time span of the points, µs (first, last).
     pub time_us: Option<(u64, u64)>,
 }
@@ -167,6 +171,24 @@ impl Collector {
     /// The first header.
     pub fn header(&self) -> Option<&Header> {
         self.state.header.as_ref()
+    }
+
+    /// The turntable disc's pose (disc → camera) in the first scan's reference frame, when its
+    /// head found the disc.
+    pub fn disc_pose(&self) -> Option<Isometry3<f64>> {
+        let d = self.state.counts.discs.get(&self.state.header?.scan_id)?;
+        if d.found != DiscFound::Found as u8 {
+            return None;
+        }
+        let [i, j, k, w] = d.rotation.map(f64::from);
+        let q = Quaternion::new(w, i, j, k);
+        if !(q.norm() > 0.5) || !d.translation.iter().all(|v| v.is_finite()) {
+            return None;
+        }
+        Some(Isometry3::from_parts(
+            Translation3::from(Vector3::from(d.translation.map(f64::from))),
+            UnitQuaternion::from_quaternion(q),
+        ))
     }
 
     /// The grid (once a header has arrived).
@@ -309,6 +331,10 @@ impl State {
             Message::Planes(p) => {
                 self.counts.scans.insert(p.scan_id);
                 self.counts.planes.insert(p.scan_id, *p);
+            }
+            Message::Disc(d) => {
+                self.counts.scans.insert(d.scan_id);
+                self.counts.discs.insert(d.scan_id, *d);
             }
             Message::Points(p) => {
                 if !self.seen.insert((p.scan_id, p.frame)) {

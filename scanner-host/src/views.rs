@@ -219,12 +219,51 @@ pub fn load_view(k: usize, path: &Path, cell: Cell, sheet_mm: f64) -> Result<Vie
         sigma: m.quality.iter().map(|&q| f64::from(q)).collect(),
         colours: m.colours,
     };
-    Ok(View::new(
+    let disc = c.disc_pose();
+    let surface = match &disc {
+        Some(d) => above_disc(&surface, d),
+        None => surface,
+    };
+    let mut view = View::new(
         path.display().to_string(),
         *header,
         &surface,
         c.sheet_corrected().map(|moved| (moved, c.counts().points)),
-    ))
+    );
+    view.disc = disc;
+    Ok(view)
+}
+
+/// Points nearer the turntable disc's plane than this, or below it, are the disc's or the
+/// table's, never the object's, mm.
+const ON_DISC_MM: f64 = 1.5;
+
+/// The surface without the points on or under the turntable disc's plane (`disc`: disc →
+/// camera, its third axis pointing into the table).
+fn above_disc(s: &Surface, disc: &scanner_core::nalgebra::Isometry3<f64>) -> Surface {
+    let keep: Vec<usize> = (0..s.cloud.points.len())
+        .filter(|&i| disc.inverse_transform_point(&s.cloud.points[i]).z < -ON_DISC_MM)
+        .collect();
+    let pick = |v: &[f64]| -> Vec<f64> {
+        if v.len() == s.cloud.points.len() {
+            keep.iter().map(|&i| v[i]).collect()
+        } else {
+            Vec::new()
+        }
+    };
+    Surface {
+        cloud: Cloud {
+            points: keep.iter().map(|&i| s.cloud.points[i]).collect(),
+            normals: keep.iter().map(|&i| s.cloud.normals[i]).collect(),
+        },
+        colours: if s.colours.len() == s.cloud.points.len() {
+            keep.iter().map(|&i| s.colours[i]).collect()
+        } else {
+            Vec::new()
+        },
+        clear: pick(&s.clear),
+        sigma: pick(&s.sigma),
+    }
 }
 
 /// Reads every view of `paths` ([`load_view`]), `reading(k)` told as view `k`'s turn comes.

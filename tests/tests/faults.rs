@@ -44,6 +44,7 @@ fn clean_frames() -> &'static Vec<Vec<u8>> {
             status_every: 10,
             scan_id: 21,
             find_axis: false,
+            disc: None,
         };
         scanner_tests::record_scan(
             &mut src,
@@ -382,6 +383,7 @@ fn faults_on_a_pseudo_terminal_link_between_head_and_host() {
         status_every: 10,
         scan_id: 31,
         find_axis: false,
+        disc: None,
     };
     run_scan(&mut src, &cal, opts, &mut link, |_| {}, |_, _| {}).unwrap();
     link.finish().unwrap();

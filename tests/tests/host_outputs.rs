@@ -45,6 +45,7 @@ fn record(w: u32, h: u32, frames: usize, colour: bool, path: &Path) -> Rig {
         status_every: 30,
         scan_id: 5,
         find_axis: false,
+        disc: None,
     };
     scanner_tests::record_scan(
         &mut source,

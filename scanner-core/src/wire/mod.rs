@@ -425,6 +425,57 @@ pub struct Planes {
     pub rms_max_um: u32,
 }
 
+/// What the head found of the turntable disc in the sweep's laser-off reference frame (after
+/// each header, when the head was asked to look for a disc).
+#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
+pub struct DiscPose {
+    /// Scan id.
+    pub scan_id: u32,
+    /// What was found ([`DiscFound`] as its number).
+    pub found: u8,
+    /// Disc → camera rotation as a unit quaternion `i, j, k, w` (identity when not found).
+    pub rotation: [f32; 4],
+    /// The disc's centre in camera coordinates, mm.
+    pub translation: [f32; 3],
+    /// Dots used for the pose.
+    pub markers: u16,
+    /// Dots printed.
+    pub of: u16,
+    /// RMS reprojection error of the used dots, pixels.
+    pub rms_px: f32,
+}
+
+/// What the head found of the turntable disc ([`DiscPose::found`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[repr(u8)]
+pub enum DiscFound {
+    /// Found: the pose is good.
+    Found = 0,
+    /// Too few of its dots were seen (not in view, or hidden).
+    TooFewMarkers = 1,
+    /// Two turns of the disc fit its visible dots nearly as well.
+    Ambiguous = 2,
+    /// Seen too nearly edge-on.
+    Tilted = 3,
+    /// Its dots fit no pose.
+    PoorFit = 4,
+}
+
+impl DiscFound {
+    /// The value of a [`DiscPose::found`] byte; `None` for a value no head sends.
+    pub fn from_u8(v: u8) -> Option<DiscFound> {
+        [
+            DiscFound::Found,
+            DiscFound::TooFewMarkers,
+            DiscFound::Ambiguous,
+            DiscFound::Tilted,
+            DiscFound::PoorFit,
+        ]
+        .into_iter()
+        .find(|d| *d as u8 == v)
+    }
+}
+
 /// A message.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub enum Message<'a> {
@@ -439,6 +490,8 @@ pub enum Message<'a> {
     Controls(Controls),
     /// The laser planes' fit since the last status (before each status).
     Planes(Planes),
+    /// The turntable disc in the reference frame (after each header, when asked for).
+    Disc(DiscPose),
 }
 
 impl Message<'_> {
@@ -450,6 +503,7 @@ impl Message<'_> {
             Message::Status(s) => s.scan_id,
             Message::Controls(k) => k.scan_id,
             Message::Planes(p) => p.scan_id,
+            Message::Disc(d) => d.scan_id,
         }
     }
 }

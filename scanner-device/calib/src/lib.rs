@@ -16,6 +16,7 @@
 //! # Layers
 //! Each module uses only modules on its own line or below (`tests/tests/layers.rs` checks it):
 //! ```text
+//! disc
 //! print
 //! overlay
 //! selfcheck
@@ -39,6 +40,7 @@ pub mod blur;
 pub mod board;
 pub mod corners;
 pub mod detect;
+pub mod disc;
 pub mod file;
 pub mod identify;
 pub mod image_file;
@@ -293,7 +295,7 @@ type SubsetFit = (Pose, f64, Vec<Vector2<f64>>);
 
 /// How `fit_sheet` leaves out a marker that pulls the fit.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-enum Prune {
+pub(crate) enum Prune {
     /// Quickly, while candidate identifications are compared.
     Halving,
     /// Carefully, for the chosen one.
@@ -364,7 +366,7 @@ impl SheetFit {
 /// Pose of a planar layout from identified markers, with a camera known, from the markers an
 /// earlier fit kept (`start`) or all found; markers that pull the fit are dropped by the rule of
 /// `prune` (up to a quarter of them) and the pose refitted.
-fn fit_sheet(
+pub(crate) fn fit_sheet(
     what: &str,
     camera: &Camera<f64>,
     layout: &[Point2<f64>],
@@ -551,7 +553,7 @@ fn sheet_candidates(features: &[Blob], sheet: &board::SheetLayout, k: usize) -> 
 /// a sheet's markers then fit one homography exactly, however strong the lens distortion, and
 /// identification can keep its tolerance tight. A feature that cannot be undistorted stays
 /// where it is (it will not fit).
-fn undistorted(features: &[Blob], camera: &Camera<f64>) -> Vec<Blob> {
+pub(crate) fn undistorted(features: &[Blob], camera: &Camera<f64>) -> Vec<Blob> {
     let pp = camera.principal_point();
     features
         .iter()

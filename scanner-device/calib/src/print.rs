@@ -9,7 +9,7 @@ use super::board::{BoardFile, Cross};
 use super::overlay::Canvas;
 
 /// One printable sheet: circles and strokes in mm.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, Default)]
 pub struct Sheet {
     /// Title printed at the top.
     pub title: String,
@@ -23,6 +23,10 @@ pub struct Sheet {
     pub squares: Vec<(f64, f64, f64)>,
     /// The crease edge's x (mm), for a board sheet.
     pub crease_x: Option<f64>,
+    /// Filled black rectangles: left, top, right, bottom, mm.
+    pub bars: Vec<[f64; 4]>,
+    /// Black circle outlines: centre x, y, diameter and line width, mm.
+    pub circles: Vec<(f64, f64, f64, f64)>,
 }
 
 const RULER: (f64, f64) = (15.0, 12.0); // left end and distance from the bottom, mm
@@ -75,6 +79,7 @@ impl Sheet {
             dots,
             squares,
             crease_x: Some(if k == 0 { w } else { 0.0 }),
+            ..Sheet::default()
         }
     }
 
@@ -97,8 +102,7 @@ impl Sheet {
                         .map(move |c| (x0 + c as f64 * g.pitch, y0 + r as f64 * g.pitch, g.dot))
                 })
                 .collect(),
-            squares: Vec::new(),
-            crease_x: None,
+            ..Sheet::default()
         }
     }
 
@@ -118,8 +122,7 @@ impl Sheet {
                 .iter()
                 .map(|(x, y)| (cx + x, cy + y, c.dot))
                 .collect(),
-            squares: Vec::new(),
-            crease_x: None,
+            ..Sheet::default()
         }
     }
 
@@ -142,6 +145,19 @@ impl Sheet {
         for (x, y, side) in &self.squares {
             s += &format!(
                 "<rect x=\"{x:.3}\" y=\"{y:.3}\" width=\"{side:.3}\" height=\"{side:.3}\" fill=\"black\"/>\n"
+            );
+        }
+        for [x0, y0, x1, y1] in &self.bars {
+            s += &format!(
+                "<rect x=\"{x0:.3}\" y=\"{y0:.3}\" width=\"{:.3}\" height=\"{:.3}\" fill=\"black\"/>\n",
+                x1 - x0,
+                y1 - y0
+            );
+        }
+        for (x, y, d, lw) in &self.circles {
+            s += &format!(
+                "<circle cx=\"{x:.3}\" cy=\"{y:.3}\" r=\"{:.3}\" fill=\"none\" stroke=\"black\" stroke-width=\"{lw}\"/>\n",
+                d / 2.0
             );
         }
         if let Some(x) = self.crease_x {
@@ -214,6 +230,45 @@ impl Sheet {
                 }
             }
         }
+        for &[x0, y0, x1, y1] in &self.bars {
+            cv.rect(
+                x0 * px_per_mm,
+                y0 * px_per_mm,
+                x1 * px_per_mm,
+                y1 * px_per_mm,
+                black,
+            );
+        }
+        // Circle outlines, 4×4 supersampled.
+        for &(x, y, d, lw) in &self.circles {
+            let (cx, cy) = (x * px_per_mm, y * px_per_mm);
+            let (r0, r1) = ((d - lw) / 2.0 * px_per_mm, (d + lw) / 2.0 * px_per_mm);
+            let ri = r1.ceil() as i64 + 1;
+            for py in (cy as i64 - ri)..=(cy as i64 + ri) {
+                for px in (cx as i64 - ri)..=(cx as i64 + ri) {
+                    let near = ((px as f64 + 0.5 - cx).hypot(py as f64 + 0.5 - cy)
+                        - (r0 + r1) / 2.0)
+                        .abs();
+                    if near > (r1 - r0) / 2.0 + 1.0 {
+                        continue;
+                    }
+                    let mut inside = 0;
+                    for sy in 0..4 {
+                        for sx in 0..4 {
+                            let rr = (px as f64 + (sx as f64 + 0.5) / 4.0 - cx)
+                                .hypot(py as f64 + (sy as f64 + 0.5) / 4.0 - cy);
+                            if (r0..=r1).contains(&rr) {
+                                inside += 1;
+                            }
+                        }
+                    }
+                    if inside > 0 {
+                        let v = (255.0 * (1.0 - f64::from(inside) / 16.0)).round() as u8;
+                        cv.dot(px, py, Rgb([v, v, v]));
+                    }
+                }
+            }
+        }
         for &(x, y, side) in &self.squares {
             cv.rect(
                 x * px_per_mm,
@@ -267,6 +322,61 @@ impl Sheet {
             black,
         );
         Ok(cv.image)
+    }
+}
+
+impl Sheet {
+    /// Whether the sheet's point `(x, y)` (mm from its top-left corner) is inked by a dot, a
+    /// square, a bar or a circle outline (the title, the ruler and the crease line aside): what a
+    /// camera sees of the print (the virtual rig renders it).
+    pub fn ink(&self, x: f64, y: f64) -> bool {
+        self.dots
+            .iter()
+            .any(|&(cx, cy, d)| (x - cx).hypot(y - cy) <= d / 2.0)
+            || self
+                .squares
+                .iter()
+                .any(|&(x0, y0, s)| (x0..=x0 + s).contains(&x) && (y0..=y0 + s).contains(&y))
+            || self
+                .bars
+                .iter()
+                .any(|&[x0, y0, x1, y1]| (x0..=x1).contains(&x) && (y0..=y1).contains(&y))
+            || self
+                .circles
+                .iter()
+                .any(|&(cx, cy, d, lw)| ((x - cx).hypot(y - cy) - d / 2.0).abs() <= lw / 2.0)
+    }
+
+    /// Distance (mm) from `(x, y)` to the nearest edge of the ink that [`Sheet::ink`] sees.
+    pub fn ink_edge_distance(&self, x: f64, y: f64) -> f64 {
+        let rect = |x0: f64, y0: f64, x1: f64, y1: f64| {
+            let (dx, dy) = ((x0 - x).max(x - x1), (y0 - y).max(y - y1));
+            if dx > 0.0 || dy > 0.0 {
+                dx.max(0.0).hypot(dy.max(0.0))
+            } else {
+                (-dx).min(-dy)
+            }
+        };
+        let dots = self
+            .dots
+            .iter()
+            .map(|&(cx, cy, d)| ((x - cx).hypot(y - cy) - d / 2.0).abs());
+        let squares = self
+            .squares
+            .iter()
+            .map(|&(x0, y0, s)| rect(x0, y0, x0 + s, y0 + s));
+        let bars = self
+            .bars
+            .iter()
+            .map(|&[x0, y0, x1, y1]| rect(x0, y0, x1, y1));
+        let circles = self
+            .circles
+            .iter()
+            .map(|&(cx, cy, d, lw)| (((x - cx).hypot(y - cy) - d / 2.0).abs() - lw / 2.0).abs());
+        dots.chain(squares)
+            .chain(bars)
+            .chain(circles)
+            .fold(f64::INFINITY, f64::min)
     }
 }
 

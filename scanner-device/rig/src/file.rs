@@ -26,6 +26,11 @@ struct File {
     laser: Option<LaserFile>,
     sensor: Option<SensorFile>,
     views: Option<Vec<ViewFile>>,
+    /// The set-up seen from a camera tilted down by this many degrees: the objects (written
+    /// upright, +y down) and the views' turns tilt about the camera's x axis through
+    /// `tilt_pivot` (default: the objects' mean centre). The board keeps its own pitch.
+    tilt_deg: Option<f64>,
+    tilt_pivot: Option<[f64; 3]>,
 }
 
 /// One view of a 360° scan: the objects turned by `angle_deg` about `axis` through `pivot`
@@ -37,6 +42,8 @@ struct ViewFile {
     angle_deg: Option<f64>,
     pivot: Option<[f64; 3]>,
     translate: Option<[f64; 3]>,
+    /// `false`: the turntable disc was taken away for this view.
+    disc: Option<bool>,
 }
 
 /// Most views a scene may list.
@@ -148,6 +155,16 @@ enum ObjectFile {
         yaw_deg: f64,
         albedo: Option<[f64; 3]>,
     },
+    /// The printed turntable disc (`scanner-device board --turntable`) lying flat under the
+    /// objects: its centre, its print's `x` axis turned by `turn_deg` from the camera's x about
+    /// the vertical.
+    Turntable {
+        paper: scanner_calib::disc::Paper,
+        centre: [f64; 3],
+        #[serde(default)]
+        turn_deg: f64,
+        albedo: Option<[f64; 3]>,
+    },
     /// A tilted rectangle: centre, size, normal tilt from facing the camera about x and y.
     Plane {
         centre: [f64; 3],
@@ -191,6 +208,23 @@ fn set<T>(slot: &mut T, value: Option<T>) {
 }
 
 const GREY: [f64; 3] = [0.6, 0.6, 0.6];
+/// White paper, and the printer's black.
+const PAPER: [f64; 3] = [0.85, 0.85, 0.83];
+const INK: [f64; 3] = [0.06, 0.06, 0.06];
+
+/// The turntable's frame where the file places it: centre, the print's `x` turned by `turn_deg`
+/// from the camera's x about the vertical (−y), `y` across, the third axis down into the table.
+fn turntable_pose(centre: [f64; 3], turn_deg: f64) -> Isometry3<f64> {
+    let a = turn_deg.to_radians();
+    let x = Vector3::new(a.cos(), 0.0, a.sin());
+    let up = Vector3::new(0.0, -1.0, 0.0);
+    let y = -up.cross(&x);
+    let r = scanner_core::nalgebra::Rotation3::from_basis_unchecked(&[x, y, x.cross(&y)]);
+    Isometry3::from_parts(
+        Translation3::from(Vector3::from(centre)),
+        UnitQuaternion::from_rotation_matrix(&r),
+    )
+}
 
 impl Scene {
     /// Reads a scene from TOML text (see the module docs); mesh paths are relative to the
@@ -225,6 +259,39 @@ impl Scene {
         if let Some(b) = f.board {
             b.apply(&mut s.board, base)?;
         }
+        if let Some(objects) = &f.objects {
+            let discs: Vec<(usize, &ObjectEntry)> = objects
+                .iter()
+                .enumerate()
+                .filter(|(_, o)| matches!(o.shape, ObjectFile::Turntable { .. }))
+                .collect();
+            if discs.len() > 1 {
+                return Err(RigError::Scene(format!(
+                    "objects: {} turntables, at most one",
+                    discs.len()
+                )));
+            }
+            s.turntable = discs.first().map(|&(i, o)| {
+                let ObjectFile::Turntable {
+                    paper,
+                    centre,
+                    turn_deg,
+                    ..
+                } = o.shape
+                else {
+                    unreachable!("filtered")
+                };
+                let disc = scanner_calib::disc::Disc::new(paper);
+                super::Turntable {
+                    object: i,
+                    disc,
+                    sheet: std::sync::Arc::new(disc.sheet()),
+                    pose: turntable_pose(centre, turn_deg),
+                    ink: INK,
+                    absent_in: Vec::new(),
+                }
+            });
+        }
         if let Some(objects) = f.objects {
             s.objects = objects
                 .into_iter()
@@ -254,6 +321,47 @@ impl Scene {
                 .enumerate()
                 .map(|(k, v)| v.pose(k, centre))
                 .collect::<Result<_, _>>()?;
+            let absent: Vec<usize> = (0..views.len())
+                .filter(|&k| views[k].disc == Some(false))
+                .collect();
+            match &mut s.turntable {
+                Some(t) => t.absent_in = absent,
+                None if !absent.is_empty() => {
+                    return Err(RigError::Scene(format!(
+                        "views[{}]: disc = false, but the scene has no turntable",
+                        absent[0]
+                    )));
+                }
+                None => {}
+            }
+        }
+        if let Some(deg) = f.tilt_deg {
+            if !(deg.is_finite() && deg.abs() <= 80.0) {
+                return Err(RigError::Scene(format!(
+                    "tilt_deg {deg}: must be a number of degrees, −80 to 80"
+                )));
+            }
+            let n = s.objects.len().max(1) as f64;
+            let pivot = f.tilt_pivot.map_or_else(
+                || {
+                    s.objects
+                        .iter()
+                        .fold(Vector3::zeros(), |a, o| a + o.shape.centre().coords)
+                        / n
+                },
+                Vector3::from,
+            );
+            let r = UnitQuaternion::from_axis_angle(&Vector3::x_axis(), deg.to_radians());
+            let tilt = Isometry3::from_parts(Translation3::from(pivot - r * pivot), r);
+            for o in &mut s.objects {
+                o.shape = o.shape.moved(&tilt);
+            }
+            if let Some(t) = &mut s.turntable {
+                t.pose = tilt * t.pose;
+            }
+            for v in &mut s.views {
+                *v = tilt * *v * tilt.inverse();
+            }
         }
         if let Some(n) = f.sensor {
             set(&mut s.sensor.gain, n.gain);
@@ -369,6 +477,7 @@ fn object(i: usize, entry: ObjectEntry, base: &std::path::Path) -> Result<Object
         | ObjectFile::Cylinder { albedo, .. }
         | ObjectFile::Box { albedo, .. }
         | ObjectFile::Plane { albedo, .. } => albedo.unwrap_or(GREY),
+        ObjectFile::Turntable { albedo, .. } => albedo.unwrap_or(PAPER),
     };
     Ok(Object {
         shape: shape(i, o, base)?,
@@ -433,6 +542,19 @@ fn shape(i: usize, o: ObjectFile, base: &std::path::Path) -> Result<Shape, RigEr
                 centre: Point3::from(centre),
                 half: Vector3::new(half(0)?, half(1)?, half(2)?),
                 axes: [r * Vector3::x(), r * Vector3::y(), r * Vector3::z()],
+            }
+        }
+        ObjectFile::Turntable {
+            paper,
+            centre,
+            turn_deg,
+            ..
+        } => {
+            let pose = turntable_pose(centre, turn_deg);
+            Shape::Disc {
+                centre: Point3::from(centre),
+                axes: [pose.rotation * Vector3::x(), pose.rotation * Vector3::y()],
+                radius: scanner_calib::disc::Disc::new(paper).radius,
             }
         }
         ObjectFile::Plane {

@@ -286,6 +286,26 @@ pub struct Scene {
     /// the scene is one of [`Scene::view`]s): the truth of a view's registration. Textures move
     /// with the objects.
     pub object_pose: Isometry3<f64>,
+    /// The turntable disc the objects stand on, if any: one of the objects, printed.
+    pub turntable: Option<Turntable>,
+}
+
+/// The printed turntable disc ([`scanner_calib::disc`]) under the objects: a [`Shape::Disc`]
+/// among the objects, rendered with the print's ink, turning with the objects in every view.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Turntable {
+    /// Its index among the scene's objects.
+    pub object: usize,
+    /// The disc printed.
+    pub disc: scanner_calib::disc::Disc,
+    /// The printed sheet (its ink is what the camera sees).
+    pub sheet: std::sync::Arc<scanner_calib::print::Sheet>,
+    /// Disc frame → camera, where the file places it (before a view moves it).
+    pub pose: Isometry3<f64>,
+    /// RGB albedo of the ink.
+    pub ink: [f64; 3],
+    /// Views in which the disc was taken away (the object laid on its side on the table).
+    pub absent_in: Vec<usize>,
 }
 
 /// The longest side of a rendered image, pixels (the head's [`scanner_core::config::MAX_LINES`]).
@@ -393,6 +413,7 @@ impl Scene {
             },
             views: Vec::new(),
             object_pose: Isometry3::identity(),
+            turntable: None,
         }
     }
 
@@ -420,6 +441,15 @@ impl Scene {
         let mut s = self.clone();
         for o in &mut s.objects {
             o.shape = o.shape.moved(&pose);
+        }
+        if let Some(t) = &s.turntable
+            && t.absent_in.contains(&k)
+            && let Some(Object {
+                shape: Shape::Disc { radius, .. },
+                ..
+            }) = s.objects.get_mut(t.object)
+        {
+            *radius = 0.0;
         }
         s.object_pose = pose * self.object_pose;
         s.views = Vec::new();
@@ -698,9 +728,9 @@ impl Rig {
             let p = texel_point(t);
             let surface = surface_id(t.surface);
             let k = usize::from(t.surface);
-            // near a marker's rim: the pixel's coverage by sub-samples, so that markers are
-            // rendered without aliasing (their centres are ground truth for calibration)
-            let albedo = if k < 2 && rig.to_rim(k, &p) < 6.0 * p.coords.norm() / fx {
+            // near a marker's rim or the turntable's ink: the pixel's coverage by sub-samples, so
+            // that markers are rendered without aliasing (their centres are ground truth)
+            let albedo = if rig.to_ink_edge(k, &p) < 6.0 * p.coords.norm() / fx {
                 let n = RIM_SUPERSAMPLE * RIM_SUPERSAMPLE;
                 let mut sum = [0.0; 3];
                 for (su, sv) in subpixels(i % w, i / w, RIM_SUPERSAMPLE) {
@@ -749,6 +779,13 @@ impl Rig {
                 // The checker is fixed to the object: evaluated where the point was before the
                 // view moved it.
                 let p = self.scene.object_pose.inverse_transform_point(p);
+                if let Some(t) = &self.scene.turntable
+                    && t.object == usize::from(n)
+                {
+                    let q = t.pose.inverse_transform_point(&p);
+                    let (x, y) = t.disc.to_sheet(&Point2::new(q.x, q.y));
+                    return if t.sheet.ink(x, y) { t.ink } else { o.albedo };
+                }
                 return match o.texture {
                     Some((cell, other)) if cell > 0.0 => {
                         let parity = (p.x / cell).floor() as i64
@@ -781,6 +818,34 @@ impl Rig {
             m.albedo
         } else {
             self.scene.board.albedo
+        }
+    }
+
+    /// Distance (mm) from `p` on surface `k` (its index in the geometry buffer) to the nearest
+    /// edge of printed ink: a board marker's rim or the turntable's print.
+    fn to_ink_edge(&self, k: usize, p: &Point3<f64>) -> f64 {
+        if k < 2 {
+            return self.to_rim(k, p);
+        }
+        match &self.scene.turntable {
+            Some(t) if t.object + 2 == k => {
+                let q = t
+                    .pose
+                    .inverse_transform_point(&self.scene.object_pose.inverse_transform_point(p));
+                let (x, y) = t.disc.to_sheet(&Point2::new(q.x, q.y));
+                t.sheet.ink_edge_distance(x, y)
+            }
+            _ => f64::INFINITY,
+        }
+    }
+
+    /// The turntable disc's pose (disc frame → camera) in this scene's view: `None` without a
+    /// disc or when the view took it away.
+    pub fn disc_pose(&self) -> Option<Isometry3<f64>> {
+        let t = self.scene.turntable.as_ref()?;
+        match self.scene.objects.get(t.object)?.shape {
+            Shape::Disc { radius, .. } if radius > 0.0 => Some(self.scene.object_pose * t.pose),
+            _ => None,
         }
     }
 

@@ -63,6 +63,16 @@ pub enum Shape {
     },
     /// A placed triangle mesh.
     Mesh(Arc<Mesh>),
+    /// A flat disc (a print lying on the table): centre, two unit in-plane axes (the print's
+    /// `x` and `y`), radius.
+    Disc {
+        /// Centre, mm.
+        centre: Point3<f64>,
+        /// In-plane unit axes.
+        axes: [Vector3<f64>; 2],
+        /// Radius, mm (0: taken away, never hit).
+        radius: f64,
+    },
     /// A rectangle: centre, two unit in-plane axes, half sizes along them.
     Rectangle {
         /// Centre, mm.
@@ -109,6 +119,15 @@ impl Shape {
                 axes: axes.map(|a| r * a),
                 half: *half,
             },
+            Shape::Disc {
+                centre,
+                axes,
+                radius,
+            } => Shape::Disc {
+                centre: pose * centre,
+                axes: axes.map(|a| r * a),
+                radius: *radius,
+            },
         }
     }
 
@@ -117,7 +136,8 @@ impl Shape {
         match self {
             Shape::Sphere { centre, .. }
             | Shape::Cuboid { centre, .. }
-            | Shape::Rectangle { centre, .. } => *centre,
+            | Shape::Rectangle { centre, .. }
+            | Shape::Disc { centre, .. } => *centre,
             Shape::Cylinder {
                 base, axis, height, ..
             } => base + axis.into_inner() * (height / 2.0),
@@ -174,6 +194,17 @@ impl Shape {
                 );
                 Some((d.dot(&n).powi(2) + a * a + b * b).sqrt())
             }
+            Shape::Disc {
+                centre,
+                axes,
+                radius,
+            } => {
+                let d = p - centre;
+                let n = axes[0].cross(&axes[1]);
+                let (a, b) = (d.dot(&axes[0]), d.dot(&axes[1]));
+                let out = (a.hypot(b) - radius).max(0.0);
+                Some(d.dot(&n).hypot(out))
+            }
             Shape::Mesh(m) => Some(m.distance(p)),
         }
     }
@@ -202,6 +233,16 @@ impl Shape {
             Shape::Cuboid { centre, half, axes } => ray.cuboid(centre, half, axes),
             Shape::Mesh(mesh) => mesh.hit(origin, dir, t_min),
             Shape::Rectangle { centre, axes, half } => ray.rectangle(centre, axes, half),
+            Shape::Disc {
+                centre,
+                axes,
+                radius,
+            } => ray
+                .rectangle(centre, axes, &[*radius, *radius])
+                .filter(|(t, _)| {
+                    let r = ray.at(*t) - centre;
+                    r.dot(&axes[0]).hypot(r.dot(&axes[1])) <= *radius
+                }),
         }?;
         Some(Hit {
             t,

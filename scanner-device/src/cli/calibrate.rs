@@ -9,6 +9,7 @@ use scanner_core::Camera;
 use scanner_io::outln;
 
 use scanner_calib::board::BoardFile;
+use scanner_calib::disc::{Disc, Paper};
 use scanner_calib::file::{CalibrationFile, write_atomic};
 use scanner_calib::selfcheck::{Halves, SelfCheck, self_check};
 use scanner_calib::{
@@ -195,9 +196,19 @@ fn save_png(img: &image::RgbImage, path: &Path) -> Result<()> {
 ///
 /// # Errors
 /// Unreadable board file, unwritable output.
-pub fn board_command(board: Option<&Path>, out: &Path, dpi: f64, a4: bool) -> Result<()> {
+pub fn board_command(
+    board: Option<&Path>,
+    out: &Path,
+    dpi: f64,
+    a4: bool,
+    turntable: Option<Paper>,
+) -> Result<()> {
     let b = load_board(board)?;
-    let sheets = print::sheets(&b);
+    let mut sheets = print::sheets(&b).to_vec();
+    let disc_stem = turntable.map(|p| format!("turntable-{}", p.name()));
+    if let (Some(p), Some(stem)) = (turntable, &disc_stem) {
+        sheets.push((stem.as_str(), Disc::new(p).sheet()));
+    }
     // Every picture's size is checked before anything is written.
     for (_, sheet) in &sheets {
         sheet.check_png(dpi / 25.4)?;
@@ -220,7 +231,8 @@ pub fn board_command(board: Option<&Path>, out: &Path, dpi: f64, a4: bool) -> Re
         }
     }
     outln!(
-        "wrote board.toml, left-sheet, right-sheet, cross and target (the intrinsics dot grid) (.svg, .png at {dpi} dpi){} to {}; print the SVGs at 100 % and check the 100 mm ruler",
+        "wrote board.toml, left-sheet, right-sheet, cross{} and target (the intrinsics dot grid) (.svg, .png at {dpi} dpi){} to {}; print the SVGs at 100 % and check the 100 mm ruler",
+        disc_stem.map_or(String::new(), |s| format!(", {s} (the turntable disc)")),
         if a4 {
             ", and each as A4 tiles (*-a4-ROW-COL.svg: overlap them so that the crosses meet)"
         } else {

@@ -84,6 +84,10 @@ pub enum Command {
         /// without A3: 10 mm overlaps with alignment crosses, a 100 mm bar on each.
         #[arg(long)]
         a4: bool,
+        /// Also print the turntable disc the object stands on for a 360° scan, on this paper
+        /// (`a4`: a disc of 190 mm, `a3`: 277 mm): `turntable-a4.svg` and `.png`.
+        #[arg(long, value_name = "PAPER")]
+        turntable: Option<scanner_calib::disc::Paper>,
     },
     /// Calibrate from images: intrinsics, the paper's image distance, or the board planes.
     #[command(subcommand)]
@@ -155,11 +159,12 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
             out,
             dpi,
             a4,
+            turntable,
         }) => {
             if !(*dpi >= 25.0 && *dpi <= 1200.0) {
                 anyhow::bail!("--dpi must be between 25 and 1200, found {dpi}");
             }
-            calibrate::board_command(board.as_deref(), out, *dpi, *a4)?;
+            calibrate::board_command(board.as_deref(), out, *dpi, *a4, *turntable)?;
         }
         Some(Command::Calibrate(c)) => calibrate::calibrate(c)?,
         Some(Command::Scan(a)) => {

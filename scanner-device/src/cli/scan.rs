@@ -11,7 +11,7 @@ use scanner_core::stripe::{Axis, LaserColour, Method, PixelFormat, StripeConfig}
 use scanner_core::wire::Skip;
 
 use crate::link::{Link, Target};
-use crate::session::{Calibration, ScanOptions, ScanReport, StopWhen, run_scan_until};
+use crate::session::{Calibration, DiscOutcome, ScanOptions, ScanReport, StopWhen, run_scan_until};
 use crate::source::convert::CameraFormat;
 use crate::source::{FrameSource, SourceOptions, open_with};
 
@@ -68,6 +68,11 @@ pub struct ScanArgs {
     /// The stripe runs horizontally (the laser sweeps up and down): scan columns.
     #[arg(long)]
     pub columns: bool,
+    /// The object stands on the printed turntable disc (`scanner-device board --turntable
+    /// PAPER`, `a4` or `a3`): find it in the reference frame and send its pose, so that the
+    /// host's 360° merge knows how far the object was turned.
+    #[arg(long, value_name = "PAPER")]
+    pub disc: Option<scanner_calib::disc::Paper>,
     /// Send the stripe's board points too.
     #[arg(long)]
     pub keep_board: bool,
@@ -258,6 +263,21 @@ pub fn report_lines(r: &ScanReport) -> Vec<String> {
             ));
         }
     }
+    match &r.disc {
+        Some(DiscOutcome::Found {
+            pose,
+            markers,
+            of,
+            rms_px,
+        }) => lines.push(format!(
+            "turntable disc: found, {markers} of {of} dots, rms {rms_px:.3} px, centre {:.1} mm from the camera",
+            pose.translation.norm()
+        )),
+        Some(DiscOutcome::Missed(why)) => lines.push(format!(
+            "turntable disc: not found: {why} (the merge registers this view by its shape)"
+        )),
+        None => {}
+    }
     if let Some(seen) = r.axis_seen.filter(|&a| a != r.axis) {
         lines.push(format!(
             "the first laser frame's stripe is a {} line but the scan read a {} one: give {}",
@@ -355,6 +375,7 @@ pub fn plan(a: &ScanArgs) -> Result<ScanPlan> {
     let options = ScanOptions {
         head: head_config(a),
         find_axis: !(a.rows || a.columns),
+        disc: a.disc.map(scanner_calib::disc::Disc::new),
         header_every: 30,
         status_every: 30,
         scan_id: a.scan_id.unwrap_or_else(rand::random),

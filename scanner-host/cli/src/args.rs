@@ -142,6 +142,11 @@ pub enum Command {
         /// such all the same.
         #[arg(long, value_name = "DEG", allow_negative_numbers = true)]
         turntable: Option<f64>,
+        /// Register by the object's shape alone, even where the views carry the turntable
+        /// disc's pose (by default views scanned on the disc, `scanner-device scan --disc`, are
+        /// posed by it).
+        #[arg(long)]
+        no_disc: bool,
         /// The laser sheet's thickness, mm (the Gaussian σ across it; a line laser's line width
         /// at half its brightness is 2.355 σ): each view's points are moved to where the sheet's
         /// middle crosses the surface, which on a curved surface is not the lit band's centre

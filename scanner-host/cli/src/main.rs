@@ -88,6 +88,7 @@ fn run(args: &Args) -> Result<()> {
             fuse_cell,
             min_overlap,
             turntable,
+            no_disc,
             sheet,
             trim_unseen,
             flat_base,
@@ -103,6 +104,7 @@ fn run(args: &Args) -> Result<()> {
                 turntable_deg: *turntable,
                 closing: merge::MergePlan::closing(*trim_unseen, *flat_base),
                 sheet: None,
+                use_disc: !*no_disc,
             };
             let plan = merge::MergePlan::new(views, out, (*cell, *sheet), options, *quiet)?;
             let view = view.map(show::start_view).transpose()?;

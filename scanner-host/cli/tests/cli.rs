@@ -35,6 +35,7 @@ fn recording(dir: &std::path::Path) -> std::path::PathBuf {
         status_every: 10,
         scan_id: 3,
         find_axis: false,
+        disc: None,
     };
     scanner_device::session::run_scan(&mut src, &cal, opts, &mut link, |_| {}, |_, _| {}).unwrap();
     let stats = link.finish().unwrap();
@@ -246,6 +247,7 @@ fn head_to_host_over_a_pseudo_terminal() {
         status_every: 10,
         scan_id: 8,
         find_axis: false,
+        disc: None,
     };
     let report =
         scanner_device::session::run_scan(&mut source, &cal, opts, &mut link, |_| {}, |_, _| {})

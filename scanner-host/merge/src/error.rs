@@ -46,7 +46,7 @@ pub enum MergeError {
     },
     /// Some views match one another but none of view 0's group.
     #[error(
-        "views {apart:?} match one another but none of views {placed:?} (view 0's group): scan a view that overlaps both groups, or merge the groups apart"
+        "views {apart:?} match one another but none of views {placed:?} (view 0's group): their shapes do not tell how the object was turned. Print the turntable disc (`scanner-device board --turntable a4`) and scan on it with `--disc a4`; or sweep slower for denser views; or add views between these"
     )]
     Apart {
         /// Views registered into view 0's frame.
@@ -99,6 +99,25 @@ pub enum MergeError {
         /// The largest share in front a merge accepts.
         max_share: f64,
     },
+    /// A view posed by the turntable disc moved far from its disc pose in the joint
+    /// refinement: the object moved on the disc between sweeps, or the disc was misread.
+    #[error(
+        "view {view} ({name}) lies {rotation_deg:.2}° and {translation_mm:.1} mm from where its turntable disc put it (at most {max_deg}° and {max_mm} mm): the object moved on the disc between sweeps, or the disc was misread; keep the object still on the disc, or merge with --no-disc; no model was written"
+    )]
+    DiscMoved {
+        /// The view.
+        view: usize,
+        /// Its name.
+        name: String,
+        /// How far it turned, degrees.
+        rotation_deg: f64,
+        /// How far it moved, mm.
+        translation_mm: f64,
+        /// The rotation allowed, degrees.
+        max_deg: f64,
+        /// The translation allowed, mm.
+        max_mm: f64,
+    },
     /// `--sheet auto` found no overlap to measure the views' agreement on.
     #[error(
         "--sheet auto: the views nowhere overlap within {agree_mm} mm of each other, so they tell no sheet thickness; give it with --sheet MM"
@@ -128,7 +147,9 @@ impl MergeError {
     pub fn is_implausible(&self) -> bool {
         matches!(
             self,
-            MergeError::LoopOpen { .. } | MergeError::SeenThrough { .. }
+            MergeError::LoopOpen { .. }
+                | MergeError::SeenThrough { .. }
+                | MergeError::DiscMoved { .. }
         )
     }
 }

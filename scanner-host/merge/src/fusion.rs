@@ -363,6 +363,7 @@ mod tests {
             clear: points.iter().map(|p| p.1).collect(),
             sigma: Vec::new(),
             sheet_moved: None,
+            disc: None,
         }
     }
 

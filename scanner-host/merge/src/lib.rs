@@ -19,7 +19,7 @@
 //! ```text
 //! run
 //! report
-//! fusion  joint
+//! fusion  joint  disc
 //! poses
 //! free
 //! view  error
@@ -29,6 +29,7 @@
 //! ```
 #![deny(missing_docs)]
 
+pub mod disc;
 pub mod error;
 pub mod free;
 pub mod fuse;

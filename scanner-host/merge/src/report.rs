@@ -32,6 +32,22 @@ pub struct MergeReport {
     pub fusion: Option<FusionFigures>,
     /// Why the merge wrote no model, when a plausibility check refused the views.
     pub refused: Option<Refusal>,
+    /// The views posed by the turntable disc, when two or more carried its pose.
+    pub disc: Option<Vec<DiscView>>,
+}
+
+/// One view of a merge posed by the turntable disc.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct DiscView {
+    /// The view.
+    pub view: usize,
+    /// Whether the disc posed it (`false`: registered by its shape onto the disc-posed views).
+    pub by_disc: bool,
+    /// How far the joint refinement would turn it from its disc pose, degrees (disc-posed
+    /// views keep their disc pose; beyond 0.5° the merge refuses: the object moved on the disc).
+    pub moved_deg: Option<f64>,
+    /// …and moved its points' centre, mm.
+    pub moved_mm: Option<f64>,
 }
 
 /// `--sheet auto`: each thickness tried and where the views agree best.
@@ -146,6 +162,8 @@ pub enum RefusalCheck {
     LoopOpen,
     /// A view's points lie where another view saw empty space.
     SeenThrough,
+    /// A view posed by the turntable disc lies far from its disc pose.
+    DiscMoved,
 }
 
 impl MergeReport {
@@ -187,6 +205,7 @@ impl MergeReport {
             },
             fusion: None,
             refused: None,
+            disc: None,
         }
     }
 
@@ -195,6 +214,7 @@ impl MergeReport {
         let check = match e {
             MergeError::LoopOpen { .. } => RefusalCheck::LoopOpen,
             MergeError::SeenThrough { .. } => RefusalCheck::SeenThrough,
+            MergeError::DiscMoved { .. } => RefusalCheck::DiscMoved,
             _ => return self.clone(),
         };
         MergeReport {
@@ -232,6 +252,18 @@ impl MergeReport {
                 "{} ({}) | {} ({}) | {onto} | {overlap} | {rms} | {agrees} | {:.3}°",
                 v.index, v.name, v.points, v.clear_points, v.rotation_deg
             );
+        }
+        if let Some(d) = &self.disc {
+            let by: Vec<String> = d
+                .iter()
+                .map(|v| match (v.by_disc, v.moved_deg, v.moved_mm) {
+                    (true, Some(deg), Some(mm)) => {
+                        format!("view {} by the disc (the refinement would move it {deg:.3}° {mm:.2} mm)", v.view)
+                    }
+                    _ => format!("view {} by its shape onto the disc-posed views", v.view),
+                })
+                .collect();
+            let _ = writeln!(s, "turntable disc: {}", by.join(", "));
         }
         if let Some(t) = &self.turns {
             let how = if t.hinted {

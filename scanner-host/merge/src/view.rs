@@ -3,7 +3,7 @@
 //! camera, image and board). The caller reads it (the host from a journal); the merge thins it
 //! to one point per `THIN_MM` cube when it is made.
 
-use scanner_core::nalgebra::{Point3, Vector3};
+use scanner_core::nalgebra::{Isometry3, Point3, Vector3};
 use scanner_core::wire::Header;
 
 use crate::seen::DepthMap;
@@ -38,6 +38,9 @@ pub struct View {
     pub sigma: Vec<f64>,
     /// With the laser sheet's correction: the samples it moved, of all; `None`: not asked.
     pub sheet_moved: Option<(u64, u64)>,
+    /// The turntable disc's pose in this view's camera frame (disc → camera), when its head
+    /// found the disc: the merge then poses it by the disc ([`crate::disc`]).
+    pub disc: Option<Isometry3<f64>>,
 }
 
 /// What a view is read from, before it is thinned ([`View::new`]).
@@ -79,6 +82,7 @@ impl View {
             clear,
             sigma,
             sheet_moved,
+            disc: None,
         }
     }
 
