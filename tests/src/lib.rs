@@ -129,6 +129,37 @@ pub fn scan_rig(dir: &std::path::Path, scene: &str, extra: &[&str], out: &str) {
     assert!(ok, "scanner-device scan: {err}");
 }
 
+/// The head scans view `k` of `dir/s.toml` with the calibration `dir/cal.toml` and `extra`
+/// options into `dir/vK.stream`, and the host receives it (with `receive_extra`) into `dir/vK`.
+///
+/// # Panics
+/// When either fails: this is a test helper.
+pub fn scan_rig_view(dir: &std::path::Path, k: &str, extra: &[&str], receive_extra: &[&str]) {
+    let stream = format!("v{k}.stream");
+    let mut args = vec![
+        "scan",
+        "--source",
+        "rig",
+        "--scene",
+        "s.toml",
+        "--view",
+        k,
+        "--calibration",
+        "cal.toml",
+        "--out",
+        &stream,
+        "-q",
+    ];
+    args.extend(extra);
+    let (ok, _, err) = run_in(&workspace_bin("scanner-device"), dir, &args);
+    assert!(ok, "scan view {k}: {err}");
+    let out = format!("v{k}");
+    let mut args = vec!["receive", &stream, "--out", &out, "-q"];
+    args.extend(receive_extra);
+    let (ok, _, err) = run_in(&workspace_bin("scanner-host"), dir, &args);
+    assert!(ok, "receive view {k}: {err}");
+}
+
 /// Records a scan of `source` into `out` as the head streams it (headers, point packets,
 /// statuses), through the link's deepest queue: a recording for a test to read, not a test of
 /// the link, so a writer that falls behind on a busy machine must drop nothing.

@@ -72,30 +72,7 @@ fn small_scene(d: &Path, name: &str, mesh: &str) -> scanner_rig::Scene {
 /// The head scans view `k` of `d/s.toml` (with `extra` options) into `d/vK.stream`, and the host
 /// receives it into `d/vK`.
 fn scan_view(d: &Path, k: &str, extra: &[&str]) {
-    let stream = format!("v{k}.stream");
-    let mut args = vec![
-        "scan",
-        "--source",
-        "rig",
-        "--scene",
-        "s.toml",
-        "--view",
-        k,
-        "--calibration",
-        "cal.toml",
-        "--out",
-        &stream,
-        "-q",
-    ];
-    args.extend(extra);
-    let (ok, _, err) = run(d, "scanner-device", &args);
-    assert!(ok, "scan view {k}: {err}");
-    let (ok, _, err) = run(
-        d,
-        "scanner-host",
-        &["receive", &stream, "--out", &format!("v{k}"), "-q"],
-    );
-    assert!(ok, "receive view {k}: {err}");
+    scanner_tests::scan_rig_view(d, k, extra, &[]);
 }
 
 /// Views of a scene, scanned once for every test of this binary.

@@ -3,7 +3,7 @@
 //! uneven steps), a disc half hidden by a box in front of it, a disc taken away, a disc seen
 //! nearly edge-on.
 
-use scanner_calib::disc::{Disc, DiscMiss, Paper, find_disc};
+use scanner_calib::disc::{Disc, DiscMiss, find_disc};
 use scanner_core::nalgebra::{Isometry3, Point3, Vector3};
 use scanner_rig::{Object, Rig, Scene, Shape};
 
@@ -13,12 +13,34 @@ fn scene() -> Scene {
     Scene::from_toml_in(&text, std::path::Path::new(path).parent().unwrap()).unwrap()
 }
 
+/// At 640×480 the A4 disc's dots are about 4 px across and its pose 0.01–0.05° off; the A3
+/// disc (dots of 10 mm) keeps within a hundredth of a degree: the size for small cameras.
+#[test]
+fn the_a3_disc_at_640_by_480() {
+    let text = std::fs::read_to_string(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../scenes/turntable.toml"
+    ))
+    .unwrap()
+    .replace("width = 1280", "width = 640")
+    .replace("height = 960", "height = 480")
+    .replace("paper = \"a4\"", "paper = \"a3\"");
+    let s = Scene::from_toml(&text).unwrap();
+    for k in 0..6 {
+        let (pose, truth) = found(s.view(k).unwrap());
+        let (deg, mm) = apart(&pose.unwrap(), &truth.unwrap());
+        println!("A3 at 640×480, view {k}: {deg:.4}° {mm:.3} mm from the truth");
+        assert!(deg < 0.02 && mm < 0.1, "view {k}: {deg}° {mm} mm");
+    }
+}
+
 /// The disc found in view `scene`'s reference frame, with the truth, or why not.
 fn found(scene: Scene) -> (Result<Isometry3<f64>, DiscMiss>, Option<Isometry3<f64>>) {
     let rig = Rig::new(scene).unwrap();
     let cam = rig.scene().camera;
     let img = rig.reference().to_gray_image();
-    let fit = find_disc(&img, &Disc::new(Paper::A4), &cam);
+    let paper = rig.scene().turntable.as_ref().unwrap().disc.paper;
+    let fit = find_disc(&img, &Disc::new(paper), &cam);
     let pose = fit.map(|f| {
         let r = scanner_core::nalgebra::UnitQuaternion::from_rotation_matrix(&f.pose.rotation);
         Isometry3::from_parts(f.pose.translation.into(), r)

@@ -12,7 +12,7 @@ use scanner_calib::{
 use scanner_core::wire::Skip;
 use serde::Serialize;
 
-use crate::session::ScanReport;
+use crate::session::{DiscOutcome, ScanReport};
 
 /// Writes `report` as pretty JSON to `path`, whole or not at all.
 ///
@@ -66,6 +66,59 @@ pub struct ScanData {
     pub axis_seen: Option<&'static str>,
     /// Most frames saw the stripe on one sheet only: the summary says what to change.
     pub one_sheet_only: bool,
+    /// The turntable disc, when the scan looked for one (`--disc`).
+    pub disc: Option<DiscData>,
+}
+
+/// What the head found of the turntable disc.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct DiscData {
+    /// Whether its pose was taken.
+    pub found: bool,
+    /// Dots used (found).
+    pub markers: Option<usize>,
+    /// Dots printed (found).
+    pub of: Option<usize>,
+    /// RMS reprojection error of the used dots, pixels (found).
+    pub rms_px: Option<f64>,
+    /// Its centre in camera coordinates, mm (found).
+    pub centre_mm: Option<[f64; 3]>,
+    /// Why not (not found): `too_few_markers`, `ambiguous`, `tilted` or `poor_fit`.
+    pub missed: Option<&'static str>,
+}
+
+impl From<&DiscOutcome> for DiscData {
+    fn from(d: &DiscOutcome) -> DiscData {
+        use scanner_calib::disc::DiscMiss;
+        match d {
+            DiscOutcome::Found {
+                pose,
+                markers,
+                of,
+                rms_px,
+            } => DiscData {
+                found: true,
+                markers: Some(*markers),
+                of: Some(*of),
+                rms_px: Some(*rms_px),
+                centre_mm: Some(pose.translation.into()),
+                missed: None,
+            },
+            DiscOutcome::Missed(m) => DiscData {
+                found: false,
+                markers: None,
+                of: None,
+                rms_px: None,
+                centre_mm: None,
+                missed: Some(match m {
+                    DiscMiss::TooFewMarkers { .. } => "too_few_markers",
+                    DiscMiss::Ambiguous { .. } => "ambiguous",
+                    DiscMiss::Tilted { .. } => "tilted",
+                    DiscMiss::PoorFit(_) => "poor_fit",
+                }),
+            },
+        }
+    }
 }
 
 fn axis_name(a: scanner_core::stripe::Axis) -> &'static str {
@@ -110,6 +163,7 @@ impl From<&ScanReport> for ScanData {
             axis_found: r.axis_found,
             axis_seen: r.axis_seen.map(axis_name),
             one_sheet_only: r.one_sheet_only(),
+            disc: r.disc.as_ref().map(DiscData::from),
         }
     }
 }

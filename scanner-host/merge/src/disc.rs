@@ -4,17 +4,28 @@
 //! cylinder). Views without a disc pose (the object laid on its side, the disc hidden) are
 //! registered by geometry onto all the disc-posed views at once, as one cloud.
 
-use scanner_core::nalgebra::Isometry3;
+use kiddo::{KdTree, SquaredEuclidean};
+use scanner_core::nalgebra::{Isometry3, Point3, Translation3, Unit, UnitQuaternion, Vector3};
+use serde::Serialize;
 
 use crate::error::MergeError;
-use crate::poses::{Unplaced, ViewResult, register_clouds};
-use crate::register::RegisterOptions;
+use crate::poses::ViewResult;
+use crate::register::{RegisterOptions, Registration, icp, icp_facing};
+use crate::seen::Conflict;
 use crate::spatial::{Cloud, thin};
 use crate::view::View;
 
-/// Most a disc-posed view may move in the joint refinement, degrees and mm: beyond, the object
-/// moved on the disc between sweeps (or the disc was misread) and the disc's pose is not its.
-pub(crate) const MAX_MOVE: (f64, f64) = (0.5, 2.0);
+/// One view of a merge posed by the turntable disc.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct DiscView {
+    /// The view.
+    pub view: usize,
+    /// Whether the disc posed it (`false`: registered by its shape onto the disc-posed views).
+    pub by_disc: bool,
+    /// For a disc-posed view: the share of its points (clear of its edges) within the fits'
+    /// tolerance of the other disc-posed views' (`None` for the others).
+    pub agreement: Option<f64>,
+}
 
 /// The views' poses in view 0's frame when at least two carry a disc pose (`None` otherwise):
 /// the disc-posed views from their disc poses, the others registered onto them by geometry.
@@ -48,23 +59,71 @@ pub(crate) fn disc_poses(
         let mut group = Cloud::default();
         for &k in &posed {
             let p = in_anchor[k]?;
-            let c = &views[k].cloud;
+            let c = views[k].clear_cloud();
             group.points.extend(c.points.iter().map(|q| p * q));
             group
                 .normals
                 .extend(c.normals.iter().map(|n| p.rotation * n));
         }
         let group = thin(&group, 0.75);
-        let mut clouds: Vec<&Cloud> = vec![&group];
-        clouds.extend(rest.iter().map(|&k| &views[k].cloud));
-        let placed = register_clouds(&clouds, o, |_, _| Vec::new(), |_| None, progress);
-        let placed = match placed {
-            Ok(p) => p,
-            Err(e) => return Some(Err(unplaced(views, &rest, &posed, e))),
-        };
+        let tree = crate::spatial::tree(&group.points);
+        let mut progress = progress;
+        // The disc-posed views and their poses, for the free-space test of each fit.
+        let mut subset: Vec<View> = posed.iter().map(|&k| views[k].clone()).collect();
+        let mut at: Vec<Isometry3<f64>> = posed.iter().filter_map(|&k| in_anchor[k]).collect();
         for (i, &k) in rest.iter().enumerate() {
-            in_anchor[k] = Some(placed[i + 1].pose);
-            fits[k] = placed[i + 1].fit;
+            let cloud = views[k].clear_cloud();
+            subset.push(views[k].clone());
+            // The fits that overlap enough and keep out of what the disc-posed views saw empty,
+            // best first.
+            let tries = onto_group(&cloud, &group, &tree, o);
+            let plausible: Vec<Registration> = tries
+                .iter()
+                .filter(|f| f.overlap >= o.min_overlap)
+                .filter(|f| {
+                    at.push(f.pose);
+                    let worst = crate::free::free_space(&subset, &at, o.voxel_mm);
+                    at.pop();
+                    !worst.is_some_and(|c| crate::free::seen_through(&c))
+                })
+                .copied()
+                .collect();
+            subset.pop();
+            let Some(best) = plausible.first() else {
+                if let Some(t) = tries.first().filter(|t| t.overlap >= o.min_overlap) {
+                    return Some(Err(MergeError::ShapeNowhere {
+                        view: k,
+                        name: views[k].name.clone(),
+                        overlap: t.overlap,
+                    }));
+                }
+                return Some(Err(MergeError::NoMatch {
+                    view: k,
+                    name: views[k].name.clone(),
+                    best: crate::register::RegisterError::NoOverlap {
+                        overlap_percent: 100.0 * tries.first().map_or(0.0, |b| b.overlap),
+                        tolerance_mm: o.voxel_mm / 3.0,
+                        min_percent: 100.0 * o.min_overlap,
+                    },
+                }));
+            };
+            // Another fit nearly as good that puts the view's surface elsewhere: its shape does
+            // not tell where it goes (a fit that lays the surface where the best does, turned
+            // about a symmetric object's axis, is the same model).
+            if let Some(rival) = plausible[1..].iter().find(|r| {
+                r.overlap >= RIVAL_SHARE * best.overlap
+                    && !same_surface(&cloud, &best.pose, &r.pose, o.voxel_mm / 3.0)
+            }) {
+                return Some(Err(MergeError::ShapeAmbiguous {
+                    view: k,
+                    name: views[k].name.clone(),
+                    best: best.overlap,
+                    rival: rival.overlap,
+                }));
+            }
+            in_anchor[k] = Some(best.pose);
+            fits[k] = Some(*best);
+            progress(i + 1, rest.len());
         }
     }
     let to0 = in_anchor[0]?.inverse();
@@ -81,38 +140,192 @@ pub(crate) fn disc_poses(
         .collect()))
 }
 
-/// The registration's failure for the views without a disc pose, in the views' numbers.
-fn unplaced(views: &[View], rest: &[usize], posed: &[usize], e: Unplaced) -> MergeError {
-    let view = |i: usize| if i == 0 { posed[0] } else { rest[i - 1] };
-    match e {
-        Unplaced::NoMatch { view: i, best } => MergeError::NoMatch {
-            view: view(i),
-            name: views[view(i)].name.clone(),
-            best,
-        },
-        Unplaced::Apart { apart, .. } => MergeError::Apart {
-            placed: posed.to_vec(),
-            apart: apart.into_iter().map(view).collect(),
-        },
+/// The report's disc section: per view whether the disc posed it and, for those it posed, the
+/// share of its points (clear of its edges) within the fits' tolerance of the other disc-posed
+/// views' at `poses`.
+pub(crate) fn report(views: &[View], poses: &[Isometry3<f64>], voxel_mm: f64) -> Vec<DiscView> {
+    let clear: Vec<Cloud> = views
+        .iter()
+        .zip(poses)
+        .map(|(v, p)| {
+            let c = v.clear_cloud();
+            Cloud {
+                points: c.points.iter().map(|q| p * q).collect(),
+                normals: c.normals.iter().map(|n| p.rotation * n).collect(),
+            }
+        })
+        .collect();
+    (0..views.len())
+        .map(|k| {
+            let others: Vec<Point3<f64>> = (0..views.len())
+                .filter(|&j| j != k && views[j].disc.is_some())
+                .flat_map(|j| clear[j].points.iter().copied())
+                .collect();
+            let agree = (views[k].disc.is_some() && !others.is_empty()).then(|| {
+                overlap(
+                    &clear[k],
+                    &crate::spatial::tree(&others),
+                    &Isometry3::identity(),
+                    voxel_mm / 3.0,
+                )
+            });
+            DiscView {
+                view: k,
+                by_disc: views[k].disc.is_some(),
+                agreement: agree,
+            }
+        })
+        .collect()
+}
+
+/// The disc's plausibility check: two disc-posed views whose points contradict each other's
+/// free space (`worst`, the free-space check's worst pair) mean that the object moved on the
+/// disc between sweeps, or that a disc was misread.
+///
+/// # Errors
+/// [`MergeError::DiscMoved`] naming the view.
+pub(crate) fn check(views: &[View], worst: Option<&Conflict>) -> Result<(), MergeError> {
+    match worst {
+        Some(c)
+            if crate::free::seen_through(c)
+                && views[c.view].disc.is_some()
+                && views[c.seen_by].disc.is_some() =>
+        {
+            Err(MergeError::DiscMoved {
+                view: c.view,
+                name: views[c.view].name.clone(),
+                seen_by: c.seen_by,
+                share: c.share(),
+            })
+        }
+        _ => Ok(()),
     }
 }
 
-/// How far the joint refinement moved each disc-posed view from its disc pose: degrees and mm
-/// (`None` for views without a disc pose).
-pub(crate) fn moved(
-    views: &[View],
-    before: &[ViewResult],
-    after: &[ViewResult],
-) -> Vec<Option<(f64, f64)>> {
-    views
-        .iter()
-        .zip(before.iter().zip(after))
-        .map(|(v, (b, a))| {
-            v.disc.map(|_| {
-                let d = b.pose.inverse() * a.pose;
-                let c = v.centre();
-                (d.rotation.angle().to_degrees(), (d * c - c).norm())
-            })
+/// Axes and angles of the rotations a view is tried at against the disc-posed views: axes
+/// spread evenly over the sphere, turns about each in even steps; every rotation lies within
+/// about 20° of one of them, which the fit's wide first rounds close.
+const SEARCH: (usize, usize) = (96, 18);
+
+/// Points of a view the search fits (evenly spaced); the best few are then fitted with all.
+const SEARCH_POINTS: usize = 300;
+
+/// A second fit with at least this share of the best's overlap that lays the view's surface
+/// elsewhere leaves the view's place undecided.
+const RIVAL_SHARE: f64 = 0.85;
+
+/// Least cosine between paired points' normals in the final fit: the surface the object stood
+/// on, which only the view without the disc saw, pulls on nothing.
+const FACING: f64 = 0.5;
+
+/// Distinct fits of the search tried with all points.
+const FINALISTS: usize = 8;
+
+/// The view `cloud` fitted onto `group` (every disc-posed view in one frame, `tree` its k-d
+/// tree) by trying it at rotations all round ([`SEARCH`]), its centre on the group's, each
+/// refined by point-to-plane ICP from a wide pairing distance; the best few distinct fits by
+/// overlap refined with all its points, best first. The group is the whole object seen from all
+/// round, so the right pose overlaps it well whatever the object's symmetry; the free space
+/// decides between fits that overlap alike.
+fn onto_group(
+    cloud: &Cloud,
+    group: &Cloud,
+    tree: &KdTree<f64, 3>,
+    o: &RegisterOptions,
+) -> Vec<Registration> {
+    if cloud.points.len() < 6 || group.points.len() < 6 {
+        return Vec::new();
+    }
+    let step = cloud.points.len().div_ceil(SEARCH_POINTS).max(1);
+    let sparse = Cloud {
+        points: cloud.points.iter().step_by(step).copied().collect(),
+        normals: cloud.normals.iter().step_by(step).copied().collect(),
+    };
+    let (c, g) = (
+        crate::spatial::centre(&sparse.points),
+        crate::spatial::centre(&group.points),
+    );
+    let wide = 5.0 * o.voxel_mm;
+    let mut tried: Vec<Registration> = rotations()
+        .into_iter()
+        .map(|r| {
+            let start = Isometry3::from_parts(Translation3::from(g.coords - r * c.coords), r);
+            let fit = icp(&sparse, group, start, wide, 20);
+            Registration {
+                overlap: overlap(&sparse, tree, &fit.pose, o.voxel_mm / 3.0),
+                ..fit
+            }
         })
-        .collect()
+        .collect();
+    tried.sort_by(|a, b| b.overlap.total_cmp(&a.overlap));
+    // Many starts end in the same fit: the finalists are distinct ones.
+    let mut distinct: Vec<&Registration> = Vec::new();
+    for t in &tried {
+        if distinct.len() == FINALISTS {
+            break;
+        }
+        if !distinct
+            .iter()
+            .any(|d| crate::register::same_motion(&d.pose, &t.pose, o.voxel_mm))
+        {
+            distinct.push(t);
+        }
+    }
+    let mut finalists: Vec<Registration> = distinct
+        .iter()
+        .map(|t| {
+            let fit = icp_facing(cloud, group, t.pose, o.voxel_mm, 30, FACING);
+            Registration {
+                overlap: overlap(cloud, tree, &fit.pose, o.voxel_mm / 3.0),
+                ..fit
+            }
+        })
+        .collect();
+    finalists.sort_by(|a, b| b.overlap.total_cmp(&a.overlap));
+    finalists
+}
+
+/// Whether `cloud` at `a` and at `b` lies on the same surface: nine in ten of its points at `b`
+/// within `tol` of its points at `a`.
+fn same_surface(cloud: &Cloud, a: &Isometry3<f64>, b: &Isometry3<f64>, tol: f64) -> bool {
+    let at_a: Vec<Point3<f64>> = cloud.points.iter().map(|p| a * p).collect();
+    overlap(cloud, &crate::spatial::tree(&at_a), b, tol) >= 0.9
+}
+
+/// The share of `cloud`'s points that `pose` brings within `tol` of the tree's.
+fn overlap(cloud: &Cloud, tree: &KdTree<f64, 3>, pose: &Isometry3<f64>, tol: f64) -> f64 {
+    let near = cloud
+        .points
+        .iter()
+        .filter(|p| {
+            let q = pose * *p;
+            tree.nearest_one::<SquaredEuclidean>(&[q.x, q.y, q.z])
+                .distance
+                <= tol * tol
+        })
+        .count();
+    near as f64 / cloud.points.len().max(1) as f64
+}
+
+/// The search's rotations: the identity, then [`SEARCH`]'s axes (a Fibonacci sphere) and turns.
+fn rotations() -> Vec<UnitQuaternion<f64>> {
+    let (axes, turns) = SEARCH;
+    let golden = std::f64::consts::PI * (3.0 - 5f64.sqrt());
+    let mut out = vec![UnitQuaternion::identity()];
+    for i in 0..axes {
+        let z = 1.0 - 2.0 * (i as f64 + 0.5) / axes as f64;
+        let r = (1.0 - z * z).sqrt();
+        let a = golden * i as f64;
+        let axis = Unit::new_normalize(Vector3::new(r * a.cos(), r * a.sin(), z));
+        for t in 1..turns {
+            let angle = std::f64::consts::TAU * t as f64 / turns as f64;
+            // An axis and its opposite give the same turns the other way round: the lower
+            // half of the sphere turns only up to half a turn.
+            if z < 0.0 && angle > std::f64::consts::PI {
+                continue;
+            }
+            out.push(UnitQuaternion::from_axis_angle(&axis, angle));
+        }
+    }
+    out
 }

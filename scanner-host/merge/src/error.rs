@@ -35,7 +35,9 @@ pub enum MergeError {
     )]
     NoUp,
     /// A view registers onto none of the others.
-    #[error("view {view} ({name}) overlaps no other view; best try: {best}")]
+    #[error(
+        "view {view} ({name}) overlaps no other view; best try: {best}. Scan the object on the turntable disc (`scanner-device board --turntable a4`, `scan --disc a4`), sweep slower for a denser view, or add views between"
+    )]
     NoMatch {
         /// Which view.
         view: usize,
@@ -99,24 +101,51 @@ pub enum MergeError {
         /// The largest share in front a merge accepts.
         max_share: f64,
     },
-    /// A view posed by the turntable disc moved far from its disc pose in the joint
-    /// refinement: the object moved on the disc between sweeps, or the disc was misread.
+    /// A view without the turntable disc's pose fits the disc-posed views only where its
+    /// points would lie in front of what they saw.
     #[error(
-        "view {view} ({name}) lies {rotation_deg:.2}° and {translation_mm:.1} mm from where its turntable disc put it (at most {max_deg}° and {max_mm} mm): the object moved on the disc between sweeps, or the disc was misread; keep the object still on the disc, or merge with --no-disc; no model was written"
+        "view {view} ({name}) has no turntable disc pose, and its shape fits the views posed by the disc only where its points lie in front of what they saw (the best such fit {:.0} % of its points): stand the object on the disc for this view too, sweep slower for a denser view, or leave the view out; no model was written",
+        100.0 * overlap
+    )]
+    ShapeNowhere {
+        /// The view.
+        view: usize,
+        /// Its name.
+        name: String,
+        /// The best fit's overlap.
+        overlap: f64,
+    },
+    /// A view without the turntable disc's pose fits the disc-posed views in two places.
+    #[error(
+        "view {view} ({name}) has no turntable disc pose, and its shape fits the views posed by the disc in two places ({:.0} % and {:.0} % of its points): stand the object on the disc for this view too, sweep slower for a denser view, or leave the view out; no model was written",
+        100.0 * best,
+        100.0 * rival
+    )]
+    ShapeAmbiguous {
+        /// The view.
+        view: usize,
+        /// Its name.
+        name: String,
+        /// The best fit's overlap.
+        best: f64,
+        /// The other fit's.
+        rival: f64,
+    },
+    /// Two views posed by the turntable disc contradict each other's free space: the object
+    /// moved on the disc between sweeps, or a disc was misread.
+    #[error(
+        "view {view} ({name})'s points lie in front of what view {seen_by} saw ({:.1} %), both posed by the turntable disc: the object moved on the disc between the sweeps, or the disc was misread; keep the object still on the disc, or merge with --no-disc; no model was written",
+        100.0 * share
     )]
     DiscMoved {
         /// The view.
         view: usize,
         /// Its name.
         name: String,
-        /// How far it turned, degrees.
-        rotation_deg: f64,
-        /// How far it moved, mm.
-        translation_mm: f64,
-        /// The rotation allowed, degrees.
-        max_deg: f64,
-        /// The translation allowed, mm.
-        max_mm: f64,
+        /// The view whose free space its points lie in.
+        seen_by: usize,
+        /// The share of its points there in front.
+        share: f64,
     },
     /// `--sheet auto` found no overlap to measure the views' agreement on.
     #[error(

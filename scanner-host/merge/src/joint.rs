@@ -12,7 +12,7 @@ use crate::spatial::Cloud;
 use crate::view::View;
 
 /// The loop closure before and after `refine_views`.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct Closure {
     /// Pairs of views checked: those that close loops ([`ViewResult::agrees`]).
     pub pairs: usize,

@@ -270,6 +270,21 @@ pub fn icp(
     max_dist: f64,
     iterations: usize,
 ) -> Registration {
+    icp_facing(src, dst, init, max_dist, iterations, -1.0)
+}
+
+/// [`icp`] pairing only points whose normals agree: the cosine between a source point's normal
+/// (moved) and its partner's at least `min_cos`. A surface one cloud saw and the other did not
+/// (the underside an object stood on) then pulls on nothing, instead of on the nearest other
+/// surface facing elsewhere.
+pub fn icp_facing(
+    src: &Cloud,
+    dst: &Cloud,
+    init: Isometry3<f64>,
+    max_dist: f64,
+    iterations: usize,
+    min_cos: f64,
+) -> Registration {
     let t = tree(&dst.points);
     let mut pose = init;
     let mut result = Registration {
@@ -282,7 +297,7 @@ pub fn icp(
         let d = max_dist * (1.0 - 0.66 * it as f64 / iterations.max(1) as f64);
         let (mut ata, mut atb) = (Matrix6::zeros(), Vector6::zeros());
         let (mut sum2, mut pairs) = (0.0, 0usize);
-        for p in &src.points {
+        for (p, np) in src.points.iter().zip(&src.normals) {
             let q = pose * p;
             let nn = t.nearest_one::<SquaredEuclidean>(&[q.x, q.y, q.z]);
             if nn.distance > d * d {
@@ -290,6 +305,9 @@ pub fn icp(
             }
             let j = nn.item as usize;
             let (pd, n) = (dst.points[j], dst.normals[j]);
+            if (pose.rotation * np).dot(&n) < min_cos {
+                continue;
+            }
             let r = (q - pd).dot(&n);
             let c = q.coords.cross(&n);
             let row = Vector6::new(c.x, c.y, c.z, n.x, n.y, n.z);

@@ -33,21 +33,7 @@ pub struct MergeReport {
     /// Why the merge wrote no model, when a plausibility check refused the views.
     pub refused: Option<Refusal>,
     /// The views posed by the turntable disc, when two or more carried its pose.
-    pub disc: Option<Vec<DiscView>>,
-}
-
-/// One view of a merge posed by the turntable disc.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
-pub struct DiscView {
-    /// The view.
-    pub view: usize,
-    /// Whether the disc posed it (`false`: registered by its shape onto the disc-posed views).
-    pub by_disc: bool,
-    /// How far the joint refinement would turn it from its disc pose, degrees (disc-posed
-    /// views keep their disc pose; beyond 0.5° the merge refuses: the object moved on the disc).
-    pub moved_deg: Option<f64>,
-    /// …and moved its points' centre, mm.
-    pub moved_mm: Option<f64>,
+    pub disc: Option<Vec<crate::disc::DiscView>>,
 }
 
 /// `--sheet auto`: each thickness tried and where the views agree best.
@@ -256,10 +242,13 @@ impl MergeReport {
         if let Some(d) = &self.disc {
             let by: Vec<String> = d
                 .iter()
-                .map(|v| match (v.by_disc, v.moved_deg, v.moved_mm) {
-                    (true, Some(deg), Some(mm)) => {
-                        format!("view {} by the disc (the refinement would move it {deg:.3}° {mm:.2} mm)", v.view)
-                    }
+                .map(|v| match (v.by_disc, v.agreement) {
+                    (true, Some(a)) => format!(
+                        "view {} by the disc ({:.0} % of its points on the others')",
+                        v.view,
+                        100.0 * a
+                    ),
+                    (true, None) => format!("view {} by the disc", v.view),
                     _ => format!("view {} by its shape onto the disc-posed views", v.view),
                 })
                 .collect();
