@@ -12,7 +12,8 @@
 //! together ([`select`], [`poses`]); all views are refined together ([`refine`], [`joint`]);
 //! the result must close its loops and keep out of the space each view saw empty ([`seen`],
 //! [`free`]) or no model is written; then the views fuse into one mesh ([`fusion`], [`fuse`],
-//! [`winding`]).
+//! [`winding`]). Views that carry the turntable disc's pose are posed by it instead, and the
+//! others fitted onto them ([`disc`]).
 //!
 //! # Layers
 //! Each module uses only modules on its own line or below (`tests/tests/layers.rs` checks it):
