@@ -137,7 +137,7 @@ fn with_disc_of(from: &[u8], disc_of: &[u8]) -> Vec<u8> {
 
 #[test]
 fn a_view_that_moved_on_the_disc_is_refused() {
-    // View 2's sweep with view 3's disc pose: as if the object had turned 56° on the disc
+    // View 2's sweep with view 3's disc pose: as if the object had turned 63° on the disc
     // between the reference frame and the sweep. The merge must refuse and write no model.
     let f = fixture();
     let moved = with_disc_of(
