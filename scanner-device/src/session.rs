@@ -287,9 +287,7 @@ fn find_disc(
         .data
         .chunks_exact(bpp)
         .map(|p| match reference.format {
-            PixelFormat::Rgb24 => {
-                ((u32::from(p[0]) * 77 + u32::from(p[1]) * 150 + u32::from(p[2]) * 29) >> 8) as u8
-            }
+            PixelFormat::Rgb24 => scanner_core::colour::luma([p[0], p[1], p[2]]),
             _ => p[0],
         })
         .collect();

@@ -492,3 +492,24 @@ fn textured_objects_vary_in_colour() {
         "cylinder colours {cylinder:?}"
     );
 }
+
+#[test]
+fn turntable_scene_errors_name_the_key() {
+    let disc = "[[objects]]\nshape = \"turntable\"\npaper = \"a4\"\ncentre = [0.0, 60.0, 560.0]\n";
+    let bad = [
+        (format!("{disc}{disc}"), "turntables"),
+        (disc.replace("\"a4\"", "\"a5\""), "a4 or a3"),
+        (format!("tilt_deg = 100.0\n{disc}"), "tilt_deg"),
+        (format!("tilt_deg = nan\n{disc}"), "tilt_deg"),
+        ("[[views]]\ndisc = false\n".to_string(), "no turntable"),
+    ];
+    for (text, named) in bad {
+        let err = Scene::from_toml(&text).unwrap_err().to_string();
+        assert!(err.contains(named), "{text}: {err}");
+    }
+    // A view without the disc: the rig's truth has none there.
+    let text = format!("{disc}[[views]]\n[[views]]\nangle_deg = 90.0\ndisc = false\n");
+    let s = Scene::from_toml(&text).unwrap();
+    assert!(Rig::new(s.view(0).unwrap()).unwrap().disc_pose().is_some());
+    assert!(Rig::new(s.view(1).unwrap()).unwrap().disc_pose().is_none());
+}

@@ -470,3 +470,12 @@ fn json(path: &std::path::Path) -> serde_json::Value {
     let text = std::fs::read_to_string(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
     serde_json::from_str(&text).unwrap()
 }
+
+#[test]
+fn a_disc_of_unknown_paper_is_refused_naming_the_sizes() {
+    let (ok, _, err) = run(&["scan", "--source", "rig:64x48", "--disc", "a5"]);
+    assert!(
+        !ok && err.contains("--disc") && err.contains("a4 or a3"),
+        "{err}"
+    );
+}

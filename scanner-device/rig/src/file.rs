@@ -159,7 +159,8 @@ enum ObjectFile {
     /// objects: its centre, its print's `x` axis turned by `turn_deg` from the camera's x about
     /// the vertical.
     Turntable {
-        paper: scanner_calib::disc::Paper,
+        /// `a4` or `a3`.
+        paper: String,
         centre: [f64; 3],
         #[serde(default)]
         turn_deg: f64,
@@ -271,26 +272,32 @@ impl Scene {
                     discs.len()
                 )));
             }
-            s.turntable = discs.first().map(|&(i, o)| {
-                let ObjectFile::Turntable {
-                    paper,
-                    centre,
-                    turn_deg,
-                    ..
-                } = o.shape
-                else {
-                    unreachable!("filtered")
-                };
-                let disc = scanner_calib::disc::Disc::new(paper);
-                super::Turntable {
-                    object: i,
-                    disc,
-                    sheet: std::sync::Arc::new(disc.sheet()),
-                    pose: turntable_pose(centre, turn_deg),
-                    ink: INK,
-                    absent_in: Vec::new(),
-                }
-            });
+            s.turntable = discs
+                .first()
+                .map(|&(i, o)| {
+                    let ObjectFile::Turntable {
+                        paper,
+                        centre,
+                        turn_deg,
+                        ..
+                    } = &o.shape
+                    else {
+                        unreachable!("filtered")
+                    };
+                    Ok::<_, RigError>((i, paper_of(i, paper)?, *centre, *turn_deg))
+                })
+                .transpose()?
+                .map(|(i, paper, centre, turn_deg)| {
+                    let disc = scanner_calib::disc::Disc::new(paper);
+                    super::Turntable {
+                        object: i,
+                        disc,
+                        sheet: std::sync::Arc::new(disc.sheet()),
+                        pose: turntable_pose(centre, turn_deg),
+                        ink: INK,
+                        absent_in: Vec::new(),
+                    }
+                });
         }
         if let Some(objects) = f.objects {
             s.objects = objects
@@ -449,6 +456,13 @@ impl LaserFile {
     }
 }
 
+/// `objects[i]`'s `paper`, named in the error when it is no paper a disc is printed on.
+fn paper_of(i: usize, paper: &str) -> Result<scanner_calib::disc::Paper, RigError> {
+    paper
+        .parse()
+        .map_err(|e| RigError::Scene(format!("objects[{i}]: paper: {e}")))
+}
+
 fn positive(i: usize, what: &str, v: f64) -> Result<f64, RigError> {
     if v > 0.0 && v.is_finite() {
         Ok(v)
@@ -554,7 +568,7 @@ fn shape(i: usize, o: ObjectFile, base: &std::path::Path) -> Result<Shape, RigEr
             Shape::Disc {
                 centre: Point3::from(centre),
                 axes: [pose.rotation * Vector3::x(), pose.rotation * Vector3::y()],
-                radius: scanner_calib::disc::Disc::new(paper).radius,
+                radius: scanner_calib::disc::Disc::new(paper_of(i, &paper)?).radius,
             }
         }
         ObjectFile::Plane {
