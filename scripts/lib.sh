@@ -42,10 +42,20 @@ apt_install() {
     if [ "$(id -u)" -ne 0 ]; then
         if command -v sudo >/dev/null && sudo -n true 2>/dev/null; then
             sudo="sudo"
+        elif command -v sudo >/dev/null && [ -t 0 ] && [ -z "${CI:-}" ]; then
+            # A terminal: ask for the password rather than refuse.
+            echo "setup: installing $* ($why): sudo may ask for your password" >&2
+            if sudo -v; then
+                sudo="sudo"
+            else
+                echo "setup: sudo was refused; install them yourself with:" >&2
+                echo "    sudo apt-get update && sudo apt-get install -y $*" >&2
+                return 1
+            fi
         else
             echo "setup: missing system package(s): $* ($why)." >&2
-            echo "setup: this user is not root and cannot use sudo; ask an administrator to run:" >&2
-            echo "    apt-get update && apt-get install -y $*" >&2
+            echo "setup: this user is not root and sudo cannot ask here (no terminal); run:" >&2
+            echo "    sudo apt-get update && sudo apt-get install -y $*" >&2
             return 1
         fi
     fi

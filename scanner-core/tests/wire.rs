@@ -3,8 +3,9 @@
 
 use proptest::prelude::*;
 use scanner_core::wire::{
-    CameraBlock, Decoder, EndReason, Header, MAX_ENCODED, MAX_FRAME, Message, PlaneBlock,
-    PlaneMethod, Points, Status, WireError, encode, points,
+    CameraBlock, Decoder, EndReason, Header, MAX_ENCODED, MAX_FRAME, Message, Notice, NoticeKind,
+    PREVIEW_MAX_PIXELS, PlaneBlock, PlaneMethod, Points, Preview, PreviewState, Status, WireError,
+    decode_frame, encode, points,
 };
 
 fn header() -> Header {
@@ -380,4 +381,82 @@ fn the_uncertainty_code_spans_a_micrometre_to_63_mm_in_steps_of_4_percent() {
         let back = uncertainty_mm(uncertainty_code(mm));
         assert!((back / mm - 1.0).abs() <= 0.022, "{mm} → {back}");
     }
+}
+
+/// The largest preview the limits allow.
+fn preview<'a>(pixels: &'a [u8], markers: &'a [u8], stripe: &'a [u8]) -> Preview<'a> {
+    Preview {
+        scan_id: 9,
+        frame: 30,
+        width: 160,
+        height: 120,
+        scale: 8,
+        pixels,
+        markers,
+        axis: 0,
+        stripe,
+        clipped_permille: 12,
+        laser_dn: 66,
+        state: PreviewState::Skipped,
+        skip: 1,
+        points: 0,
+    }
+}
+
+/// Notices and previews round-trip; a preview that breaks its limits (pixels not its size, an
+/// odd marker list, a stripe of another length, a skip reason out of range) or a notice of an
+/// unknown kind is dropped as a bad payload, not misread.
+#[test]
+fn notices_and_previews_round_trip_and_bad_ones_are_refused() {
+    let pixels: Vec<u8> = (0..PREVIEW_MAX_PIXELS).map(|i| (i % 256) as u8).collect();
+    let markers: Vec<u8> = (0..512).map(|i| (i % 160) as u8).collect();
+    let stripe: Vec<u8> = (0..160)
+        .map(|i| if i % 7 == 0 { 255 } else { 60 })
+        .collect();
+    let good = [
+        Message::Notice(Notice {
+            scan_id: 9,
+            kind: NoticeKind::SwitchLaserOn,
+            seconds: 60,
+        }),
+        Message::Preview(preview(&pixels, &markers, &stripe)),
+    ];
+    for m in &good {
+        let mut bytes = frame_bytes(m);
+        assert!(bytes.len() <= MAX_ENCODED);
+        let n = bytes.len();
+        assert_eq!(decode_frame(&mut bytes[1..n - 1]), Ok(*m));
+    }
+    let short = &pixels[..pixels.len() - 1];
+    let odd = &markers[..3];
+    let long = &stripe[..100];
+    let bad = [
+        preview(short, &markers, &stripe),
+        preview(&pixels, odd, &stripe),
+        preview(&pixels, &markers, long),
+        Preview {
+            skip: 6,
+            ..preview(&pixels, &markers, &stripe)
+        },
+        Preview {
+            width: 161,
+            ..preview(&pixels, &markers, &stripe)
+        },
+    ];
+    for p in bad {
+        assert!(!p.is_consistent());
+        let mut bytes = frame_bytes(&Message::Preview(p));
+        let n = bytes.len();
+        assert_eq!(
+            decode_frame(&mut bytes[1..n - 1]),
+            Err(WireError::BadPayload)
+        );
+    }
+    // A notice's kind byte set to 9: refused.
+    let mut body = body_of(&good[0]);
+    let at = body.len() - 2;
+    assert_eq!(body[at], NoticeKind::SwitchLaserOn as u8);
+    body[at] = 9;
+    assert!(postcard::from_bytes::<Message>(&body).is_err());
+    assert_eq!(NoticeKind::try_from(3u8), Ok(NoticeKind::NoLaser));
 }

@@ -4,10 +4,11 @@
 //! Where it sits: `camera ─► [scanner-device: source → session (scanner-core per frame) → link]
 //! ─► host`. Frame sources ([`source`]: V4L2 cameras, image folders, and with the `rig` feature
 //! the virtual rig), the scan session ([`session`]: the per-frame pipeline of `scanner-core` and
-//! the wire messages), the link to the host ([`link`]) and the command line ([`cli`]: scan,
-//! and the calibration and rig commands, which call `scanner-calib` and `scanner-rig`).
+//! the wire messages), the preview for aiming ([`preview`]: thumbnails with what the head finds
+//! in them), the link to the host ([`link`]) and the command line ([`cli`]: scan, preview, and
+//! the calibration and rig commands, which call `scanner-calib` and `scanner-rig`).
 //!
-//! The arrows run one way: `cli` → `session` → `source`, `link` → `scanner-core`; `cli` →
+//! The arrows run one way: `cli` → `preview` → `session` → `source`, `link` → `scanner-core`; `cli` →
 //! `scanner-calib` (and `scanner-rig` with the feature). Nothing here is imported by the crates
 //! it uses.
 //!
@@ -15,6 +16,7 @@
 //! Each module uses only modules on its own line or below (`tests/tests/layers.rs` checks it):
 //! ```text
 //! cli
+//! preview
 //! session
 //! source  link
 //! ```
@@ -37,6 +39,7 @@ pub fn error_chain(e: &dyn std::error::Error) -> String {
 
 pub mod cli;
 pub mod link;
+pub mod preview;
 pub mod session;
 pub mod source;
 

@@ -9,7 +9,17 @@ fn main() -> ExitCode {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
             scanner_device::errln!("scanner-device: error: {e:#}");
-            ExitCode::FAILURE
+            let never_on = e.chain().any(|c| {
+                matches!(
+                    c.downcast_ref::<scanner_device::session::SessionError>(),
+                    Some(scanner_device::session::SessionError::LaserNeverOn { .. })
+                )
+            });
+            if never_on {
+                ExitCode::from(scanner_device::session::EXIT_NO_LASER)
+            } else {
+                ExitCode::FAILURE
+            }
         }
     }
 }

@@ -9,11 +9,17 @@ use scanner_core::geometry::Board;
 use scanner_core::pipeline::{Head, HeadConfig};
 use scanner_core::stripe::PixelFormat;
 use scanner_core::wire::{
-    self, Controls, DiscFound, DiscPose, Header, Message, Planes, Points, Skip, Status,
+    self, Controls, DiscFound, DiscPose, Header, Message, Notice, NoticeKind, Planes, Points, Skip,
+    Status,
 };
 
 use crate::link::Link;
 use crate::source::{FrameSource, OwnedFrame};
+
+/// The binary's exit status when the laser never appeared after the reference
+/// ([`SessionError::LaserNeverOn`]): a service manager told not to restart on it
+/// (`RestartPreventExitStatus=3`) waits for the operator instead of looping.
+pub const EXIT_NO_LASER: u8 = 3;
 
 /// Most lines (columns or rows) per frame the head handles.
 pub const MAX_LINES: usize = scanner_core::config::MAX_LINES;
@@ -63,9 +69,18 @@ pub enum SessionError {
     /// The reference frame could not be read.
     #[error("the laser-off reference frame")]
     Reference(#[source] SourceError),
-    /// The laser never appeared after the reference (or the wait was stopped).
+    /// The wait for the laser after the reference was stopped, or the source ended or failed.
     #[error("{0}")]
     NoLaser(String),
+    /// The laser did not appear within the wait after the reference (the binary's exit status
+    /// is then [`EXIT_NO_LASER`], so that a service does not restart in a loop).
+    #[error(
+        "no laser seen within {seconds} s after the reference: switch the laser on when told, or give --wait-for-laser more seconds"
+    )]
+    LaserNeverOn {
+        /// The wait, seconds.
+        seconds: u64,
+    },
     /// The first laser frame could not be read.
     #[error("the first laser frame")]
     FirstFrame(#[source] SourceError),
@@ -80,7 +95,7 @@ pub enum SessionError {
     Link(#[from] crate::link::LinkError),
 }
 
-type Result<T, E = SessionError> = std::result::Result<T, E>;
+pub(crate) type Result<T, E = SessionError> = std::result::Result<T, E>;
 
 /// What the head needs of a calibration: the camera, the board, and the image size both were
 /// calibrated at.
@@ -276,24 +291,41 @@ impl DiscOutcome {
     }
 }
 
+/// A frame's luma as an image (the first byte of a gray or YUYV pixel, BT.601 of an RGB one);
+/// `None` for a buffer that does not match its size.
+pub(crate) fn luma_image(frame: &OwnedFrame) -> Option<image::GrayImage> {
+    let bpp = frame.format.bytes_per_pixel();
+    let luma: Vec<u8> = frame
+        .data
+        .chunks_exact(bpp)
+        .map(|p| match frame.format {
+            PixelFormat::Rgb24 => scanner_core::colour::luma([p[0], p[1], p[2]]),
+            _ => p[0],
+        })
+        .collect();
+    image::GrayImage::from_raw(frame.width as u32, frame.height as u32, luma)
+}
+
+/// Sends a prompt for the operator (waiting for the link: it must arrive).
+///
+/// # Errors
+/// The link failed.
+pub(crate) fn prompt(link: &mut Link, scan_id: u32, kind: NoticeKind, seconds: u64) -> Result<()> {
+    let n = Notice {
+        scan_id,
+        kind,
+        seconds: u16::try_from(seconds).unwrap_or(u16::MAX),
+    };
+    encode_to_link(link, &mut [0; 64], &Message::Notice(n), true).map(|_| ())
+}
+
 /// Looks for `disc` in the laser-off reference frame (its luma).
 fn find_disc(
     reference: &OwnedFrame,
     disc: &scanner_calib::disc::Disc,
     camera: &scanner_core::Camera<f64>,
 ) -> DiscOutcome {
-    let bpp = reference.format.bytes_per_pixel();
-    let luma: Vec<u8> = reference
-        .data
-        .chunks_exact(bpp)
-        .map(|p| match reference.format {
-            PixelFormat::Rgb24 => scanner_core::colour::luma([p[0], p[1], p[2]]),
-            _ => p[0],
-        })
-        .collect();
-    let Some(img) =
-        image::GrayImage::from_raw(reference.width as u32, reference.height as u32, luma)
-    else {
+    let Some(img) = luma_image(reference) else {
         return DiscOutcome::Missed(scanner_calib::disc::DiscMiss::TooFewMarkers {
             found: 0,
             of: disc.layout().len(),
@@ -559,7 +591,7 @@ impl Session {
 
 /// Encodes `msg` into a free link buffer (waiting for one if `must`) and queues it; its length,
 /// or `None` when every buffer is busy. The one place messages become link bytes.
-fn encode_to_link(
+pub(crate) fn encode_to_link(
     link: &mut Link,
     scratch: &mut [u8],
     msg: &Message,
@@ -616,11 +648,28 @@ pub fn run_scan_until(
     mut progress: impl FnMut(&Status),
     mut on_points: impl FnMut(u32, &[[i32; 3]]),
 ) -> Result<ScanReport> {
+    // The prompts go to the host too (a head under systemd has no terminal anyone reads).
+    let id = opts.scan_id;
+    let waits = stop.wait_for_laser;
+    if waits.is_some() {
+        prompt(link, id, NoticeKind::TakingReference, 0)?;
+    }
     let reference = source.reference().map_err(SessionError::Reference)?;
     let mut first = None;
-    if let Some(limit) = stop.wait_for_laser {
-        first =
-            Some(wait_for_laser(source, &reference, limit, stop).map_err(SessionError::NoLaser)?);
+    if let Some(limit) = waits {
+        let seconds = limit.as_secs_f64().ceil() as u64;
+        prompt(link, id, NoticeKind::SwitchLaserOn, seconds)?;
+        match wait_for_laser(source, &reference, limit, stop) {
+            Ok(frame) => {
+                prompt(link, id, NoticeKind::LaserSeen, 0)?;
+                first = Some(frame);
+            }
+            Err(Waited::TimedOut) => {
+                prompt(link, id, NoticeKind::NoLaser, seconds)?;
+                return Err(SessionError::LaserNeverOn { seconds });
+            }
+            Err(Waited::Ended(why)) => return Err(SessionError::NoLaser(why)),
+        }
     }
     let mut opts = opts;
     // The first laser frame tells which way the stripe runs: the scan reads it that way when
@@ -685,6 +734,14 @@ pub fn truth_calibration(rig: &scanner_rig::Rig) -> Calibration {
     }
 }
 
+/// Why [`wait_for_laser`] came back without the laser.
+enum Waited {
+    /// The wait ran out.
+    TimedOut,
+    /// The operator stopped it, or the source ended or failed (the text says which).
+    Ended(String),
+}
+
 /// Takes frames until one shows the laser against the reference (on more than
 /// [`crate::source::LASER_LINES`] of its lines, as the reference check counts), up to `limit`;
 /// that frame, or why none came.
@@ -693,27 +750,28 @@ fn wait_for_laser(
     reference: &OwnedFrame,
     limit: std::time::Duration,
     stop: &StopWhen,
-) -> std::result::Result<OwnedFrame, String> {
+) -> std::result::Result<OwnedFrame, Waited> {
     crate::errln!("waiting for the laser (switch it on and sweep)…");
     let t0 = Instant::now();
     loop {
         if t0.elapsed() > limit {
-            return Err(format!(
-                "no laser seen within {:.0} s after the reference",
-                limit.as_secs_f64()
-            ));
+            return Err(Waited::TimedOut);
         }
         if let Some(why) = stop.reason(0, std::time::Duration::ZERO) {
-            return Err(why);
+            return Err(Waited::Ended(why));
         }
         let frame = match source.next_frame() {
             Ok(Some(f)) => f,
-            Ok(None) => return Err("the source ended before the laser appeared".into()),
+            Ok(None) => {
+                return Err(Waited::Ended(
+                    "the source ended before the laser appeared".into(),
+                ));
+            }
             Err(e) => {
-                return Err(format!(
+                return Err(Waited::Ended(format!(
                     "the source failed while waiting for the laser: {}",
                     crate::error_chain(&e)
-                ));
+                )));
             }
         };
         if let Some((lines, total)) = crate::source::stripe_lines(&frame, reference)

@@ -48,7 +48,11 @@ fn decode(bytes: &[u8]) -> Decoded {
                 frames.insert(p.frame, v);
             }
             Message::Status(s) => last = Some(s),
-            Message::Controls(_) | Message::Planes(_) | Message::Disc(_) => {}
+            Message::Controls(_)
+            | Message::Planes(_)
+            | Message::Disc(_)
+            | Message::Notice(_)
+            | Message::Preview(_) => {}
         });
     }
     (frames, headers, last, d.stats())

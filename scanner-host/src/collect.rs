@@ -8,8 +8,8 @@ use scanner_core::nalgebra::{
     Isometry3, Point3, Quaternion, Translation3, UnitQuaternion, Vector3,
 };
 use scanner_core::wire::{
-    Controls, DecodeStats, Decoder, DiscFound, DiscPose, Header, MAX_ENCODED, Message, Planes,
-    SKIP_REASONS, Status, points,
+    Controls, DecodeStats, Decoder, DiscFound, DiscPose, Header, MAX_ENCODED, Message, Notice,
+    Planes, PreviewState, SKIP_REASONS, Status, points,
 };
 use scanner_core::{Camera, GeomError};
 
@@ -98,6 +98,44 @@ pub struct Counts {
     pub discs: BTreeMap<u32, DiscPose>,
     /// Capture time span of the points, µs (first, last).
     pub time_us: Option<(u64, u64)>,
+    /// The head's prompts and events, in order (the latest [`MAX_NOTICES`]).
+    pub notices: VecDeque<Notice>,
+    /// Preview pictures received (`scanner-device preview`).
+    pub previews: u64,
+}
+
+/// Notices kept in [`Counts::notices`] (a head repeats none; this bounds a hostile stream).
+pub const MAX_NOTICES: usize = 64;
+
+/// A preview picture as received ([`scanner_core::wire::Preview`], owned).
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct PreviewImage {
+    /// Its session.
+    pub scan_id: u32,
+    /// The frame's number.
+    pub frame: u32,
+    /// Thumbnail width and height, pixels.
+    pub size: (u16, u16),
+    /// Camera pixels per thumbnail pixel.
+    pub scale: u16,
+    /// Luma, row by row.
+    pub pixels: Vec<u8>,
+    /// The dark dots found, thumbnail pixels.
+    pub markers: Vec<[u8; 2]>,
+    /// `true`: [`PreviewImage::stripe`] has one entry per row (a vertical line).
+    pub rows: bool,
+    /// The laser line's position along each thumbnail column (or row), 255 where none.
+    pub stripe: Vec<u8>,
+    /// Clipped pixels, per mille.
+    pub clipped_permille: u16,
+    /// The laser's light over the reference, DN.
+    pub laser_dn: u16,
+    /// What a scan would make of the frame.
+    pub state: PreviewState,
+    /// With [`PreviewState::Skipped`], why.
+    pub skip: Option<scanner_core::wire::Skip>,
+    /// With [`PreviewState::Points`], how many.
+    pub points: u16,
 }
 
 impl Counts {
@@ -147,6 +185,10 @@ struct State {
     /// Moves each frame's points to where the sheet's middle crosses the surface (a second pass
     /// over a scan, see [`crate::sheet`]), and how many it moved.
     sheet: Option<(crate::sheet::Correction, u64)>,
+    /// The latest preview picture not yet taken.
+    preview: Option<PreviewImage>,
+    /// Notices not yet taken.
+    fresh_notices: Vec<Notice>,
 }
 
 /// One accepted frame's points (camera frame, mm) and colours (empty: none), for a live view.
@@ -199,6 +241,16 @@ impl Collector {
     /// Keeps each accepted frame's points for [`Collector::take_watched`] from now on.
     pub fn watch(&mut self) {
         self.state.watched.get_or_insert_with(Vec::new);
+    }
+
+    /// The latest preview picture since the last call.
+    pub fn take_preview(&mut self) -> Option<PreviewImage> {
+        self.state.preview.take()
+    }
+
+    /// The head's notices since the last call, in order.
+    pub fn take_notices(&mut self) -> Vec<Notice> {
+        std::mem::take(&mut self.state.fresh_notices)
     }
 
     /// The frames accepted since the last call (empty unless [`Collector::watch`]ed).
@@ -301,6 +353,8 @@ impl State {
             watched: None,
             pencil: crate::sheet::Pencil::default(),
             sheet: None,
+            preview: None,
+            fresh_notices: Vec::new(),
         }
     }
 
@@ -335,6 +389,39 @@ impl State {
             Message::Disc(d) => {
                 self.counts.scans.insert(d.scan_id);
                 self.counts.discs.insert(d.scan_id, *d);
+            }
+            Message::Notice(n) => {
+                if self.counts.notices.len() == MAX_NOTICES {
+                    self.counts.notices.pop_front();
+                }
+                self.counts.notices.push_back(*n);
+                if self.fresh_notices.len() < MAX_NOTICES {
+                    self.fresh_notices.push(*n);
+                }
+            }
+            Message::Preview(p) => {
+                self.counts.previews += 1;
+                self.preview = Some(PreviewImage {
+                    scan_id: p.scan_id,
+                    frame: p.frame,
+                    size: (p.width, p.height),
+                    scale: p.scale,
+                    pixels: p.pixels.to_vec(),
+                    markers: p.markers.chunks_exact(2).map(|m| [m[0], m[1]]).collect(),
+                    rows: p.axis == 1,
+                    stripe: p.stripe.to_vec(),
+                    clipped_permille: p.clipped_permille,
+                    laser_dn: p.laser_dn,
+                    state: p.state,
+                    skip: (p.state == PreviewState::Skipped)
+                        .then(|| {
+                            scanner_core::wire::Skip::ALL
+                                .get(usize::from(p.skip))
+                                .copied()
+                        })
+                        .flatten(),
+                    points: p.points,
+                });
             }
             Message::Points(p) => {
                 if !self.seen.insert((p.scan_id, p.frame)) {

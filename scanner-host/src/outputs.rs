@@ -4,7 +4,7 @@
 use std::io::{Read, Seek};
 use std::path::Path;
 
-use scanner_core::wire::{Control, Header, Skip};
+use scanner_core::wire::{Control, Header, NoticeKind, Skip};
 
 use crate::collect::{CollectError, CollectOptions, Collector, Counts};
 use crate::export::{self, ExportError};
@@ -128,6 +128,16 @@ impl Summary {
                 s += "warning: a control the difference image needs fixed was refused: the picture may drift between the reference and the laser frames\n";
             }
         }
+        if c.previews > 0 && self.vertices == 0 {
+            s += &format!(
+                "a preview session: {} pictures, no points, no meshes\n",
+                c.previews
+            );
+            for n in &c.notices {
+                s += &format!("head: {n}\n");
+            }
+            return s;
+        }
         s += &format!("meshes in the {}\n", self.frame);
         s += &match self.uncertainty {
             Some((median, p95)) => format!(
@@ -140,6 +150,12 @@ impl Summary {
                 "laser sheet (--sheet): {moved} of {} points moved to where its middle crosses the surface\n",
                 c.points
             );
+        }
+        for n in &c.notices {
+            s += &format!("head: {n}\n");
+        }
+        if c.previews > 0 {
+            s += &format!("{} preview pictures received\n", c.previews);
         }
         let skipped = c.skipped();
         for r in Skip::ALL {
@@ -198,6 +214,38 @@ pub struct SummaryData {
     pub sheet_moved: Option<u64>,
     /// Frames the head skipped, by reason (reasons with none left out).
     pub skipped: Vec<SkippedData>,
+    /// Preview pictures received (`scanner-device preview`).
+    pub previews: u64,
+    /// The head's prompts and events, in order.
+    pub notices: Vec<NoticeData>,
+}
+
+/// One prompt or event of the head.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct NoticeData {
+    /// The scan.
+    pub scan: u32,
+    /// `taking_reference`, `switch_laser_on`, `laser_seen` or `no_laser`.
+    pub kind: &'static str,
+    /// What the head said.
+    pub text: String,
+}
+
+/// The notices of `c` as data.
+fn notice_data(c: &Counts) -> Vec<NoticeData> {
+    c.notices
+        .iter()
+        .map(|n| NoticeData {
+            scan: n.scan_id,
+            kind: match n.kind {
+                NoticeKind::TakingReference => "taking_reference",
+                NoticeKind::SwitchLaserOn => "switch_laser_on",
+                NoticeKind::LaserSeen => "laser_seen",
+                NoticeKind::NoLaser => "no_laser",
+            },
+            text: n.to_string(),
+        })
+        .collect()
 }
 
 /// One camera control of one scan, as its head reported it.
@@ -311,6 +359,8 @@ impl Summary {
                     frames: skipped[r as usize],
                 })
                 .collect(),
+            previews: c.previews,
+            notices: notice_data(c),
         }
     }
 }
@@ -370,6 +420,9 @@ pub fn write_outputs(
         source,
     })?;
     let counts = c.counts();
+    if c.header().is_none() && counts.previews > 0 {
+        return preview_summary(counts, dir);
+    }
     let (Some(grid), Some(header)) = (c.grid(), c.header()) else {
         let e = OutputError::NoHeader {
             bytes: counts.decode.bytes,
@@ -386,6 +439,7 @@ pub fn write_outputs(
             "bytes": counts.decode.bytes,
             "frames": counts.decode.frames,
             "rejected": counts.decode.rejected(),
+            "notices": notice_data(&counts),
         });
         export::write_atomic(&dir.join("summary.json"), failed.to_string().as_bytes())?;
         export::write_atomic(&dir.join("summary.txt"), e.to_string().as_bytes())?;
@@ -426,6 +480,32 @@ pub fn write_outputs(
         frame: m.frame.describe(),
         uncertainty: quantiles(&m.quality),
         sheet_moved: c.sheet_corrected(),
+    };
+    let json = serde_json::to_vec_pretty(&summary.data()).map_err(|e| ExportError::Write {
+        path: dir.join("summary.json"),
+        source: std::io::Error::other(e),
+    })?;
+    export::write_atomic(&dir.join("summary.json"), &json)?;
+    export::write_atomic(&dir.join("summary.txt"), summary.text().as_bytes())?;
+    Ok(summary)
+}
+
+/// The summary of a preview session (`scanner-device preview`: pictures, no points, so no
+/// mesh): the counts, with every mesh figure zero; meshes of an earlier run in `dir` go.
+fn preview_summary(counts: Counts, dir: &Path) -> Result<Summary, OutputError> {
+    for f in OUTPUT_FILES {
+        let _ = std::fs::remove_file(dir.join(f));
+    }
+    let summary = Summary {
+        counts,
+        vertices: 0,
+        faces: 0,
+        coverage: 0.0,
+        point_rate: 0.0,
+        outliers: 0,
+        frame: "none: a preview session sends pictures, no points".into(),
+        uncertainty: None,
+        sheet_moved: None,
     };
     let json = serde_json::to_vec_pretty(&summary.data()).map_err(|e| ExportError::Write {
         path: dir.join("summary.json"),

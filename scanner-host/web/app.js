@@ -210,7 +210,71 @@ function showStatus(s) {
   }));
   $('skipped-total').textContent = fmt(s.skipped.reduce((a, r) => a + r.frames, 0));
   $('hint').textContent = s.hint || '';
+  $('notice').textContent = s.notice || '';
   document.body.dataset.fps = String(s.fps);
+}
+
+// A preview picture: the thumbnail, the dots as rings, the laser line in red.
+let previews = 0;
+function showPreview(p) {
+  $('preview-box').hidden = false;
+  $('scan-figures').hidden = true;
+  $('title').textContent = 'Preview';
+  const c = $('preview');
+  const zoom = 3;
+  c.width = p.width * zoom;
+  c.height = p.height * zoom;
+  const g = c.getContext('2d');
+  const img = g.createImageData(p.width, p.height);
+  const luma = atob(p.pixels);
+  for (let i = 0; i < p.width * p.height; i++) {
+    const v = luma.charCodeAt(i);
+    img.data[4 * i] = v;
+    img.data[4 * i + 1] = v;
+    img.data[4 * i + 2] = v;
+    img.data[4 * i + 3] = 255;
+  }
+  // Drawn at the thumbnail's size, then scaled up: the marks stay sharp on top.
+  const small = document.createElement('canvas');
+  small.width = p.width;
+  small.height = p.height;
+  small.getContext('2d').putImageData(img, 0, 0);
+  g.imageSmoothingEnabled = false;
+  g.drawImage(small, 0, 0, c.width, c.height);
+  g.strokeStyle = '#4cc9f0';
+  g.lineWidth = 1.5;
+  for (const [x, y] of p.markers) {
+    g.beginPath();
+    g.arc((x + 0.5) * zoom, (y + 0.5) * zoom, 2.5 * zoom, 0, 2 * Math.PI);
+    g.stroke();
+  }
+  g.fillStyle = '#ff3b3b';
+  let lit = 0;
+  p.stripe.forEach((at, i) => {
+    if (at === 255) return;
+    lit++;
+    const [x, y] = p.rows ? [at, i] : [i, at];
+    g.fillRect(x * zoom, y * zoom, zoom, zoom);
+  });
+  $('preview-dots').textContent = fmt(p.markers.length);
+  $('preview-laser').textContent = lit > 0 ? '+' + p.laser_dn + ' DN' : 'no line found';
+  $('preview-clipped').textContent = p.clipped_percent.toFixed(1) + ' %';
+  const states = {
+    points: 'takes ' + p.points + ' points',
+    skipped: 'skips it',
+    no_calibration: 'needs --calibration to tell',
+    laser_in_reference: 'waits for a laser-off reference',
+  };
+  $('preview-state').textContent = states[p.state] || p.state;
+  $('preview-why').textContent = [p.skip, p.hint].filter(Boolean).join(': ');
+  previews++;
+  Object.assign(document.body.dataset, {
+    previews: String(previews),
+    previewDots: String(p.markers.length),
+    previewLit: String(lit),
+    previewState: p.state,
+    previewSkip: p.skip || '',
+  });
 }
 
 async function showFinished(s) {
@@ -234,6 +298,10 @@ async function showFinished(s) {
     }
   }
   $('meshinfo').textContent = s.failed ? '' : fmt(s.vertices) + ' vertices, ' + fmt(s.faces) + ' triangles';
+  if (previews > 0 && !(s.faces > 0)) {
+    $('done-title').textContent = 'Preview ended';
+    $('meshinfo').textContent = '';
+  }
   $('finished').hidden = false;
   document.body.dataset.downloads = String(links.children.length);
   if (s.faces > 0) {
@@ -298,6 +366,7 @@ function connect() {
     }
     const s = JSON.parse(e.data);
     if (s.type === 'status') showStatus(s);
+    if (s.type === 'preview') showPreview(s);
     if (s.type === 'done') {
       done = true;
       showFinished(s);

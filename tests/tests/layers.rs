@@ -602,7 +602,7 @@ fn problems(name: &str, root: &Path) -> Vec<String> {
     out
 }
 
-/// The layers the README's layout table gives the crate in folder `folder`: its row
+/// The layers the layout table of docs/architecture.md gives the crate in folder `folder`: its row
 /// `` | `folder` | … | a → b, c → d | `` (the last cell: layers top first, modules of a layer
 /// split by commas).
 fn readme_layers(readme: &str, folder: &str) -> Option<Vec<Vec<String>>> {
@@ -623,11 +623,11 @@ fn readme_layers(readme: &str, folder: &str) -> Option<Vec<Vec<String>>> {
     )
 }
 
-/// The README's layout table states every crate's layers as its root file does.
+/// The layout table of docs/architecture.md states every crate's layers as its root file does.
 #[test]
 fn the_readmes_layout_table_states_each_crates_layers() {
     let root = Path::new(env!("CARGO_MANIFEST_DIR")).parent().unwrap();
-    let readme = std::fs::read_to_string(root.join("README.md")).unwrap();
+    let readme = std::fs::read_to_string(root.join("docs/architecture.md")).unwrap();
     let mut wrong = Vec::new();
     for (name, file) in crates() {
         let Some(stated) = layers(&std::fs::read_to_string(&file).unwrap()) else {
@@ -647,8 +647,12 @@ fn the_readmes_layout_table_states_each_crates_layers() {
         };
         match readme_layers(&readme, folder) {
             Some(table) if sorted(&table) == sorted(&stated) => {}
-            Some(table) => wrong.push(format!("{folder}: README {table:?}, {name} {stated:?}")),
-            None => wrong.push(format!("{folder}: no row in the README's layout table")),
+            Some(table) => wrong.push(format!(
+                "{folder}: docs/architecture.md {table:?}, {name} {stated:?}"
+            )),
+            None => wrong.push(format!(
+                "{folder}: no row in the layout table of docs/architecture.md"
+            )),
         }
     }
     assert!(wrong.is_empty(), "{}", wrong.join("\n"));

@@ -579,3 +579,86 @@ fn a_port_in_use_is_named() {
         "the error names the address: {e}"
     );
 }
+
+/// `scanner-device preview` of a set-up the head cannot scan: the laser held at the camera, so
+/// that every frame's light plane passes through it. The page shows the thumbnails, the board's
+/// dots drawn on them, the line, and why a scan would skip the frame.
+#[test]
+fn the_preview_shows_the_picture_the_dots_and_why_a_scan_would_skip() {
+    let Some(exe) = chromium() else { return };
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let text = "width = 400\nheight = 300\n\n[laser]\nframes = 40\nsource = [0.0, 0.0, 0.0]\n";
+    std::fs::write(d.join("scene.toml"), text).unwrap();
+    let rig = scanner_rig::Rig::new(scanner_rig::Scene::from_toml_in(text, d).unwrap()).unwrap();
+    rig.truth_calibration()
+        .save(&d.join("calibration.toml"))
+        .unwrap();
+    let stream = d.join("preview.stream");
+    let (ok, _, err) = scanner_tests::run(
+        bin("scanner-device").to_str().unwrap(),
+        &[
+            "preview",
+            "--source",
+            "rig",
+            "--scene",
+            d.join("scene.toml").to_str().unwrap(),
+            "--calibration",
+            d.join("calibration.toml").to_str().unwrap(),
+            "--every",
+            "10",
+            "--quiet",
+            "--out",
+            stream.to_str().unwrap(),
+        ],
+    );
+    assert!(ok, "{err}");
+    let live = d.join("live");
+    let (host, _lines, url, port) = live_host(&live, &["--view"]);
+    let mut b = Browser::launch(&exe);
+    b.navigate(&url);
+    assert!(b.wait_for(CONNECTED, Duration::from_secs(30)));
+    let writer = stream_into(&port, &stream, 8, Duration::from_millis(250));
+    assert!(
+        b.wait_for(
+            "Number(document.body.dataset.previews) >= 2",
+            Duration::from_secs(60)
+        ),
+        "thumbnails arrived: {}",
+        b.eval("document.body.dataset.previews || '0'")
+    );
+    writer.join().unwrap();
+    let dots = b.eval("Number(document.body.dataset.previewDots)");
+    let lit = b.eval("Number(document.body.dataset.previewLit)");
+    let state = b.eval("document.body.dataset.previewState");
+    let skip = b.eval("document.body.dataset.previewSkip");
+    let shown = b.eval("document.getElementById('preview-why').textContent");
+    assert!(
+        dots.as_u64().is_some_and(|n| n >= 8),
+        "the board's dots: {dots}"
+    );
+    assert!(lit.as_u64().is_some_and(|n| n >= 40), "the line: {lit}");
+    assert_eq!(state, "skipped");
+    let reason = scanner_core::wire::Skip::PlaneThroughCamera.name();
+    assert_eq!(skip, reason);
+    assert!(
+        shown.as_str().is_some_and(|s| s.contains(reason)),
+        "the reason is on the page: {shown}"
+    );
+    // The dots are drawn: rings of their colour (#4cc9f0) on the thumbnail.
+    let shot = b.screenshot();
+    let rings = shot
+        .pixels()
+        .filter(|p| {
+            let [r, g, bl] = p.0;
+            r < 120 && g > 150 && bl > 180 && (i32::from(bl) - i32::from(r)) > 100
+        })
+        .count();
+    assert!(rings > 100, "rings drawn on the thumbnail: {rings} pixels");
+    let shots = shots_dir(d);
+    std::fs::create_dir_all(&shots).unwrap();
+    shot.save(shots.join("live-view-preview.png")).unwrap();
+    interrupt(host);
+    let summary = scanner_tests::summary(&live);
+    assert_eq!(summary["previews"], 4, "{summary}");
+}

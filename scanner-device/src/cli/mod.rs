@@ -2,6 +2,7 @@
 
 pub mod calibrate;
 pub mod capture;
+pub mod preview;
 #[cfg(feature = "rig")]
 pub mod render;
 pub mod report;
@@ -98,6 +99,11 @@ pub enum Command {
     Capture(capture::CaptureArgs),
     /// Scan: frames from the source through the pipeline to point packets on the link.
     Scan(scan::ScanArgs),
+    /// Preview: the camera's picture about once a second with what the head finds in it (the
+    /// board's dots, the laser line, clipped pixels, the laser's margin, and with a calibration
+    /// what a scan would skip and why), on the link for the host's page: aim, focus and set the
+    /// exposure before a scan.
+    Preview(preview::PreviewArgs),
     /// List the V4L2 cameras with their formats and sizes.
     Devices,
 }
@@ -176,6 +182,9 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
             if let Some(e) = done.ended_early {
                 anyhow::bail!("{e}");
             }
+        }
+        Some(Command::Preview(a)) => {
+            preview::preview(a)?;
         }
         Some(Command::Capture(a)) => capture::capture(a)?,
         Some(Command::Devices) => scan::devices(),

@@ -339,14 +339,63 @@ pub fn scan(a: &ScanArgs) -> Result<ScanReport> {
 /// # Errors
 /// A bad option, an unreadable or unsuitable calibration, a source or link that cannot open.
 pub fn plan(a: &ScanArgs) -> Result<ScanPlan> {
-    if let Some(f) = &a.camera.fourcc {
-        CameraFormat::parse(f)?;
-    }
-    let Some(cal_path) = &a.calibration else {
+    if a.calibration.is_none() {
+        if let Some(f) = &a.camera.fourcc {
+            CameraFormat::parse(f)?;
+        }
         bail!(
             "no calibration: give --calibration FILE (from `scanner-device calibrate board`; for the virtual rig, `render-calibration` writes truth-calibration.toml)"
         );
+    }
+    let o = open(a)?;
+    let Some(calibration) = o.calibration else {
+        unreachable!("a calibration was given and read");
     };
+    let options = ScanOptions {
+        head: o.head,
+        find_axis: o.find_axis,
+        disc: a.disc.map(scanner_calib::disc::Disc::new),
+        header_every: 30,
+        status_every: 30,
+        scan_id: o.scan_id,
+    };
+    Ok(ScanPlan {
+        stop: o.stop,
+        source: o.source,
+        calibration,
+        options,
+        link: o.link,
+        quiet: a.quiet,
+    })
+}
+
+/// What `scan` and `preview` open alike: the source, the calibration when given, the
+/// pipeline's settings, the link and when to stop.
+pub(super) struct Opened {
+    /// The frame source.
+    pub source: Box<dyn FrameSource>,
+    /// The calibration, checked against the source's size, when given.
+    pub calibration: Option<Calibration>,
+    /// The pipeline.
+    pub head: HeadConfig,
+    /// Whether the stripe's direction is to be found.
+    pub find_axis: bool,
+    /// The session id.
+    pub scan_id: u32,
+    /// The link.
+    pub link: Link,
+    /// When to stop.
+    pub stop: StopWhen,
+}
+
+/// Checks the options and opens the source, the calibration (if given), the link.
+///
+/// # Errors
+/// As [`plan`].
+pub(super) fn open(a: &ScanArgs) -> Result<Opened> {
+    if let Some(f) = &a.camera.fourcc {
+        CameraFormat::parse(f)?;
+    }
     let opts = SourceOptions {
         reference: a.reference.clone(),
         reference_frames: a.reference_frames,
@@ -371,15 +420,11 @@ pub fn plan(a: &ScanArgs) -> Result<ScanPlan> {
                 .with_context(|| format!("--record {}", dir.display()))?,
         );
     }
-    let calibration = read_calibration(cal_path, source.as_ref(), &a.source)?;
-    let options = ScanOptions {
-        head: head_config(a),
-        find_axis: !(a.rows || a.columns),
-        disc: a.disc.map(scanner_calib::disc::Disc::new),
-        header_every: 30,
-        status_every: 30,
-        scan_id: a.scan_id.unwrap_or_else(rand::random),
-    };
+    let calibration = a
+        .calibration
+        .as_ref()
+        .map(|p| read_calibration(p, source.as_ref(), &a.source))
+        .transpose()?;
     let target: Target = a.out.parse().context("--out")?;
     let link = Link::spawn(
         target.open()?,
@@ -398,13 +443,14 @@ pub fn plan(a: &ScanArgs) -> Result<ScanPlan> {
             None => None,
         },
     };
-    Ok(ScanPlan {
-        stop,
+    Ok(Opened {
         source,
         calibration,
-        options,
+        head: head_config(a),
+        find_axis: !(a.rows || a.columns),
+        scan_id: a.scan_id.unwrap_or_else(rand::random),
         link,
-        quiet: a.quiet,
+        stop,
     })
 }
 

@@ -9,6 +9,7 @@ use std::sync::atomic::Ordering;
 use std::time::{Duration, Instant};
 
 use anyhow::{Context, Result};
+use scanner_core::wire::NoticeKind;
 use scanner_host::collect::{CollectOptions, Collector, Journal};
 use scanner_host::link::Input;
 use scanner_host::live::LiveView;
@@ -133,6 +134,9 @@ fn publish(c: &mut Collector, v: &mut LiveView) {
     for (pts, rgb) in c.take_watched() {
         v.points(&pts, &rgb);
     }
+    if let Some(p) = c.take_preview() {
+        v.preview(&p);
+    }
 }
 
 /// Receives until the input ends, the head is done (`until_done`) or Ctrl-C, then writes the
@@ -161,6 +165,7 @@ pub fn receive(plan: &ReceivePlan, finish_view: bool) -> Result<(Summary, Option
     let t0 = Instant::now();
     let mut buf = vec![0u8; 1 << 16];
     let mut last_draw = Instant::now();
+    let mut no_laser = None;
     let ended = loop {
         if stop.load(Ordering::SeqCst) {
             break "stopped (Ctrl-C)";
@@ -171,6 +176,15 @@ pub fn receive(plan: &ReceivePlan, finish_view: bool) -> Result<(Summary, Option
                 c.feed(&buf[..n])?;
                 if let Some(v) = &mut view {
                     publish(&mut c, v);
+                }
+                // The head's prompts, on this terminal too (the head's may be nobody's).
+                for notice in c.take_notices() {
+                    if !o.quiet {
+                        pb.suspend(|| errln!("head: {notice}"));
+                    }
+                    if notice.kind == NoticeKind::NoLaser {
+                        no_laser = Some(notice);
+                    }
                 }
             }
             Err(e)
@@ -183,6 +197,9 @@ pub fn receive(plan: &ReceivePlan, finish_view: bool) -> Result<(Summary, Option
         }
         if plan.until_done && c.counts().status.values().any(|s| s.done) {
             break "the head's scan is done";
+        }
+        if plan.until_done && no_laser.is_some() {
+            break "the head stopped: it saw no laser";
         }
         if last_draw.elapsed() > Duration::from_millis(100) {
             let k = c.counts();
@@ -213,7 +230,13 @@ pub fn receive(plan: &ReceivePlan, finish_view: bool) -> Result<(Summary, Option
         let again = replay_corrected(o.collect, &journal_path, plan.held, correction)?;
         c.regrid(again);
     }
-    let summary = write_outputs(&c, &o.dir, &o.outputs)?;
+    let summary = match write_outputs(&c, &o.dir, &o.outputs) {
+        Err(e) if c.header().is_none() && no_laser.is_some() => {
+            let n = no_laser.map(|n| n.to_string()).unwrap_or_default();
+            return Err(anyhow::anyhow!("{e}").context(format!("the head: {n}")));
+        }
+        r => r?,
+    };
     if finish_view && let Some(v) = view.as_ref() {
         v.finish(
             Some(&c.counts()),

@@ -21,9 +21,9 @@ use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
 use scanner_core::nalgebra::Point3;
-use scanner_core::wire::Skip;
+use scanner_core::wire::{PreviewState, Skip};
 
-use crate::collect::Counts;
+use crate::collect::{Counts, PreviewImage};
 use crate::mesh::{Mesh, MeshFrame};
 
 /// Most points the page's history holds; past it every batch is thinned by half (a page that
@@ -107,6 +107,8 @@ pub(crate) struct History {
     next_seq: u64,
     colour: bool,
     status: Option<(u64, String)>,
+    /// The latest preview picture, `{"type":"preview",…}`, numbered like the status.
+    preview: Option<(u64, String)>,
     finished: Option<Arc<Finished>>,
 }
 
@@ -135,6 +137,7 @@ impl Shared {
 enum Update {
     Points(Vec<f32>, Vec<u8>, bool),
     Status(String),
+    Preview(String),
     Finished(Finished),
 }
 
@@ -278,6 +281,11 @@ impl LiveView {
         )));
     }
 
+    /// A preview picture with what the head found in it (`scanner-device preview`).
+    pub fn preview(&self, p: &PreviewImage) {
+        self.offer(Update::Preview(preview_json(p)));
+    }
+
     /// A stage of a longer job (`merge`): one line for the page's state.
     pub fn stage(&self, text: &str) {
         self.offer(Update::Status(
@@ -396,6 +404,7 @@ fn hub(rx: &Receiver<Update>, shared: &Shared) {
         let mut release = closed || since.elapsed() >= BATCH_AGE;
         let mut finished = None;
         let mut status = None;
+        let mut preview = None;
         match update {
             Ok(Update::Points(xyz, rgb, c)) => {
                 if forming.xyz.is_empty() {
@@ -407,13 +416,14 @@ fn hub(rx: &Receiver<Update>, shared: &Shared) {
                 release |= forming.len() >= BATCH_POINTS;
             }
             Ok(Update::Status(s)) => status = Some(s),
+            Ok(Update::Preview(p)) => preview = Some(p),
             Ok(Update::Finished(f)) => {
                 release = true;
                 finished = Some(f);
             }
             Err(_) => {}
         }
-        if release || status.is_some() {
+        if release || status.is_some() || preview.is_some() {
             let mut h = shared.lock();
             if release && !forming.xyz.is_empty() {
                 h.next_seq += 1;
@@ -434,6 +444,10 @@ fn hub(rx: &Receiver<Update>, shared: &Shared) {
             if let Some(s) = status {
                 let n = h.status.as_ref().map_or(0, |(n, _)| n + 1);
                 h.status = Some((n, s));
+            }
+            if let Some(p) = preview {
+                let n = h.preview.as_ref().map_or(0, |(n, _)| n + 1);
+                h.preview = Some((n, p));
             }
             if let Some(f) = finished {
                 h.finished = Some(Arc::new(f));
@@ -460,7 +474,7 @@ fn hint(skipped: &[u64], frames: u64) -> Option<&'static str> {
         }
         Skip::OnePlaneOnly => "stripe on one plane only: sweep so the line crosses both sheets",
         Skip::PlaneThroughCamera => {
-            "the laser plane passes through the camera: hold the laser further to the side"
+            "the laser plane passes through the camera: hold the laser further from it (10–30 cm above)"
         }
         Skip::PoorPlane => {
             "the laser plane failed its check: keep the sheets flat and the line sharp on both"
@@ -468,6 +482,51 @@ fn hint(skipped: &[u64], frames: u64) -> Option<&'static str> {
         Skip::BadFrame => "the camera delivers bad frames: check its cable and resolution",
         Skip::LinkFull => "the link is too slow: use a faster baud rate or the USB link",
     })
+}
+
+/// A preview picture for the pages: the thumbnail's luma in base64, the dots, the line, the
+/// exposure and what a scan would make of the frame, with a plain hint.
+fn preview_json(p: &PreviewImage) -> String {
+    use base64::Engine as _;
+    let (state, why) = match p.state {
+        PreviewState::Points => ("points", None),
+        PreviewState::Skipped => ("skipped", p.skip.map(|s| s.name())),
+        PreviewState::NoCalibration => ("no_calibration", None),
+        PreviewState::LaserInReference => (
+            "laser_in_reference",
+            Some("the laser was on in the reference: switch it off until the head says so"),
+        ),
+    };
+    let hint = match p.state {
+        PreviewState::Skipped => p.skip.and_then(|s| {
+            let mut skipped = [0u64; scanner_core::wire::SKIP_REASONS];
+            skipped[s as usize] = 1;
+            hint(&skipped, 1)
+        }),
+        _ if p.clipped_permille > 20 => {
+            Some("much of the picture is clipped white: lower the exposure or the light")
+        }
+        _ => None,
+    };
+    serde_json::json!({
+        "type": "preview",
+        "scan": p.scan_id,
+        "frame": p.frame,
+        "width": p.size.0,
+        "height": p.size.1,
+        "scale": p.scale,
+        "pixels": base64::engine::general_purpose::STANDARD.encode(&p.pixels),
+        "markers": p.markers,
+        "rows": p.rows,
+        "stripe": p.stripe,
+        "clipped_percent": f64::from(p.clipped_permille) / 10.0,
+        "laser_dn": p.laser_dn,
+        "state": state,
+        "skip": why,
+        "points": p.points,
+        "hint": hint,
+    })
+    .to_string()
 }
 
 /// The status panel's figures as JSON.
@@ -507,6 +566,8 @@ fn status_json(k: &Counts, secs: f64, dropped: u64, state: &str) -> String {
         "view_dropped": dropped,
         "scans": k.scans.len(),
         "seconds": secs,
+        "notice": k.notices.back().map(ToString::to_string),
+        "previews": k.previews,
     })
     .to_string()
 }

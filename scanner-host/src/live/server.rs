@@ -343,12 +343,14 @@ fn stream(mut s: TcpStream, key: &str, shared: &Shared, pages: &Arc<AtomicUsize>
         .max_frame_size(Some(64 << 10));
     let mut ws = WebSocket::from_raw_socket(s, Role::Server, Some(cfg));
     let (mut seq, mut status_seen, mut finished_sent) = (0u64, None, false);
+    let mut preview_seen = None;
     loop {
-        let (batches, status, done, colour) = {
+        let (batches, status, preview, done, colour) = {
             let mut h = shared.lock();
             let fresh = |h: &super::History| {
                 h.next_seq > seq
                     || h.status.as_ref().map(|(n, _)| *n) != status_seen
+                    || h.preview.as_ref().map(|(n, _)| *n) != preview_seen
                     || (h.finished.is_some() && !finished_sent)
             };
             if !fresh(&h) && !shared.closing.load(Ordering::SeqCst) {
@@ -365,12 +367,21 @@ fn stream(mut s: TcpStream, key: &str, shared: &Shared, pages: &Arc<AtomicUsize>
                 .as_ref()
                 .filter(|(n, _)| Some(*n) != status_seen)
                 .cloned();
+            let preview = h
+                .preview
+                .as_ref()
+                .filter(|(n, _)| Some(*n) != preview_seen)
+                .cloned();
             let done = h.finished.clone().filter(|_| !finished_sent);
-            (batches, status, done, h.colour)
+            (batches, status, preview, done, h.colour)
         };
         let mut ok = send_points(&mut ws, &batches, colour);
         if let Some((n, text)) = status {
             status_seen = Some(n);
+            ok = ok && ws.write(Message::text(text)).is_ok();
+        }
+        if let Some((n, text)) = preview {
+            preview_seen = Some(n);
             ok = ok && ws.write(Message::text(text)).is_ok();
         }
         if let Some(f) = done {
