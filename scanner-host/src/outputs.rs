@@ -4,7 +4,7 @@
 use std::io::{Read, Seek};
 use std::path::Path;
 
-use scanner_core::wire::{Control, Header, NoticeKind, Skip};
+use scanner_core::wire::{Control, Header, Skip};
 
 use crate::collect::{CollectError, CollectOptions, Collector, Counts};
 use crate::export::{self, ExportError};
@@ -237,12 +237,7 @@ fn notice_data(c: &Counts) -> Vec<NoticeData> {
         .iter()
         .map(|n| NoticeData {
             scan: n.scan_id,
-            kind: match n.kind {
-                NoticeKind::TakingReference => "taking_reference",
-                NoticeKind::SwitchLaserOn => "switch_laser_on",
-                NoticeKind::LaserSeen => "laser_seen",
-                NoticeKind::NoLaser => "no_laser",
-            },
+            kind: n.kind.name(),
             text: n.to_string(),
         })
         .collect()

@@ -211,6 +211,7 @@ function showStatus(s) {
   $('skipped-total').textContent = fmt(s.skipped.reduce((a, r) => a + r.frames, 0));
   $('hint').textContent = s.hint || '';
   $('notice').textContent = s.notice || '';
+  document.body.dataset.notice = s.notice_kind || '';
   document.body.dataset.fps = String(s.fps);
 }
 

@@ -607,6 +607,9 @@ fn the_preview_shows_the_picture_the_dots_and_why_a_scan_would_skip() {
             d.join("calibration.toml").to_str().unwrap(),
             "--every",
             "10",
+            // As from a camera: the head prompts the operator (here, over the link).
+            "--wait-for-laser",
+            "5",
             "--quiet",
             "--out",
             stream.to_str().unwrap(),
@@ -633,6 +636,11 @@ fn the_preview_shows_the_picture_the_dots_and_why_a_scan_would_skip() {
     let state = b.eval("document.body.dataset.previewState");
     let skip = b.eval("document.body.dataset.previewSkip");
     let shown = b.eval("document.getElementById('preview-why').textContent");
+    // The head's last prompt, "switch the laser ON now", is on the page.
+    let notice = b.eval("document.body.dataset.notice");
+    let prompt = b.eval("document.getElementById('notice').textContent");
+    assert_eq!(notice, "switch_laser_on");
+    assert!(prompt.as_str().is_some_and(|s| !s.is_empty()), "{prompt}");
     assert!(
         dots.as_u64().is_some_and(|n| n >= 8),
         "the board's dots: {dots}"

@@ -3,8 +3,9 @@
 //! `docs/raspberry-pi.md`'s "Calibrate on the Pi" and "Over SSH instead of a cable" blocks, is
 //! read from the document and run through the real binaries, in order. Only the hardware is
 //! stood in for: the camera `/dev/video0` becomes a folder of rendered shots (the target, then
-//! the board) for `capture`, the virtual rig for `scan` and `preview` (cut to a few dozen
-//! frames; with `--disc`, the turntable scene's view of the sweep's number), `ssh` a local pipe,
+//! the board) for `capture`, a folder of the scan demo's sweep rendered in 40 frames for `scan`
+//! and `preview` (with `--disc`, the virtual rig: the turntable scene's view of the sweep's
+//! number, its sweep shortened to 80 frames), `ssh` a local pipe,
 //! `sudo install` a copy into the test's folder, and a page kept up until Ctrl-C ends at once.
 //! A command edited in a document is the command this test runs.
 
@@ -56,6 +57,8 @@ fn commands(doc: &str, section: &str) -> Vec<String> {
 
 /// What the stand-ins need: the turntable scene's copy and its calibration.
 struct Stage {
+    /// The folder of rendered laser frames (and `reference.png`) a scan without the disc reads.
+    scan_camera: PathBuf,
     /// The turntable scene, its sweeps shortened.
     turntable: PathBuf,
     /// Its true calibration.
@@ -139,7 +142,7 @@ fn stand_in(stage: &Stage, words: &[String], view: Option<usize>) -> (PathBuf, V
                 args.extend(["--view".into(), view.unwrap_or(0).to_string()]);
             }
             "/dev/video0" if command == "scan" || command == "preview" => {
-                args.push("rig:1280x960".into());
+                args.push(format!("dir:{}", stage.scan_camera.display()));
             }
             "/dev/video0" if capture_board => args.push("dir:board-camera".into()),
             "/dev/video0" => args.push("dir:target-camera".into()),
@@ -154,8 +157,7 @@ fn stand_in(stage: &Stage, words: &[String], view: Option<usize>) -> (PathBuf, V
         }
     }
     match command {
-        "scan" if !disc => args.extend(["--frames".into(), "40".into()]),
-        "preview" => args.extend(["--frames".into(), "40".into()]),
+        "preview" => args.extend(["--every".into(), "10".into()]),
         "receive" if words.iter().any(|w| w == "--view") => {
             args.extend(["--view-for".into(), "0".into()])
         }
@@ -235,9 +237,34 @@ fn camera_folders(d: &Path) {
     }
 }
 
+/// The scan's "camera" in `d`: the scan demo's sweep rendered in 40 frames to a folder.
+fn scan_camera(d: &Path) -> PathBuf {
+    let scenes = repo().join("scanner-device/scenes");
+    std::fs::copy(scenes.join("bunny.obj"), d.join("bunny.obj")).unwrap();
+    let text = std::fs::read_to_string(scenes.join("scan-demo.toml"))
+        .unwrap()
+        .replace("frames = 400", "frames = 40");
+    assert!(text.contains("frames = 40"));
+    std::fs::write(d.join("scan-demo.toml"), text).unwrap();
+    let out = Command::new(bin("scanner-device"))
+        .args(["render", "-q", "--scene"])
+        .arg(d.join("scan-demo.toml"))
+        .arg("--out")
+        .arg(d.join("scan-camera"))
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    d.join("scan-camera")
+}
+
 /// The stand-ins of a document without a turntable.
-fn no_turntable() -> Stage {
+fn no_turntable(d: &Path) -> Stage {
     Stage {
+        scan_camera: scan_camera(d),
         turntable: PathBuf::from("no-turntable.toml"),
         turntable_calibration: PathBuf::from("no-turntable-calibration.toml"),
     }
@@ -268,6 +295,7 @@ fn the_walk_through_and_the_readmes_steps_run_as_written() {
         String::from_utf8_lossy(&out.stderr)
     );
     let stage = Stage {
+        scan_camera: scan_camera(d),
         turntable,
         turntable_calibration: d.join("turntable-cal/truth-calibration.toml"),
     };
@@ -331,6 +359,7 @@ fn the_walk_through_and_the_readmes_steps_run_as_written() {
     assert!(d.join("calibration.toml").exists());
     let data = scanner_tests::summary(&d.join("scan1"));
     assert_eq!(data["point_packets"], 40);
+    assert!(data["points"].as_u64().unwrap() > 1000, "{data}");
     for f in ["scan.obj", "scan.ply", "journal.stream"] {
         assert!(d.join("scan1").join(f).exists(), "{f}");
     }
@@ -352,7 +381,7 @@ fn the_pi_guide_runs_as_written() {
     let p = tempfile::tempdir().unwrap();
     let pd = p.path();
     camera_folders(pd);
-    let stage = no_turntable();
+    let stage = no_turntable(pd);
     let pi = std::fs::read_to_string(repo().join("docs/raspberry-pi.md")).unwrap();
     let calibrate = commands(&pi, "## Calibrate on the Pi");
     assert!(calibrate.len() >= 6, "{calibrate:?}");

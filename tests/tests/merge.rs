@@ -577,6 +577,8 @@ fn one_session_of_three_sweeps_is_split_into_views_and_merged() {
         ("--turntable", vec!["--merge", "--turntable", "270"]),
         ("--turntable", vec!["--merge", "--turntable", "NaN"]),
         ("--merge", vec!["--turntable", "60"]),
+        ("min-overlap", vec!["--merge", "--min-overlap", "2"]),
+        ("--merge", vec!["--min-overlap", "0.3"]),
         ("--until-done", vec!["--merge", "--until-done"]),
     ] {
         let mut all = vec!["receive", "session.stream", "--out", "refused"];

@@ -511,6 +511,18 @@ wire_enum!(
     NoLaser = 3
 );
 
+impl NoticeKind {
+    /// Its name in reports: `taking_reference`, `switch_laser_on`, `laser_seen`, `no_laser`.
+    pub fn name(self) -> &'static str {
+        match self {
+            NoticeKind::TakingReference => "taking_reference",
+            NoticeKind::SwitchLaserOn => "switch_laser_on",
+            NoticeKind::LaserSeen => "laser_seen",
+            NoticeKind::NoLaser => "no_laser",
+        }
+    }
+}
+
 impl fmt::Display for Notice {
     /// One line for the operator.
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {

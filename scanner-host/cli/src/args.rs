@@ -87,6 +87,12 @@ pub enum Command {
             allow_negative_numbers = true
         )]
         turntable: Option<f64>,
+        /// With --merge: the share of a view's points that must fit another view for their
+        /// registration to count, as `merge --min-overlap` takes it (views turned by 60° or
+        /// more by hand often share only a third: give 0.3; views on the turntable disc need
+        /// none).
+        #[arg(long, requires = "merge", default_value_t = MergeOptions::default().min_overlap)]
+        min_overlap: f64,
         /// Show the scan live in a web browser: serves a page on ADDR:PORT (default
         /// 127.0.0.1 and a free port, printed). Another address than loopback (e.g.
         /// `0.0.0.0:8080`, to watch from a phone) prints a warning and needs the random token in

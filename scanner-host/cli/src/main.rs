@@ -56,6 +56,7 @@ fn run(args: &Args) -> Result<()> {
             append,
             merge: sweeps,
             turntable,
+            min_overlap,
             view,
             view_for,
             out,
@@ -64,6 +65,7 @@ fn run(args: &Args) -> Result<()> {
             // The merge's options are checked before anything is received.
             let merging = scanner_merge::MergeOptions {
                 turntable_deg: *turntable,
+                min_overlap: *min_overlap,
                 ..scanner_merge::MergeOptions::default()
             };
             merging.check()?;
@@ -71,7 +73,7 @@ fn run(args: &Args) -> Result<()> {
             let (summary, view) = receive::receive(&plan, !sweeps)?;
             outln!("{}", summary.text().trim_end());
             let merged = if *sweeps {
-                merge::sweeps(&plan.out, *turntable, view.as_ref())
+                merge::sweeps(&plan.out, merging, view.as_ref())
             } else {
                 Ok(())
             };

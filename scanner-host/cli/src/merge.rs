@@ -261,14 +261,14 @@ pub fn linger(v: &LiveView, merged: Result<()>, dir: &Path, for_secs: Option<f64
 }
 
 /// `receive --merge`: the session's journal split into one view per scan, each view's
-/// outputs written, and the views merged into OUT/model with the merge's defaults (and a
-/// turntable's step, if given).
+/// outputs written, and the views merged into OUT/model with `options` (checked before the
+/// session: `receive`'s `--turntable` and `--min-overlap`, the merge's defaults otherwise).
 ///
 /// # Errors
 /// The journal cannot be split, a view's outputs cannot be written, the merge fails.
 pub fn sweeps(
     out: &crate::receive::OutputPlan,
-    turntable_deg: Option<f64>,
+    options: MergeOptions,
     view: Option<&LiveView>,
 ) -> Result<()> {
     let folders = scanner_host::views::split_scans(&out.dir.join("journal.stream"), &out.dir)?;
@@ -286,10 +286,7 @@ pub fn sweeps(
         &folders,
         &out.dir.join("model"),
         (out.collect.cell, Sheet::Mm(out.sheet_mm)),
-        MergeOptions {
-            turntable_deg,
-            ..MergeOptions::default()
-        },
+        options,
         out.quiet,
     )?;
     run(&plan, view)

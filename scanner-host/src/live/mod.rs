@@ -567,6 +567,7 @@ fn status_json(k: &Counts, secs: f64, dropped: u64, state: &str) -> String {
         "scans": k.scans.len(),
         "seconds": secs,
         "notice": k.notices.back().map(ToString::to_string),
+        "notice_kind": k.notices.back().map(|n| n.kind.name()),
         "previews": k.previews,
     })
     .to_string()
