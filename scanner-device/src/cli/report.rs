@@ -68,6 +68,13 @@ pub struct ScanData {
     pub one_sheet_only: bool,
     /// The turntable disc, when the scan looked for one (`--disc`).
     pub disc: Option<DiscData>,
+    /// The pipeline's mean time per frame, ms.
+    pub pipeline_ms: f64,
+    /// From a camera that numbers its frames: the frames it made that the head never took
+    /// (the pipeline was slower), and its frame period in ms (`None` until known).
+    pub camera_dropped: Option<u64>,
+    /// …and its frame period, ms.
+    pub camera_period_ms: Option<f64>,
 }
 
 /// What the head found of the turntable disc.
@@ -164,6 +171,9 @@ impl From<&ScanReport> for ScanData {
             axis_seen: r.axis_seen.map(axis_name),
             one_sheet_only: r.one_sheet_only(),
             disc: r.disc.as_ref().map(DiscData::from),
+            pipeline_ms: r.pipeline_ms,
+            camera_dropped: r.pace.map(|p| p.dropped),
+            camera_period_ms: r.pace.and_then(|p| p.period_ms()),
         }
     }
 }

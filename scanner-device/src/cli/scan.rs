@@ -120,7 +120,10 @@ pub struct CameraArgs {
     /// The local mains frequency (50 or 60 Hz), for the camera's power-line filter.
     #[arg(long, value_parser = parse_mains)]
     pub mains: Option<u32>,
-    /// Camera pixel format FourCC (YUYV, GREY, RGB3, MJPG).
+    /// Camera pixel format FourCC (YUYV, GREY, RGB3, MJPG). What keeps up with a 30 frames/s
+    /// camera (estimated, docs/speed.md): on a Raspberry Pi 4, YUYV at any size and MJPG at
+    /// 640x480 (1280x720 MJPG: about 17 frames/s); on a Pi 5, MJPG up to 1280x720 (1600x1200:
+    /// about 20). Frames the head cannot keep up with are dropped and counted.
     #[arg(long)]
     pub fourcc: Option<String>,
 }
@@ -277,6 +280,12 @@ pub fn report_lines(r: &ScanReport) -> Vec<String> {
             "turntable disc: not found: {why} (the merge registers this view by its shape)"
         )),
         None => {}
+    }
+    if let Some(pace) = &r.pace {
+        lines.push(format!(
+            "camera: {}",
+            crate::session::pace_line(pace, r.pipeline_ms)
+        ));
     }
     if let Some(seen) = r.axis_seen.filter(|&a| a != r.axis) {
         lines.push(format!(

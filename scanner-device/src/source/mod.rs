@@ -151,6 +151,53 @@ pub trait FrameSource {
     /// # Errors
     /// The source's failure, named.
     fn next_frame(&mut self) -> Result<Option<OwnedFrame>, SourceError>;
+    /// How a camera's frames arrived (a source that is no camera, or one that does not number
+    /// its frames: `None`).
+    fn pace(&self) -> Option<CameraPace> {
+        None
+    }
+}
+
+/// How a camera's frames arrived: its sequence numbers tell the frames it made that the head
+/// never took (its queue overflowed: the pipeline was slower than the camera), its timestamps
+/// its frame period.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct CameraPace {
+    /// Frames the head took.
+    pub taken: u64,
+    /// Frames the camera made between them that the head never took.
+    pub dropped: u64,
+    /// The first frame's sequence number and time, µs.
+    first: Option<(u32, u64)>,
+    /// The latest frame's.
+    last: Option<(u32, u64)>,
+}
+
+impl CameraPace {
+    /// Notes a frame taken: the camera's sequence number and timestamp (µs).
+    pub fn saw(&mut self, sequence: u32, time_us: u64) {
+        if let Some((seq, _)) = self.last {
+            // A sequence that goes back (the camera restarted its count) drops nothing.
+            self.dropped += u64::from(sequence.saturating_sub(seq).saturating_sub(1));
+        }
+        self.taken += 1;
+        self.first.get_or_insert((sequence, time_us));
+        self.last = Some((sequence, time_us));
+    }
+
+    /// The camera's frame period, ms: its timestamps over its sequence numbers (`None` before
+    /// two frames, or from a camera whose clock does not move).
+    pub fn period_ms(&self) -> Option<f64> {
+        let ((s0, t0), (s1, t1)) = (self.first?, self.last?);
+        let frames = s1.checked_sub(s0).filter(|&n| n > 0)?;
+        let us = t1.checked_sub(t0).filter(|&t| t > 0)?;
+        Some(us as f64 / 1000.0 / f64::from(frames))
+    }
+
+    /// One frame in how many was dropped (`None`: none was).
+    pub fn one_in(&self) -> Option<f64> {
+        (self.dropped > 0).then(|| (self.taken + self.dropped) as f64 / self.dropped as f64)
+    }
 }
 
 /// Laser-off frames averaged into the reference when no reference image is given.
@@ -416,5 +463,27 @@ pub fn open_with(
         #[cfg(feature = "rig")]
         ("rig", params) => rig::open(name, params, format),
         _ => Err(SourceError::Unknown(name.to_string())),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::CameraPace;
+
+    /// A 30 frames/s camera (33 333 µs apart) whose frames 3, 4 and 8 the head never took.
+    #[test]
+    fn a_cameras_sequence_gaps_are_the_frames_dropped_and_its_times_its_period() {
+        let mut p = CameraPace::default();
+        assert_eq!((p.period_ms(), p.one_in()), (None, None));
+        for seq in [0u32, 1, 2, 5, 6, 7, 9] {
+            p.saw(seq, 1_000_000 + u64::from(seq) * 33_333);
+        }
+        assert_eq!((p.taken, p.dropped), (7, 3));
+        let period = p.period_ms().unwrap();
+        assert!((period - 33.333).abs() < 0.01, "{period}");
+        assert!((p.one_in().unwrap() - 10.0 / 3.0).abs() < 1e-9);
+        // A camera that restarts its count drops nothing by it.
+        p.saw(0, 2_000_000);
+        assert_eq!(p.dropped, 3);
     }
 }

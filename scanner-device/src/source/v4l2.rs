@@ -24,7 +24,9 @@ mod imp {
 
     use crate::source::controls;
     use crate::source::convert::{CameraFormat, convert};
-    use crate::source::{FrameSource, OwnedFrame, SourceError, SourceOptions, laser_off_reference};
+    use crate::source::{
+        CameraPace, FrameSource, OwnedFrame, SourceError, SourceOptions, laser_off_reference,
+    };
 
     fn cam(path: &str, what: &str, e: std::io::Error) -> SourceError {
         SourceError::Camera {
@@ -195,6 +197,8 @@ mod imp {
         reference_frames: usize,
         controls: String,
         locked: wire::Controls,
+        /// The camera's sequence numbers and times of the frames taken.
+        pace: CameraPace,
     }
 
     impl V4lSource {
@@ -228,6 +232,7 @@ mod imp {
                 reference_frames: opts.reference_frames(),
                 controls,
                 locked,
+                pace: CameraPace::default(),
             })
         }
 
@@ -238,6 +243,9 @@ mod imp {
             if t0.elapsed() > Duration::from_secs(5) {
                 return Err(refused(&self.path, "no frame for more than 5 s".into()));
             }
+            let time_us = u64::try_from(meta.timestamp.sec).unwrap_or(0) * 1_000_000
+                + u64::try_from(meta.timestamp.usec).unwrap_or(0);
+            self.pace.saw(meta.sequence, time_us);
             let used = (meta.bytesused as usize).min(buf.len());
             let mut data = Vec::new();
             convert(
@@ -299,6 +307,9 @@ mod imp {
             let i = self.next;
             self.next += 1;
             self.grab(i).map(Some)
+        }
+        fn pace(&self) -> Option<CameraPace> {
+            Some(self.pace)
         }
     }
 
