@@ -200,6 +200,8 @@ struct Work<'c> {
     opts: PreviewOptions,
     axis: Axis,
     extractor: Box<Extractor<MAX_LINES>>,
+    /// The pipeline a scan would run, for the stripe direction it was built for.
+    head: Option<(Axis, Box<Head<MAX_LINES>>)>,
     scratch: Vec<u8>,
 }
 
@@ -210,6 +212,7 @@ impl<'c> Work<'c> {
             opts,
             axis: opts.head.stripe.axis,
             extractor: Box::new(Extractor::new()),
+            head: None,
             scratch: vec![0; scanner_core::wire::MAX_FRAME],
         }
     }
@@ -276,13 +279,19 @@ impl<'c> Work<'c> {
             (None, _) => (PreviewState::LaserInReference, None, 0),
             (Some(_), None) => (PreviewState::NoCalibration, None, 0),
             (Some(r), Some(cal)) => {
-                let mut config = self.opts.head;
-                config.stripe.axis = self.axis;
-                let mut head = Box::new(Head::<MAX_LINES>::new(
-                    cal.camera.cast(),
-                    cal.board.cast(),
-                    config,
-                ));
+                let axis = self.axis;
+                let config = self.opts.head;
+                let (_, head) = self
+                    .head
+                    .take()
+                    .filter(|(a, _)| *a == axis)
+                    .unwrap_or_else(|| {
+                        let mut config = config;
+                        config.stripe.axis = axis;
+                        let head = Head::new(cal.camera.cast(), cal.board.cast(), config);
+                        (axis, Box::new(head))
+                    });
+                let head = &mut self.head.insert((axis, head)).1;
                 match (frame.view(), r.view()) {
                     (Ok(f), Ok(rv)) => match head.process(&f, Some(&rv)) {
                         Ok(out) => (PreviewState::Points, None, out.points.len()),

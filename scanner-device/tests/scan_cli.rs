@@ -479,3 +479,14 @@ fn a_disc_of_unknown_paper_is_refused_naming_the_sizes() {
         "{err}"
     );
 }
+
+/// `preview`'s own option is checked, and its other options are `scan`'s, refused alike.
+#[test]
+fn a_preview_with_bad_options_is_refused_naming_them() {
+    let (ok, _, err) = run(&["preview", "--source", "rig:64x48", "--every", "0"]);
+    assert!(!ok && err.contains("--every"), "{err}");
+    let (ok, _, err) = run(&["preview", "--source", "rig:64x48", "--size", "NaNxNaN"]);
+    assert!(!ok && err.contains("NaNxNaN"), "{err}");
+    let (ok, _, err) = run(&["preview", "--source", "no-such:thing", "--out", "-"]);
+    assert!(!ok && err.contains("no-such:thing"), "{err}");
+}

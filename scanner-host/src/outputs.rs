@@ -476,12 +476,7 @@ pub fn write_outputs(
         uncertainty: quantiles(&m.quality),
         sheet_moved: c.sheet_corrected(),
     };
-    let json = serde_json::to_vec_pretty(&summary.data()).map_err(|e| ExportError::Write {
-        path: dir.join("summary.json"),
-        source: std::io::Error::other(e),
-    })?;
-    export::write_atomic(&dir.join("summary.json"), &json)?;
-    export::write_atomic(&dir.join("summary.txt"), summary.text().as_bytes())?;
+    write_summary(&summary, dir)?;
     Ok(summary)
 }
 
@@ -502,13 +497,19 @@ fn preview_summary(counts: Counts, dir: &Path) -> Result<Summary, OutputError> {
         uncertainty: None,
         sheet_moved: None,
     };
+    write_summary(&summary, dir)?;
+    Ok(summary)
+}
+
+/// Writes `summary.json` and `summary.txt` into `dir`.
+fn write_summary(summary: &Summary, dir: &Path) -> Result<(), OutputError> {
     let json = serde_json::to_vec_pretty(&summary.data()).map_err(|e| ExportError::Write {
         path: dir.join("summary.json"),
         source: std::io::Error::other(e),
     })?;
     export::write_atomic(&dir.join("summary.json"), &json)?;
     export::write_atomic(&dir.join("summary.txt"), summary.text().as_bytes())?;
-    Ok(summary)
+    Ok(())
 }
 
 /// The median and 95th percentile of `v` (`None` when empty).

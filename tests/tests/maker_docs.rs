@@ -237,20 +237,21 @@ fn camera_folders(d: &Path) {
     }
 }
 
-/// The scan's "camera" in `d`: the scan demo's sweep rendered in 40 frames to a folder.
-fn scan_camera(d: &Path) -> PathBuf {
-    let scenes = repo().join("scanner-device/scenes");
-    std::fs::copy(scenes.join("bunny.obj"), d.join("bunny.obj")).unwrap();
-    let text = std::fs::read_to_string(scenes.join("scan-demo.toml"))
+/// Copies the scene `name` of `scanner-device/scenes` into `d` with its sweep's `frames = from`
+/// set to `to` frames.
+fn shortened_scene(d: &Path, name: &str, from: u32, to: u32) -> PathBuf {
+    let text = std::fs::read_to_string(repo().join("scanner-device/scenes").join(name))
         .unwrap()
-        .replace("frames = 400", "frames = 40");
-    assert!(text.contains("frames = 40"));
-    std::fs::write(d.join("scan-demo.toml"), text).unwrap();
+        .replace(&format!("frames = {from}\n"), &format!("frames = {to}\n"));
+    assert!(text.contains(&format!("frames = {to}\n")), "{name}");
+    std::fs::write(d.join(name), text).unwrap();
+    d.join(name)
+}
+
+/// Runs `scanner-device` with `args`; panics with its error output when it fails.
+fn device(args: &[&std::ffi::OsStr]) {
     let out = Command::new(bin("scanner-device"))
-        .args(["render", "-q", "--scene"])
-        .arg(d.join("scan-demo.toml"))
-        .arg("--out")
-        .arg(d.join("scan-camera"))
+        .args(args)
         .output()
         .unwrap();
     assert!(
@@ -258,7 +259,26 @@ fn scan_camera(d: &Path) -> PathBuf {
         "{}",
         String::from_utf8_lossy(&out.stderr)
     );
-    d.join("scan-camera")
+}
+
+/// The scan's "camera" in `d`: the scan demo's sweep rendered in 40 frames to a folder.
+fn scan_camera(d: &Path) -> PathBuf {
+    std::fs::copy(
+        repo().join("scanner-device/scenes/bunny.obj"),
+        d.join("bunny.obj"),
+    )
+    .unwrap();
+    let scene = shortened_scene(d, "scan-demo.toml", 400, 40);
+    let out = d.join("scan-camera");
+    device(&[
+        "render".as_ref(),
+        "-q".as_ref(),
+        "--scene".as_ref(),
+        scene.as_os_str(),
+        "--out".as_ref(),
+        out.as_os_str(),
+    ]);
+    out
 }
 
 /// The stand-ins of a document without a turntable.
@@ -276,24 +296,17 @@ fn the_walk_through_and_the_readmes_steps_run_as_written() {
     let d = t.path();
     camera_folders(d);
     // The turntable: its scene with sweeps of 80 frames, and its true calibration.
-    let turntable = d.join("turntable.toml");
-    let text = std::fs::read_to_string(repo().join("scanner-device/scenes/turntable.toml"))
-        .unwrap()
-        .replace("frames = 300", "frames = 80");
-    assert!(text.contains("frames = 80"));
-    std::fs::write(&turntable, text).unwrap();
-    let out = Command::new(bin("scanner-device"))
-        .args(["render-calibration", "--shots", "3", "--scene"])
-        .arg(&turntable)
-        .arg("--out")
-        .arg(d.join("turntable-cal"))
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    let turntable = shortened_scene(d, "turntable.toml", 300, 80);
+    let cal = d.join("turntable-cal");
+    device(&[
+        "render-calibration".as_ref(),
+        "--shots".as_ref(),
+        "3".as_ref(),
+        "--scene".as_ref(),
+        turntable.as_os_str(),
+        "--out".as_ref(),
+        cal.as_os_str(),
+    ]);
     let stage = Stage {
         scan_camera: scan_camera(d),
         turntable,
