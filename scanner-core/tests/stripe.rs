@@ -653,3 +653,24 @@ fn the_stated_centre_uncertainty_matches_the_errors_and_the_cramer_rao_bound() {
     println!("within 2 stated σ: {:.1} %", 100.0 * within);
     assert!((0.88..=0.985).contains(&within), "{within}");
 }
+
+/// A peak's signal back to the DN it stands for: the magnitude itself for gray and a white
+/// laser, the root of nine times the squared signal for a coloured laser's difference image.
+#[test]
+fn a_peaks_signal_is_read_back_as_the_light_added() {
+    use scanner_core::stripe::peak_dn;
+    let gray = StripeConfig::new(Method::Dim, Axis::Columns);
+    assert_eq!(peak_dn(PixelFormat::Gray8, &gray, 66), 66);
+    let red = StripeConfig {
+        colour: LaserColour::Red,
+        ..StripeConfig::new(Method::Dim, Axis::Columns)
+    };
+    // 120 DN added in red: a signal of 120² / 9 = 1600.
+    assert_eq!(peak_dn(PixelFormat::Rgb24, &red, 1600), 120);
+    assert_eq!(peak_dn(PixelFormat::Yuyv, &red, 7225), 255);
+    let white = StripeConfig {
+        colour: LaserColour::White,
+        ..red
+    };
+    assert_eq!(peak_dn(PixelFormat::Rgb24, &white, 90), 90);
+}

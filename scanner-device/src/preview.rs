@@ -266,7 +266,7 @@ impl<'c> Work<'c> {
         {
             stripe = vec![u8::MAX; thumb_lines];
             for (line, p) in found.valid() {
-                peaks.push(p.peak);
+                peaks.push(scanner_core::stripe::peak_dn(frame.format, &cfg, p.peak));
                 if let Some(s) = stripe.get_mut(line / scale) {
                     *s = (p.centre / scale as f32).round().clamp(0.0, 254.0) as u8;
                 }

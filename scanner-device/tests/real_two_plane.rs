@@ -229,3 +229,63 @@ fn the_stated_centre_uncertainty_holds_on_stripes_it_was_not_fitted_to() {
         }
     }
 }
+
+/// `preview` on the real pairs (held out: the preview was built on the rig): the board's dots
+/// are found, the laser line crosses most of the frame with a clear margin, and the head says it
+/// would take the frame.
+#[test]
+fn the_preview_of_a_real_frame_finds_the_dots_the_line_and_takes_it() {
+    use scanner_core::wire::{Decoder, MAX_ENCODED, Message, PreviewState};
+    for name in PAIRS {
+        let dir = pair(name);
+        let t = tempfile::tempdir().unwrap();
+        std::fs::create_dir(t.path().join("frames")).unwrap();
+        std::fs::copy(
+            dir.join("laser-on.png"),
+            t.path().join("frames/laser-on.png"),
+        )
+        .unwrap();
+        let stream = t.path().join("preview.stream");
+        let out = std::process::Command::new(env!("CARGO_BIN_EXE_scanner-device"))
+            .args(["preview", "--every", "1", "-q", "--source"])
+            .arg(t.path().join("frames"))
+            .arg("--reference")
+            .arg(dir.join("laser-off.png"))
+            .arg("--calibration")
+            .arg(dir.join("calibration.toml"))
+            .arg("--out")
+            .arg(&stream)
+            .output()
+            .unwrap();
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        let bytes = std::fs::read(&stream).unwrap();
+        let mut d = Box::new(Decoder::<MAX_ENCODED>::new());
+        let mut seen = Vec::new();
+        d.feed(&bytes, |m| {
+            if let Ok(Message::Preview(p)) = m {
+                let lit = p.stripe.iter().filter(|&&v| v != 255).count();
+                seen.push((
+                    p.markers.len() / 2,
+                    lit,
+                    p.stripe.len(),
+                    p.laser_dn,
+                    p.state,
+                ));
+            }
+        });
+        assert_eq!(seen.len(), 1, "{name}");
+        let (dots, lit, lines, dn, state) = seen[0];
+        println!("{name}: {dots} dots, line on {lit} of {lines}, +{dn} DN, {state:?}");
+        assert!(dots >= 12, "{name}: {dots} dots");
+        assert!(
+            lit * 10 >= lines * 7,
+            "{name}: the line on {lit} of {lines}"
+        );
+        assert!((50..=255).contains(&dn), "{name}: +{dn} DN");
+        assert_eq!(state, PreviewState::Points, "{name}");
+    }
+}

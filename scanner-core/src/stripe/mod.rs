@@ -407,6 +407,18 @@ pub fn centre_sigma(height: f32, fwhm: f32, noise: f32) -> f32 {
     (CENTROID_EFFICIENCY * bound).max(CENTRE_FLOOR)
 }
 
+/// The light a stripe's [`StripePoint::peak`] stands for, DN: the magnitude whose signal it is
+/// (for the difference image of a coloured laser the signal is the magnitude squared over 9;
+/// otherwise the magnitude itself), for frames of `format` read with `cfg`.
+pub fn peak_dn(format: PixelFormat, cfg: &StripeConfig, peak: u16) -> u16 {
+    let kind = signal::Kind {
+        format,
+        method: cfg.method,
+        colour: cfg.colour,
+    };
+    kind.magnitude_for(peak).min(255)
+}
+
 /// What [`Extractor::extract`] found.
 #[derive(Debug, Clone, Copy)]
 pub struct Extraction<'a> {
