@@ -18,6 +18,7 @@
 //! - [`geometry`]: planes and lines, the paper's three collinear points (eq. 1–6), the board plane
 //!   pose from a marker layout, the board, the laser plane, triangulation.
 //! - [`calib`]: the image distance from the two-position procedure (eq. 7–9).
+//! - [`jpeg`]: a webcam's motion-JPEG frames straight into YUYV or gray, in fixed memory.
 //!
 //! # Precision
 //! Calibration runs once on a PC or the head and uses `f64` ([`geometry::collinear`],
@@ -34,7 +35,7 @@
 //! wire   calib   stripe
 //! geometry       colour
 //! camera
-//! config  error  real  link_spec
+//! config  error  real  link_spec  jpeg
 //! ```
 #![no_std]
 #![deny(missing_docs)]
@@ -46,6 +47,7 @@ pub mod colour;
 pub mod config;
 mod error;
 pub mod geometry;
+pub mod jpeg;
 pub mod link_spec;
 pub mod pipeline;
 mod real;

@@ -2,8 +2,9 @@
 //! packet encoding, hand-over to the link thread — on pre-rendered virtual-rig frames (rendering
 //! excluded). `cargo bench -p scanner-device --bench pipeline` (one core for the pipeline; the
 //! link thread writes to a sink). Target (issue 6): ≥ 300 frames/s at 1600×1200. The MJPEG row
-//! decodes each frame from its JPEG (quality 90, what most USB webcams send at 1600×1200) to
-//! YUYV first, inside the timed part: the head's real cost for such a camera.
+//! decodes each frame from its JPEG (4:2:2, quality 90, what most USB webcams send at
+//! 1600×1200) to YUYV first, inside the timed part, by the head's own decoder kept across
+//! frames: the head's real cost for such a camera.
 
 use std::time::Instant;
 
@@ -13,7 +14,7 @@ use scanner_core::wire::MAX_ENCODED;
 use scanner_device::link::Link;
 use scanner_device::session::truth_calibration;
 use scanner_device::session::{ScanOptions, Session};
-use scanner_device::source::convert::{CameraFormat, convert};
+use scanner_device::source::convert::{CameraFormat, Converter};
 use scanner_device::source::{FrameSource, OwnedFrame, RigSource};
 use scanner_rig::{Rig, Scene};
 
@@ -67,7 +68,7 @@ fn main() {
             .collect();
         rendered.push((format, reference, frames));
     }
-    // The RGB renders as JPEG (quality 90), for the MJPEG row.
+    // The RGB renders as a webcam's MJPEG, for the MJPEG row.
     let jpegs: Vec<Vec<u8>> = {
         let mut source = RigSource::new(rig.clone(), PixelFormat::Rgb24);
         std::iter::once(source.reference().expect("reference"))
@@ -76,26 +77,22 @@ fn main() {
                     .filter_map(|_| source.next_frame().expect("frame"))
                     .step_by(3),
             )
-            .map(|f| {
-                let mut jpeg = Vec::new();
-                image::codecs::jpeg::JpegEncoder::new_with_quality(&mut jpeg, 90)
-                    .encode(&f.data, w, h, image::ExtendedColorType::Rgb8)
-                    .expect("jpeg");
-                jpeg
-            })
+            .map(|f| scanner_rig::mjpeg(&f.data, w, h, 90).expect("jpeg"))
             .collect()
     };
-    let decode = |jpeg: &[u8], out: &mut OwnedFrame| {
-        convert(
-            CameraFormat::Mjpeg,
-            jpeg,
-            w as usize,
-            h as usize,
-            2 * w as usize,
-            PixelFormat::Yuyv,
-            &mut out.data,
-        )
-        .expect("decode");
+    let mut converter = Converter::new();
+    let mut decode = |jpeg: &[u8], out: &mut OwnedFrame| {
+        converter
+            .convert(
+                CameraFormat::Mjpeg,
+                jpeg,
+                w as usize,
+                h as usize,
+                2 * w as usize,
+                PixelFormat::Yuyv,
+                &mut out.data,
+            )
+            .expect("decode");
     };
     for (format, mjpeg, method, plane) in cases {
         let (_, reference, frames) = rendered

@@ -3,10 +3,11 @@
 //!
 //! ```text
 //! per_frame prepare DIR WIDTHxHEIGHT   render the demo rig's reference and 8 laser frames into
-//!                                      DIR as raw YUYV and as JPEG (quality 90, what a webcam's
-//!                                      MJPEG looks like), with the rig's true calibration
+//!                                      DIR as raw YUYV and as JPEG (4:2:2, quality 90, what a
+//!                                      webcam's MJPEG looks like), with the rig's true calibration
 //! per_frame run DIR yuyv|mjpeg N       read them, then run N frames through the head: MJPEG
-//!                                      decoded to YUYV first, as the camera source does; prints
+//!                                      decoded to YUYV first (the reference too), by one kept
+//!                                      decoder, as the camera source does; prints
 //!                                      the median milliseconds per frame
 //! ```
 //!
@@ -21,7 +22,7 @@ use scanner_core::stripe::{Axis, Method, PixelFormat, StripeConfig};
 use scanner_core::wire::MAX_ENCODED;
 use scanner_device::link::Link;
 use scanner_device::session::{Calibration, ScanOptions, Session};
-use scanner_device::source::convert::{CameraFormat, convert};
+use scanner_device::source::convert::{CameraFormat, Converter};
 use scanner_device::source::{FrameSource, OwnedFrame, RigSource};
 
 /// Laser frames prepared.
@@ -76,10 +77,7 @@ fn prepare(dir: &Path, size: &str) -> Result<(), String> {
     }
     for (name, y, c) in &picked {
         std::fs::write(dir.join(format!("{name}.yuyv")), &y.data).map_err(|e| e.to_string())?;
-        let mut jpeg = Vec::new();
-        image::codecs::jpeg::JpegEncoder::new_with_quality(&mut jpeg, 90)
-            .encode(&c.data, w, h, image::ExtendedColorType::Rgb8)
-            .map_err(|e| e.to_string())?;
+        let jpeg = scanner_rig::mjpeg(&c.data, w, h, 90)?;
         std::fs::write(dir.join(format!("{name}.jpg")), jpeg).map_err(|e| e.to_string())?;
     }
     std::fs::write(dir.join("size"), format!("{w}x{h}")).map_err(|e| e.to_string())?;
@@ -121,7 +119,24 @@ fn run(dir: &Path, format: &str, n: usize) -> Result<(), String> {
         index: 0,
         time_us: Some(0),
     };
-    let reference = frame(read("reference.yuyv")?);
+    let mut converter = Converter::new();
+    let mut decode = |jpeg: &[u8], out: &mut OwnedFrame| {
+        converter
+            .convert(
+                CameraFormat::Mjpeg,
+                jpeg,
+                w,
+                h,
+                2 * w,
+                PixelFormat::Yuyv,
+                &mut out.data,
+            )
+            .map_err(|e| e.to_string())
+    };
+    let mut reference = frame(read("reference.yuyv")?);
+    if mjpeg {
+        decode(&read("reference.jpg")?, &mut reference)?;
+    }
     let raw: Vec<OwnedFrame> = (0..FRAMES)
         .map(|i| read(&format!("frame-{i}.yuyv")).map(frame))
         .collect::<Result<_, _>>()?;
@@ -144,16 +159,7 @@ fn run(dir: &Path, format: &str, n: usize) -> Result<(), String> {
         let t = Instant::now();
         let k = i % FRAMES;
         let f = if mjpeg {
-            convert(
-                CameraFormat::Mjpeg,
-                &jpegs[k],
-                w,
-                h,
-                2 * w,
-                PixelFormat::Yuyv,
-                &mut decoded.data,
-            )
-            .map_err(|e| e.to_string())?;
+            decode(&jpegs[k], &mut decoded)?;
             &decoded
         } else {
             &raw[k]

@@ -718,6 +718,7 @@ pub fn run_scan_until(
                 let t = Instant::now();
                 session.frame(&frame, link, &mut on_points)?;
                 working += t.elapsed();
+                source.give_back(frame);
                 let s = session.status();
                 progress(&s);
                 // Frames the camera made while the pipeline was busy: said as they happen.
@@ -751,13 +752,19 @@ pub fn pace_line(pace: &crate::source::CameraPace, pipeline_ms: f64) -> String {
         || "camera period unknown".to_string(),
         |p| format!("camera {p:.1} ms"),
     );
+    let undecodable = match pace.undecodable {
+        0 => String::new(),
+        n => format!("; {n} frame(s) that did not decode, skipped"),
+    };
     match pace.one_in() {
         Some(n) => format!(
-            "pipeline {pipeline_ms:.1} ms/frame, {camera}: 1 frame in {n:.1} dropped ({} of {}): use a smaller --size or YUYV",
+            "pipeline {pipeline_ms:.1} ms/frame, {camera}: 1 frame in {n:.1} dropped ({} of {}): use a smaller --size or YUYV{undecodable}",
             pace.dropped,
             pace.dropped + pace.taken
         ),
-        None => format!("pipeline {pipeline_ms:.1} ms/frame, {camera}: no frame dropped"),
+        None => {
+            format!("pipeline {pipeline_ms:.1} ms/frame, {camera}: no frame dropped{undecodable}")
+        }
     }
 }
 

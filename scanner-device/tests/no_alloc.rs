@@ -1,6 +1,7 @@
 //! The head's steady state allocates nothing: after the first frames, extraction, the laser
 //! plane, triangulation, packet encoding and handing the packet to the link thread run without a
-//! single heap allocation (a counting allocator watches this thread).
+//! single heap allocation (a counting allocator watches this thread) — and so does decoding a
+//! camera's MJPEG frame into the frame buffer kept from the one before.
 
 use scanner_core::pipeline::HeadConfig;
 use scanner_core::stripe::{Axis, Method, PixelFormat, StripeConfig};
@@ -8,6 +9,7 @@ use scanner_core::wire::MAX_ENCODED;
 use scanner_device::link::Link;
 use scanner_device::session::truth_calibration;
 use scanner_device::session::{ScanOptions, Session};
+use scanner_device::source::convert::{CameraFormat, Converter};
 use scanner_device::source::{FrameSource, RigSource};
 use scanner_rig::{Rig, Scene};
 
@@ -68,4 +70,68 @@ fn the_steady_state_allocates_nothing() {
     let before = scanner_alloc::allocations();
     std::hint::black_box(vec![0u8; 3]);
     assert!(scanner_alloc::allocations() > before);
+}
+
+/// Motion JPEG as a webcam sends it (4:2:2), decoded by the head's decoder into one kept frame
+/// buffer, then the pipeline: no allocation per frame.
+#[test]
+fn mjpeg_frames_decode_and_run_without_allocating() {
+    let (w, h) = (640u32, 480u32);
+    let rig = Rig::new(Scene::demo(w, h)).unwrap();
+    let cal = truth_calibration(&rig);
+    let mut source = RigSource::new(rig, PixelFormat::Rgb24);
+    let jpeg =
+        |f: &scanner_device::source::OwnedFrame| scanner_rig::mjpeg(&f.data, w, h, 90).unwrap();
+    let reference_jpeg = jpeg(&source.reference().unwrap());
+    let jpegs: Vec<Vec<u8>> = (0..40)
+        .filter_map(|_| source.next_frame().unwrap())
+        .skip(28)
+        .map(|f| jpeg(&f))
+        .collect();
+    let mut converter = Converter::new();
+    let mut frame = source.reference().unwrap();
+    frame.format = PixelFormat::Yuyv;
+    let mut decode = |data: &[u8], frame: &mut scanner_device::source::OwnedFrame| {
+        converter
+            .convert(
+                CameraFormat::Mjpeg,
+                data,
+                w as usize,
+                h as usize,
+                0,
+                PixelFormat::Yuyv,
+                &mut frame.data,
+            )
+            .unwrap();
+    };
+    decode(&reference_jpeg, &mut frame);
+    let mut head = HeadConfig::new(StripeConfig::new(Method::Dim, Axis::Columns));
+    head.colour = true;
+    let opts = ScanOptions {
+        head,
+        header_every: 3,
+        status_every: 2,
+        scan_id: 1,
+        find_axis: false,
+        disc: None,
+    };
+    let mut session = Session::new(&cal, frame.clone(), opts).unwrap();
+    let mut link = Link::spawn(Box::new(std::io::sink()), 4, MAX_ENCODED);
+    for j in &jpegs[..4] {
+        decode(j, &mut frame);
+        session.frame(&frame, &mut link, |_, _| {}).unwrap();
+    }
+    let before = scanner_alloc::allocations();
+    let mut points = 0;
+    for j in &jpegs[4..] {
+        decode(j, &mut frame);
+        session
+            .frame(&frame, &mut link, |_, p| points += p.len())
+            .unwrap();
+        std::thread::sleep(std::time::Duration::from_millis(2));
+    }
+    let n = scanner_alloc::allocations() - before;
+    assert!(points > 500, "MJPEG: only {points} points");
+    assert_eq!(n, 0, "MJPEG: {n} allocations in {} frames", jpegs.len() - 4);
+    link.finish().unwrap();
 }

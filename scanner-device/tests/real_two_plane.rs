@@ -10,7 +10,8 @@ use std::path::{Path, PathBuf};
 
 use scanner_core::pipeline::{Head, HeadConfig};
 use scanner_core::stripe::{Axis, Method, PixelFormat, StripeConfig};
-use scanner_device::source::{image_format, load_frame, stripe_axis};
+use scanner_device::source::convert::{CameraFormat, Converter};
+use scanner_device::source::{OwnedFrame, image_format, load_frame, stripe_axis};
 
 const PAIRS: [&str; 2] = ["20220331_faa7cdf", "20220405_9eb8eaa"];
 
@@ -48,11 +49,18 @@ fn head_on(name: &str, format: Option<PixelFormat>) -> (usize, f64) {
     let format = format.unwrap_or_else(|| image_format(&on).unwrap());
     let frame = load_frame(&on, format, 0).unwrap();
     let reference = load_frame(&dir.join("laser-off.png"), format, u64::MAX).unwrap();
+    head_on_frames(name, &frame, &reference)
+}
+
+/// [`head_on`] for frames already read.
+fn head_on_frames(name: &str, frame: &OwnedFrame, reference: &OwnedFrame) -> (usize, f64) {
+    let dir = pair(name);
+    let format = frame.format;
     let file = scanner_calib::file::CalibrationFile::load(&dir.join("calibration.toml")).unwrap();
     let camera = file.camera().unwrap().cast::<f32>();
     let board = file.board().unwrap().unwrap().cast::<f32>();
     let mut cfg = HeadConfig::new(StripeConfig::new(Method::Dim, Axis::Columns));
-    cfg.stripe.axis = stripe_axis(&frame, &reference, &cfg.stripe).unwrap();
+    cfg.stripe.axis = stripe_axis(frame, reference, &cfg.stripe).unwrap();
     assert_eq!(
         cfg.stripe.axis,
         Axis::Rows,
@@ -86,6 +94,51 @@ fn the_head_sends_no_false_point_and_finds_the_laser_plane() {
             assert_eq!(objects, 0, "{name} {format:?}: object points");
         }
     }
+}
+
+/// The first pair as a webcam would send it, 4:2:2 motion JPEG (`tests/data/mjpeg`, encoded by
+/// OpenCV's libjpeg), decoded by the head's own decoder straight into YUYV: the same verdict as
+/// from the lossless frames — no false point, the laser plane within 0.1° of the reference.
+#[test]
+fn the_head_finds_the_laser_plane_in_real_mjpeg_frames() {
+    let name = PAIRS[0];
+    let data = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/mjpeg");
+    let mut converter = Converter::new();
+    let mut decode = |file: &str, index: u64| {
+        let jpeg = std::fs::read(data.join(file)).unwrap();
+        let mut frame = OwnedFrame {
+            data: Vec::new(),
+            width: 1920,
+            height: 1200,
+            format: PixelFormat::Yuyv,
+            index,
+            time_us: None,
+        };
+        converter
+            .convert(
+                CameraFormat::Mjpeg,
+                &jpeg,
+                1920,
+                1200,
+                0,
+                PixelFormat::Yuyv,
+                &mut frame.data,
+            )
+            .unwrap();
+        frame
+    };
+    let (frame, reference) = (
+        decode("two-plane-on.jpg", 0),
+        decode("two-plane-off.jpg", u64::MAX),
+    );
+    let (objects, angle) = head_on_frames(name, &frame, &reference);
+    let (_, lossless) = head_on(name, Some(PixelFormat::Yuyv));
+    println!(
+        "{name} MJPEG 4:2:2 q90: {objects} object points, laser plane {angle:.4}° off the \
+         reference (the lossless frames in YUYV: {lossless:.4}°)"
+    );
+    assert_eq!(objects, 0, "object points from the MJPEG frames");
+    assert!(angle < 0.1, "laser plane {angle}° off the reference");
 }
 
 /// Through the command line with only the calibration and the reference: the frames' colour

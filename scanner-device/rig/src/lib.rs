@@ -62,6 +62,25 @@ use scanner_core::{Camera, GeomError};
 
 pub use surface::{Hit, Shape, SurfaceId};
 
+/// An RGB frame as a USB webcam's motion-JPEG frame: baseline JPEG with 4:2:2 chroma (what UVC
+/// cameras send), standard Huffman tables, at `quality` (1–100).
+///
+/// # Errors
+/// The encoder's, as text (a size over 65 535 pixels, a buffer of the wrong length).
+pub fn mjpeg(rgb: &[u8], width: u32, height: u32, quality: u8) -> Result<Vec<u8>, String> {
+    let (w, h) = (
+        u16::try_from(width).map_err(|_| format!("width {width} over 65535"))?,
+        u16::try_from(height).map_err(|_| format!("height {height} over 65535"))?,
+    );
+    let mut out = Vec::new();
+    let mut encoder = jpeg_encoder::Encoder::new(&mut out, quality);
+    encoder.set_sampling_factor(jpeg_encoder::SamplingFactor::R_4_2_2);
+    encoder
+        .encode(rgb, w, h, jpeg_encoder::ColorType::Rgb)
+        .map_err(|e| e.to_string())?;
+    Ok(out)
+}
+
 /// The two-plane board. Lengths in mm, angles in degrees.
 #[derive(Debug, Clone, PartialEq)]
 pub struct BoardSpec {

@@ -75,6 +75,8 @@ pub struct ScanData {
     pub camera_dropped: Option<u64>,
     /// …and its frame period, ms.
     pub camera_period_ms: Option<f64>,
+    /// …and the frames it sent that did not decode (corrupt MJPEG frames, skipped).
+    pub camera_undecodable: Option<u64>,
 }
 
 /// What the head found of the turntable disc.
@@ -174,6 +176,7 @@ impl From<&ScanReport> for ScanData {
             pipeline_ms: r.pipeline_ms,
             camera_dropped: r.pace.map(|p| p.dropped),
             camera_period_ms: r.pace.and_then(|p| p.period_ms()),
+            camera_undecodable: r.pace.map(|p| p.undecodable),
         }
     }
 }

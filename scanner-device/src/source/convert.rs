@@ -6,6 +6,7 @@
 //! (`stride` ≥ the packed row).
 
 use scanner_core::colour::{luma, rgb_pair_to_yuyv, yuv_to_rgb};
+use scanner_core::jpeg::{Decoder, JpegError, Output};
 use scanner_core::stripe::PixelFormat;
 
 /// A camera's pixel format.
@@ -51,13 +52,13 @@ impl CameraFormat {
     }
 
     /// The pixel format its frames are read in when none is asked: as the camera sends them
-    /// (GREY as gray, YUYV in place), decoded to RGB otherwise — colour kept, so that the
-    /// laser's colour counts.
+    /// (GREY as gray, YUYV in place, RGB3 as RGB), MJPEG decoded to YUYV (a JPEG is Y, Cb, Cr
+    /// already: no colour conversion) — colour kept, so that the laser's colour counts.
     pub fn native(self) -> PixelFormat {
         match self {
             CameraFormat::Grey => PixelFormat::Gray8,
-            CameraFormat::Yuyv => PixelFormat::Yuyv,
-            CameraFormat::Rgb3 | CameraFormat::Mjpeg => PixelFormat::Rgb24,
+            CameraFormat::Yuyv | CameraFormat::Mjpeg => PixelFormat::Yuyv,
+            CameraFormat::Rgb3 => PixelFormat::Rgb24,
         }
     }
 
@@ -104,13 +105,87 @@ pub enum ConvertError {
     },
     /// A MJPEG frame that does not decode, or decodes to another size.
     #[error("MJPEG frame: {0}")]
-    Jpeg(String),
+    Jpeg(JpegError),
     /// An odd width for YUYV.
     #[error("YUYV needs an even width, got {0}")]
     OddWidth(usize),
 }
 
-/// Converts one camera buffer to `want` into `out` (resized to fit, rows packed).
+/// Converts camera buffers frame after frame, keeping what MJPEG needs between them: the JPEG
+/// decoder's tables and, for RGB, the decoded YUYV. Once `out` has its size, a frame allocates
+/// nothing.
+pub struct Converter {
+    jpeg: Box<Decoder>,
+    yuyv: Vec<u8>,
+}
+
+impl Default for Converter {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl Converter {
+    /// A converter with the standard JPEG tables.
+    pub fn new() -> Self {
+        Converter {
+            jpeg: Box::new(Decoder::new()),
+            yuyv: Vec::new(),
+        }
+    }
+
+    /// Converts one camera buffer to `want` into `out` (resized to fit, rows packed). MJPEG
+    /// decodes straight into YUYV or gray; RGB goes through YUYV.
+    ///
+    /// # Errors
+    /// [`ConvertError`] naming what is wrong with the buffer.
+    #[allow(clippy::too_many_arguments)]
+    pub fn convert(
+        &mut self,
+        format: CameraFormat,
+        data: &[u8],
+        width: usize,
+        height: usize,
+        stride: usize,
+        want: PixelFormat,
+        out: &mut Vec<u8>,
+    ) -> Result<(), ConvertError> {
+        if format != CameraFormat::Mjpeg {
+            return convert(format, data, width, height, stride, want, out);
+        }
+        if want != PixelFormat::Gray8 && !width.is_multiple_of(2) {
+            return Err(ConvertError::OddWidth(width));
+        }
+        let (output, target) = match want {
+            PixelFormat::Gray8 => (Output::Gray, &mut *out),
+            PixelFormat::Yuyv => (Output::Yuyv, &mut *out),
+            PixelFormat::Rgb24 => (Output::Yuyv, &mut self.yuyv),
+        };
+        let bytes = match output {
+            Output::Gray => 1,
+            Output::Yuyv => 2,
+        };
+        target.resize(bytes * width * height, 0);
+        self.jpeg
+            .decode(data, width, height, output, target)
+            .map_err(ConvertError::Jpeg)?;
+        if want == PixelFormat::Rgb24 {
+            convert(
+                CameraFormat::Yuyv,
+                &self.yuyv,
+                width,
+                height,
+                2 * width,
+                want,
+                out,
+            )?;
+        }
+        Ok(())
+    }
+}
+
+/// Converts one raw camera buffer (YUYV, GREY, RGB3) to `want` into `out` (resized to fit, rows
+/// packed); MJPEG needs a [`Converter`].
 ///
 /// # Errors
 /// [`ConvertError`] naming what is wrong with the buffer.
@@ -124,25 +199,7 @@ pub fn convert(
     out: &mut Vec<u8>,
 ) -> Result<(), ConvertError> {
     if format == CameraFormat::Mjpeg {
-        let img = scanner_calib::image_file::decode(data, image::ImageFormat::Jpeg)
-            .map_err(|e| ConvertError::Jpeg(e.to_string()))?;
-        if (img.width() as usize, img.height() as usize) != (width, height) {
-            return Err(ConvertError::Jpeg(format!(
-                "decodes to {}×{}, the stream is {width}×{height}",
-                img.width(),
-                img.height()
-            )));
-        }
-        let rgb = img.to_rgb8();
-        return convert(
-            CameraFormat::Rgb3,
-            rgb.as_raw(),
-            width,
-            height,
-            3 * width,
-            want,
-            out,
-        );
+        return Converter::new().convert(format, data, width, height, stride, want, out);
     }
     let bpp = format.bytes_per_pixel();
     let stride = stride.max(bpp * width);
@@ -193,7 +250,7 @@ pub fn convert(
                     out.extend(yuv_to_rgb(q[2], q[1], q[3]));
                 }
             }
-            (CameraFormat::Mjpeg, _) => return Err(ConvertError::Jpeg("not decoded".into())),
+            (CameraFormat::Mjpeg, _) => {} // decoded above, never here
         }
     }
     Ok(())

@@ -156,6 +156,11 @@ pub trait FrameSource {
     fn pace(&self) -> Option<CameraPace> {
         None
     }
+    /// A frame done with: a source that keeps buffers reuses its memory for the next frame
+    /// (a camera then allocates nothing per frame); others drop it.
+    fn give_back(&mut self, frame: OwnedFrame) {
+        drop(frame);
+    }
 }
 
 /// How a camera's frames arrived: its sequence numbers tell the frames it made that the head
@@ -167,6 +172,10 @@ pub struct CameraPace {
     pub taken: u64,
     /// Frames the camera made between them that the head never took.
     pub dropped: u64,
+    /// Frames the camera sent that did not decode (a corrupt MJPEG frame): skipped.
+    pub undecodable: u64,
+    /// Undecodable frames since the last one that decoded.
+    undecodable_in_a_row: u32,
     /// The first frame's sequence number and time, µs.
     first: Option<(u32, u64)>,
     /// The latest frame's.
@@ -194,11 +203,51 @@ impl CameraPace {
         Some(us as f64 / 1000.0 / f64::from(frames))
     }
 
+    /// What to do with a frame that did or did not convert: take it; skip a frame that did
+    /// not decode (counted; `say` for the first and every hundredth, to be told), unless it is
+    /// the [`MAX_UNDECODABLE_IN_A_ROW`]th in a row; fail on any other error.
+    pub fn judge(&mut self, converted: &Result<(), convert::ConvertError>) -> Verdict {
+        match converted {
+            Ok(()) => {
+                self.undecodable_in_a_row = 0;
+                Verdict::Take
+            }
+            Err(convert::ConvertError::Jpeg(_))
+                if self.undecodable_in_a_row + 1 < MAX_UNDECODABLE_IN_A_ROW =>
+            {
+                self.undecodable_in_a_row += 1;
+                self.undecodable += 1;
+                Verdict::Skip {
+                    say: self.undecodable == 1 || self.undecodable.is_multiple_of(100),
+                }
+            }
+            Err(_) => Verdict::Fail,
+        }
+    }
+
     /// One frame in how many was dropped (`None`: none was).
     pub fn one_in(&self) -> Option<f64> {
         (self.dropped > 0).then(|| (self.taken + self.dropped) as f64 / self.dropped as f64)
     }
 }
+
+/// What [`CameraPace::judge`] says of a camera frame.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Verdict {
+    /// It converted: use it.
+    Take,
+    /// It did not decode: skip it, and say so when `say`.
+    Skip {
+        /// Whether to tell the user (the first, then every hundredth).
+        say: bool,
+    },
+    /// Stop: a buffer of the wrong size, or too many bad frames in a row.
+    Fail,
+}
+
+/// Undecodable camera frames in a row after which the camera is taken as broken (about a
+/// second at 30 frames/s): one bad frame is skipped, a stream of them is an error.
+pub const MAX_UNDECODABLE_IN_A_ROW: u32 = 30;
 
 /// Laser-off frames averaged into the reference when no reference image is given.
 pub const REFERENCE_FRAMES: usize = 8;
@@ -468,7 +517,27 @@ pub fn open_with(
 
 #[cfg(test)]
 mod tests {
-    use super::CameraPace;
+    use super::convert::ConvertError;
+    use super::{CameraPace, MAX_UNDECODABLE_IN_A_ROW, Verdict};
+    use scanner_core::jpeg::JpegError;
+
+    /// A corrupt MJPEG frame is skipped and counted, never fatal; only a run of them is.
+    #[test]
+    fn frames_that_do_not_decode_are_skipped_and_counted_until_too_many_in_a_row() {
+        let mut p = CameraPace::default();
+        let bad = Err(ConvertError::Jpeg(JpegError::NotJpeg));
+        assert_eq!(p.judge(&bad), Verdict::Skip { say: true });
+        assert_eq!(p.judge(&bad), Verdict::Skip { say: false });
+        assert_eq!(p.judge(&Ok(())), Verdict::Take);
+        assert_eq!(p.undecodable, 2);
+        for _ in 0..MAX_UNDECODABLE_IN_A_ROW - 1 {
+            assert!(matches!(p.judge(&bad), Verdict::Skip { .. }));
+        }
+        assert_eq!(p.judge(&bad), Verdict::Fail);
+        // Any other error stops at once.
+        let short = Err(ConvertError::OddWidth(3));
+        assert_eq!(CameraPace::default().judge(&short), Verdict::Fail);
+    }
 
     /// A 30 frames/s camera (33 333 µs apart) whose frames 3, 4 and 8 the head never took.
     #[test]

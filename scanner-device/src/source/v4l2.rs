@@ -23,9 +23,10 @@ mod imp {
     use v4l::{Device, FourCC};
 
     use crate::source::controls;
-    use crate::source::convert::{CameraFormat, convert};
+    use crate::source::convert::{CameraFormat, Converter};
     use crate::source::{
-        CameraPace, FrameSource, OwnedFrame, SourceError, SourceOptions, laser_off_reference,
+        CameraPace, FrameSource, OwnedFrame, SourceError, SourceOptions, Verdict,
+        laser_off_reference,
     };
 
     fn cam(path: &str, what: &str, e: std::io::Error) -> SourceError {
@@ -199,6 +200,10 @@ mod imp {
         locked: wire::Controls,
         /// The camera's sequence numbers and times of the frames taken.
         pace: CameraPace,
+        /// Kept across frames: the JPEG decoder's tables.
+        converter: Converter,
+        /// A frame's buffer given back, reused for the next one.
+        spare: Vec<u8>,
     }
 
     impl V4lSource {
@@ -233,34 +238,55 @@ mod imp {
                 controls,
                 locked,
                 pace: CameraPace::default(),
+                converter: Converter::new(),
+                spare: Vec::new(),
             })
         }
 
+        /// The next frame the camera sends that converts; a frame that does not (a corrupt
+        /// MJPEG frame) is skipped and counted, too many in a row fail ([`CameraPace::judge`]).
         fn grab(&mut self, index: u64) -> Result<OwnedFrame, SourceError> {
-            let t0 = Instant::now();
-            let (buf, meta) = CaptureStream::next(&mut self.stream)
-                .map_err(|e| cam(&self.path, "the camera stopped", e))?;
-            if t0.elapsed() > Duration::from_secs(5) {
-                return Err(refused(&self.path, "no frame for more than 5 s".into()));
+            let mut data = std::mem::take(&mut self.spare);
+            loop {
+                let t0 = Instant::now();
+                let (buf, meta) = CaptureStream::next(&mut self.stream)
+                    .map_err(|e| cam(&self.path, "the camera stopped", e))?;
+                if t0.elapsed() > Duration::from_secs(5) {
+                    return Err(refused(&self.path, "no frame for more than 5 s".into()));
+                }
+                let time_us = u64::try_from(meta.timestamp.sec).unwrap_or(0) * 1_000_000
+                    + u64::try_from(meta.timestamp.usec).unwrap_or(0);
+                self.pace.saw(meta.sequence, time_us);
+                let used = (meta.bytesused as usize).min(buf.len());
+                let converted = self.converter.convert(
+                    self.camera,
+                    &buf[..used],
+                    self.size.0,
+                    self.size.1,
+                    self.stride,
+                    self.format,
+                    &mut data,
+                );
+                match (self.pace.judge(&converted), converted) {
+                    (Verdict::Take, _) => break,
+                    (Verdict::Skip { say }, Err(e)) => {
+                        if say {
+                            crate::errln!(
+                                "{}: {} frame(s) skipped so far: {e}",
+                                self.path,
+                                self.pace.undecodable
+                            );
+                        }
+                    }
+                    (_, Err(source)) => {
+                        return Err(SourceError::Convert {
+                            what: format!("camera {}: a bad buffer", self.path),
+                            source,
+                        });
+                    }
+                    (_, Ok(())) => break,
+                }
             }
-            let time_us = u64::try_from(meta.timestamp.sec).unwrap_or(0) * 1_000_000
-                + u64::try_from(meta.timestamp.usec).unwrap_or(0);
-            self.pace.saw(meta.sequence, time_us);
-            let used = (meta.bytesused as usize).min(buf.len());
-            let mut data = Vec::new();
-            convert(
-                self.camera,
-                &buf[..used],
-                self.size.0,
-                self.size.1,
-                self.stride,
-                self.format,
-                &mut data,
-            )
-            .map_err(|source| SourceError::Convert {
-                what: format!("camera {}: a bad buffer", self.path),
-                source,
-            })?;
             Ok(OwnedFrame {
                 time_us: None,
                 data,
@@ -310,6 +336,9 @@ mod imp {
         }
         fn pace(&self) -> Option<CameraPace> {
             Some(self.pace)
+        }
+        fn give_back(&mut self, frame: OwnedFrame) {
+            self.spare = frame.data;
         }
     }
 
