@@ -135,6 +135,9 @@ const LOOKUP_BITS: u32 = 9;
 struct Huffman {
     /// For the next `LOOKUP_BITS` bits: `length << 8 | symbol`, or 0 for a longer code.
     lookup: [u16; 1 << LOOKUP_BITS],
+    /// For an AC table, when the next `LOOKUP_BITS` bits hold a whole coefficient — its code
+    /// and its value bits, the value within ±127 —: `value << 8 | run << 4 | bits used`; else 0.
+    fast_ac: [i16; 1 << LOOKUP_BITS],
     /// The largest code of each length (index 1..=16), −1 where none.
     max_code: [i32; 17],
     /// Subtracted from a code of each length to index `symbols`.
@@ -146,6 +149,7 @@ struct Huffman {
 impl Huffman {
     const EMPTY: Huffman = Huffman {
         lookup: [0; 1 << LOOKUP_BITS],
+        fast_ac: [0; 1 << LOOKUP_BITS],
         max_code: [-1; 17],
         offset: [0; 17],
         symbols: [0; 256],
@@ -182,6 +186,22 @@ impl Huffman {
             }
             self.max_code[len as usize] = if n > 0 { code as i32 - 1 } else { -1 };
             code <<= 1;
+        }
+        for (i, fast) in self.fast_ac.iter_mut().enumerate() {
+            let entry = self.lookup[i];
+            let (len, run, size) = (
+                u32::from(entry >> 8),
+                (entry >> 4) & 15,
+                u32::from(entry & 15),
+            );
+            *fast = 0;
+            if entry != 0 && size != 0 && len + size <= LOOKUP_BITS {
+                let raw = (i as u32 >> (LOOKUP_BITS - len - size)) & ((1 << size) - 1);
+                let v = extend(raw, size);
+                if (-128..=127).contains(&v) {
+                    *fast = (v << 8) as i16 | (run << 4) as i16 | (len + size) as i16;
+                }
+            }
         }
         self.defined = true;
         Some(())
@@ -274,19 +294,15 @@ impl<'a> Bits<'a> {
         None
     }
 
-    /// The signed value of `size` bits (T.81 F.2.2.1, EXTEND); needs `size` bits in the word.
+    /// The signed value of `size` bits; needs `size` bits in the word.
     #[inline(always)]
     fn value(&mut self, size: u32) -> i32 {
         if size == 0 {
             return 0;
         }
-        let v = self.peek(size) as i32;
+        let v = self.peek(size);
         self.consume(size);
-        if v < 1 << (size - 1) {
-            v - (1 << size) + 1
-        } else {
-            v
-        }
+        extend(v, size)
     }
 
     /// Skips to the restart marker that must come next; `false` when it is not there.
@@ -306,6 +322,17 @@ impl<'a> Bits<'a> {
             }
             _ => false,
         }
+    }
+}
+
+/// The signed value of the `size` bits `v` (T.81 F.2.2.1, EXTEND), `size` ≥ 1.
+#[inline(always)]
+fn extend(v: u32, size: u32) -> i32 {
+    let v = v as i32;
+    if v < 1 << (size - 1) {
+        v - (1 << size) + 1
+    } else {
+        v
     }
 }
 
@@ -788,6 +815,19 @@ fn block(
         if bits.count < 32 {
             bits.refill();
         }
+        let fast = ac.fast_ac[bits.peek(LOOKUP_BITS) as usize];
+        if fast != 0 {
+            bits.consume(u32::from(fast as u16 & 15));
+            k += usize::from((fast as u16 >> 4) & 15);
+            if k > 63 {
+                return None;
+            }
+            let at = usize::from(TRANSPOSED[k]);
+            coef[at / 8][at % 8] = f32::from(fast >> 8) * q[k];
+            last = k;
+            k += 1;
+            continue;
+        }
         let rs = bits.symbol(ac)?;
         let (run, size) = (usize::from(rs >> 4), u32::from(rs & 15));
         if size == 0 {
@@ -922,12 +962,14 @@ fn idct(coef: &mut [Lanes; 8], last: usize, pixels: &mut Pixels) {
     *coef = [[0.0; 8]; 8];
 }
 
-/// A sample of the transform (centred on 0) as a byte: +128, clamped, rounded to nearest by
-/// adding 1.5 · 2²³ (the integer then sits in the mantissa's low bits), so that it stays a
-/// vector operation.
+/// A sample of the transform (centred on 0) as a byte: +128, rounded to nearest by adding
+/// 1.5 · 2²³ (the integer then sits in the mantissa's low bits), clamped as an integer — all
+/// of it vector operations, whatever the value (a hostile one gives 0 or 255).
 #[inline(always)]
 fn to_byte(v: f32) -> u8 {
-    ((v + 128.0).clamp(0.0, 255.0) + 12_582_912.0).to_bits() as u8
+    const MAGIC: f32 = 12_582_912.0;
+    let i = ((v + (128.0 + MAGIC)).to_bits() as i32).wrapping_sub(MAGIC.to_bits() as i32);
+    i.clamp(0, 255) as u8
 }
 
 /// A luma block at pixel `(x0, y0)` into the output, clipped at the image's edges.
