@@ -121,9 +121,9 @@ pub struct CameraArgs {
     #[arg(long, value_parser = parse_mains)]
     pub mains: Option<u32>,
     /// Camera pixel format FourCC (YUYV, GREY, RGB3, MJPG). What keeps up with a 30 frames/s
-    /// camera (estimated, docs/speed.md): on a Raspberry Pi 4, YUYV at any size and MJPG at
-    /// 640x480 (1280x720 MJPG: about 17 frames/s); on a Pi 5, MJPG up to 1280x720 (1600x1200:
-    /// about 20). Frames the head cannot keep up with are dropped and counted.
+    /// camera (estimated, docs/speed.md): on a Raspberry Pi 4, YUYV at any size and MJPG up to
+    /// 1280x720 (1600x1200 MJPG: about 21 frames/s); on a Pi 5, MJPG up to 1600x1200 (about
+    /// 50). Frames the head cannot keep up with are dropped and counted.
     #[arg(long)]
     pub fourcc: Option<String>,
 }
