@@ -352,11 +352,19 @@ fn rgb_colour(
 }
 
 /// The DIM magnitude of 16 RGB pixels from the light added to each of their bytes: channel `K`
-/// plus the lesser of `A` and `B` (constants, so that the picks are fixed shuffles).
+/// plus the lesser of `A` and `B` (constants, so that the picks are fixed shuffles). Worked out
+/// for every byte at once — each byte plus the lesser of the bytes `A − K` and `B − K` away, in
+/// plain vector loops over shifted copies — and then every third byte taken: SSE2 has no byte
+/// shuffle to de-interleave RGB, but shifted loads are cheap.
 #[inline(always)]
 fn added<const K: usize, const A: usize, const B: usize>(d: &[u8; 48], out: &mut [u8]) {
+    // Byte `j + K` with bytes `j + A` and `j + B`: every index within the 48.
+    let mut e = [0u8; 48];
+    for j in 0..46 {
+        e[j + K] = d[j + K].saturating_add(d[j + A].min(d[j + B]));
+    }
     for (i, o) in out.iter_mut().enumerate().take(16) {
-        *o = d[3 * i + K].saturating_add(d[3 * i + A].min(d[3 * i + B]));
+        *o = e[3 * i + K];
     }
 }
 
