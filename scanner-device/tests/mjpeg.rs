@@ -169,6 +169,20 @@ fn what_the_decoder_does_not_read_is_refused_by_name() {
         decode(b"not a jpeg", PixelFormat::Gray8),
         Err(ConvertError::Jpeg(JpegError::NotJpeg))
     ));
+    // A stream size over the limit, refused before any buffer is sized for it.
+    let e = Converter::new()
+        .convert(
+            CameraFormat::Mjpeg,
+            &read("crop-420.jpg"),
+            1 << 20,
+            1 << 20,
+            0,
+            PixelFormat::Yuyv,
+            &mut out,
+        )
+        .unwrap_err();
+    assert!(matches!(e, ConvertError::TooLarge { .. }), "{e:?}");
+    assert!(out.capacity() < 1 << 20);
 }
 
 /// Every prefix of a frame (a camera buffer cut short) is an error, never a panic and never a

@@ -109,6 +109,15 @@ pub enum ConvertError {
     /// An odd width for YUYV.
     #[error("YUYV needs an even width, got {0}")]
     OddWidth(usize),
+    /// A frame size over the JPEG decoder's limit ([`scanner_core::jpeg::MAX_SIDE`] a side),
+    /// refused before its buffer is allocated.
+    #[error("a {width}×{height} MJPEG stream: at most {max} pixels a side are decoded", max = scanner_core::jpeg::MAX_SIDE)]
+    TooLarge {
+        /// Width.
+        width: usize,
+        /// Height.
+        height: usize,
+    },
 }
 
 /// Converts camera buffers frame after frame, keeping what MJPEG needs between them: the JPEG
@@ -155,6 +164,9 @@ impl Converter {
         }
         if want != PixelFormat::Gray8 && !width.is_multiple_of(2) {
             return Err(ConvertError::OddWidth(width));
+        }
+        if width > scanner_core::jpeg::MAX_SIDE || height > scanner_core::jpeg::MAX_SIDE {
+            return Err(ConvertError::TooLarge { width, height });
         }
         let (output, target) = match want {
             PixelFormat::Gray8 => (Output::Gray, &mut *out),
