@@ -347,13 +347,16 @@ struct Component {
     ac: usize,
 }
 
-/// A reusable baseline JPEG decoder: tables kept between frames (a stream that defines them
-/// once, or never, decodes every frame), no allocation.
+/// A reusable baseline JPEG decoder, no allocation. Each frame starts from the standard Huffman
+/// tables (a motion-JPEG frame without its own means them), so that tables a corrupt frame
+/// defined never reach the next one; quantisation tables, which every frame carries, are kept.
 pub struct Decoder {
     quant: [[u16; 64]; 4],
     quant_defined: [bool; 4],
     dc: [Huffman; 4],
     ac: [Huffman; 4],
+    /// The last frame defined Huffman tables of its own.
+    custom_tables: bool,
 }
 
 impl Default for Decoder {
@@ -441,6 +444,7 @@ impl Decoder {
                 Huffman::EMPTY,
                 Huffman::EMPTY,
             ],
+            custom_tables: false,
         };
         d.standard_tables();
         d
@@ -449,6 +453,10 @@ impl Decoder {
     /// The tables of T.81 Annex K in slots 0 (luma) and 1 (chroma), as a stream without its own
     /// tables means them.
     fn standard_tables(&mut self) {
+        for slot in 2..4 {
+            self.dc[slot].defined = false;
+            self.ac[slot].defined = false;
+        }
         // The standard tables are valid: building them cannot fail.
         let _ = self.dc[0].build(&STD_DC_LUMA.0, &STD_DC_LUMA.1);
         let _ = self.dc[1].build(&STD_DC_CHROMA.0, &STD_DC_CHROMA.1);
@@ -470,6 +478,10 @@ impl Decoder {
     ) -> Result<(), JpegError> {
         if data.get(..2) != Some(&[0xFF, 0xD8]) {
             return Err(JpegError::NotJpeg);
+        }
+        if self.custom_tables {
+            self.standard_tables();
+            self.custom_tables = false;
         }
         let mut frame: Option<Frame> = None;
         let mut restart_interval = 0usize;
@@ -518,9 +530,11 @@ impl Decoder {
                 0xDB => self
                     .quant_tables(body)
                     .ok_or_else(|| bad("bad quantisation table"))?,
-                0xC4 => self
-                    .huffman_tables(body)
-                    .ok_or_else(|| bad("bad Huffman table"))?,
+                0xC4 => {
+                    self.custom_tables = true;
+                    self.huffman_tables(body)
+                        .ok_or_else(|| bad("bad Huffman table"))?;
+                }
                 0xDD => {
                     restart_interval = be16(body, 0).ok_or_else(|| bad("too short"))?;
                 }
@@ -1123,6 +1137,26 @@ mod tests {
             }
             assert_eq!(coef, [[0.0; 8]; 8], "the block is left zeroed");
         }
+    }
+
+    /// Huffman tables of one frame (here one whose image never comes) do not reach the next.
+    #[test]
+    fn a_frames_own_huffman_tables_end_with_it() {
+        let mut d = Decoder::new();
+        let standard = d.dc[0].lookup;
+        // SOI, then DHT: DC table 0 with one code of length 1 (symbol 7), then EOI.
+        let frame = [
+            0xFF, 0xD8, 0xFF, 0xC4, 0x00, 0x14, 0x00, 1, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0,
+            0, 7, 0xFF, 0xD9,
+        ];
+        let mut out = [0u8; 16];
+        assert!(d.decode(&frame, 2, 4, Output::Yuyv, &mut out).is_err());
+        assert_ne!(d.dc[0].lookup, standard, "the frame's table was read");
+        let _ = d.decode(&[0xFF, 0xD8, 0xFF, 0xD9], 2, 4, Output::Yuyv, &mut out);
+        assert_eq!(
+            d.dc[0].lookup, standard,
+            "the next frame starts from the standard"
+        );
     }
 
     #[test]

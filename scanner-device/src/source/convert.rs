@@ -121,7 +121,7 @@ pub enum ConvertError {
 }
 
 /// Converts camera buffers frame after frame, keeping what MJPEG needs between them: the JPEG
-/// decoder's tables and, for RGB, the decoded YUYV. Once `out` has its size, a frame allocates
+/// decoder (its tables built once) and, for RGB, the decoded YUYV. Once `out` has its size, a frame allocates
 /// nothing.
 pub struct Converter {
     jpeg: Box<Decoder>,

@@ -200,7 +200,7 @@ mod imp {
         locked: wire::Controls,
         /// The camera's sequence numbers and times of the frames taken.
         pace: CameraPace,
-        /// Kept across frames: the JPEG decoder's tables.
+        /// Kept across frames: the JPEG decoder.
         converter: Converter,
         /// A frame's buffer given back, reused for the next one.
         spare: Vec<u8>,
