@@ -8,13 +8,62 @@ use scanner_core::stripe::{Axis, Method, PixelFormat, StripeConfig};
 use scanner_core::wire::MAX_ENCODED;
 use scanner_device::link::Link;
 use scanner_device::session::truth_calibration;
-use scanner_device::session::{ScanOptions, Session};
+use scanner_device::session::{Calibration, ScanOptions, Session};
 use scanner_device::source::convert::{CameraFormat, Converter};
-use scanner_device::source::{FrameSource, RigSource};
+use scanner_device::source::{FrameSource, OwnedFrame, RigSource};
 use scanner_rig::{Rig, Scene};
 
 #[global_allocator]
 static GLOBAL: scanner_alloc::Counting = scanner_alloc::Counting;
+
+/// Runs `n` frames through a session on `reference` (a colour laser when `colour`), each made
+/// by `fill` into one kept frame buffer; the first 4 warm up (the link's buffers reach their
+/// size), then every allocation on this thread is counted. Asserts none, and enough points.
+fn assert_steady_state_allocates_nothing(
+    what: &str,
+    cal: &Calibration,
+    reference: OwnedFrame,
+    colour: bool,
+    n: usize,
+    mut fill: impl FnMut(usize, &mut OwnedFrame),
+) {
+    let mut head = HeadConfig::new(StripeConfig::new(Method::Dim, Axis::Columns));
+    head.colour = colour;
+    let opts = ScanOptions {
+        head,
+        header_every: 3,
+        status_every: 2,
+        scan_id: 1,
+        find_axis: false,
+        disc: None,
+    };
+    let mut frame = reference.clone();
+    let mut session = Session::new(cal, reference, opts).unwrap();
+    let mut link = Link::spawn(Box::new(std::io::sink()), 4, MAX_ENCODED);
+    for i in 0..4 {
+        fill(i, &mut frame);
+        session.frame(&frame, &mut link, |_, _| {}).unwrap();
+    }
+    let before = scanner_alloc::allocations();
+    let mut points = 0;
+    for i in 4..n {
+        fill(i, &mut frame);
+        session
+            .frame(&frame, &mut link, |_, p| points += p.len())
+            .unwrap();
+        // Let the writer catch up, as a camera's frame period would.
+        std::thread::sleep(std::time::Duration::from_millis(2));
+    }
+    let allocations = scanner_alloc::allocations() - before;
+    assert!(points > 500, "{what}: only {points} points");
+    assert_eq!(
+        allocations,
+        0,
+        "{what}: {allocations} allocations in {} frames",
+        n - 4
+    );
+    link.finish().unwrap();
+}
 
 #[test]
 fn the_steady_state_allocates_nothing() {
@@ -31,40 +80,15 @@ fn the_steady_state_allocates_nothing() {
             .filter_map(|_| source.next_frame().unwrap())
             .skip(28)
             .collect();
-        let mut head = HeadConfig::new(StripeConfig::new(Method::Dim, Axis::Columns));
-        head.colour = colour;
-        let opts = ScanOptions {
-            head,
-            header_every: 3,
-            status_every: 2,
-            scan_id: 1,
-            find_axis: false,
-            disc: None,
-        };
-        let mut session = Session::new(&cal, reference, opts).unwrap();
-        let mut link = Link::spawn(Box::new(std::io::sink()), 4, MAX_ENCODED);
-        // Warm up: the link's buffers reach their size.
-        for f in &frames[..4] {
-            session.frame(f, &mut link, |_, _| {}).unwrap();
-        }
-        let before = scanner_alloc::allocations();
-        let mut points = 0;
-        for f in &frames[4..] {
-            session
-                .frame(f, &mut link, |_, p| points += p.len())
-                .unwrap();
-            // Let the writer catch up, as a camera's frame period would.
-            std::thread::sleep(std::time::Duration::from_millis(2));
-        }
-        let n = scanner_alloc::allocations() - before;
-        assert!(points > 500, "{format:?}: only {points} points");
-        assert_eq!(
-            n,
-            0,
-            "{format:?}: {n} allocations in {} frames",
-            frames.len() - 4
+        // A copy into the kept buffer (same size: no allocation), as a camera fills it.
+        assert_steady_state_allocates_nothing(
+            &format!("{format:?}"),
+            &cal,
+            reference,
+            colour,
+            frames.len(),
+            |i, f| f.data.clone_from(&frames[i].data),
         );
-        link.finish().unwrap();
     }
     // The counter works.
     let before = scanner_alloc::allocations();
@@ -80,8 +104,7 @@ fn mjpeg_frames_decode_and_run_without_allocating() {
     let rig = Rig::new(Scene::demo(w, h)).unwrap();
     let cal = truth_calibration(&rig);
     let mut source = RigSource::new(rig, PixelFormat::Rgb24);
-    let jpeg =
-        |f: &scanner_device::source::OwnedFrame| scanner_rig::mjpeg(&f.data, w, h, 90).unwrap();
+    let jpeg = |f: &OwnedFrame| scanner_rig::mjpeg(&f.data, w, h, 90).unwrap();
     let reference_jpeg = jpeg(&source.reference().unwrap());
     let jpegs: Vec<Vec<u8>> = (0..40)
         .filter_map(|_| source.next_frame().unwrap())
@@ -89,9 +112,7 @@ fn mjpeg_frames_decode_and_run_without_allocating() {
         .map(|f| jpeg(&f))
         .collect();
     let mut converter = Converter::new();
-    let mut frame = source.reference().unwrap();
-    frame.format = PixelFormat::Yuyv;
-    let mut decode = |data: &[u8], frame: &mut scanner_device::source::OwnedFrame| {
+    let mut decode = |data: &[u8], frame: &mut OwnedFrame| {
         converter
             .convert(
                 CameraFormat::Mjpeg,
@@ -104,34 +125,10 @@ fn mjpeg_frames_decode_and_run_without_allocating() {
             )
             .unwrap();
     };
-    decode(&reference_jpeg, &mut frame);
-    let mut head = HeadConfig::new(StripeConfig::new(Method::Dim, Axis::Columns));
-    head.colour = true;
-    let opts = ScanOptions {
-        head,
-        header_every: 3,
-        status_every: 2,
-        scan_id: 1,
-        find_axis: false,
-        disc: None,
-    };
-    let mut session = Session::new(&cal, frame.clone(), opts).unwrap();
-    let mut link = Link::spawn(Box::new(std::io::sink()), 4, MAX_ENCODED);
-    for j in &jpegs[..4] {
-        decode(j, &mut frame);
-        session.frame(&frame, &mut link, |_, _| {}).unwrap();
-    }
-    let before = scanner_alloc::allocations();
-    let mut points = 0;
-    for j in &jpegs[4..] {
-        decode(j, &mut frame);
-        session
-            .frame(&frame, &mut link, |_, p| points += p.len())
-            .unwrap();
-        std::thread::sleep(std::time::Duration::from_millis(2));
-    }
-    let n = scanner_alloc::allocations() - before;
-    assert!(points > 500, "MJPEG: only {points} points");
-    assert_eq!(n, 0, "MJPEG: {n} allocations in {} frames", jpegs.len() - 4);
-    link.finish().unwrap();
+    let mut reference = source.reference().unwrap();
+    reference.format = PixelFormat::Yuyv;
+    decode(&reference_jpeg, &mut reference);
+    assert_steady_state_allocates_nothing("MJPEG", &cal, reference, true, jpegs.len(), |i, f| {
+        decode(&jpegs[i], f)
+    });
 }

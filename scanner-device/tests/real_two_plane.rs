@@ -141,34 +141,32 @@ fn the_head_finds_the_laser_plane_in_real_mjpeg_frames() {
     assert!(angle < 0.1, "laser plane {angle}° off the reference");
 }
 
+/// `scanner-device` with `args`, run in `folder` (so that the paths in `args` land there), on
+/// pair `name` as a user gives it: its laser-on frame in `folder/frames`, its laser-off frame as
+/// the reference, its calibration; the stream into `folder/stream`.
+fn device_on_pair(name: &str, folder: &Path, args: &[&str]) -> std::process::Output {
+    let dir = pair(name);
+    std::fs::create_dir_all(folder.join("frames")).unwrap();
+    std::fs::copy(dir.join("laser-on.png"), folder.join("frames/laser-on.png")).unwrap();
+    std::process::Command::new(env!("CARGO_BIN_EXE_scanner-device"))
+        .current_dir(folder)
+        .args(args)
+        .args(["--source", "frames", "--out", "stream", "--reference"])
+        .arg(dir.join("laser-off.png"))
+        .arg("--calibration")
+        .arg(dir.join("calibration.toml"))
+        .output()
+        .unwrap()
+}
+
 /// Through the command line with only the calibration and the reference: the frames' colour
 /// and the stripe's direction found by themselves, the frame taken, nothing sent as an object.
 #[test]
 fn scan_with_only_the_calibration_takes_the_frame_and_sends_no_object_point() {
     for name in PAIRS {
-        let dir = pair(name);
         let t = tempfile::tempdir().unwrap();
-        std::fs::create_dir(t.path().join("frames")).unwrap();
-        std::fs::copy(
-            dir.join("laser-on.png"),
-            t.path().join("frames/laser-on.png"),
-        )
-        .unwrap();
+        let out = device_on_pair(name, t.path(), &["scan", "--report", "scan.json", "-q"]);
         let report = t.path().join("scan.json");
-        let out = std::process::Command::new(env!("CARGO_BIN_EXE_scanner-device"))
-            .args(["scan", "--source"])
-            .arg(t.path().join("frames"))
-            .arg("--reference")
-            .arg(dir.join("laser-off.png"))
-            .arg("--calibration")
-            .arg(dir.join("calibration.toml"))
-            .arg("--out")
-            .arg(t.path().join("scan.stream"))
-            .arg("--report")
-            .arg(&report)
-            .arg("-q")
-            .output()
-            .unwrap();
         assert!(
             out.status.success(),
             "{name}: {}",
@@ -189,20 +187,12 @@ fn scan_with_only_the_calibration_takes_the_frame_and_sends_no_object_point() {
         );
         assert_eq!(r["one_sheet_only"], false, "{r}");
         // Told the wrong direction, the frame is skipped, and the summary says which flag.
+        let out = device_on_pair(
+            name,
+            t.path(),
+            &["scan", "--columns", "--report", "wrong.json"],
+        );
         let wrong = t.path().join("wrong.json");
-        let out = std::process::Command::new(env!("CARGO_BIN_EXE_scanner-device"))
-            .args(["scan", "--columns", "--source"])
-            .arg(t.path().join("frames"))
-            .arg("--reference")
-            .arg(dir.join("laser-off.png"))
-            .arg("--calibration")
-            .arg(dir.join("calibration.toml"))
-            .arg("--out")
-            .arg(t.path().join("wrong.stream"))
-            .arg("--report")
-            .arg(&wrong)
-            .output()
-            .unwrap();
         let text = String::from_utf8_lossy(&out.stdout);
         let r: serde_json::Value =
             serde_json::from_str(&std::fs::read_to_string(&wrong).unwrap()).unwrap();
@@ -290,26 +280,9 @@ fn the_stated_centre_uncertainty_holds_on_stripes_it_was_not_fitted_to() {
 fn the_preview_of_a_real_frame_finds_the_dots_the_line_and_takes_it() {
     use scanner_core::wire::{Decoder, MAX_ENCODED, Message, PreviewState};
     for name in PAIRS {
-        let dir = pair(name);
         let t = tempfile::tempdir().unwrap();
-        std::fs::create_dir(t.path().join("frames")).unwrap();
-        std::fs::copy(
-            dir.join("laser-on.png"),
-            t.path().join("frames/laser-on.png"),
-        )
-        .unwrap();
-        let stream = t.path().join("preview.stream");
-        let out = std::process::Command::new(env!("CARGO_BIN_EXE_scanner-device"))
-            .args(["preview", "--every", "1", "-q", "--source"])
-            .arg(t.path().join("frames"))
-            .arg("--reference")
-            .arg(dir.join("laser-off.png"))
-            .arg("--calibration")
-            .arg(dir.join("calibration.toml"))
-            .arg("--out")
-            .arg(&stream)
-            .output()
-            .unwrap();
+        let out = device_on_pair(name, t.path(), &["preview", "--every", "1", "-q"]);
+        let stream = t.path().join("stream");
         assert!(
             out.status.success(),
             "{}",
