@@ -120,8 +120,9 @@ pub struct Head<const W: usize> {
     cfg: HeadConfig,
     /// The valid lines' stripe pixels, their rays, and each ray's point on the laser plane.
     stripe: Vec<StripePixel, W>,
-    left: Vec<Point3<f32>, W>,
-    right: Vec<Point3<f32>, W>,
+    /// The stripe's points on the known surfaces: the left sheet, the right sheet, the
+    /// turntable disc.
+    known: [Vec<Point3<f32>, W>; 3],
     out: Vec<[i32; 3], W>,
     rgb: Vec<[u8; 3], W>,
     uncertainty: Vec<u8, W>,
@@ -130,6 +131,30 @@ pub struct Head<const W: usize> {
     spread: Option<CalibrationSpread>,
     /// Each stripe pixel's calibration share, mm.
     moves: Vec<f32, W>,
+    /// The turntable disc lying in front of the board, when its pose is known.
+    turntable: Option<Turntable>,
+}
+
+/// The printed turntable disc where the head found it (its pose from the reference frame): a
+/// third known surface in front of the board. A stripe ray that meets it before the board is
+/// never a board point; and where the board alone cannot fix a frame's laser plane (a stand or a
+/// table hides the board's lower part), the stripe's line on the disc, with one on a sheet, can.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Turntable {
+    /// The disc's plane, camera coordinates (mm).
+    pub plane: Plane<f32>,
+    /// Its centre, camera coordinates (mm).
+    pub centre: Point3<f32>,
+    /// The radius within which the disc's print is trusted to lie flat on its plane, mm.
+    pub radius: f32,
+}
+
+impl Turntable {
+    /// Where `ray` meets the disc, if it does within the radius.
+    fn hit(&self, ray: &Vector3<f32>, min_sin: f32) -> Option<Point3<f32>> {
+        let p = self.plane.intersect_ray(ray, min_sin).ok()?;
+        ((p - self.centre).norm() <= self.radius && p.z > 0.0).then_some(p)
+    }
 }
 
 /// A valid stripe pixel, its ray, and (once the plane is known) its 3-D point, how far that
@@ -157,15 +182,20 @@ impl<const W: usize> Head<W> {
             board,
             cfg,
             stripe: Vec::new(),
-            left: Vec::new(),
-            right: Vec::new(),
+            known: [Vec::new(), Vec::new(), Vec::new()],
             out: Vec::new(),
             rgb: Vec::new(),
             uncertainty: Vec::new(),
             verdicts: Vec::new(),
             spread: None,
             moves: Vec::new(),
+            turntable: None,
         }
+    }
+
+    /// The turntable disc in front of the board (see [`Turntable`]); `None` without one.
+    pub fn set_turntable(&mut self, turntable: Option<Turntable>) {
+        self.turntable = turntable;
     }
 
     /// Adds the calibration's share to every point's uncertainty (see [`CalibrationSpread`]);
@@ -198,11 +228,12 @@ impl<const W: usize> Head<W> {
         board_points(
             &ex,
             &self.camera,
-            &self.board,
+            (&self.board, self.turntable.as_ref()),
             &self.cfg,
-            (&mut self.stripe, &mut self.left, &mut self.right),
+            (&mut self.stripe, &mut self.known),
         );
-        let fit = laser_plane(&self.board, &self.cfg, &self.left, &self.right)?;
+        let [left, right, on_disc] = &self.known;
+        let fit = laser_plane(&self.board, &self.cfg, [left, right, on_disc])?;
         let plane = fit.plane;
         let step = match self.cfg.stripe.axis {
             Axis::Columns => Vector3::new(0.0, 1.0 / self.camera.fy(), 0.0),
@@ -368,22 +399,21 @@ fn drop_fringes(stripe: &[StripePixel], verdicts: &mut [Verdict], cfg: &HeadConf
     }
 }
 
-/// The valid lines' pixels and rays into `stripe`, and the rays' points on the two board planes
-/// into `left` and `right` (within range).
+/// The valid lines' pixels and rays into `stripe`, and the rays' points on the known surfaces
+/// into `known`: the two board planes (within range), and the turntable disc for a ray that
+/// meets it first (it lies in front of the board).
 fn board_points<const W: usize>(
     ex: &Extraction<'_>,
     camera: &Camera<f32>,
-    board: &Board<f32>,
+    (board, turntable): (&Board<f32>, Option<&Turntable>),
     cfg: &HeadConfig,
-    (stripe, left, right): (
-        &mut Vec<StripePixel, W>,
-        &mut Vec<Point3<f32>, W>,
-        &mut Vec<Point3<f32>, W>,
-    ),
+    (stripe, known): (&mut Vec<StripePixel, W>, &mut [Vec<Point3<f32>, W>; 3]),
 ) {
     stripe.clear();
-    left.clear();
-    right.clear();
+    for k in known.iter_mut() {
+        k.clear();
+    }
+    let [left, right, on_disc] = known;
     for (line, p) in ex.valid() {
         let px = match cfg.stripe.axis {
             Axis::Columns => Point2::new(line as f32, p.centre),
@@ -408,10 +438,18 @@ fn board_points<const W: usize>(
         {
             break;
         }
-        if let Ok((q, s)) = board.intersect_ray(&ray, cfg.limits.min_sin) {
-            if q.coords.norm() > cfg.limits.max_range {
-                continue;
-            }
+        let on_board = board
+            .intersect_ray(&ray, cfg.limits.min_sin)
+            .ok()
+            .filter(|(q, _)| q.coords.norm() <= cfg.limits.max_range);
+        let disc = turntable.and_then(|t| t.hit(&ray, cfg.limits.min_sin));
+        if let Some(d) = disc
+            && on_board.is_none_or(|(q, _)| d.z < q.z)
+        {
+            let _ = on_disc.push(d);
+            continue;
+        }
+        if let Some((q, s)) = on_board {
             let side = match s {
                 Surface::Left => left.push(q).map(|()| 0),
                 Surface::Right => right.push(q).map(|()| 1),
@@ -424,33 +462,54 @@ fn board_points<const W: usize>(
     }
 }
 
-/// The laser plane from the board points, checked; the reason to skip the frame otherwise.
+/// The share of [`HeadConfig::max_plane_tilt`] a plane that rests on the turntable disc may use:
+/// the disc's plane comes from its pose in the reference frame, whose own error (a few
+/// hundredths of a degree and a few tenths of a millimetre) the fit's residuals do not show.
+const DISC_TILT_SHARE: f32 = 0.5;
+
+/// The laser plane from the board points, checked; the reason to skip the frame otherwise. When
+/// the board's sheets alone give no plane that passes (a stand or a table hides their lower
+/// part, or the stripe on one sheet is too short to fix the plane's tilt), and the stripe
+/// crosses the turntable disc, the least-squares plane over the sheets and the disc together;
+/// the board-only reason stands when that fails too.
 fn laser_plane(
     board: &Board<f32>,
     cfg: &HeadConfig,
-    left: &[Point3<f32>],
-    right: &[Point3<f32>],
+    [left, right, on_disc]: [&[Point3<f32>]; 3],
 ) -> Result<LaserPlane<f32>, Skip> {
     let (nl, nr) = (left.len(), right.len());
-    let fit = match cfg.method {
-        PlaneMethod::LeastSquares => laser::least_squares(left, right, &cfg.laser),
-        PlaneMethod::Paper => laser::paper(board, left, right, &cfg.laser),
-    }
-    .map_err(|e| match e {
-        GeomError::OnePlaneOnly => Skip::OnePlaneOnly,
-        GeomError::TooFewPoints { .. }
-            if (nl == 0 || nr == 0) && nl + nr >= cfg.laser.min_points_per_side =>
-        {
-            Skip::OnePlaneOnly
+    let checked = |fit: Result<LaserPlane<f32>, GeomError>, max_tilt: f32| {
+        let fit = fit.map_err(|e| match e {
+            GeomError::OnePlaneOnly => Skip::OnePlaneOnly,
+            GeomError::TooFewPoints { .. }
+                if (nl == 0 || nr == 0) && nl + nr >= cfg.laser.min_points_per_side =>
+            {
+                Skip::OnePlaneOnly
+            }
+            GeomError::TooFewPoints { .. } => Skip::NoStripe,
+            GeomError::PlaneThroughCamera => Skip::PlaneThroughCamera,
+            _ => Skip::PoorPlane,
+        })?;
+        if !(fit.quality.rms <= cfg.max_plane_rms && fit.quality.tilt <= max_tilt) {
+            return Err(Skip::PoorPlane);
         }
-        GeomError::TooFewPoints { .. } => Skip::NoStripe,
-        GeomError::PlaneThroughCamera => Skip::PlaneThroughCamera,
-        _ => Skip::PoorPlane,
-    })?;
-    if !(fit.quality.rms <= cfg.max_plane_rms && fit.quality.tilt <= cfg.max_plane_tilt) {
-        return Err(Skip::PoorPlane);
+        Ok(fit)
+    };
+    let on_board = checked(
+        match cfg.method {
+            PlaneMethod::LeastSquares => laser::least_squares(left, right, &cfg.laser),
+            PlaneMethod::Paper => laser::paper(board, left, right, &cfg.laser),
+        },
+        cfg.max_plane_tilt,
+    );
+    match on_board {
+        Err(why) if on_disc.len() >= cfg.laser.min_points_per_side => checked(
+            laser::least_squares_on(&[left, right, on_disc], &cfg.laser),
+            cfg.max_plane_tilt * DISC_TILT_SHARE,
+        )
+        .map_err(|_| why),
+        done => done,
     }
-    Ok(fit)
 }
 
 /// Each stripe ray's point on the laser plane (within range), its sensitivity and its

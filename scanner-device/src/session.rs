@@ -325,6 +325,23 @@ pub(crate) fn prompt(link: &mut Link, scan_id: u32, kind: NoticeKind, seconds: u
     encode_to_link(link, &mut [0; 64], &Message::Notice(n), true).map(|_| ())
 }
 
+/// The disc found at `pose` (disc → camera) as a known surface for the laser plane: its plane,
+/// centre and a radius 3 % inside its cut line (the print's edge may curl). `None` when the pose
+/// gives no plane.
+fn turntable(
+    pose: &scanner_core::geometry::Pose,
+    printed: &scanner_calib::disc::Disc,
+) -> Option<scanner_core::pipeline::Turntable> {
+    let centre = scanner_core::nalgebra::Point3::from(pose.translation);
+    let normal = pose.rotation * scanner_core::nalgebra::Vector3::z();
+    let plane = scanner_core::geometry::Plane::from_point_normal(&centre, &normal).ok()?;
+    Some(scanner_core::pipeline::Turntable {
+        plane: plane.cast(),
+        centre: centre.cast(),
+        radius: (0.97 * printed.radius) as f32,
+    })
+}
+
 /// Looks for `disc` in the laser-off reference frame (its luma).
 fn find_disc(
     reference: &OwnedFrame,
@@ -700,6 +717,9 @@ pub fn run_scan_until(
     let mut session = Session::new(cal, reference, opts)?;
     session.axis_seen = axis_seen;
     session.disc = disc.as_ref().map(|d| d.message(opts.scan_id));
+    if let (Some(DiscOutcome::Found { pose, .. }), Some(printed)) = (&disc, &opts.disc) {
+        session.head.set_turntable(turntable(pose, printed));
+    }
     session.disc_found = disc;
     session.set_controls(source.controls());
     session.send_header(link)?;

@@ -151,10 +151,11 @@ fn tilt<'a, T: Real>(
 /// `1.4826 ×` the median absolute residual about `plane` of the points within `within` of it
 /// (the σ of Gaussian residuals), found without a buffer by bisecting on the count of residuals
 /// below a level.
-fn mad_sigma<T: Real>(plane: &Plane<T>, left: &[Point3<T>], right: &[Point3<T>], within: T) -> T {
+fn mad_sigma<T: Real>(plane: &Plane<T>, sides: &[&[Point3<T>]], within: T) -> T {
     let all = || {
-        left.iter()
-            .chain(right)
+        sides
+            .iter()
+            .flat_map(|s| s.iter())
             .map(|p| plane.signed_distance(p).abs())
             .filter(move |&r| r <= within)
     };
@@ -299,30 +300,74 @@ fn picker(mut state: u32) -> impl FnMut(usize) -> usize {
     }
 }
 
-/// Candidate planes the seed tries.
+/// Candidate planes the seed tries at least: enough when most board-stripe points are the
+/// board's.
 const SEED_HYPOTHESES: u32 = 64;
+/// Candidate planes the seed tries at most, when the board's points are few among the rest (a
+/// stand or a table in front of the board, a large object): enough for a 0.999 chance of one
+/// candidate through board points alone when a tenth of each side's points are the board's.
+const SEED_HYPOTHESES_MAX: u32 = 1024;
 
-/// A small deterministic MSAC seed: planes through one point of one side and two of the other,
-/// chosen by a fixed pseudo-random sequence, scored by the sum of squared residuals truncated at
-/// the seed tolerance (lower is better). Truncated squares rather than inlier counts: when the
-/// object's pixels outnumber the board's, a wrong plane can gather more points within a loose
-/// tolerance, but not closer ones.
+/// A small deterministic MSAC seed: planes through one point of one side and two near each other
+/// (at most a quarter of the side's points, and 48, apart in line order) of the other, chosen by a
+/// fixed pseudo-random sequence. A candidate is judged by its weaker side: each side's support is
+/// the sum over its points within the seed tolerance of `1 − (r / tol)²`, and the candidate whose
+/// lesser support is largest wins. The laser crosses both sheets in a line each, so the true
+/// plane is well supported on both; graded support rather than inlier counts, so that a plane
+/// that gathers many points loosely loses to one that gathers them closely.
+///
+/// What this keeps out: the stripe on a surface in front of the board (a stand, a table, the
+/// turntable disc, a large object) is a line whose points, carried along their rays onto both
+/// sheets, all lie in the plane of that line and the camera centre. Where they outnumber the
+/// board's own points, that plane (through the camera: never taken, see below) or one through
+/// one side's share of them and a few points of the other side near the crease would win on the
+/// total; on its weaker side it gathers only those few.
+/// - A plane (nearly) through the camera is never taken ([`check_view`]).
+/// - When no candidate off the camera has `min_points_per_side` inliers on both sides, the
+///   refinement would only polish a plane that is not the laser's: the laser plane is through
+///   the camera ([`GeomError::PlaneThroughCamera`]) when a candidate through it fitted both
+///   sides, and otherwise the stripe is on one sheet only as far as a plane can tell
+///   ([`GeomError::OnePlaneOnly`], as the final fit would find).
+/// - The number of candidates grows from [`SEED_HYPOTHESES`] towards [`SEED_HYPOTHESES_MAX`] as
+///   the best plane's share of each side's points says it must (the usual RANSAC count for a
+///   0.999 chance of one all-inlier draw).
 fn seed<T: Real>(
-    left: &[Point3<T>],
-    right: &[Point3<T>],
+    sides: &[&[Point3<T>]],
     cfg: &LaserFitConfig<T>,
-) -> Option<(Plane<T>, T)> {
+) -> Result<(Plane<T>, T), GeomError> {
+    let (left, right) = (sides[0], sides.get(1).copied().unwrap_or(&[]));
     let mut next = picker(0x9E37_79B9 ^ (left.len() as u32).wrapping_mul(31) ^ right.len() as u32);
-    let mut best: Option<(Plane<T>, T, T)> = None;
-    for h in 0..SEED_HYPOTHESES {
-        let (one, two) = if h % 2 == 0 {
-            (left, right)
-        } else {
-            (right, left)
-        };
+    let need = cfg.min_points_per_side.max(2);
+    // The ordered pairs of sides a candidate draws its single point and its pair from, every
+    // side with a point in turn.
+    let mut pairs: heapless::Vec<(usize, usize), { (MAX_SIDES - 1) * MAX_SIDES }> =
+        heapless::Vec::new();
+    for (x, y) in SIDE_PAIRS {
+        if x < sides.len() && y < sides.len() && !sides[x].is_empty() && !sides[y].is_empty() {
+            let _ = pairs.push((x, y));
+        }
+    }
+    if pairs.is_empty() {
+        return Err(GeomError::OnePlaneOnly);
+    }
+    // (plane, tolerance, the second-best side's support, two sides have enough inliers)
+    let mut best: Option<(Plane<T>, T, T, bool)> = None;
+    // a plane through the camera fitted two sides
+    let mut through_fits = false;
+    let mut trials = SEED_HYPOTHESES;
+    let mut h = 0;
+    while h < trials {
+        let (x, y) = pairs[h as usize % pairs.len()];
+        let (one, two) = (sides[x], sides[y]);
+        h += 1;
         let a = one[next(one.len())];
-        let b = two[next(two.len())];
-        let c = two[next(two.len())];
+        // Two points a few lines apart on the other side: points in line order, so both lie on
+        // the same surface far more often than two drawn anywhere (the board's stripe is one run
+        // of lines at a side's edge, however short).
+        let i = next(two.len());
+        let reach = (two.len() / 4).clamp(4, 48);
+        let j = i.saturating_sub(reach) + next(2 * reach + 1);
+        let (b, c) = (two[i], two[j.min(two.len() - 1)]);
         let Ok(plane) = Plane::from_point_normal(&a, &(b - a).cross(&(c - a))) else {
             continue;
         };
@@ -331,16 +376,84 @@ fn seed<T: Real>(
             .inlier_tol
             .max(cfg.inlier_tol_rel * centroid.coords.norm());
         let tol2 = tol * tol;
-        let mut score = T::zero();
-        for p in left.iter().chain(right) {
-            let r = plane.signed_distance(p);
-            score += (r * r).min(tol2) / tol2;
+        // per side: inliers, and support (each point's 1 − r²/tol², 0 beyond tol)
+        let mut inliers = [0usize; MAX_SIDES];
+        let mut support = [T::zero(); MAX_SIDES];
+        for (side, pts) in sides.iter().enumerate() {
+            for p in pts.iter() {
+                let r = plane.signed_distance(p);
+                let r2 = r * r;
+                if r2 <= tol2 {
+                    inliers[side] += 1;
+                    support[side] += T::one() - r2 / tol2;
+                }
+            }
         }
-        if best.as_ref().is_none_or(|b| score < b.2) {
-            best = Some((plane, tol, score));
+        let (first, second) = two_best(&support[..sides.len()]);
+        let both = inliers[first] >= need && inliers[second] >= need;
+        if check_view(&plane, &centroid, cfg).is_err() {
+            through_fits |= both;
+            continue;
+        }
+        let weaker = support[second];
+        if best.as_ref().is_none_or(|b| (both, weaker) > (b.3, b.2)) {
+            best = Some((plane, tol, weaker, both));
+            if both {
+                let share = |k: usize| inliers[k] as f64 / sides[k].len() as f64;
+                trials = trials.max(trials_for(share(first), share(second)));
+            }
         }
     }
-    best.map(|(p, tol, _)| (p, tol))
+    match best {
+        Some((p, tol, _, true)) => Ok((p, tol)),
+        _ if through_fits => Err(GeomError::PlaneThroughCamera),
+        Some(_) => Err(GeomError::OnePlaneOnly),
+        None => Err(GeomError::Collinear),
+    }
+}
+
+/// The most known surfaces a laser plane is fitted on: the board's two sheets and the turntable
+/// disc.
+pub const MAX_SIDES: usize = 3;
+
+/// The ordered pairs of sides a seed candidate draws from, in turn: for two sides, one point of
+/// the left and two of the right, then the other way round.
+const SIDE_PAIRS: [(usize, usize); 6] = [(0, 1), (1, 0), (0, 2), (2, 0), (1, 2), (2, 1)];
+
+/// The indices of the largest and the second largest of `v` (two or more values).
+fn two_best<T: Real>(v: &[T]) -> (usize, usize) {
+    let (mut first, mut second) = (0, 1);
+    if v[1] > v[0] {
+        (first, second) = (1, 0);
+    }
+    for k in 2..v.len() {
+        if v[k] > v[first] {
+            (first, second) = (k, first);
+        } else if v[k] > v[second] {
+            second = k;
+        }
+    }
+    (first, second)
+}
+
+/// Candidates for a 0.999 chance that one draw (one point of one side, a pair of the other, the
+/// sides alternating) is all inliers, when shares `wl` and `wr` of the sides' points are (a pair
+/// counted as one draw: its points are near each other); within
+/// [`SEED_HYPOTHESES`]..=[`SEED_HYPOTHESES_MAX`].
+fn trials_for(wl: f64, wr: f64) -> u32 {
+    let all = wl * wr;
+    if !(all > 0.0) {
+        return SEED_HYPOTHESES_MAX;
+    }
+    if all >= 1.0 {
+        return SEED_HYPOTHESES;
+    }
+    let n = libm::ceil(libm::log(0.001) / libm::log(1.0 - all));
+    if n >= f64::from(SEED_HYPOTHESES_MAX) {
+        SEED_HYPOTHESES_MAX
+    } else {
+        (n as u32).max(SEED_HYPOTHESES)
+    }
 }
 
 /// Least-squares laser plane over all board-stripe points, with outlier rejection.
@@ -355,21 +468,49 @@ pub fn least_squares<T: Real>(
     cfg: &LaserFitConfig<T>,
 ) -> Result<LaserPlane<T>, GeomError> {
     check_sides(left, right, cfg)?;
-    if !left
-        .iter()
-        .chain(right)
-        .all(|p| crate::real::all_finite(&p.coords))
-    {
+    least_squares_on(&[left, right], cfg)
+}
+
+/// [`least_squares`] over the stripe's points on two or three known surfaces (the board's sheets,
+/// and the turntable disc where its plane is known): the laser crosses each in a line, and two
+/// lines fix the plane, so at least two surfaces must each give `min_points_per_side` inliers.
+///
+/// # Errors
+/// As [`least_squares`]; [`GeomError::TooFewPoints`] for fewer than two or more than
+/// [`MAX_SIDES`] surfaces.
+pub fn least_squares_on<T: Real>(
+    sides: &[&[Point3<T>]],
+    cfg: &LaserFitConfig<T>,
+) -> Result<LaserPlane<T>, GeomError> {
+    let need = cfg.min_points_per_side.max(2);
+    if !(2..=MAX_SIDES).contains(&sides.len()) {
+        return Err(GeomError::TooFewPoints {
+            needed: 2,
+            got: sides.len(),
+        });
+    }
+    let enough = sides.iter().filter(|s| s.len() >= need).count();
+    if enough < 2 {
+        let most = sides.iter().map(|s| s.len()).max().unwrap_or(0);
+        return Err(if enough == 1 {
+            GeomError::OnePlaneOnly
+        } else {
+            GeomError::TooFewPoints {
+                needed: need,
+                got: most,
+            }
+        });
+    }
+    let all = || sides.iter().flat_map(|s| s.iter());
+    if !all().all(|p| crate::real::all_finite(&p.coords)) {
         return Err(GeomError::NotFinite);
     }
-    let (mut plane, mut tol) = seed(left, right, cfg).ok_or(GeomError::Collinear)?;
+    let (mut plane, mut tol) = seed(sides, cfg)?;
     let mut used = usize::MAX;
     let mut fit = None;
     for _ in 0..cfg.max_rounds.max(1) {
         let current = plane;
-        let inliers = left
-            .iter()
-            .chain(right)
+        let inliers = all()
             .copied()
             .filter(move |p| current.signed_distance(p).abs() <= tol);
         let f = fit_plane(inliers)?;
@@ -385,22 +526,21 @@ pub fn least_squares<T: Real>(
     let fit = fit.ok_or(GeomError::NoConvergence)?;
     // The final inlier set is judged with the final plane and threshold.
     let keep = |p: &&Point3<T>| plane.signed_distance(p).abs() <= tol;
-    let need = cfg.min_points_per_side.max(2);
-    let (nl, nr) = (
-        left.iter().filter(keep).count(),
-        right.iter().filter(keep).count(),
-    );
-    if nl < need || nr < need {
+    let crossed = sides
+        .iter()
+        .filter(|s| s.iter().filter(keep).count() >= need)
+        .count();
+    if crossed < 2 {
         return Err(GeomError::OnePlaneOnly);
     }
     check_view(&plane, &fit.centroid, cfg)?;
-    let used_points = left.iter().chain(right).filter(keep);
+    let used_points = all().filter(keep);
     let (rms, max, used) = residuals(&plane, used_points.clone());
     // The noise for the uncertainty: the trimming can settle on a tight subset whose RMS is
     // well below the points' real scatter (measured: 0.10 mm from 0.3 mm noise), so a robust σ
     // of the points within three times the final tolerance counts too (the object's pixels
     // among the board points, often more than half of them late in a sweep, lie further off).
-    let robust = mad_sigma(&plane, left, right, T::lit(3.0) * tol);
+    let robust = mad_sigma(&plane, sides, T::lit(3.0) * tol);
     let (tilt, sigma, centroid) = tilt(used_points, rms.max(robust), used, cfg)?;
     Ok(LaserPlane {
         plane,
@@ -408,7 +548,7 @@ pub fn least_squares<T: Real>(
             rms,
             max,
             used,
-            rejected: left.len() + right.len() - used,
+            rejected: all().count() - used,
             st_gap: None,
             tilt,
             sigma,

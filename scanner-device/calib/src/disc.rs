@@ -285,20 +285,35 @@ pub fn find_disc(img: &GrayImage, disc: &Disc, camera: &Camera<f64>) -> Result<D
         found,
         of: layout.len(),
     };
-    let ring = candidates(&features, &[], &layout[..POSITIONS], None, orient);
-    let Some(ring) = ring.first() else {
+    // Other dots in the picture (the board's markers, a printed page) can make another ring
+    // match first, or crowd the true one: each of the best few rings is tried, with only the
+    // dots of its own size, and the one whose best turn matches most dots is taken.
+    let rings = candidates(&features, &[], &layout[..POSITIONS], None, orient);
+    let mut best: Option<(Assignment, usize)> = None;
+    for ring in rings.iter().take(RING_TRIES) {
+        let alike = of_ring_size(&features, ring);
+        // Every turn of the whole layout through the ring's homography, its dots matched.
+        let mut turns: Vec<Assignment> = (0..POSITIONS)
+            .map(|k| turned(&features, &alike, &layout, &ring.homography, k, disc.radius))
+            .collect();
+        turns.sort_by(|a, b| {
+            b.matched()
+                .cmp(&a.matched())
+                .then(a.rms_px.total_cmp(&b.rms_px))
+        });
+        let other = turns[1].matched();
+        let top = turns.swap_remove(0);
+        if best
+            .as_ref()
+            .is_none_or(|(b, _)| top.matched() > b.matched())
+        {
+            best = Some((top, other));
+        }
+    }
+    let Some((best, other)) = best else {
         return Err(too_few(0));
     };
-    // Every turn of the whole layout through the ring's homography, its dots matched.
-    let mut turns: Vec<Assignment> = (0..POSITIONS)
-        .map(|k| turned(&features, &layout, &ring.homography, k, disc.radius))
-        .collect();
-    turns.sort_by(|a, b| {
-        b.matched()
-            .cmp(&a.matched())
-            .then(a.rms_px.total_cmp(&b.rms_px))
-    });
-    let (best, other) = (&turns[0], turns[1].matched());
+    let best = &best;
     if best.matched() < MIN_MARKERS {
         return Err(too_few(best.matched()));
     }
@@ -337,10 +352,37 @@ pub fn find_disc(img: &GrayImage, disc: &Disc, camera: &Camera<f64>) -> Result<D
     Ok(found)
 }
 
+/// Ring candidates [`find_disc`] tries, best first.
+const RING_TRIES: usize = 4;
+
+/// Which features are dots of a ring's size: an area within a factor [`DOT_AREA_RATIO`] of the
+/// median of the ring's matched dots (the disc's dots differ less than that between its near and
+/// far side at any tilt it is accepted at; a board's markers are several times larger).
+fn of_ring_size(features: &[crate::detect::Blob], ring: &Assignment) -> Vec<bool> {
+    let mut areas: Vec<f64> = ring
+        .blob_of
+        .iter()
+        .flatten()
+        .map(|&b| features[b].area)
+        .collect();
+    areas.sort_by(f64::total_cmp);
+    let Some(&median) = areas.get(areas.len() / 2) else {
+        return vec![true; features.len()];
+    };
+    features
+        .iter()
+        .map(|f| f.area <= median * DOT_AREA_RATIO && f.area * DOT_AREA_RATIO >= median)
+        .collect()
+}
+
+/// See [`of_ring_size`].
+const DOT_AREA_RATIO: f64 = 3.0;
+
 /// The layout turned by `k` steps and mapped by `h` (disc mm → undistorted pixels), each dot
-/// matched to the nearest feature within a third of the rings' spacing there.
+/// matched to the nearest feature (of those `alike`) within a third of the rings' spacing there.
 fn turned(
     features: &[crate::detect::Blob],
+    alike: &[bool],
     layout: &[Point2<f64>],
     h: &Matrix3<f64>,
     k: usize,
@@ -365,7 +407,7 @@ fn turned(
         let near = features
             .iter()
             .enumerate()
-            .filter(|(b, _)| !used[*b])
+            .filter(|(b, _)| !used[*b] && alike[*b])
             .map(|(b, f)| (b, (f.centre - c).norm()))
             .filter(|&(_, dist)| dist <= tol)
             .min_by(|x, y| x.1.total_cmp(&y.1));

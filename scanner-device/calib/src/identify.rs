@@ -243,6 +243,54 @@ fn keeps_orientation(h: &Matrix3<f64>, layout: &[Point2<f64>], orient: Orientati
     })
 }
 
+/// The sheet → image map of a match, its strays left out: while the map misses the match's
+/// points by more than [`STRAY_RMS_PX`] (RMS) and leaving one point out at least halves that,
+/// the point is left out. A stray is another target's dot where an affine start, extrapolated
+/// across a large layout (a disc's ring), put a far layout point: kept, it bends the map until
+/// the true matches no longer fit it.
+fn without_strays(
+    blobs: &[Blob],
+    layout: &[Point2<f64>],
+    blob_of: &mut [Option<usize>],
+) -> Option<Matrix3<f64>> {
+    let fit = |blob_of: &[Option<usize>], skip: Option<usize>| -> Option<(Matrix3<f64>, f64)> {
+        let (src, dst): (Vec<Point2<f64>>, Vec<Vector2<f64>>) = blob_of
+            .iter()
+            .enumerate()
+            .filter(|&(i, _)| Some(i) != skip)
+            .filter_map(|(i, b)| b.map(|b| (layout[i], blobs[b].centre.coords)))
+            .unzip();
+        let h = sheet_to_image(&src, &dst)?;
+        let ss: f64 = src
+            .iter()
+            .zip(&dst)
+            .map(|(s, t)| apply(&h, s).map_or(f64::INFINITY, |p| (p.coords - t).norm_squared()))
+            .sum();
+        Some((h, (ss / src.len().max(1) as f64).sqrt()))
+    };
+    loop {
+        let (h, rms) = fit(blob_of, None)?;
+        let matched: Vec<usize> = (0..blob_of.len())
+            .filter(|&i| blob_of[i].is_some())
+            .collect();
+        if matched.len() <= 5 || rms <= STRAY_RMS_PX {
+            return Some(h);
+        }
+        let best = matched
+            .iter()
+            .filter_map(|&k| fit(blob_of, Some(k)).map(|(_, r)| (k, r)))
+            .min_by(|a, b| a.1.total_cmp(&b.1));
+        match best {
+            Some((k, r)) if r <= rms / 2.0 => blob_of[k] = None,
+            _ => return Some(h),
+        }
+    }
+}
+
+/// See [`without_strays`]: true matches of features with the lens distortion removed fit a
+/// homography within a few tenths of a pixel.
+const STRAY_RMS_PX: f64 = 1.0;
+
 /// Grows a match by homographies until it stops changing.
 fn grow(
     blobs: &[Blob],
@@ -255,12 +303,11 @@ fn grow(
 ) -> Option<Assignment> {
     let mut last = None;
     for _ in 0..24 {
-        let (src, dst): (Vec<Point2<f64>>, Vec<Vector2<f64>>) = blob_of
-            .iter()
-            .enumerate()
-            .filter_map(|(i, b)| b.map(|b| (layout[i], blobs[b].centre.coords)))
-            .unzip();
-        let h = sheet_to_image(&src, &dst)?;
+        let h = without_strays(blobs, layout, &mut blob_of)?;
+        let src: Vec<Point2<f64>> = (0..layout.len())
+            .filter(|&i| blob_of[i].is_some())
+            .map(|i| layout[i])
+            .collect();
         // Checked where the match is (extrapolating a small seed across a large layout is not
         // reliable enough to judge points far from it).
         if !keeps_orientation(&h, &src, orient) {

@@ -532,19 +532,26 @@ pub struct BoardOutcome {
     pub corners: Vec<Blob>,
     /// Left and right sheet identification.
     pub assignments: [Option<Assignment>; 2],
+    /// A turntable disc found in the picture; its dots were left out.
+    pub turntable: Option<TurntableSeen>,
     /// The result.
     pub result: Result<BoardFit, CalibError>,
 }
 
 /// Candidate identifications of a sheet among its kind of features (discs or corners); the left
 /// sheet's `u` runs to the image's left (mirrored), the right one's to the right.
-fn sheet_candidates(features: &[Blob], sheet: &board::SheetLayout, k: usize) -> Vec<Assignment> {
+fn sheet_candidates(
+    features: &[Blob],
+    exclude: &[bool],
+    sheet: &board::SheetLayout,
+    k: usize,
+) -> Vec<Assignment> {
     let orient = Orientation {
         mirrored: k == 0,
         u_along_x: Some(if k == 0 { -1 } else { 1 }),
     };
     let dark = sheet.corner_colours();
-    let mut c = candidates(features, &[], &sheet.points(), dark.as_deref(), orient);
+    let mut c = candidates(features, exclude, &sheet.points(), dark.as_deref(), orient);
     c.truncate(16);
     c
 }
@@ -587,7 +594,15 @@ pub fn board_planes(img: &GrayImage, board: &BoardFile, camera: &Camera<f64>) ->
         }
     });
     let radius = sheets.map(|s| s.marker_radius(board.marker_diameter));
-    let searches = [0, 1].map(|k| SheetSearch::run(k, features[k], sheets[k], radius[k], camera));
+    // A turntable disc in the picture (the reference of a 360° scan): its dots are no board
+    // markers, and taken for some they give a board at a wrong angle.
+    let turntable = find_turntable(img, camera);
+    let off_disc = features.map(|f| match &turntable {
+        Some(t) => f.iter().map(|b| t.covers(camera, &b.centre)).collect(),
+        None => Vec::new(),
+    });
+    let searches = [0, 1]
+        .map(|k| SheetSearch::run(k, features[k], &off_disc[k], sheets[k], radius[k], camera));
     let same_kind = sheets[0].chessboard.is_some() == sheets[1].chessboard.is_some();
     let (assignments, result) = match best_pair(&searches, features, same_kind) {
         Some((i, j)) => (
@@ -640,8 +655,54 @@ pub fn board_planes(img: &GrayImage, board: &BoardFile, camera: &Camera<f64>) ->
         detections,
         corners,
         assignments,
+        turntable,
         result,
     }
+}
+
+/// A turntable disc found in a picture of the board, whose dots the board's identification
+/// leaves out. The discs of both papers have one pattern at two scales, so from one picture an
+/// A3 disc and an A4 disc nearer the camera look the same: `disc` is the first that fits, and
+/// its pose is right up to that scale (which what the disc covers in the picture does not
+/// depend on).
+#[derive(Debug, Clone, PartialEq)]
+pub struct TurntableSeen {
+    /// The disc printed, as far as one picture tells.
+    pub disc: disc::Disc,
+    /// Where it lies, up to the scale of the paper.
+    pub fit: disc::DiscFit,
+}
+
+impl TurntableSeen {
+    /// Whether the pixel `px` shows the disc: its ray meets the disc's plane within the disc's
+    /// radius (and a margin of a dot).
+    pub fn covers(&self, camera: &Camera<f64>, px: &Point2<f64>) -> bool {
+        let Ok(ray) = camera.pixel_to_ray(px) else {
+            return false;
+        };
+        let r = &self.fit.pose.rotation;
+        let c = self.fit.pose.translation;
+        let n = r * scanner_core::nalgebra::Vector3::z();
+        let along = n.dot(&ray);
+        if along.abs() < 1e-9 {
+            return false;
+        }
+        let t = n.dot(&c) / along;
+        let on = ray * t - c;
+        t > 0.0 && on.norm() <= self.disc.radius + self.disc.dot()
+    }
+}
+
+/// The turntable disc, of either paper, if one is in the picture.
+fn find_turntable(img: &GrayImage, camera: &Camera<f64>) -> Option<TurntableSeen> {
+    [disc::Paper::A4, disc::Paper::A3]
+        .into_iter()
+        .find_map(|paper| {
+            let d = disc::Disc::new(paper);
+            disc::find_disc(img, &d, camera)
+                .ok()
+                .map(|fit| TurntableSeen { disc: d, fit })
+        })
 }
 
 /// The names of the sheets in error messages.
@@ -661,12 +722,13 @@ impl SheetSearch {
     fn run(
         k: usize,
         features: &[Blob],
+        exclude: &[bool],
         sheet: &board::SheetLayout,
         radius: f64,
         camera: &Camera<f64>,
     ) -> SheetSearch {
         let layout = sheet.points();
-        let candidates = sheet_candidates(&undistorted(features, camera), sheet, k);
+        let candidates = sheet_candidates(&undistorted(features, camera), exclude, sheet, k);
         let fits = candidates
             .iter()
             .map(|a| {

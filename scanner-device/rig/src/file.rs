@@ -120,6 +120,9 @@ struct ObjectEntry {
     texture_cell: Option<f64>,
     /// Albedo of the checker's other cells.
     texture_albedo: Option<[f64; 3]>,
+    /// `true`: the object stays put in every view (a table or a stand under the turntable).
+    #[serde(default)]
+    fixed: bool,
 }
 
 #[derive(Debug, Deserialize)]
@@ -300,6 +303,20 @@ impl Scene {
                 });
         }
         if let Some(objects) = f.objects {
+            s.fixed = objects
+                .iter()
+                .enumerate()
+                .filter(|(_, o)| o.fixed)
+                .map(|(i, _)| i)
+                .collect();
+            if let Some(t) = &s.turntable
+                && s.fixed.contains(&t.object)
+            {
+                return Err(RigError::Scene(format!(
+                    "objects[{}]: the turntable disc turns with the views; it cannot be fixed",
+                    t.object
+                )));
+            }
             s.objects = objects
                 .into_iter()
                 .enumerate()

@@ -307,6 +307,9 @@ pub struct Scene {
     pub object_pose: Isometry3<f64>,
     /// The turntable disc the objects stand on, if any: one of the objects, printed.
     pub turntable: Option<Turntable>,
+    /// Objects that stay put in every view (indices into `objects`): the table or stand a
+    /// turntable sits on, which the hand turns do not move.
+    pub fixed: Vec<usize>,
 }
 
 /// The printed turntable disc ([`scanner_calib::disc`]) under the objects: a [`Shape::Disc`]
@@ -433,6 +436,7 @@ impl Scene {
             views: Vec::new(),
             object_pose: Isometry3::identity(),
             turntable: None,
+            fixed: Vec::new(),
         }
     }
 
@@ -458,8 +462,10 @@ impl Scene {
             }
         };
         let mut s = self.clone();
-        for o in &mut s.objects {
-            o.shape = o.shape.moved(&pose);
+        for (i, o) in s.objects.iter_mut().enumerate() {
+            if !self.fixed.contains(&i) {
+                o.shape = o.shape.moved(&pose);
+            }
         }
         if let Some(t) = &s.turntable
             && t.absent_in.contains(&k)
@@ -796,8 +802,12 @@ impl Rig {
             SurfaceId::Object(n) => {
                 let o = &self.scene.objects[usize::from(n)];
                 // The checker is fixed to the object: evaluated where the point was before the
-                // view moved it.
-                let p = self.scene.object_pose.inverse_transform_point(p);
+                // view moved it (a fixed object never moved).
+                let p = if self.scene.fixed.contains(&usize::from(n)) {
+                    *p
+                } else {
+                    self.scene.object_pose.inverse_transform_point(p)
+                };
                 if let Some(t) = &self.scene.turntable
                     && t.object == usize::from(n)
                 {

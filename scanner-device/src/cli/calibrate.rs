@@ -19,7 +19,7 @@ use scanner_calib::{
 
 use super::report::{
     self, BoardData, CameraData, CoverageData, DistanceData, IntrinsicsData, IntrinsicsImage,
-    SelfCheckData, SheetData, write_json,
+    SelfCheckData, SheetData, TurntableData, write_json,
 };
 
 /// The intrinsics target: a dot grid (default) or a chessboard, with its sizes.
@@ -377,13 +377,29 @@ fn board_planes_command(p: &BoardPaths, method: PlaneMethod) -> Result<()> {
     })?;
     let outcome = board_planes(&img, &b, &cam);
     save_png(&overlay::board_overlay(&img, &outcome, &b, &cam), p.overlay)?;
+    let turntable = outcome
+        .turntable
+        .as_ref()
+        .map(|t| TurntableData { dots: t.fit.used });
+    if let Some(t) = &turntable {
+        outln!(
+            "turntable disc in the picture: its {} dots are no board markers, left out",
+            t.dots
+        );
+    }
     let fit = match outcome.result {
         Ok(fit) => fit,
         Err(e) => {
+            if turntable.is_some() {
+                crate::errln!(
+                    "the turntable disc lies in the picture: if it hides the board's lower markers, take the board's picture without it"
+                );
+            }
             let data = BoardData {
                 sheets: Vec::new(),
                 method: None,
                 angle_deg: None,
+                turntable,
                 error: Some(e.to_string()),
             };
             write_json(&report::beside(p.out), &data)?;
@@ -423,6 +439,7 @@ fn board_planes_command(p: &BoardPaths, method: PlaneMethod) -> Result<()> {
             .collect(),
         method: Some(used.name()),
         angle_deg: Some(angle),
+        turntable,
         error: None,
     };
     write_json(&report::beside(p.out), &data)

@@ -547,8 +547,18 @@ pub struct BoardData {
     pub method: Option<&'static str>,
     /// The angle between the planes, degrees.
     pub angle_deg: Option<f64>,
+    /// A turntable disc found in the picture, whose dots were left out.
+    pub turntable: Option<TurntableData>,
     /// Why no board was calibrated.
     pub error: Option<String>,
+}
+
+/// A turntable disc `calibrate board` found in its picture (of either paper: from one picture
+/// the A3 disc and the A4 disc nearer the camera look the same).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct TurntableData {
+    /// Its dots found (each left out of the board's identification).
+    pub dots: usize,
 }
 
 /// `calibrate distance`'s report (`<out>-report.json`).
