@@ -220,9 +220,9 @@ pub fn load_view(k: usize, path: &Path, cell: Cell, sheet_mm: f64) -> Result<Vie
         colours: m.colours,
     };
     let disc = c.disc_pose();
-    let surface = match &disc {
+    let (surface, backdrop) = match &disc {
         Some(d) => above_disc(&surface, d),
-        None => surface,
+        None => (surface, Vec::new()),
     };
     let mut view = View::new(
         path.display().to_string(),
@@ -231,6 +231,7 @@ pub fn load_view(k: usize, path: &Path, cell: Cell, sheet_mm: f64) -> Result<Vie
         c.sheet_corrected().map(|moved| (moved, c.counts().points)),
     );
     view.disc = disc;
+    view.backdrop = backdrop;
     Ok(view)
 }
 
@@ -239,10 +240,16 @@ pub fn load_view(k: usize, path: &Path, cell: Cell, sheet_mm: f64) -> Result<Vie
 const ON_DISC_MM: f64 = 1.5;
 
 /// The surface without the points on or under the turntable disc's plane (`disc`: disc →
-/// camera, its third axis pointing into the table).
-fn above_disc(s: &Surface, disc: &scanner_core::nalgebra::Isometry3<f64>) -> Surface {
-    let keep: Vec<usize> = (0..s.cloud.points.len())
-        .filter(|&i| disc.inverse_transform_point(&s.cloud.points[i]).z < -ON_DISC_MM)
+/// camera, its third axis pointing into the table), and those points (the view's backdrop).
+fn above_disc(
+    s: &Surface,
+    disc: &scanner_core::nalgebra::Isometry3<f64>,
+) -> (Surface, Vec<scanner_core::nalgebra::Point3<f64>>) {
+    let above = |i: usize| disc.inverse_transform_point(&s.cloud.points[i]).z < -ON_DISC_MM;
+    let keep: Vec<usize> = (0..s.cloud.points.len()).filter(|&i| above(i)).collect();
+    let backdrop = (0..s.cloud.points.len())
+        .filter(|&i| !above(i))
+        .map(|i| s.cloud.points[i])
         .collect();
     let pick = |v: &[f64]| -> Vec<f64> {
         if v.len() == s.cloud.points.len() {
@@ -251,7 +258,7 @@ fn above_disc(s: &Surface, disc: &scanner_core::nalgebra::Isometry3<f64>) -> Sur
             Vec::new()
         }
     };
-    Surface {
+    let surface = Surface {
         cloud: Cloud {
             points: keep.iter().map(|&i| s.cloud.points[i]).collect(),
             normals: keep.iter().map(|&i| s.cloud.normals[i]).collect(),
@@ -263,7 +270,8 @@ fn above_disc(s: &Surface, disc: &scanner_core::nalgebra::Isometry3<f64>) -> Sur
         },
         clear: pick(&s.clear),
         sigma: pick(&s.sigma),
-    }
+    };
+    (surface, backdrop)
 }
 
 /// Reads every view of `paths` ([`load_view`]), `reading(k)` told as view `k`'s turn comes.

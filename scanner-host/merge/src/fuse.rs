@@ -162,8 +162,37 @@ pub fn fuse_cut(
     weights: &[f64],
     cell: f64,
     keep: Option<HalfSpace>,
-    mut progress: impl FnMut(usize, usize),
+    progress: impl FnMut(usize, usize),
 ) -> Result<Model, FuseError> {
+    fuse_filled(points, normals, weights, cell, keep, None, progress).map(|(m, _)| m)
+}
+
+/// Where a fusion may fill the surface no view saw as solid: `solid(x)` says whether the grid
+/// point `x` may be the object's ([`crate::hull`]); `floor` (up, unit, and the offset along it)
+/// is the plane the object stands on, which the grid reaches down to.
+pub struct Fill<'a> {
+    /// Whether a point may be the object's.
+    pub solid: &'a dyn Fn(&Point3<f64>) -> bool,
+    /// The plane the object stands on: `up · x = at`.
+    pub floor: HalfSpace,
+}
+
+/// [`fuse_cut`], and where `fill` is given, the surface no view saw closed by it: a grid point
+/// away from the seen surface lies inside when the winding number says so *or* `fill.solid`
+/// does. Returns the model and, with `fill`, the volume (mm³) of the model the winding number
+/// alone would have closed: the smaller closing, beside the filled one.
+///
+/// # Errors
+/// As [`fuse_with`].
+pub fn fuse_filled(
+    points: &[Point3<f64>],
+    normals: &[Vector3<f64>],
+    weights: &[f64],
+    cell: f64,
+    keep: Option<HalfSpace>,
+    fill: Option<&Fill<'_>>,
+    mut progress: impl FnMut(usize, usize),
+) -> Result<(Model, Option<f64>), FuseError> {
     if normals.len() != points.len() || !(weights.is_empty() || weights.len() == points.len()) {
         return Err(FuseError::Lengths {
             points: points.len(),
@@ -193,6 +222,12 @@ pub fn fuse_cut(
     for p in points {
         lo = lo.inf(p);
         hi = hi.sup(p);
+        // The fill reaches down to the floor under every point.
+        if let Some(f) = fill {
+            let down = p - f.floor.up * (f.floor.up.dot(&p.coords) - f.floor.at);
+            lo = lo.inf(&down);
+            hi = hi.sup(&down);
+        }
     }
     let margin = MARGIN as f64 * cell;
     let lo = lo - Vector3::repeat(margin);
@@ -254,48 +289,74 @@ pub fn fuse_cut(
                     w < 0.5 - AFLOAT_MARGIN
                 };
                 if against {
-                    return closing(w);
+                    return (closing(w), None);
                 }
             }
-            signed
+            (signed, None)
         } else {
-            closing(wound())
+            (closing(wound()), Some(m.distance))
         }
     };
     // A coarse cube whose eight corners are all this far from every point holds no grid point
     // within BAND cells of a point, and no seen surface: its winding number interpolates.
     let far = ((BAND + COARSE as f64) * cell) as f32;
+    // Where the winding number closes (its value below 0 inside), the fill may say inside too,
+    // at grid points `d2` (squared, mm²) from the nearest point: those clear of every point by
+    // FILL_CLEAR (a seen surface's own outside lies nearer, where what a view saw cannot carve
+    // finely enough: its bins span millimetres of depth on a slanted face), and nearer ones the
+    // winding number does not put clearly outside.
+    let clear = (FILL_CLEAR_CELLS * cell).max(FILL_CLEAR_MM);
+    let filled = |v: f32, d2: f64, i: usize, j: usize, k: usize| -> f32 {
+        let open = d2 >= clear * clear || v < (FILL_WINDING_CELLS * cell) as f32;
+        match fill {
+            Some(f) if v >= 0.0 && open && (f.solid)(&at(i, j, k)) => -(cell as f32) / 2.0,
+            _ => v,
+        }
+    };
     // One slice of the grid at a time (the field of slice k, the outermost two layers of the
     // grid set outside so that every surface closes inside it), two slices held: the fine grid
     // is never stored whole.
-    let slice = |k: usize| -> Vec<f32> {
+    // Each slice's values (and with a fill, the winding number's own where it differs).
+    let slice = |k: usize| -> (Vec<f32>, Vec<f32>) {
         let mut out = Vec::with_capacity(nx * ny);
+        let mut plain = Vec::with_capacity(if fill.is_some() { nx * ny } else { 0 });
         let edge = |x: usize, n: usize| x < 2 || x + 2 >= n;
+        let finish = |mut v: f32, i: usize, j: usize| {
+            if let Some(h) = keep {
+                v = v.max((h.at - h.up.dot(&at(i, j, k).coords)) as f32);
+            }
+            if edge(i, nx) || edge(j, ny) || edge(k, nz) {
+                v.max(cell as f32)
+            } else {
+                v
+            }
+        };
         for j in 0..ny {
             for i in 0..nx {
-                let mut v = if coarse.far(i, j, k, far) {
-                    closing(coarse.winding(i, j, k))
+                let (v, unseen) = if coarse.far(i, j, k, far) {
+                    (closing(coarse.winding(i, j, k)), Some(f64::INFINITY))
                 } else {
                     field(i, j, k)
                 };
-                if let Some(h) = keep {
-                    v = v.max((h.at - h.up.dot(&at(i, j, k).coords)) as f32);
+                let f = unseen.map_or(v, |d2| filled(v, d2, i, j, k));
+                out.push(finish(f, i, j));
+                if fill.is_some() {
+                    plain.push(finish(v, i, j));
                 }
-                out.push(if edge(i, nx) || edge(j, ny) || edge(k, nz) {
-                    v.max(cell as f32)
-                } else {
-                    v
-                });
             }
         }
-        out
+        (out, plain)
     };
     let mut march = Tetrahedra::new((nx, ny));
-    let mut lower = slice(0);
+    let mut smaller = fill.map(|_| Tetrahedra::new((nx, ny)));
+    let (mut lower, mut lower_plain) = slice(0);
     for k in 1..nz {
-        let upper = slice(k);
+        let (upper, upper_plain) = slice(k);
         march.layer(&lower, &upper, k - 1, at);
-        lower = upper;
+        if let Some(t) = &mut smaller {
+            t.layer(&lower_plain, &upper_plain, k - 1, at);
+        }
+        (lower, lower_plain) = (upper, upper_plain);
         progress(k + 1, nz);
     }
     let mut m = march.mesh;
@@ -303,7 +364,33 @@ pub fn fuse_cut(
     // the volume's sign, which the full check would compute a second time.
     keep_pieces(&mut m, MIN_PIECE);
     m.normals = vertex_normals(&m);
-    Ok(m)
+    let smaller = smaller.map(|t| {
+        let mut s = t.mesh;
+        keep_pieces(&mut s, MIN_PIECE);
+        volume(&s)
+    });
+    Ok((m, smaller))
+}
+
+/// Grid points at least this many cells (and [`FILL_CLEAR_MM`]) from every point may be filled
+/// ([`fuse_filled`]).
+const FILL_CLEAR_CELLS: f64 = 4.0;
+/// See [`FILL_CLEAR_CELLS`], mm: the depth a view's bins span on a face seen at 60° (2 mm
+/// across), and its tolerance.
+const FILL_CLEAR_MM: f64 = 4.0;
+/// Nearer grid points may be filled where the winding number is over ¼: the closing's value
+/// (½ − w, over half a cell) under this many cells.
+const FILL_WINDING_CELLS: f64 = 0.5;
+
+/// The volume a closed mesh encloses, mm³ (positive for outward faces).
+fn volume(m: &Model) -> f64 {
+    m.faces
+        .iter()
+        .map(|f| {
+            let [a, b, c] = f.map(|i| m.vertices[i as usize].cast::<f64>().coords);
+            a.dot(&b.cross(&c)) / 6.0
+        })
+        .sum()
 }
 
 /// How far from ½ the winding number of all the points may be where a less sure point lies
@@ -601,6 +688,11 @@ pub fn area_on(m: &Model, h: &HalfSpace, tol: f64) -> f64 {
         .sum()
 }
 
+/// The area of `m`, mm².
+pub fn area(m: &Model) -> f64 {
+    m.faces.iter().map(|f| face_area(m, f)).sum()
+}
+
 /// The share of `m`'s area in the faces marked in `marked` (0 for a mesh without area).
 pub fn area_share(m: &Model, marked: &[bool]) -> f64 {
     let (mut part, mut all) = (0.0, 0.0);
@@ -790,14 +882,7 @@ pub fn check(m: &Model) -> MeshCheck {
     let components = (0..m.vertices.len() as u32)
         .filter(|&i| used[i as usize] && root(&mut parent, i) == i)
         .count();
-    let volume_mm3 = m
-        .faces
-        .iter()
-        .map(|f| {
-            let [a, b, c] = f.map(|i| m.vertices[i as usize].cast::<f64>().coords);
-            a.dot(&b.cross(&c)) / 6.0
-        })
-        .sum();
+    let volume_mm3 = volume(m);
     MeshCheck {
         watertight: open_edges == 0,
         open_edges,

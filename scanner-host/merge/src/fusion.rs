@@ -68,6 +68,9 @@ pub struct FusionInput {
     /// Points on views' edges left out: clearly off the surface all the points wind around
     /// ([`crate::fuse::afloat`]).
     pub afloat: usize,
+    /// The median of the views' points' standard uncertainties, mm (0 when the views carried
+    /// none).
+    pub sigma_mm: f64,
 }
 
 /// A point on a view's edge ([`View::clear`] under [`crate::view::CLEAR`]) is not fused when a point clear
@@ -192,7 +195,10 @@ pub(crate) fn fusion_input(views: &[View], poses: &[Isometry3<f64>]) -> FusionIn
         .flat_map(|v| (0..v.cloud.points.len()).map(|i| edge_weight(v.clear.get(i).copied())))
         .collect();
     let (keep, afloat) = fused_points(&points, &normals, &weights, &off);
+    let mut sigma: Vec<f64> = views.iter().flat_map(|v| v.sigma.iter().copied()).collect();
+    sigma.sort_by(f64::total_cmp);
     FusionInput {
+        sigma_mm: sigma.get(sigma.len() / 2).copied().unwrap_or(0.0),
         contradicted: off.iter().filter(|&&o| o).count(),
         afloat,
         weights: keep.iter().map(|&i| weights[i]).collect(),
@@ -217,9 +223,14 @@ pub enum Closing {
     /// Not at all: the unseen surface is removed and the model is open there.
     Trim,
     /// Cut level with the lowest point a view saw and closed flat there (a base to print on),
-    /// smoothly elsewhere. Nothing a view saw lies below the cut; up is view 0's board's.
+    /// smoothly elsewhere. Nothing a view saw lies below the cut; up is view 0's board's. Views
+    /// on the turntable disc are cut at the disc's plane instead, up away from it.
     FlatBase,
 }
+
+/// The volume's bounds are widened by the seen area times this many of the points' median
+/// standard uncertainty ([`FusionFigures::volume_bounds_mm3`]).
+const BOUND_SIGMAS: f64 = 2.0;
 
 /// How far from every point the model's surface counts as unseen, in fusion cells.
 const UNSEEN_CELLS: f64 = 3.0;
@@ -247,6 +258,15 @@ pub struct FusionFigures {
     pub trimmed_faces: Option<usize>,
     /// With [`Closing::FlatBase`]: the base's area, mm².
     pub base_mm2: Option<f64>,
+    /// Whether the surface no view saw was filled as solid where no view saw through it, down
+    /// to the turntable disc's plane ([`crate::hull`]; views posed by the disc, not trimmed).
+    pub filled: bool,
+    /// With `filled`: the object's volume between two closings of what no view saw, mm³ — the
+    /// points' winding number's (the least the seen surface encloses, its unseen part closed
+    /// smoothly) and the filled model's (everything no view saw through) — each widened by the
+    /// seen surface's area times twice the points' median standard uncertainty. The object's
+    /// own volume lies between them unless a view placed a point wrongly.
+    pub volume_bounds_mm3: Option<[f64; 2]>,
     /// Whether the model is coloured per vertex from the views (every view carried colour).
     pub coloured: bool,
     /// Vertices of the model.
@@ -268,7 +288,10 @@ pub struct Fused {
 
 /// Fuses the views' points ([`fusion_input`]) with cells of `cell` mm, the unseen surface closed
 /// as `closing` says (a flat base across `up`, unit, view 0's frame); coloured from the points
-/// when they carry colour. `progress` sees the grid's slices done and in all.
+/// when they carry colour. With a `hull` (views that stood on the turntable disc), the surface
+/// no view saw is filled as solid where no view saw through it, down to the disc's plane
+/// ([`crate::hull`]); a flat base is then cut at the disc's plane. `progress` sees the grid's
+/// slices done and in all.
 ///
 /// # Errors
 /// [`FuseError`] from the fusion.
@@ -276,11 +299,18 @@ pub(crate) fn fuse_views(
     input: &FusionInput,
     cell: f64,
     (closing, up): (Closing, Option<Vector3<f64>>),
+    hull: Option<&crate::hull::Hull>,
     progress: impl FnMut(usize, usize),
 ) -> Result<Fused, FuseError> {
-    use crate::fuse::HalfSpace;
-    let base = match (closing, up) {
-        (Closing::FlatBase, Some(up)) => Some(HalfSpace {
+    use crate::fuse::{Fill, HalfSpace};
+    let hull = hull.filter(|_| closing != Closing::Trim);
+    let floor = hull.map(|h| {
+        let (up, at) = h.floor();
+        HalfSpace { up, at }
+    });
+    let base = match (closing, floor, up) {
+        (Closing::FlatBase, Some(floor), _) => Some(floor),
+        (Closing::FlatBase, None, Some(up)) => Some(HalfSpace {
             up,
             at: input
                 .points
@@ -290,12 +320,18 @@ pub(crate) fn fuse_views(
         }),
         _ => None,
     };
-    let mut model = crate::fuse::fuse_cut(
+    let solid = |q: &Point3<f64>| hull.is_some_and(|h| h.solid(q));
+    let fill = floor.map(|floor| Fill {
+        solid: &solid,
+        floor,
+    });
+    let (mut model, smaller) = crate::fuse::fuse_filled(
         &input.points,
         &input.normals,
         &input.weights,
         cell,
         base,
+        fill.as_ref(),
         progress,
     )?;
     let reach = UNSEEN_CELLS * cell;
@@ -304,6 +340,13 @@ pub(crate) fn fuse_views(
     let trimmed_faces = (closing == Closing::Trim).then(|| crate::fuse::trim(&mut model, &unseen));
     let base_mm2 = base.map(|h| crate::fuse::area_on(&model, &h, 0.01));
     crate::fuse::colour_from(&mut model, &input.points, &input.surface);
+    let check = crate::fuse::check(&model);
+    // Each closing's volume, widened by the seen surface's own uncertainty: its area times
+    // BOUND_SIGMAS of the points' median σ (the seen surface may lie that far in or out).
+    let seen_mm2 = crate::fuse::area(&model) * (1.0 - unseen_share);
+    let margin = seen_mm2 * BOUND_SIGMAS * input.sigma_mm;
+    let volume_bounds_mm3 =
+        smaller.map(|v| [v.min(check.volume_mm3) - margin, check.volume_mm3 + margin]);
     let figures = FusionFigures {
         contradicted: input.contradicted,
         edge_off_mm: EDGE_OFF_MM,
@@ -315,9 +358,11 @@ pub(crate) fn fuse_views(
         trimmed_faces,
         base_mm2,
         coloured: !model.colours.is_empty(),
+        filled: fill.is_some(),
+        volume_bounds_mm3,
         vertices: model.vertices.len(),
         faces: model.faces.len(),
-        check: crate::fuse::check(&model),
+        check,
     };
     Ok(Fused { model, figures })
 }
@@ -328,42 +373,11 @@ mod tests {
 
     /// A view of points with their clear shares, normals facing the camera (−z).
     fn view_of(points: &[(Point3<f64>, f64)]) -> View {
-        let camera = scanner_core::wire::CameraBlock {
-            fx: 560.0,
-            fy: 560.0,
-            cx: 319.5,
-            cy: 239.5,
-            k1: 0.0,
-            k2: 0.0,
-            p1: 0.0,
-            p2: 0.0,
-            k3: 0.0,
-        };
-        let plane = scanner_core::wire::PlaneBlock {
-            normal: [0.0, 0.0, 1.0],
-            offset: -600.0,
-        };
+        let normals = vec![Vector3::new(0.0, 0.0, -1.0); points.len()];
+        let cloud: Vec<Point3<f64>> = points.iter().map(|p| p.0).collect();
         View {
-            name: String::new(),
-            cloud: Cloud {
-                points: points.iter().map(|p| p.0).collect(),
-                normals: vec![Vector3::new(0.0, 0.0, -1.0); points.len()],
-            },
-            header: scanner_core::wire::Header {
-                scan_id: 1,
-                width: 640,
-                height: 480,
-                unit_um: 10,
-                camera,
-                board: [plane; 2],
-                colour: false,
-                method: scanner_core::wire::PlaneMethod::LeastSquares,
-            },
-            colours: Vec::new(),
             clear: points.iter().map(|p| p.1).collect(),
-            sigma: Vec::new(),
-            sheet_moved: None,
-            disc: None,
+            ..View::for_tests(&cloud, &normals)
         }
     }
 

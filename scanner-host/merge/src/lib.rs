@@ -22,7 +22,7 @@
 //! report
 //! fusion  joint  disc
 //! poses
-//! free
+//! free  hull  still
 //! view  error
 //! fuse  refine  select  seen
 //! register  winding
@@ -35,6 +35,7 @@ pub mod error;
 pub mod free;
 pub mod fuse;
 pub mod fusion;
+mod hull;
 pub mod joint;
 pub mod poses;
 pub mod refine;
@@ -44,6 +45,7 @@ mod run;
 pub mod seen;
 pub mod select;
 pub mod spatial;
+mod still;
 pub mod view;
 pub mod winding;
 

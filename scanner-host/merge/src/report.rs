@@ -34,6 +34,9 @@ pub struct MergeReport {
     pub refused: Option<Refusal>,
     /// The views posed by the turntable disc, when two or more carried its pose.
     pub disc: Option<Vec<crate::disc::DiscView>>,
+    /// Without the disc: per view, the points left out because they stayed still while the
+    /// object turned (a table, a stand, a disc not posed; [`crate::still`]).
+    pub still: Option<Vec<usize>>,
 }
 
 /// `--sheet auto`: each thickness tried and where the views agree best.
@@ -192,6 +195,7 @@ impl MergeReport {
             fusion: None,
             refused: None,
             disc: None,
+            still: None,
         }
     }
 

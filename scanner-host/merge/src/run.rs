@@ -245,6 +245,19 @@ pub fn run(
         None
     };
     let disc_used = by_disc.is_some();
+    // Without the disc, what stayed still while the object turned is left out of the
+    // registration, and the support it stood on out of the model.
+    let (moving, for_model, still) = if disc_used {
+        (Vec::new(), Vec::new(), None)
+    } else {
+        let (m, f, lost) = crate::still::without_still(views);
+        (m, f, Some(lost))
+    };
+    let (views, model_views) = if disc_used {
+        (views, views)
+    } else {
+        (&moving[..], &for_model[..])
+    };
     let mut results = match by_disc {
         Some(r) => r?,
         None => crate::poses::register_views(views, &o, options.turntable_deg, |done, of| {
@@ -276,7 +289,8 @@ pub fn run(
     if disc_used {
         report.disc = Some(crate::disc::report(views, &poses, o.voxel_mm));
     }
-    let input = crate::fusion::fusion_input(views, &poses);
+    report.still = still;
+    let input = crate::fusion::fusion_input(model_views, &poses);
     let (points, normals) = crate::fusion::registered_points(views, &poses);
     progress.registered(&Registered {
         header: &views[0].header,
@@ -292,10 +306,26 @@ pub fn run(
     }
     crate::joint::check_closure(&closure, o.voxel_mm)?;
     crate::free::check_free_space(worst, views, o.voxel_mm)?;
+    // Views that stood on the disc: the object stands on the disc's plane, and what no view
+    // saw through may be filled.
+    let hull = disc_used
+        .then(|| {
+            let k = (0..views.len()).find(|&k| views[k].disc.is_some())?;
+            let disc = poses[k] * views[k].disc?;
+            Some(crate::hull::Hull::new(
+                views,
+                &poses,
+                &input.points,
+                &disc,
+                options.fuse_cell_mm,
+            ))
+        })
+        .flatten();
     let fused = crate::fusion::fuse_views(
         &input,
         options.fuse_cell_mm,
         (options.closing, up),
+        hull.as_ref(),
         |done, of| progress.stage(Stage::Fusing { done, of }),
     )
     .map_err(MergeError::Fuse)?;

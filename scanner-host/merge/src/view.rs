@@ -41,6 +41,10 @@ pub struct View {
     /// The turntable disc's pose in this view's camera frame (disc → camera), when its head
     /// found the disc: the merge then poses it by the disc ([`crate::disc`]).
     pub disc: Option<Isometry3<f64>>,
+    /// What the view saw beyond the object, its camera frame (mm): the points on and under the
+    /// disc's plane (the disc, the table it lies on), left out of the view's surface. Only the
+    /// space it saw empty comes from them (`crate::hull`).
+    pub backdrop: Vec<Point3<f64>>,
 }
 
 /// What a view is read from, before it is thinned ([`View::new`]).
@@ -83,6 +87,7 @@ impl View {
             sigma,
             sheet_moved,
             disc: None,
+            backdrop: Vec::new(),
         }
     }
 
@@ -107,6 +112,31 @@ impl View {
         }
     }
 
+    /// The view with only the points `keep` (indices, in order).
+    pub(crate) fn subset(&self, keep: &[usize]) -> View {
+        let pick = |v: &[f64]| -> Vec<f64> {
+            if v.len() == self.cloud.points.len() {
+                keep.iter().map(|&i| v[i]).collect()
+            } else {
+                Vec::new()
+            }
+        };
+        View {
+            cloud: Cloud {
+                points: keep.iter().map(|&i| self.cloud.points[i]).collect(),
+                normals: keep.iter().map(|&i| self.cloud.normals[i]).collect(),
+            },
+            colours: if self.colours.len() == self.cloud.points.len() {
+                keep.iter().map(|&i| self.colours[i]).collect()
+            } else {
+                Vec::new()
+            },
+            clear: pick(&self.clear),
+            sigma: pick(&self.sigma),
+            ..self.clone()
+        }
+    }
+
     /// What the view saw: its nearest depth per bin of its image ([`crate::seen`]).
     pub fn depth_map(&self) -> DepthMap {
         DepthMap::new(&self.cloud.points, &self.header)
@@ -128,5 +158,52 @@ impl View {
     /// The mean of its points.
     pub fn centre(&self) -> Point3<f64> {
         crate::spatial::centre(&self.cloud.points)
+    }
+}
+
+#[cfg(test)]
+impl View {
+    /// A view of `points` with `normals` (all clear), seen by a 640×480 camera of 560 px focal
+    /// length in front of a right-angled board 1000 mm away: for the crate's tests.
+    pub(crate) fn for_tests(points: &[Point3<f64>], normals: &[Vector3<f64>]) -> View {
+        let camera = scanner_core::wire::CameraBlock {
+            fx: 560.0,
+            fy: 560.0,
+            cx: 319.5,
+            cy: 239.5,
+            k1: 0.0,
+            k2: 0.0,
+            p1: 0.0,
+            p2: 0.0,
+            k3: 0.0,
+        };
+        // a right-angled board 1000 mm away, its crease vertical
+        let half = |x: f32| scanner_core::wire::PlaneBlock {
+            normal: [x, 0.0, -1.0],
+            offset: 1000.0,
+        };
+        View {
+            name: String::new(),
+            cloud: Cloud {
+                points: points.to_vec(),
+                normals: normals.to_vec(),
+            },
+            header: Header {
+                scan_id: 1,
+                width: 640,
+                height: 480,
+                unit_um: 10,
+                camera,
+                board: [half(1.0), half(-1.0)],
+                colour: false,
+                method: scanner_core::wire::PlaneMethod::LeastSquares,
+            },
+            colours: Vec::new(),
+            clear: Vec::new(),
+            sigma: Vec::new(),
+            sheet_moved: None,
+            disc: None,
+            backdrop: Vec::new(),
+        }
     }
 }
