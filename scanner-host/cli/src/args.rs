@@ -125,9 +125,10 @@ pub enum Command {
         /// Output folder.
         #[arg(long, default_value = "model")]
         out: PathBuf,
-        /// Grid cell of each view (as for receive).
-        #[arg(long, default_value = "2px")]
-        cell: Cell,
+        /// Grid cell of each view (as for receive). Default: 2 px for every 640 px of the view's
+        /// image width (the same cell on the object whatever the camera: 4 px at 1280×960).
+        #[arg(long)]
+        cell: Option<Cell>,
         /// Voxel size the views are thinned to for the coarse match, mm.
         #[arg(long, default_value_t = MergeOptions::default().voxel_mm)]
         voxel: f64,

@@ -44,8 +44,8 @@ pub struct MergePlan {
     pub views: Vec<PathBuf>,
     /// The output folder.
     pub out: PathBuf,
-    /// Each view's grid cell.
-    pub cell: Cell,
+    /// Each view's grid cell (`None`: in proportion to its image, [`scanner_host::views::cell_for`]).
+    pub cell: Option<Cell>,
     /// The laser sheet's thickness.
     pub sheet: Sheet,
     /// The merge's options.
@@ -62,7 +62,7 @@ impl MergePlan {
     pub fn new(
         views: &[PathBuf],
         out: &Path,
-        (cell, sheet): (Cell, Sheet),
+        (cell, sheet): (Option<Cell>, Sheet),
         options: MergeOptions,
         quiet: bool,
     ) -> Result<MergePlan> {
@@ -285,7 +285,7 @@ pub fn sweeps(
     let plan = MergePlan::new(
         &folders,
         &out.dir.join("model"),
-        (out.collect.cell, Sheet::Mm(out.sheet_mm)),
+        (Some(out.collect.cell), Sheet::Mm(out.sheet_mm)),
         options,
         out.quiet,
     )?;
