@@ -251,26 +251,7 @@ fn above_disc(
         .filter(|&i| !above(i))
         .map(|i| s.cloud.points[i])
         .collect();
-    let pick = |v: &[f64]| -> Vec<f64> {
-        if v.len() == s.cloud.points.len() {
-            keep.iter().map(|&i| v[i]).collect()
-        } else {
-            Vec::new()
-        }
-    };
-    let surface = Surface {
-        cloud: Cloud {
-            points: keep.iter().map(|&i| s.cloud.points[i]).collect(),
-            normals: keep.iter().map(|&i| s.cloud.normals[i]).collect(),
-        },
-        colours: if s.colours.len() == s.cloud.points.len() {
-            keep.iter().map(|&i| s.colours[i]).collect()
-        } else {
-            Vec::new()
-        },
-        clear: pick(&s.clear),
-        sigma: pick(&s.sigma),
-    };
+    let surface = s.subset(&keep);
     (surface, backdrop)
 }
 

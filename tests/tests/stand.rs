@@ -50,33 +50,14 @@ fn plane_errors(stream: &[u8], rig: &scanner_rig::Rig) -> Vec<(u32, f64)> {
     out
 }
 
-/// One view scanned by the head: the report's skipped frames by reason, and every frame's plane
-/// error.
+/// One view scanned by the head (and received): the report's skipped frames by reason, and
+/// every frame's plane error.
 fn scan_one(
     dir: &Path,
     scene: &scanner_rig::Scene,
     disc: &str,
 ) -> (serde_json::Value, Vec<(u32, f64)>) {
-    let args = [
-        "scan",
-        "--source",
-        "rig",
-        "--scene",
-        "s.toml",
-        "--view",
-        "0",
-        "--calibration",
-        "cal.toml",
-        "--out",
-        "v0.stream",
-        "--disc",
-        disc,
-        "--report",
-        "r0.json",
-        "-q",
-    ];
-    let (ok, _, err) = run_in(&workspace_bin("scanner-device"), dir, &args);
-    assert!(ok, "{err}");
+    scanner_tests::scan_rig_view(dir, "0", &["--disc", disc, "--report", "r0.json"], &[]);
     let rig = scanner_rig::Rig::new(scene.view(0).unwrap()).unwrap();
     let errors = plane_errors(&std::fs::read(dir.join("v0.stream")).unwrap(), &rig);
     (json(&dir.join("r0.json")), errors)

@@ -210,28 +210,50 @@ fn a_view_that_moved_on_the_disc_is_refused() {
 /// The family's objects (`scanner-device/scenes/family/`), each scanned once for the tests of
 /// this binary: 640×480, sparse sweeps of 100 frames, every view with `--disc a3`.
 fn family(name: &str) -> std::sync::Arc<Fixture> {
+    scanned("family", name, false, |t| {
+        t.replace("width = 1280", "width = 640")
+            .replace("height = 960", "height = 480")
+            .replace("frames = 200", "frames = 100")
+    })
+}
+
+/// The scene `scanner-device/scenes/{folder}/{name}.toml`, `edit`ed, every view scanned once for
+/// the tests of this binary (with `--disc`; `without_disc`: once more without it, into `nd/`).
+fn scanned(
+    folder: &str,
+    name: &str,
+    without_disc: bool,
+    edit: impl Fn(String) -> String,
+) -> std::sync::Arc<Fixture> {
     static DONE: std::sync::Mutex<Vec<(String, std::sync::Arc<Fixture>)>> =
         std::sync::Mutex::new(Vec::new());
+    let key = format!("{folder}-{name}");
     let mut done = DONE
         .lock()
         .unwrap_or_else(std::sync::PoisonError::into_inner);
-    if let Some((_, f)) = done.iter().find(|(n, _)| n == name) {
+    if let Some((_, f)) = done.iter().find(|(n, _)| *n == key) {
         return f.clone();
     }
-    let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join(format!("family-{name}"));
+    let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join(&key);
     let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
+    std::fs::create_dir_all(dir.join("nd")).unwrap();
     let path = format!(
-        "{}/../scanner-device/scenes/family/{name}.toml",
+        "{}/../scanner-device/scenes/{folder}/{name}.toml",
         env!("CARGO_MANIFEST_DIR")
     );
-    let text = std::fs::read_to_string(path)
-        .unwrap()
-        .replace("width = 1280", "width = 640")
-        .replace("height = 960", "height = 480")
-        .replace("frames = 200", "frames = 100");
-    let f = std::sync::Arc::new(scan_views(dir, &text));
-    done.push((name.to_string(), f.clone()));
+    let text = edit(std::fs::read_to_string(path).unwrap());
+    let f = std::sync::Arc::new(scan_views(dir.clone(), &text));
+    if without_disc {
+        // The same sweeps, the head not told of the disc: every view keeps the disc's and
+        // the stand's points.
+        std::fs::copy(dir.join("s.toml"), dir.join("nd/s.toml")).unwrap();
+        std::fs::copy(dir.join("cal.toml"), dir.join("nd/cal.toml")).unwrap();
+        for k in 0..f.scene.view_count() {
+            let nd = dir.join("nd");
+            scanner_tests::scan_rig_view(&nd, &k.to_string(), &[], &["--cell", "2px"]);
+        }
+    }
+    done.push((key, f.clone()));
     f
 }
 
@@ -459,35 +481,9 @@ fn family_gearbox_held_out() {
 }
 
 /// A scene of `scanner-device/scenes/stand/` (the disc on something wider than it, which stays
-/// put), every view scanned once with `--disc` and once without (into `nd/`), for this binary's
-/// tests.
+/// put), every view scanned once with `--disc` and once without.
 fn stand(name: &str) -> std::sync::Arc<Fixture> {
-    static DONE: std::sync::Mutex<Vec<(String, std::sync::Arc<Fixture>)>> =
-        std::sync::Mutex::new(Vec::new());
-    let mut done = DONE
-        .lock()
-        .unwrap_or_else(std::sync::PoisonError::into_inner);
-    if let Some((_, f)) = done.iter().find(|(n, _)| n == name) {
-        return f.clone();
-    }
-    let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join(format!("stand-360-{name}"));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(dir.join("nd")).unwrap();
-    let path = format!(
-        "{}/../scanner-device/scenes/stand/{name}.toml",
-        env!("CARGO_MANIFEST_DIR")
-    );
-    let text = std::fs::read_to_string(path).unwrap();
-    let f = std::sync::Arc::new(scan_views(dir.clone(), &text));
-    // The same sweeps, the head not told of the disc: every view keeps the disc's and the
-    // stand's points.
-    std::fs::copy(dir.join("s.toml"), dir.join("nd/s.toml")).unwrap();
-    std::fs::copy(dir.join("cal.toml"), dir.join("nd/cal.toml")).unwrap();
-    for k in 0..f.scene.view_count() {
-        scanner_tests::scan_rig_view(&dir.join("nd"), &k.to_string(), &[], &["--cell", "2px"]);
-    }
-    done.push((name.to_string(), f.clone()));
-    f
+    scanned("stand", name, true, |t| t)
 }
 
 /// The part's true volume (mm³): every object but the disc and what stays put, by counting
@@ -520,20 +516,14 @@ fn part_volume(scene: &scanner_rig::Scene) -> f64 {
     };
     let (mut lo, mut hi) = (Point3::from([f64::MAX; 3]), Point3::from([f64::MIN; 3]));
     for s in &parts {
-        let (c, r) = match s {
-            Shape::Sphere { centre, radius } => (*centre, *radius),
-            Shape::Cylinder {
-                base,
-                axis,
-                radius,
-                height,
-            } => (
-                base + axis.into_inner() * (height / 2.0),
-                radius + height / 2.0,
-            ),
-            Shape::Cuboid { centre, half, .. } => (*centre, half.norm()),
-            _ => unreachable!(),
+        // a sphere round each solid, about its centre
+        let r = match s {
+            Shape::Sphere { radius, .. } => *radius,
+            Shape::Cylinder { radius, height, .. } => radius + height / 2.0,
+            Shape::Cuboid { half, .. } => half.norm(),
+            _ => unreachable!("not a solid of the part"),
         };
+        let c = s.centre();
         lo = lo.inf(&(c - Vector3::repeat(r)));
         hi = hi.sup(&(c + Vector3::repeat(r)));
     }

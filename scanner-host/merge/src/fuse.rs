@@ -168,7 +168,7 @@ pub fn fuse_cut(
 }
 
 /// Where a fusion may fill the surface no view saw as solid: `solid(x)` says whether the grid
-/// point `x` may be the object's ([`crate::hull`]); `floor` (up, unit, and the offset along it)
+/// point `x` may be the object's (the merge's hull of what no view saw through); `floor` (up, unit, and the offset along it)
 /// is the plane the object stands on, which the grid reaches down to.
 pub struct Fill<'a> {
     /// Whether a point may be the object's.

@@ -259,7 +259,7 @@ pub struct FusionFigures {
     /// With [`Closing::FlatBase`]: the base's area, mm².
     pub base_mm2: Option<f64>,
     /// Whether the surface no view saw was filled as solid where no view saw through it, down
-    /// to the turntable disc's plane ([`crate::hull`]; views posed by the disc, not trimmed).
+    /// to the turntable disc's plane (views posed by the disc, not trimmed).
     pub filled: bool,
     /// With `filled`: the object's volume between two closings of what no view saw, mm³ — the
     /// points' winding number's (the least the seen surface encloses, its unseen part closed

@@ -35,7 +35,7 @@ pub struct MergeReport {
     /// The views posed by the turntable disc, when two or more carried its pose.
     pub disc: Option<Vec<crate::disc::DiscView>>,
     /// Without the disc: per view, the points left out because they stayed still while the
-    /// object turned (a table, a stand, a disc not posed; [`crate::still`]).
+    /// object turned (a table, a stand, a disc not posed).
     pub still: Option<Vec<usize>>,
 }
 

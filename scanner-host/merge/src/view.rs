@@ -61,6 +61,34 @@ pub struct Surface {
     pub sigma: Vec<f64>,
 }
 
+impl Surface {
+    /// The surface with only the points `keep` (indices, in order); a list of another length
+    /// than the points (none given) stays empty.
+    pub fn subset(&self, keep: &[usize]) -> Surface {
+        let n = self.cloud.points.len();
+        let pick = |v: &[f64]| -> Vec<f64> {
+            if v.len() == n {
+                keep.iter().map(|&i| v[i]).collect()
+            } else {
+                Vec::new()
+            }
+        };
+        Surface {
+            cloud: Cloud {
+                points: keep.iter().map(|&i| self.cloud.points[i]).collect(),
+                normals: keep.iter().map(|&i| self.cloud.normals[i]).collect(),
+            },
+            colours: if self.colours.len() == n {
+                keep.iter().map(|&i| self.colours[i]).collect()
+            } else {
+                Vec::new()
+            },
+            clear: pick(&self.clear),
+            sigma: pick(&self.sigma),
+        }
+    }
+}
+
 impl View {
     /// The view of `surface` seen by the camera of `header`, thinned to one point per 0.75 mm
     /// cube (the mean of the points, normals, colours, clear shares and uncertainties in it).
@@ -114,25 +142,18 @@ impl View {
 
     /// The view with only the points `keep` (indices, in order).
     pub(crate) fn subset(&self, keep: &[usize]) -> View {
-        let pick = |v: &[f64]| -> Vec<f64> {
-            if v.len() == self.cloud.points.len() {
-                keep.iter().map(|&i| v[i]).collect()
-            } else {
-                Vec::new()
-            }
-        };
+        let s = Surface {
+            cloud: self.cloud.clone(),
+            colours: self.colours.clone(),
+            clear: self.clear.clone(),
+            sigma: self.sigma.clone(),
+        }
+        .subset(keep);
         View {
-            cloud: Cloud {
-                points: keep.iter().map(|&i| self.cloud.points[i]).collect(),
-                normals: keep.iter().map(|&i| self.cloud.normals[i]).collect(),
-            },
-            colours: if self.colours.len() == self.cloud.points.len() {
-                keep.iter().map(|&i| self.colours[i]).collect()
-            } else {
-                Vec::new()
-            },
-            clear: pick(&self.clear),
-            sigma: pick(&self.sigma),
+            cloud: s.cloud,
+            colours: s.colours,
+            clear: s.clear,
+            sigma: s.sigma,
             ..self.clone()
         }
     }
