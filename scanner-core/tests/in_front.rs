@@ -109,3 +109,27 @@ fn the_disc_and_one_sheet_fix_the_plane() {
         scanner_core::GeomError::OnePlaneOnly
     );
 }
+
+#[test]
+fn bad_input_to_the_fit_on_known_surfaces_is_refused_by_name() {
+    let cfg = LaserFitConfig::default();
+    let [left, right] = on_board(200.0, 500.0, 20);
+    // fewer than two surfaces, or more than three
+    assert!(matches!(
+        laser::least_squares_on(&[&left], &cfg),
+        Err(scanner_core::GeomError::TooFewPoints { .. })
+    ));
+    assert!(matches!(
+        laser::least_squares_on(&[&left, &right, &left, &right], &cfg),
+        Err(scanner_core::GeomError::TooFewPoints { .. })
+    ));
+    // empty surfaces
+    assert!(laser::least_squares_on(&[&[], &[], &[]], &cfg).is_err());
+    // a NaN among the points
+    let mut bad = right.clone();
+    bad[3].x = f64::NAN;
+    assert_eq!(
+        laser::least_squares_on(&[&left, &bad], &cfg).unwrap_err(),
+        scanner_core::GeomError::NotFinite
+    );
+}
