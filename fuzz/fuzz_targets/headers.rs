@@ -4,9 +4,9 @@
 //! header or a file says may make the host allocate beyond it.
 #![no_main]
 use libfuzzer_sys::fuzz_target;
-use scanner_core::wire::{self, Header, MAX_ENCODED, Message, PlaneMethod};
-use scanner_host::collect::{CollectOptions, Collector};
 use scanner_alloc::{live_bytes, peak_bytes, reset_peak};
+use scanner_host::collect::{CollectOptions, Collector};
+use scanner_wire::{Header, MAX_ENCODED, MAX_FRAME, Message, PlaneMethod, encode};
 
 /// The host's peak memory limit with default options (README, reliability), bytes.
 const LIMIT: usize = 1 << 30;
@@ -15,8 +15,8 @@ const LIMIT: usize = 1 << 30;
 static A: scanner_alloc::Peak = scanner_alloc::Peak;
 
 fn through_host(h: &Header, rest: &[u8]) {
-    let (mut scratch, mut out) = (vec![0u8; wire::MAX_FRAME], vec![0u8; MAX_ENCODED]);
-    let Ok(n) = wire::encode(&Message::Header(*h), &mut scratch, &mut out) else {
+    let (mut scratch, mut out) = (vec![0u8; MAX_FRAME], vec![0u8; MAX_ENCODED]);
+    let Ok(n) = encode(&Message::Header(*h), &mut scratch, &mut out) else {
         return;
     };
     let mut c = Collector::new(CollectOptions::default(), None);
@@ -39,7 +39,14 @@ fuzz_target!(|data: &[u8]| {
         && let (Ok(camera), Some(Ok(board))) = (f.camera(), f.board())
         && let (Ok(w), Ok(h)) = (u16::try_from(f.image.width), u16::try_from(f.image.height))
     {
-        let header = Header::new(1, (w, h), &camera, &board, false, PlaneMethod::LeastSquares);
+        let header = Header::new(
+            1,
+            (w, h),
+            (&camera).into(),
+            (&board).into(),
+            false,
+            PlaneMethod::LeastSquares,
+        );
         through_host(&header, &[]);
     }
     let peak = peak_bytes() - start;

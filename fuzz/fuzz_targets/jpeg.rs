@@ -3,7 +3,7 @@
 //! output. Seeded with real frames (fuzz/seeds/jpeg).
 #![no_main]
 use libfuzzer_sys::fuzz_target;
-use scanner_core::jpeg::{Decoder, Output};
+use scanner_jpeg::{Decoder, Output};
 
 fuzz_target!(|data: &[u8]| {
     if data.len() < 3 {

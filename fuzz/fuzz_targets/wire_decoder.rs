@@ -2,7 +2,7 @@
 //! in any chunks.
 #![no_main]
 use libfuzzer_sys::fuzz_target;
-use scanner_core::wire::{Decoder, Message, points};
+use scanner_wire::{Decoder, Message, points};
 
 fuzz_target!(|data: &[u8]| {
     let chunk = usize::from(data.first().copied().unwrap_or(1)).max(1);

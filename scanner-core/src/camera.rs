@@ -14,6 +14,8 @@
 
 use nalgebra::{Matrix2, Point2, Point3, Vector2, Vector3};
 
+use scanner_wire::CameraBlock;
+
 use crate::{GeomError, Real};
 
 /// Largest number of Newton steps [`Camera::undistort`] takes.
@@ -102,6 +104,46 @@ pub struct Camera<T> {
     cx: T,
     cy: T,
     distortion: Distortion<T>,
+}
+
+/// The camera as the wire carries it.
+impl<T: Real> From<&Camera<T>> for CameraBlock {
+    fn from(c: &Camera<T>) -> Self {
+        let c: Camera<f32> = c.cast();
+        let (d, pp) = (c.distortion(), c.principal_point());
+        CameraBlock {
+            fx: c.fx(),
+            fy: c.fy(),
+            cx: pp.x,
+            cy: pp.y,
+            k1: d.k1,
+            k2: d.k2,
+            p1: d.p1,
+            p2: d.p2,
+            k3: d.k3,
+        }
+    }
+}
+
+impl TryFrom<CameraBlock> for Camera<f32> {
+    type Error = GeomError;
+    /// The camera a header carries, checked as [`Camera::new`] checks it (a head sending
+    /// garbage gets a [`GeomError`]).
+    fn try_from(b: CameraBlock) -> Result<Self, GeomError> {
+        Camera::new(
+            b.fx,
+            b.fy,
+            b.cx,
+            b.cy,
+            Distortion {
+                k1: b.k1,
+                k2: b.k2,
+                p1: b.p1,
+                p2: b.p2,
+                k3: b.k3,
+            },
+        )
+    }
 }
 
 impl<T: Real> Camera<T> {

@@ -5,8 +5,8 @@
 //!
 //! # Where it sits in the data path
 //! ```text
-//! camera frame ─► stripe extraction ─► board stripe points ─► laser plane ─► triangulation ─► wire
-//!                                       (this crate: camera, geometry)
+//! camera frame ─► stripe extraction ─► board stripe points ─► laser plane ─► triangulation ─► points
+//!                                       (this crate: camera, geometry)       (scanner-wire carries them)
 //! ```
 //! Calibration runs once before that path: images of the board give marker pixels, and this crate
 //! turns them into the camera's image distance ([`calib`]) and the two board planes
@@ -18,7 +18,11 @@
 //! - [`geometry`]: planes and lines, the paper's three collinear points (eq. 1–6), the board plane
 //!   pose from a marker layout, the board, the laser plane, triangulation.
 //! - [`calib`]: the image distance from the two-position procedure (eq. 7–9).
-//! - [`jpeg`]: a webcam's motion-JPEG frames straight into YUYV or gray, in fixed memory.
+//! - [`stripe`]: the laser stripe's centre along each line of a frame.
+//! - [`pipeline`]: one frame's stripe, laser plane and points, in fixed memory (the head's loop).
+//!
+//! The wire's blocks ([`scanner_wire::CameraBlock`], [`scanner_wire::PlaneBlock`]) convert to and
+//! from [`Camera`] and the [`geometry`] planes here, where those types live.
 //!
 //! # Precision
 //! Calibration runs once on a PC or the head and uses `f64` ([`geometry::collinear`],
@@ -32,10 +36,10 @@
 //! Each module uses only modules on its own line or below (`tests/tests/layers.rs` checks it):
 //! ```text
 //! pipeline
-//! wire   calib   stripe
+//! calib   stripe
 //! geometry       colour
 //! camera
-//! config  error  real  link_spec  jpeg
+//! config  error  real
 //! ```
 #![no_std]
 #![deny(missing_docs)]
@@ -47,12 +51,9 @@ pub mod colour;
 pub mod config;
 mod error;
 pub mod geometry;
-pub mod jpeg;
-pub mod link_spec;
 pub mod pipeline;
 mod real;
 pub mod stripe;
-pub mod wire;
 
 pub use camera::{Camera, Distortion};
 pub use error::GeomError;

@@ -12,12 +12,10 @@ use nalgebra::{Point2, Point3, Vector3};
 use crate::calib::spread::CalibrationSpread;
 use crate::geometry::{Board, LaserFitConfig, LaserPlane, Limits, Plane, Surface, laser};
 use crate::stripe::{Axis, Extraction, Extractor, Frame, PixelFormat, StripeConfig, StripeError};
-pub use crate::wire::PlaneMethod;
-use crate::wire::{
-    Skip,
-    points::{quantise, uncertainty_code},
-};
 use crate::{Camera, GeomError};
+use scanner_wire::PlaneMethod;
+use scanner_wire::Skip;
+use scanner_wire::points::{quantise, uncertainty_code};
 
 /// Settings of the head.
 #[derive(Debug, Clone, Copy, PartialEq)]

@@ -1,7 +1,7 @@
 //! The head's JPEG decoder against the alternatives, on what a webcam sends: 1600×1200 rig
 //! frames as 4:2:2 MJPEG (quality 90). Per frame, one core, median of 20 frames × 5 rounds,
 //! decode only, and the heap allocations a frame makes after the first (a counting allocator):
-//! - `scanner_core::jpeg` into YUYV (the head's path: into the frame buffer it keeps);
+//! - `scanner_jpeg` into YUYV (the head's path: into the frame buffer it keeps);
 //! - `zune-jpeg` (what the `image` crate uses; AVX2 and NEON kernels) asked for YCbCr, its
 //!   cheapest output, then packed to YUYV;
 //! - the `image` crate to RGB, then to YUYV (the head's path before its own decoder).
@@ -37,7 +37,7 @@ fn main() {
     type Decode<'a> = Box<dyn FnMut(&[u8]) + 'a>;
     let cases: Vec<(&str, Decode)> = vec![
         (
-            "scanner_core::jpeg → YUYV",
+            "scanner_jpeg → YUYV",
             Box::new(|j: &[u8]| {
                 converter
                     .convert(

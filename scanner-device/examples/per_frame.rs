@@ -19,11 +19,11 @@ use std::time::Instant;
 
 use scanner_core::pipeline::HeadConfig;
 use scanner_core::stripe::{Axis, Method, PixelFormat, StripeConfig};
-use scanner_core::wire::MAX_ENCODED;
 use scanner_device::link::Link;
 use scanner_device::session::{Calibration, ScanOptions, Session};
 use scanner_device::source::convert::{CameraFormat, Converter};
 use scanner_device::source::{FrameSource, OwnedFrame, RigSource};
+use scanner_wire::MAX_ENCODED;
 
 /// Laser frames prepared.
 const FRAMES: usize = 8;

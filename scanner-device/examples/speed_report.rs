@@ -8,12 +8,12 @@ use std::time::Instant;
 
 use scanner_core::pipeline::HeadConfig;
 use scanner_core::stripe::{Axis, Extractor, Method, PixelFormat, StripeConfig};
-use scanner_core::wire::MAX_ENCODED;
 use scanner_device::link::Link;
 use scanner_device::session::truth_calibration;
 use scanner_device::session::{ScanOptions, Session};
 use scanner_device::source::{FrameSource, RigSource};
 use scanner_rig::{Rig, Scene};
+use scanner_wire::MAX_ENCODED;
 
 /// The paper's frames/s (LIM, DIM) at each size.
 const PAPER: [((u32, u32), (u32, u32)); 4] = [

@@ -8,7 +8,7 @@ use std::sync::mpsc::{Receiver, SyncSender, TrySendError, sync_channel};
 use std::thread::JoinHandle;
 use std::time::Duration;
 
-use scanner_core::link_spec::{SerialSpec, SpecError};
+use scanner_io::link_spec::{SerialSpec, SpecError};
 
 /// Why the link could not be opened or stopped working.
 #[derive(Debug, thiserror::Error)]

@@ -9,7 +9,7 @@ use std::time::Instant;
 use scanner_calib::detect::{DetectConfig, find_markers};
 use scanner_core::pipeline::{Head, HeadConfig};
 use scanner_core::stripe::{Axis, Extractor, StripeConfig};
-use scanner_core::wire::{
+use scanner_wire::{
     EndReason, Message, NoticeKind, PREVIEW_MAX_MARKERS, PREVIEW_MAX_PIXELS, PREVIEW_MAX_SIDE,
     Preview, PreviewState, Status,
 };
@@ -49,7 +49,7 @@ pub struct PreviewFacts {
     /// What the scan would make of the frame.
     pub state: PreviewState,
     /// Its skip reason, or its points.
-    pub skip: Option<scanner_core::wire::Skip>,
+    pub skip: Option<scanner_wire::Skip>,
     /// Points the frame gives.
     pub points: usize,
 }
@@ -68,7 +68,9 @@ impl std::fmt::Display for PreviewFacts {
         )?;
         match (self.state, self.skip) {
             (PreviewState::Points, _) => write!(f, "a scan takes {} points", self.points),
-            (PreviewState::Skipped, Some(s)) => write!(f, "a scan skips it: {}", s.name()),
+            (PreviewState::Skipped, Some(s)) => {
+                write!(f, "a scan skips it: {}", scanner_io::words::skip_reason(s))
+            }
             (PreviewState::Skipped, None) => f.write_str("a scan skips it"),
             (PreviewState::NoCalibration, _) => {
                 f.write_str("no calibration: give --calibration to see what a scan makes of it")
@@ -213,7 +215,7 @@ impl<'c> Work<'c> {
             axis: opts.head.stripe.axis,
             extractor: Box::new(Extractor::new()),
             head: None,
-            scratch: vec![0; scanner_core::wire::MAX_FRAME],
+            scratch: vec![0; scanner_wire::MAX_FRAME],
         }
     }
 
@@ -297,11 +299,7 @@ impl<'c> Work<'c> {
                         Ok(out) => (PreviewState::Points, None, out.points.len()),
                         Err(skip) => (PreviewState::Skipped, Some(skip), 0),
                     },
-                    _ => (
-                        PreviewState::Skipped,
-                        Some(scanner_core::wire::Skip::BadFrame),
-                        0,
-                    ),
+                    _ => (PreviewState::Skipped, Some(scanner_wire::Skip::BadFrame), 0),
                 }
             }
         };

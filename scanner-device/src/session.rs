@@ -8,8 +8,8 @@ use scanner_core::Camera;
 use scanner_core::geometry::Board;
 use scanner_core::pipeline::{Head, HeadConfig};
 use scanner_core::stripe::PixelFormat;
-use scanner_core::wire::{
-    self, Controls, DiscFound, DiscPose, Header, Message, Notice, NoticeKind, Planes, Points, Skip,
+use scanner_wire::{
+    Controls, DiscFound, DiscPose, Header, Message, Notice, NoticeKind, Planes, Points, Skip,
     Status,
 };
 
@@ -89,7 +89,7 @@ pub enum SessionError {
     Axis(String),
     /// A message did not fit its buffer (a bug: the buffers are sized for the largest).
     #[error("encoding a message")]
-    Encode(#[source] wire::WireError),
+    Encode(#[source] scanner_wire::WireError),
     /// The link failed.
     #[error(transparent)]
     Link(#[from] crate::link::LinkError),
@@ -205,7 +205,7 @@ impl ScanReport {
     /// Most frames saw the stripe on one board sheet only (a laser line that does not cross
     /// the crease, or the stripe read the wrong way).
     pub fn one_sheet_only(&self) -> bool {
-        2 * self.status.skipped[wire::Skip::OnePlaneOnly as usize] > self.status.frames
+        2 * self.status.skipped[scanner_wire::Skip::OnePlaneOnly as usize] > self.status.frames
     }
 
     /// Bytes on the link per point sent, headers and framing included; `None` when no point
@@ -274,7 +274,7 @@ impl DiscOutcome {
                     scanner_core::nalgebra::UnitQuaternion::from_rotation_matrix(&pose.rotation);
                 DiscPose {
                     scan_id,
-                    found: DiscFound::Found as u8,
+                    found: DiscFound::Found,
                     rotation: [q.i as f32, q.j as f32, q.k as f32, q.w as f32],
                     translation: pose.translation.map(|v| v as f32).into(),
                     markers: u16::try_from(*markers).unwrap_or(u16::MAX),
@@ -289,7 +289,7 @@ impl DiscOutcome {
                     DiscMiss::Ambiguous { .. } => DiscFound::Ambiguous,
                     DiscMiss::Tilted { .. } => DiscFound::Tilted,
                     DiscMiss::PoorFit(_) => DiscFound::PoorFit,
-                } as u8,
+                },
                 rotation: [0.0, 0.0, 0.0, 1.0],
                 ..DiscPose::default()
             },
@@ -392,8 +392,8 @@ impl Session {
         let header = Header::new(
             opts.scan_id,
             (w16, h16),
-            &camera,
-            &board,
+            (&camera).into(),
+            (&board).into(),
             opts.head.colour,
             opts.head.method,
         );
@@ -413,8 +413,8 @@ impl Session {
                 ..Status::default()
             },
             opts,
-            scratch: vec![0; wire::MAX_FRAME],
-            xyz: vec![0; scanner_core::config::MAX_XYZ_BYTES_PER_POINT * MAX_LINES],
+            scratch: vec![0; scanner_wire::MAX_FRAME],
+            xyz: vec![0; scanner_wire::MAX_XYZ_BYTES_PER_POINT * MAX_LINES],
             started: Instant::now(),
             last_us: 0,
             axis_seen: None,
@@ -477,7 +477,7 @@ impl Session {
         let none = controls
             .named()
             .iter()
-            .all(|(_, c)| *c == wire::Control::NoCamera);
+            .all(|(_, c)| *c == scanner_wire::Control::NoCamera);
         self.controls = (!none).then_some(Controls {
             scan_id: self.opts.scan_id,
             ..controls
@@ -527,7 +527,7 @@ impl Session {
                     self.planes.0 += 1;
                     self.planes.1 += f64::from(out.plane_rms);
                     self.planes.2 = self.planes.2.max(out.plane_rms);
-                    let n = scanner_core::wire::points::encode(out.points, &mut self.xyz)
+                    let n = scanner_wire::points::encode(out.points, &mut self.xyz)
                         .map_err(SessionError::Encode)?;
                     let msg = Message::Points(Points {
                         scan_id: self.opts.scan_id,
@@ -584,11 +584,11 @@ impl Session {
         let (ended_early, stopped) = match ending {
             Ending::Ran => (None, None),
             Ending::Stopped(why) => {
-                s.ended = wire::EndReason::Stopped;
+                s.ended = scanner_wire::EndReason::Stopped;
                 (None, Some(why))
             }
             Ending::Failed(why) => {
-                s.ended = wire::EndReason::CameraLost;
+                s.ended = scanner_wire::EndReason::CameraLost;
                 (Some(why), None)
             }
         };
@@ -630,7 +630,7 @@ pub(crate) fn encode_to_link(
     let Some(mut buf) = buf else {
         return Ok(None);
     };
-    let n = wire::encode(msg, scratch, &mut buf).map_err(SessionError::Encode)?;
+    let n = scanner_wire::encode(msg, scratch, &mut buf).map_err(SessionError::Encode)?;
     link.send(buf, n)?;
     Ok(Some(n))
 }

@@ -52,7 +52,7 @@ fn a_chessboard_board_with_nothing_in_front_gives_no_object_point() {
             let mut link = Link::spawn(
                 Box::new(std::io::sink()),
                 scanner_device::link::MAX_DEPTH,
-                scanner_core::wire::MAX_ENCODED,
+                scanner_wire::MAX_ENCODED,
             );
             let mut points = 0usize;
             let report = run_scan(

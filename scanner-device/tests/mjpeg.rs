@@ -1,4 +1,4 @@
-//! The head's own JPEG decoder (`scanner_core::jpeg`, through `Converter`) on frames it was not
+//! The head's own JPEG decoder (`scanner_jpeg`, through `Converter`) on frames it was not
 //! written against: a real crop encoded by OpenCV's libjpeg in every sampling a webcam uses
 //! (`tests/data/mjpeg`, `scripts/make-mjpeg-fixtures.py`), compared with the lossless original
 //! and with the `image` crate's decoder; the forms it refuses, refused by name; no panic and a
@@ -6,9 +6,9 @@
 
 use std::path::{Path, PathBuf};
 
-use scanner_core::jpeg::JpegError;
 use scanner_core::stripe::PixelFormat;
 use scanner_device::source::convert::{CameraFormat, ConvertError, Converter, convert};
+use scanner_jpeg::JpegError;
 
 const W: usize = 202;
 const H: usize = 150;

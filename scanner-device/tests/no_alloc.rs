@@ -5,13 +5,13 @@
 
 use scanner_core::pipeline::HeadConfig;
 use scanner_core::stripe::{Axis, Method, PixelFormat, StripeConfig};
-use scanner_core::wire::MAX_ENCODED;
 use scanner_device::link::Link;
 use scanner_device::session::truth_calibration;
 use scanner_device::session::{Calibration, ScanOptions, Session};
 use scanner_device::source::convert::{CameraFormat, Converter};
 use scanner_device::source::{FrameSource, OwnedFrame, RigSource};
 use scanner_rig::{Rig, Scene};
+use scanner_wire::MAX_ENCODED;
 
 #[global_allocator]
 static GLOBAL: scanner_alloc::Counting = scanner_alloc::Counting;

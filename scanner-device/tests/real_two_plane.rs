@@ -71,7 +71,12 @@ fn head_on_frames(name: &str, frame: &OwnedFrame, reference: &OwnedFrame) -> (us
     ));
     let out = head
         .process(&frame.view().unwrap(), Some(&reference.view().unwrap()))
-        .unwrap_or_else(|skip| panic!("{name} {format:?}: the frame skipped: {}", skip.name()));
+        .unwrap_or_else(|skip| {
+            panic!(
+                "{name} {format:?}: the frame skipped: {}",
+                scanner_io::words::skip_reason(skip)
+            )
+        });
     let p = out.plane;
     let found = [f64::from(p[0]), f64::from(p[1]), f64::from(p[2])];
     (out.points.len(), angle_deg(found, reference_normal(&dir)))
@@ -278,7 +283,7 @@ fn the_stated_centre_uncertainty_holds_on_stripes_it_was_not_fitted_to() {
 /// would take the frame.
 #[test]
 fn the_preview_of_a_real_frame_finds_the_dots_the_line_and_takes_it() {
-    use scanner_core::wire::{Decoder, MAX_ENCODED, Message, PreviewState};
+    use scanner_wire::{Decoder, MAX_ENCODED, Message, PreviewState};
     for name in PAIRS {
         let t = tempfile::tempdir().unwrap();
         let out = device_on_pair(name, t.path(), &["preview", "--every", "1", "-q"]);

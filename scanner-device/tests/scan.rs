@@ -9,12 +9,12 @@ use serialport::SerialPort;
 
 use scanner_core::pipeline::HeadConfig;
 use scanner_core::stripe::{Axis, Method, PixelFormat, StripeConfig};
-use scanner_core::wire::{self, Decoder, MAX_ENCODED, Message, points};
 use scanner_device::link::Link;
 use scanner_device::session::truth_calibration;
 use scanner_device::session::{ScanOptions, run_scan};
 use scanner_device::source::RigSource;
 use scanner_rig::{Rig, Scene};
+use scanner_wire::{Decoder, MAX_ENCODED, Message, points};
 
 fn options(scan_id: u32) -> ScanOptions {
     ScanOptions {
@@ -30,8 +30,8 @@ fn options(scan_id: u32) -> ScanOptions {
 type Decoded = (
     BTreeMap<u32, Vec<[i32; 3]>>,
     usize,
-    Option<wire::Status>,
-    wire::DecodeStats,
+    Option<scanner_wire::Status>,
+    scanner_wire::DecodeStats,
 );
 
 /// Decodes a byte stream: (frame → points) of every point packet, headers seen, the last
@@ -104,7 +104,7 @@ fn the_stream_in_a_file_decodes_to_exactly_the_heads_points() {
         "packets missing without being counted as dropped"
     );
     let status = last.expect("a final status");
-    assert!(status.done && status.ended == scanner_core::wire::EndReason::Completed);
+    assert!(status.done && status.ended == scanner_wire::EndReason::Completed);
     assert_eq!(u64::from(status.packets), theirs.len() as u64);
     assert_eq!(
         status.points,
@@ -212,7 +212,7 @@ fn a_slow_link_drops_whole_frames_and_the_stream_stays_valid() {
     let bytes = out.lock().unwrap().clone();
     let (theirs, _, last, stats) = decode(&bytes);
     assert_eq!(stats.rejected(), 0);
-    let dropped = report.status.skipped[wire::Skip::LinkFull as usize];
+    let dropped = report.status.skipped[scanner_wire::Skip::LinkFull as usize];
     println!(
         "{dropped} of {} packets dropped by the slow link",
         mine.len()
@@ -279,17 +279,15 @@ fn a_camera_that_fails_mid_scan_ends_with_a_final_status() {
     let (_, _, last, stats) = decode(&out.lock().unwrap());
     assert_eq!(stats.rejected(), 0);
     let last = last.expect("a final status");
-    assert!(
-        last.done && last.ended == scanner_core::wire::EndReason::CameraLost && last.frames == 5
-    );
+    assert!(last.done && last.ended == scanner_wire::EndReason::CameraLost && last.frames == 5);
 }
 
 #[test]
 fn the_papers_construction_and_least_squares_agree_on_the_rig() {
     let mut counts = Vec::new();
     for method in [
-        scanner_core::pipeline::PlaneMethod::LeastSquares,
-        scanner_core::pipeline::PlaneMethod::Paper,
+        scanner_wire::PlaneMethod::LeastSquares,
+        scanner_wire::PlaneMethod::Paper,
     ] {
         let rig = Rig::new(Scene::demo(320, 240)).unwrap();
         let cal = truth_calibration(&rig);
@@ -309,7 +307,7 @@ fn the_papers_construction_and_least_squares_agree_on_the_rig() {
 }
 
 /// The skip reasons of the middle frames of a scene, with a head configured by `tweak`.
-fn skips(scene: Scene, tweak: impl Fn(&mut HeadConfig)) -> Vec<Option<wire::Skip>> {
+fn skips(scene: Scene, tweak: impl Fn(&mut HeadConfig)) -> Vec<Option<scanner_wire::Skip>> {
     let rig = Rig::new(scene).unwrap();
     let cal = truth_calibration(&rig);
     let mut source = RigSource::new(rig, PixelFormat::Gray8);
@@ -340,7 +338,7 @@ fn skips(scene: Scene, tweak: impl Fn(&mut HeadConfig)) -> Vec<Option<wire::Skip
 
 #[test]
 fn degenerate_frames_are_skipped_and_counted_by_reason() {
-    use scanner_core::wire::Skip;
+    use scanner_wire::Skip;
     let base = || Scene::demo(320, 240);
     // The normal case sends packets.
     assert!(skips(base(), |_| {}).iter().all(Option::is_none));
@@ -384,7 +382,7 @@ fn degenerate_frames_are_skipped_and_counted_by_reason() {
 
 #[test]
 fn a_frame_of_the_wrong_size_or_format_is_skipped_not_sent() {
-    use scanner_core::wire::Skip;
+    use scanner_wire::Skip;
     let rig = Rig::new(Scene::demo(320, 240)).unwrap();
     let cal = truth_calibration(&rig);
     let mut source = RigSource::new(rig, PixelFormat::Gray8);

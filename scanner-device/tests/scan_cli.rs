@@ -161,8 +161,8 @@ fn errors_before_the_first_frame_are_clear() {
 }
 
 /// The last status message of a stream file.
-fn final_status(path: &std::path::Path) -> scanner_core::wire::Status {
-    use scanner_core::wire::{Decoder, MAX_ENCODED, Message};
+fn final_status(path: &std::path::Path) -> scanner_wire::Status {
+    use scanner_wire::{Decoder, MAX_ENCODED, Message};
     let bytes = std::fs::read(path).unwrap();
     let mut dec = Box::new(Decoder::<MAX_ENCODED>::new());
     let mut last = None;
@@ -177,7 +177,7 @@ fn final_status(path: &std::path::Path) -> scanner_core::wire::Status {
 
 #[test]
 fn frame_and_time_limits_end_the_scan_with_a_final_stopped_status() {
-    use scanner_core::wire::EndReason;
+    use scanner_wire::EndReason;
     let dir = tempfile::tempdir().unwrap();
     let truth = truth_file(dir.path(), 320, 240);
     let out = dir.path().join("a.stream");
@@ -234,7 +234,7 @@ fn frame_and_time_limits_end_the_scan_with_a_final_stopped_status() {
 
 #[test]
 fn sigterm_and_sigint_end_the_scan_with_a_final_status() {
-    use scanner_core::wire::EndReason;
+    use scanner_wire::EndReason;
     let dir = tempfile::tempdir().unwrap();
     let truth = truth_file(dir.path(), 640, 480);
     for signal in ["TERM", "INT"] {

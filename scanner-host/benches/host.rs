@@ -6,10 +6,10 @@ use std::hint::black_box;
 use std::time::Instant;
 
 use scanner_core::nalgebra::Point3;
-use scanner_core::wire::{self, Decoder, MAX_ENCODED, Message, Points, points};
 use scanner_core::{Camera, Distortion};
 use scanner_host::collect::{CollectOptions, Collector};
 use scanner_host::grid::{Cell, Grid};
+use scanner_wire::{Decoder, MAX_ENCODED, Message, Points, points};
 
 /// A synthetic stream: `frames` packets of 1600 stripe points over a sphere-like bump.
 fn stream(frames: u32) -> Vec<u8> {
@@ -33,18 +33,18 @@ fn stream(frames: u32) -> Vec<u8> {
         .unwrap()
     };
     let board = scanner_core::geometry::Board::new(plane(0.707), plane(-0.707)).unwrap();
-    let header = wire::Header::new(
+    let header = scanner_wire::Header::new(
         1,
         (1600, 1200),
-        &camera,
-        &board,
+        (&camera).into(),
+        (&board).into(),
         false,
-        wire::PlaneMethod::LeastSquares,
+        scanner_wire::PlaneMethod::LeastSquares,
     );
-    let mut scratch = vec![0u8; wire::MAX_FRAME];
+    let mut scratch = vec![0u8; scanner_wire::MAX_FRAME];
     let mut out = vec![0u8; MAX_ENCODED];
     let mut s = Vec::new();
-    let n = wire::encode(&Message::Header(header), &mut scratch, &mut out).unwrap();
+    let n = scanner_wire::encode(&Message::Header(header), &mut scratch, &mut out).unwrap();
     s.extend_from_slice(&out[..n]);
     let mut xyz = vec![0u8; 15 * 1600];
     for f in 0..frames {
@@ -68,7 +68,7 @@ fn stream(frames: u32) -> Vec<u8> {
             rgb: &[],
             uncertainty: &sigma,
         });
-        let n = wire::encode(&msg, &mut scratch, &mut out).unwrap();
+        let n = scanner_wire::encode(&msg, &mut scratch, &mut out).unwrap();
         s.extend_from_slice(&out[..n]);
     }
     s

@@ -8,9 +8,9 @@
 use scanner_alloc::peak_bytes;
 use scanner_core::geometry::{Board, Plane};
 use scanner_core::nalgebra::{Point2, Vector3};
-use scanner_core::wire::{self, Header, MAX_ENCODED, Message, PlaneMethod, Points, points};
 use scanner_core::{Camera, Distortion};
 use scanner_host::collect::{CollectOptions, Collector};
+use scanner_wire::{Header, MAX_ENCODED, Message, PlaneMethod, Points, points};
 
 #[global_allocator]
 static A: scanner_alloc::Peak = scanner_alloc::Peak;
@@ -27,16 +27,16 @@ fn main() {
     let header = Header::new(
         1,
         (side, side),
-        &camera,
-        &board,
+        (&camera).into(),
+        (&board).into(),
         true,
         PlaneMethod::LeastSquares,
     );
-    let (mut scratch, mut out) = (vec![0u8; wire::MAX_FRAME], vec![0u8; MAX_ENCODED]);
-    let mut xyz = vec![0u8; wire::MAX_FRAME];
+    let (mut scratch, mut out) = (vec![0u8; scanner_wire::MAX_FRAME], vec![0u8; MAX_ENCODED]);
+    let mut xyz = vec![0u8; scanner_wire::MAX_FRAME];
     let mut c_ = Collector::new(CollectOptions::default(), None);
     let mut feed = |msg: &Message, c_: &mut Collector| {
-        let n = wire::encode(msg, &mut scratch, &mut out).expect("encode");
+        let n = scanner_wire::encode(msg, &mut scratch, &mut out).expect("encode");
         c_.feed(&out[..n]).expect("feed");
     };
     feed(&Message::Header(header), &mut c_);

@@ -7,11 +7,11 @@ use std::collections::{BTreeMap, BTreeSet, VecDeque};
 use scanner_core::nalgebra::{
     Isometry3, Point3, Quaternion, Translation3, UnitQuaternion, Vector3,
 };
-use scanner_core::wire::{
+use scanner_core::{Camera, GeomError};
+use scanner_wire::{
     Controls, DecodeStats, Decoder, DiscFound, DiscPose, Header, MAX_ENCODED, Message, Notice,
     Planes, PreviewState, SKIP_REASONS, Status, points,
 };
-use scanner_core::{Camera, GeomError};
 
 use crate::grid::{Cell, Grid, GridError};
 pub use crate::journal::{Journal, JournalError};
@@ -107,7 +107,7 @@ pub struct Counts {
 /// Notices kept in [`Counts::notices`] (a head repeats none; this bounds a hostile stream).
 pub const MAX_NOTICES: usize = 64;
 
-/// A preview picture as received ([`scanner_core::wire::Preview`], owned).
+/// A preview picture as received ([`scanner_wire::Preview`], owned).
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct PreviewImage {
     /// Its session.
@@ -133,7 +133,7 @@ pub struct PreviewImage {
     /// What a scan would make of the frame.
     pub state: PreviewState,
     /// With [`PreviewState::Skipped`], why.
-    pub skip: Option<scanner_core::wire::Skip>,
+    pub skip: Option<scanner_wire::Skip>,
     /// With [`PreviewState::Points`], how many.
     pub points: u16,
 }
@@ -219,7 +219,7 @@ impl Collector {
     /// head found the disc.
     pub fn disc_pose(&self) -> Option<Isometry3<f64>> {
         let d = self.state.counts.discs.get(&self.state.header?.scan_id)?;
-        if d.found != DiscFound::Found as u8 {
+        if d.found != DiscFound::Found {
             return None;
         }
         let [i, j, k, w] = d.rotation.map(f64::from);
@@ -414,11 +414,7 @@ impl State {
                     laser_dn: p.laser_dn,
                     state: p.state,
                     skip: (p.state == PreviewState::Skipped)
-                        .then(|| {
-                            scanner_core::wire::Skip::ALL
-                                .get(usize::from(p.skip))
-                                .copied()
-                        })
+                        .then(|| scanner_wire::Skip::ALL.get(usize::from(p.skip)).copied())
                         .flatten(),
                     points: p.points,
                 });
@@ -495,7 +491,9 @@ impl State {
 
     fn start(&mut self, h: &Header) -> Result<()> {
         check_header(h)?;
-        let camera: Camera<f64> = h.camera().map_err(CollectError::Camera)?.cast();
+        let camera: Camera<f64> = scanner_core::Camera::<f32>::try_from(h.camera)
+            .map_err(CollectError::Camera)?
+            .cast();
         // Millimetre grids span the view out to the board's crease distance (or 2 m).
         let depth = h
             .board
@@ -549,10 +547,11 @@ fn check_header(h: &Header) -> Result<()> {
     if h.unit_um == 0 {
         return bad("its unit is 0 µm: no point can be placed".into());
     }
-    let camera = h.camera().map_err(|e| CollectError::Header {
-        scan_id: h.scan_id,
-        why: format!("its camera is unusable ({e})"),
-    })?;
+    let camera =
+        scanner_core::Camera::<f32>::try_from(h.camera).map_err(|e| CollectError::Header {
+            scan_id: h.scan_id,
+            why: format!("its camera is unusable ({e})"),
+        })?;
     if let Err(e) = camera.check_plausible(u32::from(h.width), u32::from(h.height)) {
         return bad(format!(
             "{e} (image {}×{}, fx {:.4e}, fy {:.4e})",

@@ -6,7 +6,7 @@ use std::io::Write;
 use std::path::Path;
 use std::time::Instant;
 
-use scanner_core::wire::{self, MAX_ENCODED, Message, WireError};
+use scanner_wire::{MAX_ENCODED, Message, WireError};
 
 /// Why the journal cannot be kept.
 #[derive(Debug, thiserror::Error)]
@@ -53,7 +53,7 @@ impl Journal {
             })?;
         Ok(Journal {
             file,
-            scratch: vec![0; wire::MAX_FRAME],
+            scratch: vec![0; scanner_wire::MAX_FRAME],
             out: vec![0; MAX_ENCODED],
             last_sync: Instant::now(),
         })
@@ -64,8 +64,8 @@ impl Journal {
     /// # Errors
     /// The write failed.
     pub fn append(&mut self, msg: &Message) -> Result<(), JournalError> {
-        let n =
-            wire::encode(msg, &mut self.scratch, &mut self.out).map_err(JournalError::Encode)?;
+        let n = scanner_wire::encode(msg, &mut self.scratch, &mut self.out)
+            .map_err(JournalError::Encode)?;
         self.file
             .write_all(&self.out[..n])
             .and_then(|()| self.file.flush())

@@ -5,7 +5,7 @@ use std::io::Read;
 use std::path::PathBuf;
 use std::time::Duration;
 
-use scanner_core::link_spec::{SerialSpec, SpecError};
+use scanner_io::link_spec::{SerialSpec, SpecError};
 
 /// How long a read waits before the receive loop looks at Ctrl-C and the progress again.
 const READ_TIMEOUT: Duration = Duration::from_millis(200);

@@ -4,7 +4,7 @@
 use std::io::{Read, Seek};
 use std::path::Path;
 
-use scanner_core::wire::{Control, Header, Skip};
+use scanner_wire::{Control, Header, Skip};
 
 use crate::collect::{CollectError, CollectOptions, Collector, Counts};
 use crate::export::{self, ExportError};
@@ -123,7 +123,10 @@ impl Summary {
             );
         }
         for (id, k) in &c.controls {
-            s += &format!("scan {id:08x} camera controls: {k}\n");
+            s += &format!(
+                "scan {id:08x} camera controls: {}\n",
+                scanner_io::words::controls_line(k)
+            );
             if k.named().iter().any(|(_, c)| *c == Control::Refused) {
                 s += "warning: a control the difference image needs fixed was refused: the picture may drift between the reference and the laser frames\n";
             }
@@ -134,7 +137,7 @@ impl Summary {
                 c.previews
             );
             for n in &c.notices {
-                s += &format!("head: {n}\n");
+                s += &format!("head: {}\n", scanner_io::words::notice_line(n));
             }
             return s;
         }
@@ -152,7 +155,7 @@ impl Summary {
             );
         }
         for n in &c.notices {
-            s += &format!("head: {n}\n");
+            s += &format!("head: {}\n", scanner_io::words::notice_line(n));
         }
         if c.previews > 0 {
             s += &format!("{} preview pictures received\n", c.previews);
@@ -163,7 +166,7 @@ impl Summary {
                 s += &format!(
                     "head skipped {} frames: {}\n",
                     skipped[r as usize],
-                    r.name()
+                    scanner_io::words::skip_reason(r)
                 );
             }
         }
@@ -238,7 +241,7 @@ fn notice_data(c: &Counts) -> Vec<NoticeData> {
         .map(|n| NoticeData {
             scan: n.scan_id,
             kind: n.kind.name(),
-            text: n.to_string(),
+            text: scanner_io::words::notice_line(n),
         })
         .collect()
 }
@@ -350,7 +353,7 @@ impl Summary {
                 .iter()
                 .filter(|&&r| skipped[r as usize] > 0)
                 .map(|&r| SkippedData {
-                    reason: r.name(),
+                    reason: scanner_io::words::skip_reason(r),
                     frames: skipped[r as usize],
                 })
                 .collect(),
@@ -451,9 +454,11 @@ pub fn write_outputs(
     })?;
     let mut m = m;
     if out.frame == FrameChoice::Board {
-        let board = header.board().map_err(|e| CollectError::Header {
-            scan_id: header.scan_id,
-            why: format!("its board gives no frame for the meshes ({e})"),
+        let board = scanner_core::geometry::Board::<f32>::try_from(header.board).map_err(|e| {
+            CollectError::Header {
+                scan_id: header.scan_id,
+                why: format!("its board gives no frame for the meshes ({e})"),
+            }
         })?;
         m.into_frame(MeshFrame::board(&board));
     }

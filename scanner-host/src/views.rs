@@ -94,9 +94,7 @@ pub fn split_scans(journal: &Path, dir: &Path) -> Result<Vec<PathBuf>, ViewsErro
         path: journal.to_path_buf(),
         source: e.into(),
     })?;
-    let mut decoder = Box::new(scanner_core::wire::Decoder::<
-        { scanner_core::wire::MAX_ENCODED },
-    >::new());
+    let mut decoder = Box::new(scanner_wire::Decoder::<{ scanner_wire::MAX_ENCODED }>::new());
     let mut views: Vec<(u32, PathBuf, Journal)> = Vec::new();
     let mut failed: Option<ViewsError> = None;
     let mut buf = vec![0u8; 1 << 16];
@@ -269,11 +267,9 @@ pub fn cell_for(path: &Path) -> Cell {
     });
     let width = head.and_then(|bytes| {
         let mut found = None;
-        let mut d = Box::new(scanner_core::wire::Decoder::<
-            { scanner_core::wire::MAX_ENCODED },
-        >::new());
+        let mut d = Box::new(scanner_wire::Decoder::<{ scanner_wire::MAX_ENCODED }>::new());
         d.feed(&bytes, |m| {
-            if let Ok(scanner_core::wire::Message::Header(h)) = m {
+            if let Ok(scanner_wire::Message::Header(h)) = m {
                 found.get_or_insert(h.width);
             }
         });

@@ -14,8 +14,8 @@
 use std::path::{Path, PathBuf};
 
 use scanner_core::nalgebra::{Point3, Vector3};
-use scanner_core::wire::{self, Message};
 use scanner_rig::{Rig, Scene, Shape};
+use scanner_wire::Message;
 
 fn main() {
     if let Err(e) = run() {
@@ -42,7 +42,7 @@ fn run() -> Result<(), String> {
     let rig = Rig::new(view).map_err(|e| format!("{e}"))?;
     let journal = dir.join("journal.stream");
     let bytes = std::fs::read(&journal).map_err(|e| format!("{}: {e}", journal.display()))?;
-    let mut decoder = Box::new(wire::Decoder::<{ wire::MAX_ENCODED }>::new());
+    let mut decoder = Box::new(scanner_wire::Decoder::<{ scanner_wire::MAX_ENCODED }>::new());
     let (mut whole, mut on_true, mut tilt, mut along) = (vec![], vec![], vec![], vec![]);
     decoder.feed(&bytes, |m| {
         let Ok(Message::Points(p)) = m else { return };
@@ -51,8 +51,10 @@ fn run() -> Result<(), String> {
         };
         let n = Vector3::new(p.plane[0], p.plane[1], p.plane[2]).cast::<f64>();
         tilt.push(n.angle(truth.normal()).to_degrees());
-        let _ = wire::points::decode(p.xyz, p.count as usize, |q| {
-            let x: Point3<f64> = q.map(|v| f64::from(wire::points::dequantise(v))).into();
+        let _ = scanner_wire::points::decode(p.xyz, p.count as usize, |q| {
+            let x: Point3<f64> = q
+                .map(|v| f64::from(scanner_wire::points::dequantise(v)))
+                .into();
             let Some(c) = placed.closest(&x) else { return };
             whole.push((x - c).norm());
             // signed along the camera ray: + farther than the surface

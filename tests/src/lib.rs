@@ -175,7 +175,7 @@ pub fn record_scan(
     let mut link = scanner_device::link::Link::spawn(
         out,
         scanner_device::link::MAX_DEPTH,
-        scanner_core::wire::MAX_ENCODED,
+        scanner_wire::MAX_ENCODED,
     );
     scanner_device::session::run_scan(source, cal, opts, &mut link, |_| {}, |_, _| {})
         .expect("the scan runs");

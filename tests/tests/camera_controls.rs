@@ -7,7 +7,6 @@ use std::path::Path;
 
 use scanner_core::pipeline::HeadConfig;
 use scanner_core::stripe::{Axis, Method, PixelFormat, StripeConfig};
-use scanner_core::wire::{Control, Controls, Decoder, MAX_ENCODED, Message};
 use scanner_device::session::{ScanOptions, truth_calibration};
 use scanner_device::source::controls::{on_wire, parse_v4l2_ctl, plan};
 use scanner_device::source::record::{Recorder, RecordingSource};
@@ -15,6 +14,7 @@ use scanner_device::source::{FrameSource, OwnedFrame, RigSource, SourceError};
 use scanner_host::collect::{CollectOptions, Collector};
 use scanner_host::{OutputOptions, replay_into, write_outputs};
 use scanner_rig::{Rig, Scene};
+use scanner_wire::{Control, Controls, Decoder, MAX_ENCODED, Message};
 
 /// The rig's frames, with the controls a camera would report.
 struct FakeCamera {

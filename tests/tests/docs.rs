@@ -303,9 +303,10 @@ fn troubleshooting_covers_every_refusal_of_the_head_and_the_calibration() {
         ("scanner-core/src/error.rs", "GeomError"),
         ("scanner-core/src/stripe/mod.rs", "StripeError"),
         ("scanner-core/src/stripe/frame.rs", "FrameError"),
-        ("scanner-core/src/jpeg.rs", "JpegError"),
-        ("scanner-core/src/link_spec.rs", "SpecError"),
-        ("scanner-core/src/wire/mod.rs", "Skip"),
+        ("scanner-device/jpeg/src/lib.rs", "JpegError"),
+        ("scanner-core/io/src/link_spec.rs", "SpecError"),
+        ("scanner-core/wire/src/status.rs", "Skip"),
+        ("scanner-core/wire/src/error.rs", "WireError"),
     ];
     let mut missing = Vec::new();
     let mut count = 0;

@@ -13,13 +13,13 @@ use rand::rngs::SmallRng;
 use rand::{Rng, SeedableRng};
 use scanner_core::pipeline::HeadConfig;
 use scanner_core::stripe::{Axis, Method, PixelFormat, StripeConfig};
-use scanner_core::wire::{Decoder, MAX_ENCODED};
 use scanner_device::link::Link;
 use scanner_device::session::truth_calibration;
 use scanner_device::session::{ScanOptions, run_scan};
 use scanner_device::source::RigSource;
 use scanner_host::collect::{CollectOptions, Collector};
 use scanner_rig::{Rig, Scene};
+use scanner_wire::{Decoder, MAX_ENCODED};
 
 /// Outputs in the camera frame, where the rig's truth is.
 const CAMERA: scanner_host::OutputOptions = scanner_host::OutputOptions {

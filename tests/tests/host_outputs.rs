@@ -9,13 +9,13 @@ use proptest::prelude::*;
 use scanner_core::nalgebra::{Point3, Vector3};
 use scanner_core::pipeline::HeadConfig;
 use scanner_core::stripe::{Axis, Method, PixelFormat, StripeConfig};
-use scanner_core::wire::{Decoder, MAX_ENCODED};
 use scanner_device::session::ScanOptions;
 use scanner_device::session::truth_calibration;
 use scanner_device::source::RigSource;
 use scanner_host::collect::{CollectOptions, Collector, Journal};
 use scanner_host::{replay_into, write_outputs};
 use scanner_rig::{Rig, Scene};
+use scanner_wire::{Decoder, MAX_ENCODED};
 
 /// Outputs in the camera frame, where the rig's truth is.
 const CAMERA: scanner_host::OutputOptions = scanner_host::OutputOptions {
@@ -391,8 +391,8 @@ fn meshes_in_the_board_frame_are_y_up_and_the_same_surface() {
 /// scan at 800 mm: see the printed medians and 95th percentiles).
 #[test]
 fn weighting_by_the_stated_uncertainty_does_not_move_cells_off_the_truth() {
-    use scanner_core::wire::{Message, points};
     use scanner_host::grid::{Cell, Grid};
+    use scanner_wire::{Message, points};
     let dir = tempfile::tempdir().unwrap();
     let stream = dir.path().join("scan.stream");
     let rig = record(640, 480, 240, false, &stream);
@@ -401,7 +401,9 @@ fn weighting_by_the_stated_uncertainty_does_not_move_cells_off_the_truth() {
     let mut decoder = Box::new(Decoder::<MAX_ENCODED>::new());
     decoder.feed(&bytes, |m| match m {
         Ok(Message::Header(h)) if grids.is_none() => {
-            let cam = h.camera().unwrap().cast();
+            let cam = scanner_core::Camera::<f32>::try_from(h.camera)
+                .unwrap()
+                .cast();
             let g = Grid::new(
                 cam,
                 h.width.into(),

@@ -11,12 +11,12 @@ use scanner_core::geometry::{Board, Plane};
 use scanner_core::nalgebra::Vector3;
 use scanner_core::pipeline::HeadConfig;
 use scanner_core::stripe::{Axis, Method, PixelFormat, StripeConfig};
-use scanner_core::wire::{self, Header, MAX_ENCODED, Message, PlaneMethod};
 use scanner_core::{Camera, Distortion};
 use scanner_device::session::{ScanOptions, truth_calibration};
 use scanner_device::source::{FrameSource, RigSource};
 use scanner_rig::{Rig, Scene};
 use scanner_tests::workspace_bin;
+use scanner_wire::{Header, MAX_ENCODED, Message, PlaneMethod};
 
 /// The address-space limit every binary runs under, bytes.
 const LIMIT: &str = "3000000000";
@@ -130,14 +130,14 @@ fn header_frame(width: u16, height: u16, edit: impl FnOnce(&mut Header)) -> Vec<
     let mut h = Header::new(
         9,
         (width, height),
-        &camera,
-        &board,
+        (&camera).into(),
+        (&board).into(),
         false,
         PlaneMethod::LeastSquares,
     );
     edit(&mut h);
-    let (mut scratch, mut out) = (vec![0; wire::MAX_FRAME], vec![0; MAX_ENCODED]);
-    let n = wire::encode(&Message::Header(h), &mut scratch, &mut out).unwrap();
+    let (mut scratch, mut out) = (vec![0; scanner_wire::MAX_FRAME], vec![0; MAX_ENCODED]);
+    let n = scanner_wire::encode(&Message::Header(h), &mut scratch, &mut out).unwrap();
     out.truncate(n);
     out
 }
@@ -630,7 +630,7 @@ fn scans_that_give_nothing_or_share_stdout_say_so_plainly() {
     assert!(out.status.success());
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(err.contains("point packets"), "{err}");
-    let mut dec = Box::new(wire::Decoder::<MAX_ENCODED>::new());
+    let mut dec = Box::new(scanner_wire::Decoder::<MAX_ENCODED>::new());
     let mut frames = 0;
     dec.feed(&out.stdout, |m| {
         assert!(m.is_ok(), "a frame of stdout did not decode: {:?}", m.err());

@@ -719,3 +719,121 @@ fn the_checker_finds_inline_paths_groups_and_arrows_up_the_layers() {
         "{found:?}"
     );
 }
+
+/// The crates' layers as docs/architecture.md draws them (the `text` block under its heading
+/// "The crates' layers"), top first: each line's `scanner-…` names.
+fn crate_layers(doc: &str) -> Vec<Vec<String>> {
+    let mut lines = doc.lines();
+    lines
+        .find(|l| l.starts_with('#') && l.contains("The crates' layers"))
+        .expect("docs/architecture.md has a heading \"The crates' layers\"");
+    lines
+        .find(|l| l.trim() == "```text")
+        .expect("a text block under it");
+    lines
+        .take_while(|l| l.trim() != "```")
+        .map(|l| {
+            l.split(|c: char| !(c.is_ascii_alphanumeric() || c == '-'))
+                .filter(|w| w.starts_with("scanner-"))
+                .map(String::from)
+                .collect::<Vec<_>>()
+        })
+        .filter(|l| !l.is_empty())
+        .collect()
+}
+
+/// A crate's name and the workspace crates its manifest depends on outside its tests (the
+/// `[dependencies]` tables, a target's too).
+fn manifest_deps(manifest: &str) -> (String, Vec<String>) {
+    let mut name = String::new();
+    let mut deps = Vec::new();
+    let mut section = String::new();
+    for line in manifest.lines().map(str::trim) {
+        if line.starts_with('[') {
+            section = line.to_string();
+            continue;
+        }
+        if section == "[package]" && line.starts_with("name") {
+            name = line.split('"').nth(1).unwrap_or_default().to_string();
+        }
+        let normal = section == "[dependencies]"
+            || (section.starts_with("[target.") && section.ends_with(".dependencies]"));
+        if normal && line.starts_with("scanner-") {
+            deps.push(line.split(['.', ' ', '=']).next().unwrap().to_string());
+        }
+    }
+    (name, deps)
+}
+
+/// Every crate of the workspace is drawn once in docs/architecture.md's crate layers, and every
+/// crate depends only on crates of lower lines: the wire at the bottom imports nothing of the
+/// scanner, the core nothing of the head or the host.
+#[test]
+fn the_crates_depend_only_on_crates_below_them() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).parent().unwrap();
+    let doc = std::fs::read_to_string(root.join("docs/architecture.md")).unwrap();
+    let layers = crate_layers(&doc);
+    let line_of = |c: &str| layers.iter().position(|l| l.iter().any(|x| x == c));
+    let manifest = std::fs::read_to_string(root.join("Cargo.toml")).unwrap();
+    let members: Vec<&str> = manifest
+        .split("members = [")
+        .nth(1)
+        .and_then(|s| s.split(']').next())
+        .unwrap()
+        .split(',')
+        .map(|m| m.trim().trim_matches('"'))
+        .filter(|m| !m.is_empty())
+        .collect();
+    let mut wrong = Vec::new();
+    let mut drawn = 0;
+    for m in &members {
+        let (name, deps) =
+            manifest_deps(&std::fs::read_to_string(root.join(m).join("Cargo.toml")).unwrap());
+        let Some(line) = line_of(&name) else {
+            wrong.push(format!("{name} ({m}) is not drawn in the crate layers"));
+            continue;
+        };
+        drawn += 1;
+        for d in deps {
+            match line_of(&d) {
+                Some(l) if l > line => {}
+                _ => wrong.push(format!("{name} depends on {d}, not on a lower line")),
+            }
+        }
+    }
+    assert_eq!(
+        drawn,
+        layers.iter().map(Vec::len).sum::<usize>(),
+        "a crate drawn twice, or one drawn that is no member: {layers:?}"
+    );
+    assert!(wrong.is_empty(), "{}", wrong.join("\n"));
+    // The wire is the floor: no scanner crate in its manifest, none named in its sources.
+    let wire = root.join("scanner-core/wire");
+    let (name, deps) = manifest_deps(&std::fs::read_to_string(wire.join("Cargo.toml")).unwrap());
+    assert_eq!((name.as_str(), deps.len()), ("scanner-wire", 0), "{deps:?}");
+    for m in modules(&wire.join("src/lib.rs")) {
+        assert!(
+            !m.code.contains("scanner_"),
+            "{}: the wire names a scanner crate",
+            m.file.display()
+        );
+    }
+}
+
+#[test]
+fn the_crate_layer_check_reads_manifests_and_the_drawing() {
+    let (name, deps) = manifest_deps(
+        "[package]\nname = \"a\"\n[dependencies]\nscanner-core.workspace = true\nserde = \"1\"\n\
+         [dev-dependencies]\nscanner-alloc.workspace = true\n\
+         [target.'cfg(unix)'.dependencies]\nscanner-io = { path = \"x\" }\n",
+    );
+    assert_eq!(name, "a");
+    assert_eq!(deps, ["scanner-core", "scanner-io"]);
+    let layers = crate_layers(
+        "## The crates' layers\n```text\nscanner-host   scanner-device\n  │\nscanner-wire\n```\n",
+    );
+    assert_eq!(
+        layers,
+        [vec!["scanner-host", "scanner-device"], vec!["scanner-wire"]]
+    );
+}

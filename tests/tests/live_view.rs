@@ -647,7 +647,7 @@ fn the_preview_shows_the_picture_the_dots_and_why_a_scan_would_skip() {
     );
     assert!(lit.as_u64().is_some_and(|n| n >= 40), "the line: {lit}");
     assert_eq!(state, "skipped");
-    let reason = scanner_core::wire::Skip::PlaneThroughCamera.name();
+    let reason = scanner_io::words::skip_reason(scanner_wire::Skip::PlaneThroughCamera);
     assert_eq!(skip, reason);
     assert!(
         shown.as_str().is_some_and(|s| s.contains(reason)),

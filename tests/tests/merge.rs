@@ -958,7 +958,7 @@ fn open_edges(mesh: &tobj::Mesh) -> usize {
 /// A journal's frames with every header's right board plane replaced by its left one, each
 /// frame re-encoded as the head sends it.
 fn without_board(journal: &[u8]) -> Vec<u8> {
-    use scanner_core::wire::{self, Decoder, MAX_ENCODED, MAX_FRAME, Message};
+    use scanner_wire::{Decoder, MAX_ENCODED, MAX_FRAME, Message};
     let mut out = Vec::new();
     let (mut scratch, mut frame) = (vec![0u8; MAX_FRAME], vec![0u8; MAX_ENCODED]);
     let mut decoder = Box::new(Decoder::<MAX_ENCODED>::new());
@@ -967,7 +967,7 @@ fn without_board(journal: &[u8]) -> Vec<u8> {
         if let Message::Header(h) = &mut m {
             h.board[1] = h.board[0];
         }
-        let n = wire::encode(&m, &mut scratch, &mut frame).expect("re-encoded");
+        let n = scanner_wire::encode(&m, &mut scratch, &mut frame).expect("re-encoded");
         out.extend_from_slice(&frame[..n]);
     });
     out
@@ -1036,7 +1036,9 @@ fn model_against_the_truth(d: &Path, scene: &scanner_rig::Scene, views: &[usize]
     // The model is in the board's frame (y up); the truth in view 0's camera frame.
     let view0 =
         scanner_host::views::load_view(0, &d.join("v0"), "2px".parse().unwrap(), 0.0).unwrap();
-    let frame = scanner_host::mesh::MeshFrame::board(&view0.header.board().unwrap());
+    let frame = scanner_host::mesh::MeshFrame::board(
+        &scanner_core::geometry::Board::<f32>::try_from(view0.header.board).unwrap(),
+    );
     let to_board = |p: &Point3<f64>| frame.point(&p.cast::<f32>()).cast::<f64>();
     let v0 = scene.view(0).unwrap();
     let scanner_rig::Shape::Mesh(truth) = &v0.objects[0].shape else {

@@ -12,8 +12,8 @@
 use std::path::{Path, PathBuf};
 
 use scanner_core::nalgebra::Vector3;
-use scanner_core::wire::{self, Message};
 use scanner_tests::{json, run_in, workspace_bin};
+use scanner_wire::Message;
 
 /// The scene `name` of `scanner-device/scenes/stand/` with `edit` applied, written with the
 /// rig's true calibration into a fresh folder.
@@ -38,7 +38,7 @@ fn setup(name: &str, tag: &str, edit: impl Fn(String) -> String) -> (PathBuf, sc
 
 /// Each point packet's laser plane against the rig's true one, degrees.
 fn plane_errors(stream: &[u8], rig: &scanner_rig::Rig) -> Vec<(u32, f64)> {
-    let mut decoder = Box::new(wire::Decoder::<{ wire::MAX_ENCODED }>::new());
+    let mut decoder = Box::new(scanner_wire::Decoder::<{ scanner_wire::MAX_ENCODED }>::new());
     let mut out = Vec::new();
     decoder.feed(stream, |m| {
         let Ok(Message::Points(p)) = m else { return };

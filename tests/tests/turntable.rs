@@ -138,7 +138,7 @@ fn views_on_the_disc_are_posed_by_it_and_the_side_view_by_its_shape() {
 /// The wire stream `from` with every disc message replaced by the first of `disc_of` (its scan
 /// id made `from`'s).
 fn with_disc_of(from: &[u8], disc_of: &[u8]) -> Vec<u8> {
-    use scanner_core::wire::{Decoder, MAX_ENCODED, MAX_FRAME, Message, encode};
+    use scanner_wire::{Decoder, MAX_ENCODED, MAX_FRAME, Message, encode};
     let mut found = None;
     let mut d = Box::new(Decoder::<MAX_ENCODED>::new());
     d.feed(disc_of, |m| {
@@ -152,7 +152,7 @@ fn with_disc_of(from: &[u8], disc_of: &[u8]) -> Vec<u8> {
     d.feed(from, |m| {
         let Ok(m) = m else { return };
         let m = match m {
-            Message::Disc(p) => Message::Disc(scanner_core::wire::DiscPose {
+            Message::Disc(p) => Message::Disc(scanner_wire::DiscPose {
                 scan_id: p.scan_id,
                 ..disc
             }),
@@ -349,7 +349,9 @@ fn model_errors(f: &Fixture, out: &str, views: usize) -> (f64, f64, f64) {
     let view0 =
         scanner_host::views::load_view(0, &f.dir.join("v0"), "2px".parse().unwrap(), 0.0).unwrap();
     let scanner_host::mesh::MeshFrame::Board { rotation, origin } =
-        scanner_host::mesh::MeshFrame::board(&view0.header.board().unwrap())
+        scanner_host::mesh::MeshFrame::board(
+            &scanner_core::geometry::Board::<f32>::try_from(view0.header.board).unwrap(),
+        )
     else {
         panic!("a board frame")
     };

@@ -14,8 +14,8 @@ use scanner_core::geometry::Board;
 use scanner_core::nalgebra::Point3;
 use scanner_core::pipeline::{Head, HeadConfig};
 use scanner_core::stripe::{Axis, Method, StripeConfig};
-use scanner_core::wire::points::uncertainty_mm;
 use scanner_rig::{Rig, report};
+use scanner_wire::points::uncertainty_mm;
 
 /// A point's error along its ray (see the module's docs), mm.
 fn error(rig: &Rig, p: &Point3<f64>) -> f64 {

@@ -2,10 +2,20 @@
 //! share at their edges, so that each behaviour has one implementation:
 //! - [`outln!`] and [`errln!`]: a line to standard output or error, where a closed stream (the
 //!   output piped into `head`, say) is not an error for the work itself;
-//! - [`write_atomic`] and [`write_atomic_with`]: a file written whole or not at all.
+//! - [`write_atomic`] and [`write_atomic_with`]: a file written whole or not at all;
+//! - [`link_spec`]: the `serial:PATH[@BAUD]` name of a link, as both ends parse it;
+//! - [`words`]: what the wire's numbers (skip reasons, notices, camera controls) say to people.
 //!
 //! `scanner-core` stays `no_std` and free of I/O; this crate is the standard library's side.
+//!
+//! # Layers
+//! ```text
+//! link_spec  words
+//! ```
 #![deny(missing_docs)]
+
+pub mod link_spec;
+pub mod words;
 
 use std::io::Write as _;
 use std::path::Path;

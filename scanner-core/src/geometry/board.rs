@@ -12,6 +12,8 @@ use nalgebra::{Point3, Vector3};
 use super::collinear;
 use super::fit::{PlaneFit, fit_plane};
 use super::plane::{Line, Plane};
+use scanner_wire::PlaneBlock;
+
 use crate::{GeomError, Real};
 
 /// Smallest accepted sine of the angle between the two board planes' normals (2°).
@@ -34,6 +36,22 @@ pub struct Board<T: Real> {
     left: Plane<T>,
     right: Plane<T>,
     crease: Line<T>,
+}
+
+/// The board's planes as the wire carries them, left then right.
+impl<T: Real> From<&Board<T>> for [PlaneBlock; 2] {
+    fn from(b: &Board<T>) -> Self {
+        [b.left().into(), b.right().into()]
+    }
+}
+
+impl TryFrom<[PlaneBlock; 2]> for Board<f32> {
+    type Error = GeomError;
+    /// The board a header carries, checked: planes that are not planes or do not meet get a
+    /// [`GeomError`].
+    fn try_from([left, right]: [PlaneBlock; 2]) -> Result<Self, GeomError> {
+        Board::new(left.try_into()?, right.try_into()?)
+    }
 }
 
 impl<T: Real> Board<T> {

@@ -2,6 +2,8 @@
 
 use nalgebra::{Point3, Vector3};
 
+use scanner_wire::PlaneBlock;
+
 use crate::real::all_finite;
 use crate::{GeomError, Real};
 
@@ -151,6 +153,28 @@ impl<T: Real> Plane<T> {
 pub struct Line<T: Real> {
     point: Point3<T>,
     dir: Vector3<T>,
+}
+
+/// A board plane as the wire carries it.
+impl<T: Real> From<&Plane<T>> for PlaneBlock {
+    fn from(p: &Plane<T>) -> Self {
+        let n = p.normal();
+        PlaneBlock {
+            normal: [n.x, n.y, n.z].map(|v| v.to_f64() as f32),
+            offset: p.offset().to_f64() as f32,
+        }
+    }
+}
+
+impl TryFrom<PlaneBlock> for Plane<f32> {
+    type Error = GeomError;
+    /// The plane a header carries, checked as [`Plane::new`] checks it.
+    fn try_from(b: PlaneBlock) -> Result<Self, GeomError> {
+        Plane::new(
+            Vector3::new(b.normal[0], b.normal[1], b.normal[2]),
+            b.offset,
+        )
+    }
 }
 
 impl<T: Real> Line<T> {

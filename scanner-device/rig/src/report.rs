@@ -12,7 +12,7 @@ use scanner_core::geometry::Board;
 use scanner_core::nalgebra::{Matrix4, Point2, Point3, Unit, Vector3, Vector4};
 use scanner_core::pipeline::{Head, HeadConfig};
 use scanner_core::stripe::{Axis, Extractor, Frame, Method, PixelFormat, StripeConfig};
-use scanner_core::wire::points::dequantise;
+use scanner_wire::points::dequantise;
 
 /// The paper's mean errors (mm) at 280, 400, 800, 1600 and 3200 mm.
 pub const PAPER_MEAN_MM: [(f64, f64); 5] = [

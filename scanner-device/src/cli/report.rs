@@ -9,7 +9,7 @@ use scanner_calib::selfcheck::SelfCheck;
 use scanner_calib::{
     CalibError, Coverage, GridView, ImageReport, IntrinsicsFit, SheetFit, ViewFit,
 };
-use scanner_core::wire::Skip;
+use scanner_wire::Skip;
 use serde::Serialize;
 
 use crate::session::{DiscOutcome, ScanReport};
@@ -164,7 +164,7 @@ impl From<&ScanReport> for ScanData {
                 .iter()
                 .filter(|&&k| s.skipped[k as usize] > 0)
                 .map(|&k| Skipped {
-                    reason: k.name(),
+                    reason: scanner_io::words::skip_reason(k),
                     frames: s.skipped[k as usize],
                 })
                 .collect(),

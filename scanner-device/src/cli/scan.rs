@@ -6,9 +6,10 @@ use std::path::PathBuf;
 use anyhow::{Context, Result, bail};
 use clap::Args;
 use scanner_calib::file::CalibrationFile;
-use scanner_core::pipeline::{HeadConfig, PlaneMethod};
+use scanner_core::pipeline::HeadConfig;
 use scanner_core::stripe::{Axis, LaserColour, Method, PixelFormat, StripeConfig};
-use scanner_core::wire::Skip;
+use scanner_wire::PlaneMethod;
+use scanner_wire::Skip;
 
 use crate::link::{Link, Target};
 use crate::session::{Calibration, DiscOutcome, ScanOptions, ScanReport, StopWhen, run_scan_until};
@@ -262,7 +263,7 @@ pub fn report_lines(r: &ScanReport) -> Vec<String> {
             lines.push(format!(
                 "  skipped {}: {}",
                 count(n, "frame"),
-                reason.name()
+                scanner_io::words::skip_reason(reason)
             ));
         }
     }
@@ -435,11 +436,7 @@ pub(super) fn open(a: &ScanArgs) -> Result<Opened> {
         .map(|p| read_calibration(p, source.as_ref(), &a.source))
         .transpose()?;
     let target: Target = a.out.parse().context("--out")?;
-    let link = Link::spawn(
-        target.open()?,
-        a.link_depth,
-        scanner_core::wire::MAX_ENCODED,
-    );
+    let link = Link::spawn(target.open()?, a.link_depth, scanner_wire::MAX_ENCODED);
     let live = a.source.starts_with("/dev/") || a.source.starts_with("v4l:");
     let stop = StopWhen {
         frames: a.frames,
@@ -609,7 +606,7 @@ fn parse_link_depth(s: &str) -> Result<usize, String> {
             format!(
                 "{:?}: a whole number of buffers from 1 to {max} (each holds one packet of up to {} KB)",
                 s.chars().take(40).collect::<String>(),
-                scanner_core::wire::MAX_ENCODED / 1024
+                scanner_wire::MAX_ENCODED / 1024
             )
         })
 }

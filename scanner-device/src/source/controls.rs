@@ -176,16 +176,16 @@ pub fn report(plan: &Plan, refused: &[(String, String)]) -> String {
     line
 }
 
-/// What the plan did, for the stream ([`scanner_core::wire::Controls`], sent after each header):
+/// What the plan did, for the stream ([`scanner_wire::Controls`], sent after each header):
 /// per control the value set, refused (named in `refused` by the driver's name), or not offered.
-pub fn on_wire(plan: &Plan, refused: &[(String, String)]) -> scanner_core::wire::Controls {
-    use scanner_core::wire::Control as C;
+pub fn on_wire(plan: &Plan, refused: &[(String, String)]) -> scanner_wire::Controls {
+    use scanner_wire::Control as C;
     let state = |id: u32| match plan.settings.iter().find(|s| s.id == id) {
         None => C::NotOffered,
         Some(s) if refused.iter().any(|(c, _)| *c == s.control) => C::Refused,
         Some(s) => C::Set(i32::try_from(s.value).unwrap_or(i32::MAX)),
     };
-    scanner_core::wire::Controls {
+    scanner_wire::Controls {
         scan_id: 0,
         exposure: state(id::EXPOSURE_AUTO),
         white_balance: state(id::AUTO_WHITE_BALANCE),

@@ -6,8 +6,8 @@
 //! (`stride` ≥ the packed row).
 
 use scanner_core::colour::{luma, rgb_pair_to_yuyv, yuv_to_rgb};
-use scanner_core::jpeg::{Decoder, JpegError, Output};
 use scanner_core::stripe::PixelFormat;
+use scanner_jpeg::{Decoder, JpegError, Output};
 
 /// A camera's pixel format.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -109,9 +109,9 @@ pub enum ConvertError {
     /// An odd width for YUYV.
     #[error("YUYV needs an even width, got {0}")]
     OddWidth(usize),
-    /// A frame size over the JPEG decoder's limit ([`scanner_core::jpeg::MAX_SIDE`] a side),
+    /// A frame size over the JPEG decoder's limit ([`scanner_jpeg::MAX_SIDE`] a side),
     /// refused before its buffer is allocated.
-    #[error("a {width}×{height} MJPEG stream: at most {max} pixels a side are decoded", max = scanner_core::jpeg::MAX_SIDE)]
+    #[error("a {width}×{height} MJPEG stream: at most {max} pixels a side are decoded", max = scanner_jpeg::MAX_SIDE)]
     TooLarge {
         /// Width.
         width: usize,
@@ -165,7 +165,7 @@ impl Converter {
         if want != PixelFormat::Gray8 && !width.is_multiple_of(2) {
             return Err(ConvertError::OddWidth(width));
         }
-        if width > scanner_core::jpeg::MAX_SIDE || height > scanner_core::jpeg::MAX_SIDE {
+        if width > scanner_jpeg::MAX_SIDE || height > scanner_jpeg::MAX_SIDE {
             return Err(ConvertError::TooLarge { width, height });
         }
         let (output, target) = match want {

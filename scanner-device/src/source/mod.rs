@@ -138,8 +138,8 @@ pub trait FrameSource {
     /// Frame size, pixels.
     fn size(&self) -> (usize, usize);
     /// What was done with the camera's controls (a source that is no camera: nothing).
-    fn controls(&self) -> scanner_core::wire::Controls {
-        scanner_core::wire::Controls::default()
+    fn controls(&self) -> scanner_wire::Controls {
+        scanner_wire::Controls::default()
     }
     /// The laser-off reference frame.
     ///
@@ -519,7 +519,7 @@ pub fn open_with(
 mod tests {
     use super::convert::ConvertError;
     use super::{CameraPace, MAX_UNDECODABLE_IN_A_ROW, Verdict};
-    use scanner_core::jpeg::JpegError;
+    use scanner_jpeg::JpegError;
 
     /// A corrupt MJPEG frame is skipped and counted, never fatal; only a run of them is.
     #[test]

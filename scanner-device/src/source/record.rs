@@ -12,7 +12,7 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use scanner_core::stripe::PixelFormat;
-use scanner_core::wire::Controls;
+use scanner_wire::Controls;
 
 use super::{FrameSource, OwnedFrame, SourceError};
 

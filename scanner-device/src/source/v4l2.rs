@@ -14,7 +14,7 @@ mod imp {
     use std::time::{Duration, Instant};
 
     use scanner_core::stripe::PixelFormat;
-    use scanner_core::wire;
+    use scanner_wire as wire;
     use v4l::buffer::Type;
     use v4l::control::{Control, Value};
     use v4l::io::mmap::Stream;

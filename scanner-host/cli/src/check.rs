@@ -104,9 +104,7 @@ pub fn run(plan: &CheckPlan) -> Result<()> {
         .fold(0.0, f64::max)
         * 3.0;
     let scale = scale.max(0.02);
-    let frame = view
-        .header
-        .board()
+    let frame = scanner_core::geometry::Board::<f32>::try_from(view.header.board)
         .map(|b| MeshFrame::board(&b))
         .unwrap_or_default();
     // One band per checked feature (each sphere, the plane), each from the front and the side.

@@ -172,9 +172,8 @@ impl MergeProgress for Shown<'_> {
 }
 
 /// The board's frame of a view 0 (the camera's when it carries no board).
-fn frame_of(header: &scanner_core::wire::Header) -> MeshFrame {
-    header
-        .board()
+fn frame_of(header: &scanner_wire::Header) -> MeshFrame {
+    scanner_core::geometry::Board::<f32>::try_from(header.board)
         .map(|b| MeshFrame::board(&b))
         .unwrap_or_default()
 }

@@ -9,13 +9,13 @@ use std::sync::atomic::Ordering;
 use std::time::{Duration, Instant};
 
 use anyhow::{Context, Result};
-use scanner_core::wire::NoticeKind;
 use scanner_host::collect::{CollectOptions, Collector, Journal};
 use scanner_host::link::Input;
 use scanner_host::live::LiveView;
 use scanner_host::mesh::MeshFrame;
 use scanner_host::outputs::{OutputOptions, Summary, mesh_of, replay_corrected, write_outputs};
 use scanner_host::{errln, outln};
+use scanner_wire::NoticeKind;
 
 use crate::args::OutputArgs;
 use crate::show::{interrupted, progress_bar, start_view};
@@ -127,7 +127,9 @@ fn check_journal(input: &Input, journal: &Path, append: bool) -> Result<u64> {
 /// Hands the frames accepted since the last call to the live view.
 fn publish(c: &mut Collector, v: &mut LiveView) {
     if !v.has_frame()
-        && let Some(board) = c.header().and_then(|h| h.board().ok())
+        && let Some(board) = c
+            .header()
+            .and_then(|h| scanner_core::geometry::Board::<f32>::try_from(h.board).ok())
     {
         v.set_frame(MeshFrame::board(&board));
     }
@@ -180,7 +182,7 @@ pub fn receive(plan: &ReceivePlan, finish_view: bool) -> Result<(Summary, Option
                 // The head's prompts, on this terminal too (the head's may be nobody's).
                 for notice in c.take_notices() {
                     if !o.quiet {
-                        pb.suspend(|| errln!("head: {notice}"));
+                        pb.suspend(|| errln!("head: {}", scanner_io::words::notice_line(&notice)));
                     }
                     if notice.kind == NoticeKind::NoLaser {
                         no_laser = Some(notice);
@@ -232,7 +234,9 @@ pub fn receive(plan: &ReceivePlan, finish_view: bool) -> Result<(Summary, Option
     }
     let summary = match write_outputs(&c, &o.dir, &o.outputs) {
         Err(e) if c.header().is_none() && no_laser.is_some() => {
-            let n = no_laser.map(|n| n.to_string()).unwrap_or_default();
+            let n = no_laser
+                .map(|n| scanner_io::words::notice_line(&n))
+                .unwrap_or_default();
             return Err(anyhow::anyhow!("{e}").context(format!("the head: {n}")));
         }
         r => r?,

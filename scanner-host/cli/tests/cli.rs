@@ -27,7 +27,7 @@ fn recording(dir: &std::path::Path) -> std::path::PathBuf {
     let mut link = scanner_device::link::Link::spawn(
         Box::new(std::fs::File::create(&path).unwrap()),
         scanner_device::link::MAX_DEPTH,
-        scanner_core::wire::MAX_ENCODED,
+        scanner_wire::MAX_ENCODED,
     );
     let opts = scanner_device::session::ScanOptions {
         head: HeadConfig::new(StripeConfig::new(Method::Dim, Axis::Columns)),
@@ -208,9 +208,9 @@ fn bad_inputs_are_named() {
 fn head_to_host_over_a_pseudo_terminal() {
     use scanner_core::pipeline::HeadConfig;
     use scanner_core::stripe::{Axis, Method, StripeConfig};
-    use scanner_core::wire::MAX_ENCODED;
     use scanner_device::link::Link;
     use scanner_device::session::ScanOptions;
+    use scanner_wire::MAX_ENCODED;
     use serialport::SerialPort;
     let (device_end, host_end) = serialport::TTYPort::pair().expect("a pseudo-terminal pair");
     let name = host_end.name().expect("the host end has a device name");

@@ -283,7 +283,7 @@ fn main() {
 }
 
 /// The header of a 1280×960 camera of f = 1120 px before a board 600 mm away.
-fn header() -> scanner_core::wire::Header {
+fn header() -> scanner_wire::Header {
     let camera = scanner_core::Camera::new(
         1120.0,
         1120.0,
@@ -297,12 +297,12 @@ fn header() -> scanner_core::wire::Header {
             .expect("a plane")
     };
     let board = scanner_core::geometry::Board::new(plane(0.707), plane(-0.707)).expect("a board");
-    scanner_core::wire::Header::new(
+    scanner_wire::Header::new(
         1,
         (1280, 960),
-        &camera,
-        &board,
+        (&camera).into(),
+        (&board).into(),
         false,
-        scanner_core::wire::PlaneMethod::LeastSquares,
+        scanner_wire::PlaneMethod::LeastSquares,
     )
 }

@@ -4,7 +4,7 @@
 use std::fmt;
 
 use scanner_core::nalgebra::{Isometry3, Point3, Vector3};
-use scanner_core::wire::Header;
+use scanner_wire::Header;
 
 use crate::error::MergeError;
 use crate::fuse::Model;

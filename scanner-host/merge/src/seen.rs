@@ -13,7 +13,7 @@
 //! than the tolerance nearer the camera than everything this view saw there.
 
 use scanner_core::nalgebra::{Isometry3, Point3};
-use scanner_core::wire::Header;
+use scanner_wire::Header;
 
 use crate::spatial::Cloud;
 

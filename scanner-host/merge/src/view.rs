@@ -4,7 +4,7 @@
 //! to one point per `THIN_MM` cube when it is made.
 
 use scanner_core::nalgebra::{Isometry3, Point3, Vector3};
-use scanner_core::wire::Header;
+use scanner_wire::Header;
 
 use crate::seen::DepthMap;
 use crate::spatial::{Cloud, thin_with};
@@ -173,7 +173,9 @@ impl View {
     /// Up in the view's camera frame (the board's crease, pointing up the image): `None` when
     /// its header carries no usable board.
     pub fn up(&self) -> Option<Vector3<f64>> {
-        self.header.board().ok().map(|b| b.up().cast())
+        scanner_core::geometry::Board::<f32>::try_from(self.header.board)
+            .ok()
+            .map(|b| b.up().cast())
     }
 
     /// The mean of its points.
@@ -187,7 +189,7 @@ impl View {
     /// A view of `points` with `normals` (all clear), seen by a 640×480 camera of 560 px focal
     /// length in front of a right-angled board 1000 mm away: for the crate's tests.
     pub(crate) fn for_tests(points: &[Point3<f64>], normals: &[Vector3<f64>]) -> View {
-        let camera = scanner_core::wire::CameraBlock {
+        let camera = scanner_wire::CameraBlock {
             fx: 560.0,
             fy: 560.0,
             cx: 319.5,
@@ -199,7 +201,7 @@ impl View {
             k3: 0.0,
         };
         // a right-angled board 1000 mm away, its crease vertical
-        let half = |x: f32| scanner_core::wire::PlaneBlock {
+        let half = |x: f32| scanner_wire::PlaneBlock {
             normal: [x, 0.0, -1.0],
             offset: 1000.0,
         };
@@ -217,7 +219,7 @@ impl View {
                 camera,
                 board: [half(1.0), half(-1.0)],
                 colour: false,
-                method: scanner_core::wire::PlaneMethod::LeastSquares,
+                method: scanner_wire::PlaneMethod::LeastSquares,
             },
             colours: Vec::new(),
             clear: Vec::new(),

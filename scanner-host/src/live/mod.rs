@@ -21,7 +21,7 @@ use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
 use scanner_core::nalgebra::Point3;
-use scanner_core::wire::{PreviewState, Skip};
+use scanner_wire::{PreviewState, Skip};
 
 use crate::collect::{Counts, PreviewImage};
 use crate::mesh::{Mesh, MeshFrame};
@@ -490,7 +490,7 @@ fn preview_json(p: &PreviewImage) -> String {
     use base64::Engine as _;
     let (state, why) = match p.state {
         PreviewState::Points => ("points", None),
-        PreviewState::Skipped => ("skipped", p.skip.map(|s| s.name())),
+        PreviewState::Skipped => ("skipped", p.skip.map(scanner_io::words::skip_reason)),
         PreviewState::NoCalibration => ("no_calibration", None),
         PreviewState::LaserInReference => (
             "laser_in_reference",
@@ -499,7 +499,7 @@ fn preview_json(p: &PreviewImage) -> String {
     };
     let hint = match p.state {
         PreviewState::Skipped => p.skip.and_then(|s| {
-            let mut skipped = [0u64; scanner_core::wire::SKIP_REASONS];
+            let mut skipped = [0u64; scanner_wire::SKIP_REASONS];
             skipped[s as usize] = 1;
             hint(&skipped, 1)
         }),
@@ -542,7 +542,9 @@ fn status_json(k: &Counts, secs: f64, dropped: u64, state: &str) -> String {
         .iter()
         .zip(skipped)
         .filter(|(_, n)| *n > 0)
-        .map(|(s, n)| serde_json::json!({"reason": s.name(), "frames": n}))
+        .map(
+            |(s, n)| serde_json::json!({"reason": scanner_io::words::skip_reason(*s), "frames": n}),
+        )
         .collect();
     let rms: Vec<f64> = k
         .planes
@@ -566,7 +568,7 @@ fn status_json(k: &Counts, secs: f64, dropped: u64, state: &str) -> String {
         "view_dropped": dropped,
         "scans": k.scans.len(),
         "seconds": secs,
-        "notice": k.notices.back().map(ToString::to_string),
+        "notice": k.notices.back().map(scanner_io::words::notice_line),
         "notice_kind": k.notices.back().map(|n| n.kind.name()),
         "previews": k.previews,
     })
@@ -627,7 +629,7 @@ mod tests {
 
     #[test]
     fn a_dominant_reason_gets_its_hint_and_a_mixed_one_none() {
-        let mut s = [0u64; scanner_core::wire::SKIP_REASONS];
+        let mut s = [0u64; scanner_wire::SKIP_REASONS];
         s[Skip::OnePlaneOnly as usize] = 40;
         s[Skip::NoStripe as usize] = 5;
         assert!(hint(&s, 100).unwrap().contains("both sheets"));

@@ -2,7 +2,7 @@
 //! resynchronises after garbage, rejects corrupted frames and never panics.
 
 use proptest::prelude::*;
-use scanner_core::wire::{
+use scanner_wire::{
     CameraBlock, Decoder, EndReason, Header, MAX_ENCODED, MAX_FRAME, Message, Notice, NoticeKind,
     PREVIEW_MAX_PIXELS, PlaneBlock, PlaneMethod, Points, Preview, PreviewState, Status, WireError,
     decode_frame, encode, points,
@@ -67,7 +67,7 @@ fn frame_bytes(msg: &Message) -> Vec<u8> {
     out
 }
 
-fn decode_all(bytes: &[u8], chunk: usize) -> (Vec<String>, scanner_core::wire::DecodeStats) {
+fn decode_all(bytes: &[u8], chunk: usize) -> (Vec<String>, scanner_wire::DecodeStats) {
     let mut d = Box::new(Decoder::<MAX_ENCODED>::new());
     let mut seen = Vec::new();
     for c in bytes.chunks(chunk.max(1)) {
@@ -238,7 +238,8 @@ fn hex(bytes: &[u8]) -> String {
 fn the_golden_header_frame_of_the_spec_is_what_the_encoder_writes() {
     let bytes = frame_bytes(&Message::Header(header()));
     let golden =
-        std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/../docs/wire.md")).unwrap();
+        std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/../../docs/wire.md"))
+            .unwrap();
     let start = golden.find("<!-- golden:begin -->").expect("golden block") + 21;
     let end = golden.find("<!-- golden:end -->").expect("golden block");
     let want: String = golden[start..end]
@@ -278,16 +279,6 @@ fn wire_enums_and_blocks_are_checked_at_the_parse() {
     payload[n - 1] = 7;
     let _ = &mut scratch;
     assert!(postcard::from_bytes::<Message>(&payload[..n]).is_err());
-    // Round trips of the blocks, and refusals of what no camera or plane is.
-    let h = header();
-    let cam = h.camera().unwrap();
-    assert_eq!(CameraBlock::from(&cam), h.camera);
-    assert!(h.board().is_ok());
-    let mut bad = h;
-    bad.camera.fx = -1.0;
-    assert!(bad.camera().is_err());
-    bad.board[0].normal = [0.0; 3];
-    assert!(bad.board().is_err());
     assert_eq!(EndReason::try_from(2u8), Ok(EndReason::Stopped));
     assert!(EndReason::try_from(3u8).is_err());
 }
@@ -318,8 +309,8 @@ fn frame_v1(body: &[u8]) -> Vec<u8> {
 #[test]
 fn version_1_frames_are_still_read_and_their_points_carry_no_uncertainty() {
     // The documented sizes of the largest frame.
-    assert_eq!(scanner_core::wire::MAX_FRAME, 78_080);
-    assert_eq!(scanner_core::wire::MAX_ENCODED, 78_390);
+    assert_eq!(scanner_wire::MAX_FRAME, 78_080);
+    assert_eq!(scanner_wire::MAX_ENCODED, 78_390);
     let pts = stripe(50);
     let mut xyz = vec![0u8; 15 * pts.len()];
     let n = points::encode(&pts, &mut xyz).unwrap();

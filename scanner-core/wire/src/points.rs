@@ -1,22 +1,48 @@
-//! Compact points: quantised to [`UNIT_MM`](super::UNIT_MM) and coded as zigzag varints of
-//! second-order differences.
+//! A frame's points ([`Points`]) and their compact coding: quantised to
+//! [`UNIT_MM`](crate::UNIT_MM) and coded as zigzag varints of second-order differences.
 //!
 //! Consecutive stripe points are neighbours on a smooth curve, so each is predicted from the two
 //! before it, `p̂ᵢ = 2·pᵢ₋₁ − pᵢ₋₂` (`p̂₁ = p₀`, `p̂₀ = 0`), and only the residual `pᵢ − p̂ᵢ` is
 //! sent, per coordinate, as a zigzag LEB128 varint (the same integer coding postcard uses). On a
 //! smooth surface the residuals are a few hundredths of a millimetre: one byte per coordinate.
 
-use crate::wire::WireError;
+use serde::{Deserialize, Serialize};
+
+use crate::WireError;
+
+/// One frame's points.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct Points<'a> {
+    /// Scan id.
+    pub scan_id: u32,
+    /// Frame number in the scan (gaps: skipped or lost frames).
+    pub frame: u32,
+    /// Capture time since the scan started, microseconds.
+    pub time_us: u64,
+    /// The laser plane `[nx, ny, nz, d]` of this frame.
+    pub plane: [f32; 4],
+    /// Number of points.
+    pub count: u32,
+    /// Coordinates: [`encode`] coding of the quantised points.
+    #[serde(borrow)]
+    pub xyz: &'a [u8],
+    /// Colour, 3 bytes (RGB) per point, or empty.
+    #[serde(borrow)]
+    pub rgb: &'a [u8],
+    /// Standard uncertainty, one byte per point ([`uncertainty_code`]), or empty.
+    #[serde(borrow)]
+    pub uncertainty: &'a [u8],
+}
 
 /// Quantises millimetres to wire units, `None` for a value outside `i32` or not finite.
 pub fn quantise(mm: f32) -> Option<i32> {
-    let q = libm::roundf(mm * (1.0 / super::UNIT_MM));
+    let q = libm::roundf(mm * (1.0 / crate::UNIT_MM));
     (q.is_finite() && q >= i32::MIN as f32 && q <= i32::MAX as f32).then_some(q as i32)
 }
 
 /// Wire units to millimetres.
 pub fn dequantise(q: i32) -> f32 {
-    (q as f64 * f64::from(super::UNIT_MM)) as f32
+    (q as f64 * f64::from(crate::UNIT_MM)) as f32
 }
 
 fn zigzag(v: i64) -> u64 {

@@ -15,6 +15,10 @@
 //! x86-64 (SSE2) and aarch64 (NEON) alike; no input makes it panic (integer arithmetic wraps,
 //! floats saturate into a byte).
 
+#![no_std]
+#![deny(missing_docs)]
+#![deny(unsafe_code)]
+
 use core::fmt;
 
 /// The largest width or height decoded (pixels); a larger frame is refused before any work.

@@ -1,5 +1,5 @@
 //! `serial:PATH[@BAUD]`, the name of a serial link on the command line of both ends: one parser
-//! (no_std, borrowing the path) so that the head and the host agree on what it means.
+//! (borrowing the path) so that the head and the host agree on what it means.
 
 use core::fmt;
 

@@ -1,0 +1,44 @@
+//! Every message the head sends, as one type.
+
+use serde::{Deserialize, Serialize};
+
+use crate::{Controls, DiscPose, Header, Notice, Planes, Points, Preview, Status};
+
+/// A message.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub enum Message<'a> {
+    /// The session header.
+    Header(Header),
+    /// A frame's points.
+    #[serde(borrow)]
+    Points(Points<'a>),
+    /// Counters.
+    Status(Status),
+    /// The camera controls (after each header).
+    Controls(Controls),
+    /// The laser planes' fit since the last status (before each status).
+    Planes(Planes),
+    /// The turntable disc in the reference frame (after each header, when asked for).
+    Disc(DiscPose),
+    /// A prompt or an event for the operator.
+    Notice(Notice),
+    /// A thumbnail of the camera's picture with what the head found in it.
+    #[serde(borrow)]
+    Preview(Preview<'a>),
+}
+
+impl Message<'_> {
+    /// The scan the message belongs to.
+    pub fn scan_id(&self) -> u32 {
+        match self {
+            Message::Header(h) => h.scan_id,
+            Message::Points(p) => p.scan_id,
+            Message::Status(s) => s.scan_id,
+            Message::Controls(k) => k.scan_id,
+            Message::Planes(p) => p.scan_id,
+            Message::Disc(d) => d.scan_id,
+            Message::Notice(n) => n.scan_id,
+            Message::Preview(p) => p.scan_id,
+        }
+    }
+}
