@@ -171,7 +171,7 @@ fn run() -> Result<(), String> {
     let surface = surface_cloud(&truth);
     let mut alone = Vec::with_capacity(n);
     for (k, v) in views.iter().enumerate() {
-        let fit = scanner_merge::register::icp(&v.clear_cloud(), &surface, true_pose(k)?, 2.0, 40);
+        let fit = scanner_merge::pose::icp(&v.clear_cloud(), &surface, true_pose(k)?, 2.0, 40);
         alone.push(fit.pose);
     }
     let turn = |e: &Isometry3<f64>| {

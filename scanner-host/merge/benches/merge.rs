@@ -14,12 +14,12 @@
 use std::time::Instant;
 
 use scanner_core::nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
+use scanner_merge::depth::{DepthMap, conflicts};
 use scanner_merge::fuse::{check, fuse_with};
-use scanner_merge::fusion::{contradicted, edge_weight, fused_points};
-use scanner_merge::poses::register_clouds;
+use scanner_merge::fuse::{contradicted, edge_weight, fused_points};
+use scanner_merge::pose::RegisterOptions;
+use scanner_merge::pose::register_clouds;
 use scanner_merge::refine::{HINTED, Turns, found_turns, refine, refine_turns};
-use scanner_merge::register::RegisterOptions;
-use scanner_merge::seen::{DepthMap, conflicts};
 use scanner_merge::spatial::Cloud;
 use scanner_merge::{MergeOptions, Surface, View};
 
@@ -261,7 +261,7 @@ fn main() {
     let t7 = Instant::now();
     let hints = |a: usize, b: usize| {
         let angle = 45.0 * (a as f64 - b as f64);
-        scanner_merge::register::turntable_motions(&Vector3::y(), refs[a], refs[b], angle).to_vec()
+        scanner_merge::pose::turntable_motions(&Vector3::y(), refs[a], refs[b], angle).to_vec()
     };
     let stepped = register_clouds(&refs, &o, hints, |_| None, |_, _| {})
         .expect("the views register with the step");

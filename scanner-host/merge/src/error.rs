@@ -1,8 +1,5 @@
 //! Why views could not be merged: each reason names the views, the figures and what to do.
 
-use crate::fuse::FuseError;
-use crate::register::RegisterError;
-
 /// Why views cannot be merged.
 #[derive(Debug, Clone, thiserror::Error)]
 pub enum MergeError {
@@ -77,7 +74,7 @@ pub enum MergeError {
         max_mm: f64,
     },
     /// A view's points lie in the space another view saw empty: one of the two is registered
-    /// wrongly (see [`crate::seen`]), even where the loops of views close.
+    /// wrongly (see [`crate::depth`]), even where the loops of views close.
     #[error(
         "view {view} ({name})'s points lie in front of what view {seen_by} ({seen_by_name}) saw: {in_front} of the {tested} that fall on its seen surface ({:.1} %) are more than {tol_mm:.1} mm nearer its camera than the surface it saw (a merge accepts at most {:.0} %): at least one of the two views is registered wrongly, so no model was written; views.png and views.ply show each view in its colour, merge-report.txt each registration",
         100.0 * *in_front as f64 / (*tested).max(1) as f64,
@@ -181,4 +178,66 @@ impl MergeError {
                 | MergeError::DiscMoved { .. }
         )
     }
+}
+
+/// Why two views could not be registered.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum RegisterError {
+    /// A view has too few points to describe its shape.
+    #[error(
+        "a view has {points} points after thinning to {voxel_mm} mm: at least {min} are needed"
+    )]
+    TooFewPoints {
+        /// Points left.
+        points: usize,
+        /// The voxel size.
+        voxel_mm: f64,
+        /// Needed.
+        min: usize,
+    },
+    /// No rigid motion brings enough of one view onto the other.
+    #[error(
+        "the views do not overlap enough: the best match brings {overlap_percent:.0} % of the points within {tolerance_mm} mm (at least {min_percent:.0} % needed)"
+    )]
+    NoOverlap {
+        /// The best match's overlap.
+        overlap_percent: f64,
+        /// The distance counted as overlapping.
+        tolerance_mm: f64,
+        /// The least overlap accepted.
+        min_percent: f64,
+    },
+}
+
+/// Why the fusion failed.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum FuseError {
+    /// Too few points to reconstruct from (after thinning to half a cell, those with a normal).
+    #[error(
+        "{0} points with a normal after thinning to half a cell: at least 100 are needed for a surface"
+    )]
+    TooFewPoints(usize),
+    /// Points, normals and weights of different lengths (a caller's mistake).
+    #[error("{points} points with {normals} normals and {weights} weights: one each per point")]
+    Lengths {
+        /// Points.
+        points: usize,
+        /// Normals.
+        normals: usize,
+        /// Weights (0 stands for all 1).
+        weights: usize,
+    },
+    /// A weight that is not a number from 0 to 1.
+    #[error("point {index} has weight {weight}: weights are 0 to 1")]
+    Weight {
+        /// Which point.
+        index: usize,
+        /// Its weight.
+        weight: f64,
+    },
+    /// The grid would be too large: its cells along x, y and z, and the most it may have.
+    #[error(
+        "a {0}×{1}×{2} grid at this cell size (at most {3} cells): choose a larger --fuse-cell"
+    )]
+    TooLarge(usize, usize, usize, usize),
 }

@@ -7,51 +7,51 @@
 //! the header), the output is data ([`Merged`]: poses, the model, [`MergeReport`]); the one
 //! entry point is [`run`], with [`find_sheet`] for the laser sheet's thickness.
 //!
-//! How: every pair of views is registered into candidate motions without a guess ([`register`]:
-//! descriptors, RANSAC, ICP); the candidates that agree around the loops of views are chosen
-//! together ([`select`], [`poses`]); all views are refined together ([`refine`], [`joint`]);
-//! the result must close its loops and keep out of the space each view saw empty ([`seen`],
-//! [`free`]) or no model is written; then the views fuse into one mesh ([`fusion`], [`fuse`],
-//! [`winding`]). Views that carry the turntable disc's pose are posed by it instead, and the
-//! others fitted onto them ([`disc`]).
+//! How, in four stages, each a folder whose files are private behind the stage's functions:
+//! 1. [`pose`]: where the poses come from is chosen once ([`pose`]'s `Source`): the turntable
+//!    disc's pose where two or more views carry it (the others fitted onto them by shape), else
+//!    the views' shapes — every pair registered without a guess (descriptors, RANSAC, ICP), the
+//!    candidates that agree around the loops of views chosen together, `--turntable`'s step a
+//!    hint where given; what stayed still while the object turned is left out;
+//! 2. [`refine`]: all views refined together (not the disc-posed ones);
+//! 3. `check`: the result must close its loops and keep out of the space each view saw empty
+//!    ([`free`], [`depth`]), or no model is written;
+//! 4. [`fuse`]: the views fuse into one closed mesh (a screened implicit surface, the winding
+//!    number, the space under the object on a disc filled).
+//!
+//! [`spatial`] (clouds, k-d trees) and [`depth`] (what each view saw) are the tools all stages
+//! share. The stages' public functions are there for the benches and the stage tests; a merge
+//! goes through [`run`].
 //!
 //! # Layers
 //! Each module uses only modules on its own line or below (`tests/tests/layers.rs` checks it):
 //! ```text
 //! run
 //! report
-//! fusion  joint  disc
-//! poses
-//! free  hull  still
+//! check
+//! refine
+//! pose
+//! free  fuse
 //! view  error
-//! fuse  refine  select  seen
-//! register  winding
-//! spatial
+//! depth  spatial
 //! ```
 #![deny(missing_docs)]
 
-pub mod disc;
+mod check;
+pub mod depth;
 pub mod error;
 pub mod free;
 pub mod fuse;
-pub mod fusion;
-mod hull;
-pub mod joint;
-pub mod poses;
+pub mod pose;
 pub mod refine;
-pub mod register;
 pub mod report;
 mod run;
-pub mod seen;
-pub mod select;
 pub mod spatial;
-mod still;
 pub mod view;
-pub mod winding;
 
 pub use error::MergeError;
+pub use fuse::Closing;
 pub use fuse::Model;
-pub use fusion::Closing;
 pub use report::MergeReport;
 pub use run::{MergeOptions, Merged, Progress, Registered, Stage, find_sheet, run, sheet_tries};
 pub use view::{Surface, View};

@@ -7,12 +7,12 @@ use std::fmt::Write as _;
 use scanner_core::nalgebra::Isometry3;
 use serde::Serialize;
 
+use crate::depth::Conflict;
 use crate::error::MergeError;
-use crate::fusion::{Closing, FusionFigures};
-use crate::joint::Closure;
-use crate::poses::ViewResult;
+use crate::fuse::{Closing, FusionFigures};
+use crate::pose::ViewResult;
+use crate::refine::Closure;
 use crate::refine::LoopError;
-use crate::seen::Conflict;
 use crate::view::View;
 
 /// Everything a merge found, in the order the report tells it.
@@ -33,7 +33,7 @@ pub struct MergeReport {
     /// Why the merge wrote no model, when a plausibility check refused the views.
     pub refused: Option<Refusal>,
     /// The views posed by the turntable disc, when two or more carried its pose.
-    pub disc: Option<Vec<crate::disc::DiscView>>,
+    pub disc: Option<Vec<crate::pose::disc::DiscView>>,
     /// Without the disc: per view, the points left out because they stayed still while the
     /// object turned (a table, a stand, a disc not posed).
     pub still: Option<Vec<usize>>,

@@ -7,9 +7,10 @@ use scanner_core::nalgebra::{Isometry3, Point3, Vector3};
 use scanner_wire::Header;
 
 use crate::error::MergeError;
+use crate::fuse::Closing;
 use crate::fuse::Model;
-use crate::fusion::Closing;
-use crate::register::RegisterOptions;
+use crate::pose::RegisterOptions;
+use crate::pose::Source;
 use crate::report::{MergeReport, SheetSearch, SheetTry};
 use crate::view::View;
 
@@ -237,45 +238,44 @@ pub fn run(
         _ => None,
     };
     let o = options.register();
-    let by_disc = if options.use_disc {
-        crate::disc::disc_poses(views, &o, |done, of| {
-            progress.stage(Stage::Registering { done, of });
-        })
-    } else {
-        None
-    };
-    let disc_used = by_disc.is_some();
+    let source = Source::choose(views, options.use_disc, options.turntable_deg);
     // Without the disc, what stayed still while the object turned is left out of the
     // registration, and the support it stood on out of the model.
-    let (moving, for_model, still) = if disc_used {
-        (Vec::new(), Vec::new(), None)
-    } else {
-        let (m, f, lost) = crate::still::without_still(views);
-        (m, f, Some(lost))
+    let (moving, for_model, still) = match source {
+        Source::Disc => (Vec::new(), Vec::new(), None),
+        Source::Turntable(_) | Source::Shape => {
+            let (m, f, lost) = crate::pose::still::without_still(views);
+            (m, f, Some(lost))
+        }
     };
-    let (views, model_views) = if disc_used {
-        (views, views)
-    } else {
-        (&moving[..], &for_model[..])
+    let (views, model_views) = match source {
+        Source::Disc => (views, views),
+        Source::Turntable(_) | Source::Shape => (&moving[..], &for_model[..]),
     };
-    let mut results = match by_disc {
-        Some(r) => r?,
-        None => crate::poses::register_views(views, &o, options.turntable_deg, |done, of| {
-            progress.stage(Stage::Registering { done, of });
+    let registering = |done, of| Stage::Registering { done, of };
+    let mut results = match source {
+        Source::Disc => crate::pose::disc::disc_poses(views, &o, |done, of| {
+            progress.stage(registering(done, of));
         })?,
+        Source::Turntable(_) | Source::Shape => {
+            crate::pose::register_views(views, &o, source.turntable_deg(), |done, of| {
+                progress.stage(registering(done, of));
+            })?
+        }
     };
     // Disc-posed views keep their disc poses: they are an order of magnitude nearer the truth
     // than what sparse views' points tell (0.007° against the joint refinement's 0.06–0.18° on
     // the rig's 640×480 views), and about a symmetric object's axis the points tell nothing.
-    let closure = if disc_used {
-        crate::joint::Closure::default()
-    } else {
-        crate::joint::refine_views(views, &mut results, &o, |round| {
-            progress.stage(Stage::Refining {
-                round: round + 1,
-                of: crate::joint::ROUNDS,
-            });
-        })
+    let closure = match source {
+        Source::Disc => crate::refine::Closure::default(),
+        Source::Turntable(_) | Source::Shape => {
+            crate::refine::refine_views(views, &mut results, &o, |round| {
+                progress.stage(Stage::Refining {
+                    round: round + 1,
+                    of: crate::refine::ROUNDS,
+                });
+            })
+        }
     };
     let poses: Vec<Isometry3<f64>> = results.iter().map(|r| r.pose).collect();
     let worst = crate::free::free_space(views, &poses, o.voxel_mm);
@@ -286,33 +286,29 @@ pub fn run(
         (worst, crate::free::tolerance(o.voxel_mm)),
         options.sheet.clone(),
     );
-    if disc_used {
-        report.disc = Some(crate::disc::report(views, &poses, o.voxel_mm));
+    if source == Source::Disc {
+        report.disc = Some(crate::pose::disc::report(views, &poses, o.voxel_mm));
     }
     report.still = still;
-    let input = crate::fusion::fusion_input(model_views, &poses);
-    let (points, normals) = crate::fusion::registered_points(views, &poses);
+    let input = crate::fuse::fusion_input(model_views, &poses);
+    let (points, normals) = crate::fuse::registered_points(views, &poses);
     progress.registered(&Registered {
         header: &views[0].header,
         report: &report,
         points: &points,
         normals: &normals,
-        colours: &crate::fusion::view_colours(views),
+        colours: &crate::fuse::view_colours(views),
         fused: &input.points,
         fused_colours: &input.colours,
     });
-    if disc_used {
-        crate::disc::check(views, worst.as_ref())?;
-    }
-    crate::joint::check_closure(&closure, o.voxel_mm)?;
-    crate::free::check_free_space(worst, views, o.voxel_mm)?;
+    crate::check::registered(views, source, &closure, worst, o.voxel_mm)?;
     // Views that stood on the disc: the object stands on the disc's plane, and what no view
     // saw through may be filled.
-    let hull = disc_used
+    let hull = (source == Source::Disc)
         .then(|| {
             let k = (0..views.len()).find(|&k| views[k].disc.is_some())?;
             let disc = poses[k] * views[k].disc?;
-            Some(crate::hull::Hull::new(
+            Some(crate::fuse::hull::Hull::new(
                 views,
                 &poses,
                 &input.points,
@@ -321,7 +317,7 @@ pub fn run(
             ))
         })
         .flatten();
-    let fused = crate::fusion::fuse_views(
+    let fused = crate::fuse::fuse_views(
         &input,
         options.fuse_cell_mm,
         (options.closing, up),
@@ -343,7 +339,7 @@ pub fn run(
 /// The laser sheet's thicknesses (σ, mm) [`find_sheet`] tries: from none to twice the
 /// thickest a scanning line laser's line usually is (a line 5.7 mm wide at half its brightness).
 pub fn sheet_tries() -> &'static [f64] {
-    &crate::joint::SHEET_TRIES
+    &crate::refine::SHEET_TRIES
 }
 
 /// `--sheet auto`: the laser sheet's thickness where the views agree best. `tries[i]` are the
@@ -370,13 +366,13 @@ pub fn find_sheet(
     }
     let o = options.register();
     let registered =
-        crate::poses::register_views(&tries[0], &o, options.turntable_deg, |done, of| {
+        crate::pose::register_views(&tries[0], &o, options.turntable_deg, |done, of| {
             progress.stage(Stage::SheetRegistering { done, of });
         })?;
     let mut tried = Vec::with_capacity(sigmas.len());
     for (i, (&sigma_mm, views)) in sigmas.iter().zip(tries).enumerate() {
         let mut results = registered.clone();
-        crate::joint::refine_views(views, &mut results, &o, |_| {
+        crate::refine::refine_views(views, &mut results, &o, |_| {
             progress.stage(Stage::SheetRefining {
                 sigma_mm,
                 tried: i + 1,
@@ -385,14 +381,14 @@ pub fn find_sheet(
         });
         tried.push(SheetTry {
             sigma_mm,
-            disagreement_mm: crate::joint::disagreement(views, &results),
+            disagreement_mm: crate::refine::disagreement(views, &results),
         });
     }
     let measured: Vec<(f64, f64)> = tried
         .iter()
         .map(|t| (t.sigma_mm, t.disagreement_mm.unwrap_or(f64::NAN)))
         .collect();
-    let best = crate::joint::best_sheet(&measured).ok_or(MergeError::NoSheet {
+    let best = crate::refine::best_sheet(&measured).ok_or(MergeError::NoSheet {
         agree_mm: crate::refine::AGREE_MM,
     })?;
     Ok(SheetSearch {

@@ -6,7 +6,7 @@
 use scanner_core::nalgebra::{Isometry3, Point3, Vector3};
 use scanner_wire::Header;
 
-use crate::seen::DepthMap;
+use crate::depth::DepthMap;
 use crate::spatial::{Cloud, thin_with};
 
 /// Each view is thinned to one point per cube of this size, mm: finer than the fusion's cells,
@@ -39,11 +39,11 @@ pub struct View {
     /// With the laser sheet's correction: the samples it moved, of all; `None`: not asked.
     pub sheet_moved: Option<(u64, u64)>,
     /// The turntable disc's pose in this view's camera frame (disc → camera), when its head
-    /// found the disc: the merge then poses it by the disc ([`crate::disc`]).
+    /// found the disc: the merge then poses it by the disc ([`crate::pose::disc`]).
     pub disc: Option<Isometry3<f64>>,
     /// What the view saw beyond the object, its camera frame (mm): the points on and under the
     /// disc's plane (the disc, the table it lies on), left out of the view's surface. Only the
-    /// space it saw empty comes from them (`crate::hull`).
+    /// space it saw empty comes from them (`crate::fuse::hull`).
     pub backdrop: Vec<Point3<f64>>,
 }
 
@@ -158,7 +158,7 @@ impl View {
         }
     }
 
-    /// What the view saw: its nearest depth per bin of its image ([`crate::seen`]).
+    /// What the view saw: its nearest depth per bin of its image ([`crate::depth`]).
     pub fn depth_map(&self) -> DepthMap {
         DepthMap::new(&self.cloud.points, &self.header)
     }

@@ -157,7 +157,8 @@ fn points_of_low_weight_give_way_where_sure_points_saw_the_same_surface() {
     // here a cap of the sphere gets a second layer 1 mm outside, as such points would lie. At
     // the merge's edge weight the sure points place the surface; at full weight the layer pulls
     // it out.
-    use scanner_merge::fuse::{FuseError, fuse_with};
+    use scanner_merge::error::FuseError;
+    use scanner_merge::fuse::fuse_with;
     let (centre, radius, mut points, mut normals) = sphere_views(&SIX_SIDES);
     let cap = |p: &Point3<f64>| (p - centre).normalize().x > 0.8;
     let sure = points.len();
@@ -183,7 +184,7 @@ fn points_of_low_weight_give_way_where_sure_points_saw_the_same_surface() {
             .collect();
         off.iter().sum::<f64>() / off.len() as f64
     };
-    let edge = scanner_merge::fusion::edge_weight(Some(0.0));
+    let edge = scanner_merge::fuse::edge_weight(Some(0.0));
     let weighted: Vec<f64> = (0..points.len())
         .map(|i| if i < sure { 1.0 } else { edge })
         .collect();

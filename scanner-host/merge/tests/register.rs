@@ -4,7 +4,8 @@
 //! view of another object that must be reported, not merged.
 
 use scanner_core::nalgebra::Isometry3;
-use scanner_merge::register::{RegisterError, RegisterOptions, register};
+use scanner_merge::error::RegisterError;
+use scanner_merge::pose::{RegisterOptions, register};
 use scanner_merge::spatial::{Cloud, normals};
 use scanner_rig::{Rig, Scene, SurfaceId};
 
@@ -79,7 +80,7 @@ fn views_turned_by_large_angles_register_without_a_guess() {
 
 #[test]
 fn a_turntable_hint_registers_alone_and_is_never_required() {
-    use scanner_merge::register::{register_hinted, turntable_motions};
+    use scanner_merge::pose::{register_hinted, turntable_motions};
     let scene = bunny_views();
     let (target, pose0) = view_cloud(&scene, 0);
     let (source, pose1) = view_cloud(&scene, 1);
@@ -134,7 +135,7 @@ fn views_with_many_copies_of_one_point_register_without_a_panic() {
     ));
     // The same point 200 times in both views, beside their own: a thinned view keeps one of
     // them, the fine fit's trees hold 16.
-    let r = scanner_merge::register::fine(&source, &target, r.pose, &RegisterOptions::default());
+    let r = scanner_merge::pose::fine(&source, &target, r.pose, &RegisterOptions::default());
     assert!(r.is_ok(), "{r:?}");
 }
 
@@ -443,7 +444,7 @@ fn a_view_without_partners_stays_put_in_the_joint_refinement() {
 /// bunny, and are named as a group apart.
 #[test]
 fn views_chosen_together_are_placed_right_and_a_group_apart_is_named() {
-    use scanner_merge::poses::{Unplaced, register_clouds};
+    use scanner_merge::pose::{Unplaced, register_clouds};
     let scene = bunny_views();
     let order = [3usize, 0, 5, 1, 6, 2, 4];
     let (clouds, poses): (Vec<Cloud>, Vec<Isometry3<f64>>) =

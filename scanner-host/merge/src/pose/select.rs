@@ -150,7 +150,7 @@ pub fn choose(n: usize, edges: &[Edge], centres: &[Point3<f64>], voxel: f64) -> 
 fn same_placements(a: &Choice, b: &Choice, voxel: f64) -> bool {
     a.poses.iter().zip(&b.poses).all(|(p, q)| match (p, q) {
         (None, None) => true,
-        (Some(p), Some(q)) => crate::register::same_motion(p, q, voxel),
+        (Some(p), Some(q)) => crate::pose::register::same_motion(p, q, voxel),
         _ => false,
     })
 }

@@ -23,7 +23,7 @@ const NORMALS_ALIKE: f64 = 0.8;
 /// (the table, the stand, the disc), mm.
 const SUPPORT_MM: f64 = 2.0;
 
-/// The views without the still points ([`crate::still`]): for the registration (none of them),
+/// The views without the still points ([`crate::pose::still`]): for the registration (none of them),
 /// for the model (none of the support's), and how many each view left out of the registration.
 /// A point is still when it lies on the surface of at least half the other views (and of one).
 pub(crate) fn without_still(views: &[View]) -> (Vec<View>, Vec<View>, Vec<usize>) {

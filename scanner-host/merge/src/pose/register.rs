@@ -1,7 +1,7 @@
 //! Registration of two views of one object (issue 17's first stage): without an initial guess,
 //! by matching local shape descriptors (FPFH, Rusu et al. 2009) with RANSAC, then refined by
 //! point-to-plane ICP. Neighbour searches go through a k-d tree (`kiddo`). The views are then
-//! refined together ([`crate::refine`]) and fused ([`crate::fuse`]).
+//! refined together ([`crate::refine::clouds`]) and fused ([`crate::fuse::surface`]).
 //!
 //! Clouds are in millimetres, each in its own view's camera frame; a registration is the rigid
 //! motion that takes the source view's points onto the target view's.
@@ -11,41 +11,13 @@ use scanner_core::nalgebra::{
     Isometry3, Matrix3, Matrix6, Point3, Rotation3, Translation3, UnitQuaternion, Vector3, Vector6,
 };
 
+use crate::error::RegisterError;
 use crate::spatial::{Cloud, across, centre, thin, tree, tree_of};
 
 /// Bins per angle feature of a descriptor (three features: 33 values).
 const BINS: usize = 11;
 /// Descriptor length.
 const FPFH_LEN: usize = 3 * BINS;
-
-/// Why two views could not be registered.
-#[derive(Debug, Clone, PartialEq, thiserror::Error)]
-pub enum RegisterError {
-    /// A view has too few points to describe its shape.
-    #[error(
-        "a view has {points} points after thinning to {voxel_mm} mm: at least {min} are needed"
-    )]
-    TooFewPoints {
-        /// Points left.
-        points: usize,
-        /// The voxel size.
-        voxel_mm: f64,
-        /// Needed.
-        min: usize,
-    },
-    /// No rigid motion brings enough of one view onto the other.
-    #[error(
-        "the views do not overlap enough: the best match brings {overlap_percent:.0} % of the points within {tolerance_mm} mm (at least {min_percent:.0} % needed)"
-    )]
-    NoOverlap {
-        /// The best match's overlap.
-        overlap_percent: f64,
-        /// The distance counted as overlapping.
-        tolerance_mm: f64,
-        /// The least overlap accepted.
-        min_percent: f64,
-    },
-}
 
 /// Settings of a registration.
 #[derive(Debug, Clone, Copy, PartialEq)]

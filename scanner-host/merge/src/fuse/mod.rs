@@ -1,11 +1,22 @@
-//! What the fusion takes from the registered views — their points in view 0's frame, less
+//! The last stage, the fusion into one model. What it takes from the registered views — their points in view 0's frame, less
 //! the isolated ones and the edge points that another view's clear surface or the winding
 //! number of all contradicts, each weighed by how clear of its view's edges it lies — and the
-//! fusion of them into one model ([`crate::fuse`]), its unseen surface closed as asked.
+//! fusion of them into one model ([`crate::fuse::surface`]), its unseen surface closed as asked.
+
+pub(crate) mod hull;
+mod surface;
+mod winding;
+
+pub(crate) use surface::{AFLOAT_MARGIN, colour_from};
+pub use surface::{
+    Fill, HalfSpace, MeshCheck, Model, afloat, area, area_on, area_share, check, fuse, fuse_cut,
+    fuse_filled, fuse_with, inliers, trim, unseen_faces,
+};
+pub use winding::Winding;
 
 use scanner_core::nalgebra::{Isometry3, Point3, Vector3};
 
-use crate::fuse::{FuseError, MeshCheck, Model};
+use crate::error::FuseError;
 use crate::spatial::{Cloud, nearest_within};
 use crate::view::View;
 
@@ -290,7 +301,7 @@ pub struct Fused {
 /// as `closing` says (a flat base across `up`, unit, view 0's frame); coloured from the points
 /// when they carry colour. With a `hull` (views that stood on the turntable disc), the surface
 /// no view saw is filled as solid where no view saw through it, down to the disc's plane
-/// ([`crate::hull`]); a flat base is then cut at the disc's plane. `progress` sees the grid's
+/// ([`crate::fuse::hull`]); a flat base is then cut at the disc's plane. `progress` sees the grid's
 /// slices done and in all.
 ///
 /// # Errors
@@ -299,7 +310,7 @@ pub(crate) fn fuse_views(
     input: &FusionInput,
     cell: f64,
     (closing, up): (Closing, Option<Vector3<f64>>),
-    hull: Option<&crate::hull::Hull>,
+    hull: Option<&crate::fuse::hull::Hull>,
     progress: impl FnMut(usize, usize),
 ) -> Result<Fused, FuseError> {
     use crate::fuse::{Fill, HalfSpace};

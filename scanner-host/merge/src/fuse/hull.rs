@@ -109,7 +109,7 @@ fn nearest_around(depth: &[f32], cols: usize, rows: usize, r: usize) -> Vec<f32>
     out
 }
 
-/// Where the object may be ([`crate::hull`]).
+/// Where the object may be ([`crate::fuse::hull`]).
 pub(crate) struct Hull {
     seen: Vec<Seen>,
     /// Up, unit, view 0's frame: away from the disc, into the space the object stands in.

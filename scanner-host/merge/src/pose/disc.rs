@@ -9,9 +9,8 @@ use scanner_core::nalgebra::{Isometry3, Point3, Translation3, Unit, UnitQuaterni
 use serde::Serialize;
 
 use crate::error::MergeError;
-use crate::poses::ViewResult;
-use crate::register::{RegisterOptions, Registration, icp, icp_facing};
-use crate::seen::Conflict;
+use crate::pose::ViewResult;
+use crate::pose::{RegisterOptions, Registration, icp, icp_facing};
 use crate::spatial::{Cloud, thin};
 use crate::view::View;
 
@@ -27,25 +26,30 @@ pub struct DiscView {
     pub agreement: Option<f64>,
 }
 
-/// The views' poses in view 0's frame when at least two carry a disc pose (`None` otherwise):
-/// the disc-posed views from their disc poses, the others registered onto them by geometry.
-/// `progress` gets the pairs registered and the pairs in all.
+/// How many views carry a disc pose.
+pub(crate) fn carried(views: &[View]) -> usize {
+    views.iter().filter(|v| v.disc.is_some()).count()
+}
+
+/// The views' poses in view 0's frame: the disc-posed views from their disc poses, the others
+/// registered onto them by geometry. `progress` gets the pairs registered and the pairs in all.
 ///
 /// # Errors
-/// A view without a disc pose that matches none of the others.
+/// A view without a disc pose that matches none of the others, or fits it in two places;
+/// [`MergeError::TooFewViews`] when fewer than two views carry a disc pose (the disc is not
+/// chosen then, [`crate::pose::Source::choose`]).
 pub(crate) fn disc_poses(
     views: &[View],
     o: &RegisterOptions,
     progress: impl FnMut(usize, usize),
-) -> Option<Result<Vec<ViewResult>, MergeError>> {
+) -> Result<Vec<ViewResult>, MergeError> {
     let posed: Vec<usize> = (0..views.len())
         .filter(|&k| views[k].disc.is_some())
         .collect();
-    let &anchor = posed.first()?;
-    if posed.len() < 2 {
-        return None;
-    }
-    let da = views[anchor].disc?;
+    let (&[anchor, _, ..], Some(da)) = (&posed[..], posed.first().and_then(|&k| views[k].disc))
+    else {
+        return Err(MergeError::TooFewViews(posed.len()));
+    };
     // Each view's pose in the anchor's camera frame.
     let mut in_anchor: Vec<Option<Isometry3<f64>>> = views
         .iter()
@@ -58,7 +62,7 @@ pub(crate) fn disc_poses(
     if !rest.is_empty() {
         let mut group = Cloud::default();
         for &k in &posed {
-            let p = in_anchor[k]?;
+            let Some(p) = in_anchor[k] else { continue };
             let c = views[k].clear_cloud();
             group.points.extend(c.points.iter().map(|q| p * q));
             group
@@ -91,21 +95,21 @@ pub(crate) fn disc_poses(
             subset.pop();
             let Some(best) = plausible.first() else {
                 if let Some(t) = tries.first().filter(|t| t.overlap >= o.min_overlap) {
-                    return Some(Err(MergeError::ShapeNowhere {
+                    return Err(MergeError::ShapeNowhere {
                         view: k,
                         name: views[k].name.clone(),
                         overlap: t.overlap,
-                    }));
+                    });
                 }
-                return Some(Err(MergeError::NoMatch {
+                return Err(MergeError::NoMatch {
                     view: k,
                     name: views[k].name.clone(),
-                    best: crate::register::RegisterError::NoOverlap {
+                    best: crate::error::RegisterError::NoOverlap {
                         overlap_percent: 100.0 * tries.first().map_or(0.0, |b| b.overlap),
                         tolerance_mm: o.voxel_mm / 3.0,
                         min_percent: 100.0 * o.min_overlap,
                     },
-                }));
+                });
             };
             // Another fit nearly as good that puts the view's surface elsewhere: its shape does
             // not tell where it goes (a fit that lays the surface where the best does, turned
@@ -114,20 +118,20 @@ pub(crate) fn disc_poses(
                 r.overlap >= RIVAL_SHARE * best.overlap
                     && !same_surface(&cloud, &best.pose, &r.pose, o.voxel_mm / 3.0)
             }) {
-                return Some(Err(MergeError::ShapeAmbiguous {
+                return Err(MergeError::ShapeAmbiguous {
                     view: k,
                     name: views[k].name.clone(),
                     best: best.overlap,
                     rival: rival.overlap,
-                }));
+                });
             }
             in_anchor[k] = Some(best.pose);
             fits[k] = Some(*best);
             progress(i + 1, rest.len());
         }
     }
-    let to0 = in_anchor[0]?.inverse();
-    Some(Ok((0..views.len())
+    let to0 = in_anchor[0].unwrap_or_else(Isometry3::identity).inverse();
+    Ok((0..views.len())
         .map(|k| ViewResult {
             pose: to0 * in_anchor[k].unwrap_or_else(Isometry3::identity),
             onto: (k != anchor).then_some(anchor),
@@ -137,7 +141,7 @@ pub(crate) fn disc_poses(
             on_turntable: false,
             turn_deg: None,
         })
-        .collect()))
+        .collect())
 }
 
 /// The report's disc section: per view whether the disc posed it and, for those it posed, the
@@ -176,30 +180,6 @@ pub(crate) fn report(views: &[View], poses: &[Isometry3<f64>], voxel_mm: f64) ->
             }
         })
         .collect()
-}
-
-/// The disc's plausibility check: two disc-posed views whose points contradict each other's
-/// free space (`worst`, the free-space check's worst pair) mean that the object moved on the
-/// disc between sweeps, or that a disc was misread.
-///
-/// # Errors
-/// [`MergeError::DiscMoved`] naming the view.
-pub(crate) fn check(views: &[View], worst: Option<&Conflict>) -> Result<(), MergeError> {
-    match worst {
-        Some(c)
-            if crate::free::seen_through(c)
-                && views[c.view].disc.is_some()
-                && views[c.seen_by].disc.is_some() =>
-        {
-            Err(MergeError::DiscMoved {
-                view: c.view,
-                name: views[c.view].name.clone(),
-                seen_by: c.seen_by,
-                share: c.share(),
-            })
-        }
-        _ => Ok(()),
-    }
 }
 
 /// Axes and angles of the rotations a view is tried at against the disc-posed views: axes
@@ -266,7 +246,7 @@ fn onto_group(
         }
         if !distinct
             .iter()
-            .any(|d| crate::register::same_motion(&d.pose, &t.pose, o.voxel_mm))
+            .any(|d| crate::pose::register::same_motion(&d.pose, &t.pose, o.voxel_mm))
         {
             distinct.push(t);
         }

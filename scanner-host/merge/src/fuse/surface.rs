@@ -3,7 +3,7 @@
 //! largest piece is kept with any others of some size (`MIN_PIECE`). Near the points (within
 //! `BAND` cells, over a point) the field is the signed distance along the nearest points'
 //! normals (positive outside): precise where the views saw the surface. Elsewhere its sign is the
-//! points' generalized winding number's ([`crate::winding`]): inside where it exceeds ½, which
+//! points' generalized winding number's ([`crate::fuse::winding`]): inside where it exceeds ½, which
 //! closes the gaps the views left with a smooth patch instead of letting tangent planes run on
 //! as sheets. Points that are less sure (`SURE`: on a view's edge) do not set the side against
 //! a clear verdict of the winding number ([`afloat`]). Checked after: edges in exactly two
@@ -13,7 +13,8 @@
 use kiddo::SquaredEuclidean;
 use scanner_core::nalgebra::{Point3, Vector3};
 
-use crate::winding::Winding;
+use crate::error::FuseError;
+use crate::fuse::Winding;
 
 /// A triangle mesh, mm: what the fusion makes, in the frame of the points it was fused from.
 #[derive(Debug, Clone, Default, PartialEq)]
@@ -26,39 +27,6 @@ pub struct Model {
     pub colours: Vec<[u8; 3]>,
     /// Triangles, counter-clockwise seen from outside.
     pub faces: Vec<[u32; 3]>,
-}
-
-/// Why the fusion failed.
-#[derive(Debug, Clone, PartialEq, thiserror::Error)]
-pub enum FuseError {
-    /// Too few points to reconstruct from (after thinning to half a cell, those with a normal).
-    #[error(
-        "{0} points with a normal after thinning to half a cell: at least 100 are needed for a surface"
-    )]
-    TooFewPoints(usize),
-    /// Points, normals and weights of different lengths (a caller's mistake).
-    #[error("{points} points with {normals} normals and {weights} weights: one each per point")]
-    Lengths {
-        /// Points.
-        points: usize,
-        /// Normals.
-        normals: usize,
-        /// Weights (0 stands for all 1).
-        weights: usize,
-    },
-    /// A weight that is not a number from 0 to 1.
-    #[error("point {index} has weight {weight}: weights are 0 to 1")]
-    Weight {
-        /// Which point.
-        index: usize,
-        /// Its weight.
-        weight: f64,
-    },
-    /// The grid would be too large.
-    #[error(
-        "a {0}×{1}×{2} grid at this cell size (at most {MAX_CELLS} cells): choose a larger --fuse-cell"
-    )]
-    TooLarge(usize, usize, usize),
 }
 
 /// The corners of a grid cube.
@@ -234,10 +202,10 @@ pub fn fuse_filled(
     let n = ((hi - lo).map(|v| ((v + margin) / cell).ceil() as usize + 1)).into_owned();
     let (nx, ny, nz) = (n.x, n.y, n.z);
     if nx.saturating_mul(ny).saturating_mul(nz) > MAX_CELLS {
-        return Err(FuseError::TooLarge(nx, ny, nz));
+        return Err(FuseError::TooLarge(nx, ny, nz, MAX_CELLS));
     }
     let tree = crate::spatial::tree(points);
-    let area = crate::winding::spacing_areas(points, &tree);
+    let area = crate::fuse::winding::spacing_areas(points, &tree);
     let winding = Winding::of_cloud(points, normals, &tree, &area);
     let at = |i: usize, j: usize, k: usize| lo + Vector3::new(i as f64, j as f64, k as f64) * cell;
     // Where no view saw, the value is the winding number's (½ − w) scaled to about a cell.
@@ -402,7 +370,7 @@ pub(crate) const AFLOAT_MARGIN: f64 = 0.35;
 /// than `AFLOAT_MARGIN` from ½, where a point on the surface has about ½). A stripe cut by
 /// an occluding edge places a point up to 2 mm off the surface, mostly nearer the camera; its
 /// plane would raise a bead of surface of its own, and where no other view saw the surface clear
-/// nothing else contradicts it ([`crate::fusion::contradicted`]). The margin is wide because
+/// nothing else contradicts it ([`crate::fuse::contradicted`]). The margin is wide because
 /// near a large hole the winding number of points on the surface falls well below ½ (a median of
 /// 0.39 for the 360° demo's edge points moved onto the true surface, 5 % of them under 0.15): at
 /// 0.30 the three-view merge test lost surface along its holes (its mesh p99 0.39 % against
@@ -415,7 +383,7 @@ pub fn afloat(points: &[Point3<f64>], normals: &[Vector3<f64>], weights: &[f64])
         return vec![false; points.len()];
     }
     let tree = crate::spatial::tree(points);
-    let spacing = crate::winding::spacing_areas(points, &tree);
+    let spacing = crate::fuse::winding::spacing_areas(points, &tree);
     let winding = Winding::of_cloud(points, normals, &tree, &spacing);
     points
         .iter()

@@ -1,15 +1,59 @@
-//! The views' poses: every pair of views registered into candidate motions, the candidates
-//! that agree around the loops of views chosen together ([`crate::select`]), then each view
+//! The first stage: the views' poses. By the turntable disc where two or more views carry its
+//! pose ([`disc`]), otherwise by the views' shapes: every pair of views registered into
+//! candidate motions ([`register`]), the candidates
+//! that agree around the loops of views chosen together ([`crate::pose::select`]), then each view
 //! fitted finely onto the view it was placed from. A choice whose views contradict each other's
 //! free space ([`crate::free`]) is made again without its weakest link.
 
+pub(crate) mod disc;
+mod register;
+mod select;
+pub(crate) mod still;
+
+pub use register::{
+    Candidate, RegisterOptions, Registration, candidates, fine, icp, icp_facing, register,
+    register_hinted, turntable_motions,
+};
+
 use scanner_core::nalgebra::{Isometry3, Point3};
 
-use crate::error::MergeError;
-use crate::register::{RegisterError, RegisterOptions, Registration};
-use crate::select::Edge;
+use crate::error::{MergeError, RegisterError};
+use crate::pose::select::Edge;
 use crate::spatial::Cloud;
 use crate::view::View;
+
+/// Where the views' poses come from, chosen once at the start of a merge ([`Source::choose`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) enum Source {
+    /// The turntable disc's pose, which two or more views carry; the others are fitted onto
+    /// them by shape ([`disc`]).
+    Disc,
+    /// The views' shapes, registered pair by pair, with `--turntable`'s step between
+    /// consecutive views as a hint (degrees).
+    Turntable(f64),
+    /// The views' shapes alone.
+    Shape,
+}
+
+impl Source {
+    /// The disc when `use_disc` and two or more views carry its pose, else the turntable's
+    /// step when one was given, else the shapes alone.
+    pub(crate) fn choose(views: &[View], use_disc: bool, turntable_deg: Option<f64>) -> Source {
+        match turntable_deg {
+            _ if use_disc && disc::carried(views) >= 2 => Source::Disc,
+            Some(step) => Source::Turntable(step),
+            None => Source::Shape,
+        }
+    }
+
+    /// The turntable step the registration is hinted with.
+    pub(crate) fn turntable_deg(self) -> Option<f64> {
+        match self {
+            Source::Turntable(step) => Some(step),
+            Source::Disc | Source::Shape => None,
+        }
+    }
+}
 
 /// What the merge found for one view.
 #[derive(Debug, Clone, PartialEq)]
@@ -48,7 +92,7 @@ const PAIR_REACH: usize = 7;
 
 /// Registers every view into view 0's frame: every pair of views (each view onto view 0 and the
 /// [`PAIR_REACH`] before it) registered into candidate motions, the candidates that
-/// agree around the loops of views chosen together ([`crate::select`]), then each view fitted
+/// agree around the loops of views chosen together ([`crate::pose::select`]), then each view fitted
 /// finely onto the view it was placed from.
 ///
 /// `progress` gets the pairs done and the pairs in all.
@@ -147,7 +191,7 @@ pub fn register_clouds(
     let mut stepped = Vec::new();
     for (done, &(a, b)) in pairs.iter().enumerate() {
         let hinted = hints(a, b);
-        match crate::register::candidates(clouds[a], clouds[b], o, &hinted) {
+        match crate::pose::candidates(clouds[a], clouds[b], o, &hinted) {
             Ok(found) => {
                 let pair: Vec<Edge> = found
                     .iter()
@@ -191,7 +235,7 @@ pub fn register_clouds(
     loop {
         let live: Vec<usize> = (0..edges.len()).filter(|&i| !dropped[i]).collect();
         let live_edges: Vec<Edge> = live.iter().map(|&i| edges[i]).collect();
-        let choice = crate::select::choose(n, &live_edges, &centres, o.voxel_mm);
+        let choice = crate::pose::select::choose(n, &live_edges, &centres, o.voxel_mm);
         if let Some(k) = choice.poses.iter().position(Option::is_none) {
             if let Some(first) = first_implausible.take() {
                 return Ok(first);
@@ -339,7 +383,7 @@ fn fine_tree(
         };
         let fit = fits
             .entry((i, k))
-            .or_insert_with(|| crate::register::fine(clouds[k], clouds[onto], init, o));
+            .or_insert_with(|| crate::pose::fine(clouds[k], clouds[onto], init, o));
         match fit {
             Ok(fit) => {
                 by[k] = Some(i);
@@ -363,10 +407,10 @@ fn fine_tree(
     Ok((out.into_iter().flatten().collect(), by))
 }
 
-/// Whether `pose`'s rotation agrees with one of `hints`' (within [`crate::select::AGREE_DEG`]).
+/// Whether `pose`'s rotation agrees with one of `hints`' (within [`crate::pose::select::AGREE_DEG`]).
 fn agrees_with_hint(pose: &Isometry3<f64>, hints: &[Isometry3<f64>]) -> bool {
     hints.iter().any(|h| {
-        (h.rotation.inverse() * pose.rotation).angle() < crate::select::AGREE_DEG.to_radians()
+        (h.rotation.inverse() * pose.rotation).angle() < crate::pose::select::AGREE_DEG.to_radians()
     })
 }
 
@@ -416,13 +460,13 @@ fn better_failure(e: &RegisterError, than: Option<&RegisterError>) -> bool {
 }
 
 /// The motions a turntable suggests from view `k` onto view `j`, `step_deg` per view about the
-/// board's vertical (its crease): see [`crate::register::turntable_motions`].
+/// board's vertical (its crease): see [`crate::pose::turntable_motions`].
 fn turntable_hints(views: &[View], k: usize, j: usize, step_deg: f64) -> Vec<Isometry3<f64>> {
     let Some(up) = views[0].up() else {
         return Vec::new();
     };
     let angle = step_deg * (k - j) as f64;
-    crate::register::turntable_motions(&up, &views[k].cloud, &views[j].cloud, angle).to_vec()
+    crate::pose::turntable_motions(&up, &views[k].cloud, &views[j].cloud, angle).to_vec()
 }
 
 #[cfg(test)]
@@ -431,7 +475,7 @@ mod tests {
 
     #[test]
     fn a_turntables_step_decides_between_its_views_and_leaves_a_view_turned_by_hand_alone() {
-        use crate::select::{Edge, tests::turn};
+        use crate::pose::select::{Edge, tests::turn};
         let edge = |from, to, deg, fit| Edge {
             from,
             to,
