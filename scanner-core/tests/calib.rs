@@ -5,8 +5,8 @@ use rand::rngs::SmallRng;
 use rand::{Rng, SeedableRng};
 use rand_distr::{Distribution, Normal};
 use scanner_core::calib::bundle::{initial_camera, initial_pose, refine, residuals};
-use scanner_core::calib::model::{disc_centre, predict};
-use scanner_core::calib::{Free, View};
+use scanner_core::calib::model::{dot_centre, predict};
+use scanner_core::calib::{Free, TargetImage};
 use scanner_core::geometry::Pose;
 use scanner_core::nalgebra::{Point2, Rotation3, Vector2, Vector3};
 use scanner_core::{Camera, Distortion, GeomError};
@@ -89,7 +89,10 @@ fn calibrate(
     layout: &[Point2<f64>],
     radius: f64,
 ) -> (Camera<f64>, f64, Vec<Pose>) {
-    let views: Vec<View> = pixels.iter().map(|p| View { layout, pixels: p }).collect();
+    let views: Vec<TargetImage> = pixels
+        .iter()
+        .map(|p| TargetImage { layout, pixels: p })
+        .collect();
     let init = initial_camera(&views, W, H).unwrap();
     let mut poses: Vec<Pose> = views
         .iter()
@@ -104,7 +107,7 @@ fn disc_centre_is_the_centroid_of_the_projected_circle() {
     let mut rng = SmallRng::seed_from_u64(1);
     for pose in poses(12, &mut rng) {
         let (c, r) = (Point2::new(60.0, -40.0), 15.0);
-        let n = disc_centre(&pose, &c, r).unwrap();
+        let n = dot_centre(&pose, &c, r).unwrap();
         // Polygon centroid of the projected rim (no distortion: an exact ellipse).
         let rim: Vec<Vector2<f64>> = (0..20000)
             .map(|i| {
@@ -223,7 +226,7 @@ fn pose_only_refinement_and_residuals() {
     let layout = grid();
     let pose = poses(1, &mut rng)[0];
     let pixels = observe(&truth, &pose, &layout, 4.0, 0.0, &mut rng);
-    let view = View {
+    let view = TargetImage {
         layout: &layout,
         pixels: &pixels,
     };
@@ -241,7 +244,7 @@ fn bad_input_is_an_error_not_a_panic() {
     let layout = grid();
     let few = &layout[..3];
     let px = vec![Point2::new(1.0, 1.0); 3];
-    let v = View {
+    let v = TargetImage {
         layout: few,
         pixels: &px,
     };
@@ -250,7 +253,7 @@ fn bad_input_is_an_error_not_a_panic() {
         Err(GeomError::TooFewPoints { .. })
     ));
     let nan = vec![Point2::new(f64::NAN, 1.0); layout.len()];
-    let v = View {
+    let v = TargetImage {
         layout: &layout,
         pixels: &nan,
     };
@@ -265,7 +268,7 @@ fn bad_input_is_an_error_not_a_panic() {
     let pix: Vec<_> = (0..4)
         .map(|i| Point2::new(100.0 + i as f64, 50.0 * (i % 2) as f64))
         .collect();
-    let v = View {
+    let v = TargetImage {
         layout: &four,
         pixels: &pix,
     };

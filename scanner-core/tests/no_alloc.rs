@@ -103,7 +103,7 @@ fn per_frame_calls_do_not_allocate() {
 fn intrinsics_calibration_does_not_allocate() {
     use scanner_core::calib::bundle::{initial_camera, initial_pose, refine};
     use scanner_core::calib::model::predict;
-    use scanner_core::calib::{Free, View};
+    use scanner_core::calib::{Free, TargetImage};
     use scanner_core::geometry::Pose;
     use scanner_core::nalgebra::{Point2, Rotation3, Vector3};
     use scanner_core::{Camera, Distortion};
@@ -134,7 +134,7 @@ fn intrinsics_calibration_does_not_allocate() {
     });
     let mut result = None;
     let n = allocations_during(|| {
-        let views: [View; 4] = core::array::from_fn(|k| View {
+        let views: [TargetImage; 4] = core::array::from_fn(|k| TargetImage {
             layout: &layout,
             pixels: &pixels[k],
         });

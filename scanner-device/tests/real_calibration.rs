@@ -16,7 +16,7 @@ use std::path::PathBuf;
 
 use scanner_calib::{Target, intrinsics_outcome};
 use scanner_core::calib::Free;
-use scanner_core::calib::View;
+use scanner_core::calib::TargetImage;
 use scanner_core::calib::bundle::{initial_camera, initial_pose, refine};
 use scanner_core::geometry::Pose;
 use scanner_core::nalgebra::Point2;
@@ -92,10 +92,10 @@ fn solve(corners: &[Vec<(usize, Point2<f64>)>]) -> (f64, f64, Point2<f64>, f64) 
         .iter()
         .map(|c| c.iter().map(|(_, p)| *p).collect())
         .collect();
-    let views: Vec<View> = layout
+    let views: Vec<TargetImage> = layout
         .iter()
         .zip(&pixels)
-        .map(|(l, p)| View {
+        .map(|(l, p)| TargetImage {
             layout: l,
             pixels: p,
         })

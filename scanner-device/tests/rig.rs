@@ -164,12 +164,12 @@ fn stripe_centres_on_the_bunny_mesh() {
 #[test]
 fn mesh_hierarchy_agrees_with_brute_force() {
     use scanner_core::nalgebra::{Point3, Vector3};
-    use scanner_rig::mesh::Mesh;
+    use scanner_rig::mesh::SceneMesh;
     let path = std::path::Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/bunny.obj"));
-    let mesh = Mesh::load(path, 120.0, 20.0, Point3::new(0.0, 0.0, 500.0)).unwrap();
+    let mesh = SceneMesh::load(path, 120.0, 20.0, Point3::new(0.0, 0.0, 500.0)).unwrap();
     assert_eq!(mesh.len(), 3674);
     // the same triangles in one leaf-less list: a mesh of each triangle alone
-    let tris = Mesh::triangles_of(path, 120.0, 20.0, Point3::new(0.0, 0.0, 500.0)).unwrap();
+    let tris = SceneMesh::triangles_of(path, 120.0, 20.0, Point3::new(0.0, 0.0, 500.0)).unwrap();
     let mut x = 12345u64;
     let mut rnd = || {
         x ^= x << 13;
@@ -183,14 +183,14 @@ fn mesh_hierarchy_agrees_with_brute_force() {
         let fast = mesh.hit(&Point3::origin(), &dir, 1e-9);
         let slow = tris
             .iter()
-            .filter_map(|t| Mesh::new(vec![*t]).hit(&Point3::origin(), &dir, 1e-9))
+            .filter_map(|t| SceneMesh::new(vec![*t]).hit(&Point3::origin(), &dir, 1e-9))
             .min_by(|a, b| a.0.total_cmp(&b.0));
         assert_eq!(fast.map(|h| h.0), slow.map(|h| h.0), "ray {dir:?}");
         hits += usize::from(fast.is_some());
         n += 1;
     }
     assert!(hits > 50, "only {hits} of 400 rays hit the bunny");
-    let err = Mesh::load(
+    let err = SceneMesh::load(
         std::path::Path::new("/no/such.obj"),
         1.0,
         0.0,

@@ -181,10 +181,10 @@ struct State {
     /// (only while watched).
     watched: Option<Vec<Watched>>,
     /// The frames' laser planes, summed: where the light comes from.
-    pencil: crate::sheet::Pencil,
+    pencil: crate::thickness::LaserOrigin,
     /// Moves each frame's points to where the sheet's middle crosses the surface (a second pass
-    /// over a scan, see [`crate::sheet`]), and how many it moved.
-    sheet: Option<(crate::sheet::Correction, u64)>,
+    /// over a scan, see [`crate::thickness`]), and how many it moved.
+    sheet: Option<(crate::thickness::Correction, u64)>,
     /// The latest preview picture not yet taken.
     preview: Option<PreviewImage>,
     /// Notices not yet taken.
@@ -263,8 +263,8 @@ impl Collector {
     }
 
     /// Corrects every frame's points for the light sheet's thickness from now on (see
-    /// [`crate::sheet`]); the journal keeps them as they came.
-    pub fn correct_sheet(&mut self, c: crate::sheet::Correction) {
+    /// [`crate::thickness`]); the journal keeps them as they came.
+    pub fn correct_sheet(&mut self, c: crate::thickness::Correction) {
         self.state.sheet = Some((c, 0));
     }
 
@@ -284,7 +284,7 @@ impl Collector {
     }
 
     /// Where the laser's light comes from, as the frames' planes so far say (see
-    /// [`crate::sheet::Pencil`]).
+    /// [`crate::thickness::LaserOrigin`]).
     pub fn light_source(&self) -> Option<scanner_core::nalgebra::Point3<f64>> {
         self.state.pencil.source()
     }
@@ -351,7 +351,7 @@ impl State {
             points: Vec::with_capacity(4096),
             seen: BTreeSet::new(),
             watched: None,
-            pencil: crate::sheet::Pencil::default(),
+            pencil: crate::thickness::LaserOrigin::default(),
             sheet: None,
             preview: None,
             fresh_notices: Vec::new(),

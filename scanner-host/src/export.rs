@@ -327,7 +327,7 @@ fn fill_triangle(
 }
 
 /// The part of the grid a picture shows (the filled cells with a margin) and its scale.
-struct View {
+struct Framing {
     c0: u32,
     r0: u32,
     cols: u32,
@@ -335,8 +335,8 @@ struct View {
     k: u32,
 }
 
-impl View {
-    fn of(grid: &Grid) -> View {
+impl Framing {
+    fn of(grid: &Grid) -> Framing {
         let (mut c0, mut c1, mut r0, mut r1) = (usize::MAX, 0, usize::MAX, 0);
         for r in 0..grid.rows {
             for c in 0..grid.cols {
@@ -352,7 +352,7 @@ impl View {
         let (c0, r0) = (c0.saturating_sub(m), r0.saturating_sub(m));
         let (c1, r1) = ((c1 + m).min(grid.cols - 1), (r1 + m).min(grid.rows - 1));
         let cols = (c1 - c0 + 1) as u32;
-        View {
+        Framing {
             c0: c0 as u32,
             r0: r0 as u32,
             cols,
@@ -390,7 +390,7 @@ fn bgr_ramp(t: f32) -> Rgb<u8> {
 /// The depth map: the mesh's faces and every filled cell coloured by the distance from the
 /// camera, blue far to red near (2nd to 98th percentile), empty space black.
 pub fn depth_png(grid: &Grid, mesh: &Mesh) -> RgbImage {
-    let v = View::of(grid);
+    let v = Framing::of(grid);
     let k = v.k;
     let mut depths: Vec<f32> = (0..grid.rows)
         .flat_map(|r| (0..grid.cols).map(move |c| (c, r)))
@@ -431,7 +431,7 @@ pub fn depth_png(grid: &Grid, mesh: &Mesh) -> RgbImage {
 /// and above (Lambert, Gouraud-interpolated), in the vertex colours (brightened to use the range)
 /// when there are any.
 pub fn shaded_png(grid: &Grid, mesh: &Mesh) -> RgbImage {
-    let v = View::of(grid);
+    let v = Framing::of(grid);
     let k = v.k;
     let (w, h) = v.size();
     let mut img = RgbImage::from_pixel(w, h, Rgb([24, 24, 32]));

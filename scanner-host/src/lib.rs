@@ -3,14 +3,14 @@
 //! reads several scans of one object as views for the 360° merge (`scanner-merge`).
 //!
 //! Where it sits: `head ─► [scanner-host: link → decoder → journal → grid → mesh → exports] ─►
-//! files`. It depends on `scanner-core` (the wire format and the camera model) and
+//! files`. It depends on `scanner-wire` (the messages), `scanner-core` (the camera model) and
 //! `scanner-merge` (the 360° merge, and its spatial search for the sheet's correction and the
 //! check). The command line is the `scanner-host` binary (`scanner-host/cli`): this library has
 //! no argument parsing, progress bars or signal handlers.
 //! - [`link`]: where the bytes come from (serial, pseudo-terminal, file, stdin);
 //! - [`collect`]: the streaming decoder and the grid filling, with the [`journal`];
 //! - [`grid`]: the 2-D structured grid with robust cells;
-//! - [`sheet`]: the laser sheet's correction of each frame's points;
+//! - [`thickness`]: the correction of each frame's points for the laser sheet's thickness;
 //! - [`mesh`]: triangles from neighbouring cells;
 //! - [`export`] and [`outputs`]: OBJ, PLY, STL, 3MF, depth and preview pictures, the summary
 //!   (text and JSON), written atomically;
@@ -24,7 +24,7 @@
 //! views  live  check
 //! outputs
 //! collect  export
-//! mesh  journal  sheet
+//! mesh  journal  thickness
 //! grid  link
 //! ```
 #![deny(missing_docs)]
@@ -40,7 +40,7 @@ pub mod link;
 pub mod live;
 pub mod mesh;
 pub mod outputs;
-pub mod sheet;
+pub mod thickness;
 pub mod views;
 
 pub use outputs::{FrameChoice, OutputOptions, Summary, replay_into, write_outputs};

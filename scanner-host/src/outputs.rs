@@ -591,10 +591,10 @@ pub fn replay_from(c: &mut Collector, input: &Path, from: u64) -> Result<(), Out
     }
 }
 
-/// The laser sheet's correction for a collection (see [`crate::sheet`]): the surface its grid's
+/// The laser sheet's correction for a collection (see [`crate::thickness`]): the surface its grid's
 /// mesh gives, each frame's points moved for a sheet of Gaussian thickness `sigma_mm`, the
 /// light's source from its planes. `None` before a header arrived.
-pub fn sheet_correction(c: &Collector, sigma_mm: f64) -> Option<crate::sheet::Correction> {
+pub fn sheet_correction(c: &Collector, sigma_mm: f64) -> Option<crate::thickness::Correction> {
     let (grid, header) = (c.grid()?, c.header()?);
     let m = mesh::build(
         grid,
@@ -602,7 +602,7 @@ pub fn sheet_correction(c: &Collector, sigma_mm: f64) -> Option<crate::sheet::Co
         &MeshOptions::default(),
         false,
     );
-    Some(crate::sheet::Correction::new(
+    Some(crate::thickness::Correction::new(
         &m.vertices.iter().map(|p| p.cast()).collect::<Vec<_>>(),
         &m.normals.iter().map(|n| n.cast()).collect::<Vec<_>>(),
         f64::from(header.camera.fy),
@@ -638,7 +638,7 @@ pub fn replay_corrected(
     opts: CollectOptions,
     input: &Path,
     from: u64,
-    correction: crate::sheet::Correction,
+    correction: crate::thickness::Correction,
 ) -> Result<Collector, OutputError> {
     let mut c = Collector::new(opts, None);
     c.correct_sheet(correction);

@@ -7,7 +7,7 @@
 use std::path::{Path, PathBuf};
 
 use scanner_merge::spatial::Cloud;
-use scanner_merge::{MergeError, MergeOptions, Merged, Progress, Surface, View};
+use scanner_merge::{MergeError, MergeOptions, Merged, Progress, ScanPoints, View};
 
 use crate::collect::CollectOptions;
 use crate::grid::Cell;
@@ -60,7 +60,7 @@ pub enum ViewsError {
     },
     /// The sheet's thickness is out of range.
     #[error(transparent)]
-    Sheet(#[from] crate::sheet::ThicknessError),
+    Sheet(#[from] crate::thickness::ThicknessError),
     /// The merge refused the views or failed.
     #[error(transparent)]
     Merge(#[from] MergeError),
@@ -169,7 +169,7 @@ fn stream_of(path: &Path) -> PathBuf {
 /// vertices, normals, colours and uncertainties, and how clear of the view's edges each lies.
 /// With `sheet_mm` (the laser sheet's Gaussian thickness, mm) above zero the scan is replayed a
 /// second time, each frame's points moved to where the sheet's middle crosses the surface the
-/// first pass found (see [`crate::sheet`]).
+/// first pass found (see [`crate::thickness`]).
 ///
 /// # Errors
 /// The file cannot be read, holds no scan, or its scan holds no point.
@@ -204,12 +204,12 @@ pub fn load_view(k: usize, path: &Path, cell: Cell, sheet_mm: f64) -> Result<Vie
     }
     let fx = f64::from(header.camera.fx);
     let edges = mesh::edge_cells(grid, fx, &MeshOptions::default(), EDGE_REACH);
-    let surface = Surface {
+    let surface = ScanPoints {
         cloud: Cloud {
             points: m.vertices.iter().map(|p| p.cast()).collect(),
             normals: m.normals.iter().map(|n| n.cast()).collect(),
         },
-        clear: m
+        clearance: m
             .cells
             .iter()
             .map(|&(c, r)| f64::from(u8::from(!edges[r as usize * grid.cols + c as usize])))
@@ -240,9 +240,9 @@ const ON_DISC_MM: f64 = 1.5;
 /// The surface without the points on or under the turntable disc's plane (`disc`: disc →
 /// camera, its third axis pointing into the table), and those points (the view's backdrop).
 fn above_disc(
-    s: &Surface,
+    s: &ScanPoints,
     disc: &scanner_core::nalgebra::Isometry3<f64>,
-) -> (Surface, Vec<scanner_core::nalgebra::Point3<f64>>) {
+) -> (ScanPoints, Vec<scanner_core::nalgebra::Point3<f64>>) {
     let above = |i: usize| disc.inverse_transform_point(&s.cloud.points[i]).z < -ON_DISC_MM;
     let keep: Vec<usize> = (0..s.cloud.points.len()).filter(|&i| above(i)).collect();
     let backdrop = (0..s.cloud.points.len())
@@ -307,7 +307,7 @@ pub fn load_views(
 }
 
 /// The laser sheet's thickness for a merge: given (mm; 0 leaves the points as the head sent
-/// them), or found where the views agree best ([`scanner_merge::find_sheet`]).
+/// them), or found where the views agree best ([`scanner_merge::find_thickness`]).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum Sheet {
     /// Given, mm.
@@ -326,7 +326,7 @@ impl std::str::FromStr for Sheet {
         s.parse::<f64>().map(Sheet::Mm).map_err(|_| {
             format!(
                 "expected the sheet's thickness in mm (0 to {}) or \"auto\"",
-                crate::sheet::MAX_SIGMA_MM
+                crate::thickness::MAX_SIGMA_MM
             )
         })
     }
@@ -340,7 +340,7 @@ pub trait MergeProgress: Progress {
 }
 
 /// Merges the views in `paths` (cells of `cell`): reads them with the sheet's thickness
-/// (`Sheet::Auto`: each thickness [`scanner_merge::sheet_tries`] names, to find the one where
+/// (`Sheet::Auto`: each thickness [`scanner_merge::thickness_tries`] names, to find the one where
 /// they agree best; then again with it) and runs [`scanner_merge::run`] on them.
 ///
 /// # Errors
@@ -354,7 +354,7 @@ pub fn merge_folders(
 ) -> Result<Merged, ViewsError> {
     options.check()?;
     if let Sheet::Mm(mm) = sheet {
-        crate::sheet::check_thickness(mm)?;
+        crate::thickness::check_thickness(mm)?;
     }
     if paths.len() < 2 {
         return Err(MergeError::TooFewViews(paths.len()).into());
@@ -364,12 +364,12 @@ pub fn merge_folders(
         Sheet::Mm(mm) => mm,
         Sheet::Auto => {
             let mut tries = Vec::new();
-            for &sigma in scanner_merge::sheet_tries() {
+            for &sigma in scanner_merge::thickness_tries() {
                 tries.push(load_views(paths, cell, sigma, |k| {
                     progress.reading(k, sigma)
                 })?);
             }
-            let found = scanner_merge::find_sheet(&tries, &options, progress)?;
+            let found = scanner_merge::find_thickness(&tries, &options, progress)?;
             let sigma = found.sigma_mm;
             options.sheet = Some(found);
             sigma

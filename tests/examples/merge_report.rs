@@ -146,7 +146,7 @@ fn run() -> Result<(), String> {
         let placed = placed(&scene, k)?;
         let mut parts = [Vec::new(), Vec::new()];
         // Clear of the edges: at least half the grid cells averaged into the point are.
-        for (p, c) in v.cloud.points.iter().zip(&v.clear) {
+        for (p, c) in v.cloud.points.iter().zip(&v.clearance) {
             parts[usize::from(*c < 0.5)].push(placed.distance(p));
         }
         let cols: Vec<String> = parts
@@ -292,7 +292,7 @@ fn run() -> Result<(), String> {
 }
 
 /// The object as the rig placed it in view `k` (camera frame).
-fn placed(scene: &Scene, k: usize) -> Result<std::sync::Arc<scanner_rig::mesh::Mesh>, String> {
+fn placed(scene: &Scene, k: usize) -> Result<std::sync::Arc<scanner_rig::mesh::SceneMesh>, String> {
     match scene
         .view(k)
         .map_err(|e| format!("{e}"))?
@@ -307,7 +307,7 @@ fn placed(scene: &Scene, k: usize) -> Result<std::sync::Arc<scanner_rig::mesh::M
 
 /// Points with normals over the true surface: every face sampled on a triangular lattice (45
 /// points a face, about 0.5 mm apart on the bunny), for fitting views onto it.
-fn surface_cloud(truth: &scanner_rig::mesh::Mesh) -> scanner_merge::spatial::Cloud {
+fn surface_cloud(truth: &scanner_rig::mesh::SceneMesh) -> scanner_merge::spatial::Cloud {
     const M: usize = 8;
     let mut c = scanner_merge::spatial::Cloud::default();
     for t in truth.triangles() {

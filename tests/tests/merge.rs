@@ -155,7 +155,7 @@ fn three_views_of_the_bunny_register_with_the_rigs_rotations() {
     assert!(share < 0.005, "{share} in front");
     // The edge points left out of the fusion are counted, by each check (one run: 110 off
     // another view's clear surface, 533 by the winding number).
-    let left_out = num(&fusion["contradicted"]) + num(&fusion["afloat"]);
+    let left_out = num(&fusion["contradicted"]) + num(&fusion["off_surface"]);
     assert!(left_out > 0.0, "{fusion}");
     model_against_the_truth(d, &f.scene, &[0, 1, 6]);
     // Coloured per vertex from the views' colours (the bunny's albedo, lit), in the OBJ read
@@ -336,7 +336,7 @@ fn sheet_auto_finds_the_thickness_where_the_views_agree_best() {
     let sigma = num(&search["sigma_mm"]);
     assert!((0.3..=0.8).contains(&sigma), "{search}");
     let tried = search["tried"].as_array().unwrap();
-    assert_eq!(tried.len(), scanner_merge::sheet_tries().len());
+    assert_eq!(tried.len(), scanner_merge::thickness_tries().len());
     assert!(
         tried.iter().all(|t| t["disagreement_mm"].is_number()),
         "{search}"
@@ -1044,7 +1044,7 @@ fn model_against_the_truth(d: &Path, scene: &scanner_rig::Scene, views: &[usize]
     let scanner_rig::Shape::Mesh(truth) = &v0.objects[0].shape else {
         panic!("the bunny is a mesh")
     };
-    let truth = scanner_rig::mesh::Mesh::new(
+    let truth = scanner_rig::mesh::SceneMesh::new(
         truth
             .triangles()
             .iter()

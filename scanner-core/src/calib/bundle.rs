@@ -1,6 +1,6 @@
 //! Intrinsics and target poses from views of planar targets (Zhang 2000), refined jointly.
 //!
-//! Each [`View`] is one image of a planar target: marker positions on the sheet (mm) and where a
+//! Each [`TargetImage`] is one image of a planar target: marker positions on the sheet (mm) and where a
 //! detector found them (pixels). [`initial_camera`] is Zhang's closed form (zero skew) on the
 //! views' homographies, [`initial_pose`] a view's pose from its homography, and [`refine`] the
 //! Levenberg–Marquardt minimisation of the reprojection error over the free intrinsics
@@ -17,7 +17,7 @@ use nalgebra::{
     Vector6,
 };
 
-use super::model::disc_centre;
+use super::model::dot_centre;
 use crate::geometry::Pose;
 use crate::geometry::pose::{homography, pose_from_homography};
 use crate::{Camera, Distortion, GeomError};
@@ -55,14 +55,14 @@ impl Free {
 
 /// One image of a planar target: `layout[i]` (mm on the sheet) was found at `pixels[i]`.
 #[derive(Debug, Clone, Copy)]
-pub struct View<'a> {
+pub struct TargetImage<'a> {
     /// Marker positions on the sheet, mm.
     pub layout: &'a [Point2<f64>],
     /// Where they were found, pixels.
     pub pixels: &'a [Point2<f64>],
 }
 
-impl View<'_> {
+impl TargetImage<'_> {
     fn check(&self) -> Result<(), GeomError> {
         if self.layout.len() != self.pixels.len() {
             return Err(GeomError::LengthMismatch);
@@ -140,7 +140,7 @@ fn observe(
     pixel: &Point2<f64>,
     jacobians: bool,
 ) -> Result<Observation, GeomError> {
-    let n = disc_centre(pose, sheet, radius)?;
+    let n = dot_centre(pose, sheet, radius)?;
     let (d, jd) = cam.distortion().apply_with_jacobian(n);
     let (fx, fy) = (cam.fx(), cam.fy());
     let pp = cam.principal_point();
@@ -174,8 +174,8 @@ fn observe(
             let h = if k < 3 { 1e-6 } else { 1e-6 * scale };
             let mut e = Vector6::zeros();
             e[k] = h;
-            let plus = disc_centre(&step_pose(pose, &e), sheet, radius)?;
-            let minus = disc_centre(&step_pose(pose, &-e), sheet, radius)?;
+            let plus = dot_centre(&step_pose(pose, &e), sheet, radius)?;
+            let minus = dot_centre(&step_pose(pose, &-e), sheet, radius)?;
             let dn = jd * ((plus - minus) / (2.0 * h));
             jp.set_column(k, &Vector2::new(fx * dn.x, fy * dn.y));
         }
@@ -197,7 +197,7 @@ struct Blocks {
 fn blocks(
     cam: &Camera<f64>,
     free: Free,
-    view: &View,
+    view: &TargetImage,
     pose: &Pose,
     radius: f64,
 ) -> Result<Blocks, GeomError> {
@@ -241,7 +241,7 @@ fn damped6(a: &Matrix6<f64>, mu: f64) -> Result<Matrix6<f64>, GeomError> {
 /// Sum of squared residuals and the largest residual of every view.
 fn total_cost(
     cam: &Camera<f64>,
-    views: &[View],
+    views: &[TargetImage],
     poses: &[Pose],
     radius: f64,
 ) -> Result<(f64, f64, usize), GeomError> {
@@ -271,7 +271,7 @@ fn total_cost(
 pub fn refine(
     camera: &Camera<f64>,
     free: Free,
-    views: &[View],
+    views: &[TargetImage],
     poses: &mut [Pose],
     radius: f64,
 ) -> Result<Refinement, GeomError> {
@@ -343,7 +343,7 @@ pub struct Covariance {
 pub fn covariance(
     camera: &Camera<f64>,
     free: Free,
-    views: &[View],
+    views: &[TargetImage],
     poses: &[Pose],
     radius: f64,
 ) -> Result<Covariance, GeomError> {
@@ -404,7 +404,7 @@ pub struct PoseSpread {
 /// As [`refine`]; [`GeomError::IllConditioned`] when the features do not determine the pose.
 pub fn pose_spread(
     camera: &Camera<f64>,
-    view: &View,
+    view: &TargetImage,
     pose: &Pose,
     radius: f64,
 ) -> Result<PoseSpread, GeomError> {
@@ -425,7 +425,12 @@ pub fn pose_spread(
 }
 
 /// The checks of [`refine`]'s errors section, before any work.
-fn check_problem(free: Free, views: &[View], poses: &[Pose], radius: f64) -> Result<(), GeomError> {
+fn check_problem(
+    free: Free,
+    views: &[TargetImage],
+    poses: &[Pose],
+    radius: f64,
+) -> Result<(), GeomError> {
     if views.len() != poses.len() {
         return Err(GeomError::LengthMismatch);
     }
@@ -454,7 +459,7 @@ fn check_problem(free: Free, views: &[View], poses: &[Pose], radius: f64) -> Res
 struct Damped<'a> {
     cam: &'a Camera<f64>,
     free: Free,
-    views: &'a [View<'a>],
+    views: &'a [TargetImage<'a>],
     radius: f64,
     mu: f64,
 }
@@ -505,7 +510,7 @@ impl Damped<'_> {
     }
 
     /// A view's pose after the step, given the intrinsics' step `dc`.
-    fn pose_step(&self, v: &View, p: &Pose, dc: &Vec9) -> Result<Pose, GeomError> {
+    fn pose_step(&self, v: &TargetImage, p: &Pose, dc: &Vec9) -> Result<Pose, GeomError> {
         let bl = blocks(self.cam, self.free, v, p, self.radius)?;
         let ainv = damped6(&bl.a, self.mu)?;
         Ok(step_pose(p, &(ainv * (-bl.gp - bl.b * dc))))
@@ -533,7 +538,7 @@ impl Damped<'_> {
 /// As [`refine`]; [`GeomError::LengthMismatch`] if `out` is too short.
 pub fn residuals(
     camera: &Camera<f64>,
-    view: &View,
+    view: &TargetImage,
     pose: &Pose,
     radius: f64,
     out: &mut [Vector2<f64>],
@@ -555,8 +560,8 @@ pub fn residuals(
 /// refined by [`refine`]).
 ///
 /// # Errors
-/// View errors, [`GeomError::Collinear`] for markers on one line, undistortion errors.
-pub fn initial_pose(camera: &Camera<f64>, view: &View) -> Result<Pose, GeomError> {
+/// TargetImage errors, [`GeomError::Collinear`] for markers on one line, undistortion errors.
+pub fn initial_pose(camera: &Camera<f64>, view: &TargetImage) -> Result<Pose, GeomError> {
     view.check()?;
     if view.layout.len() > crate::geometry::pose::MAX_MARKERS {
         return Err(GeomError::BadParameter(
@@ -607,9 +612,13 @@ fn null_vector(m: SMatrix<f64, 6, 6>) -> Result<SVector<f64, 6>, GeomError> {
 /// Distortion starts at zero.
 ///
 /// # Errors
-/// View errors; [`GeomError::IllConditioned`] if no positive focal lengths fit (e.g. every view
+/// TargetImage errors; [`GeomError::IllConditioned`] if no positive focal lengths fit (e.g. every view
 /// fronto-parallel).
-pub fn initial_camera(views: &[View], width: u32, height: u32) -> Result<Camera<f64>, GeomError> {
+pub fn initial_camera(
+    views: &[TargetImage],
+    width: u32,
+    height: u32,
+) -> Result<Camera<f64>, GeomError> {
     if views.is_empty() {
         return Err(GeomError::TooFewPoints { needed: 1, got: 0 });
     }

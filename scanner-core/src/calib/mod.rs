@@ -12,5 +12,5 @@ pub mod distance;
 pub mod model;
 pub mod spread;
 
-pub use bundle::{Covariance, Free, Refinement, View};
+pub use bundle::{Covariance, Free, Refinement, TargetImage};
 pub use distance::{CrossShot, ImageDistance, image_distance};

@@ -28,7 +28,7 @@ use crate::{Camera, GeomError};
 /// # Errors
 /// [`GeomError::BehindCamera`] if the disc's centre is not in front of the camera,
 /// [`GeomError::NotFinite`].
-pub fn disc_centre(
+pub fn dot_centre(
     pose: &Pose,
     sheet: &Point2<f64>,
     radius: f64,
@@ -60,14 +60,14 @@ pub fn disc_centre(
 /// `radius` mm; 0 for a corner), distorted by the lens.
 ///
 /// # Errors
-/// As [`disc_centre`].
+/// As [`dot_centre`].
 pub fn predict(
     camera: &Camera<f64>,
     pose: &Pose,
     sheet: &Point2<f64>,
     radius: f64,
 ) -> Result<Point2<f64>, GeomError> {
-    let px = camera.normalized_to_pixel(disc_centre(pose, sheet, radius)?);
+    let px = camera.normalized_to_pixel(dot_centre(pose, sheet, radius)?);
     if px.x.is_finite() && px.y.is_finite() {
         Ok(px)
     } else {

@@ -42,7 +42,7 @@ use serde::{Deserialize, Serialize};
 /// from `v0` in steps of `dv`.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
-pub struct Grid {
+pub struct MarkerGrid {
     /// Markers along `u`.
     pub cols: usize,
     /// Lines of markers along `v`.
@@ -99,7 +99,7 @@ pub struct SheetLayout {
     pub markers: Option<Vec<[f64; 2]>>,
     /// Or a grid of them.
     #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub grid: Option<Grid>,
+    pub grid: Option<MarkerGrid>,
     /// Or a chessboard instead of discs.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub chessboard: Option<Chessboard>,
@@ -175,7 +175,7 @@ impl Default for BoardFile {
     /// The paper's layout: on each sheet two lines of three markers, 110 mm apart along the sheet,
     /// the lines 220 mm apart, 27.5 mm discs, on A3 landscape; a 200 mm cross.
     fn default() -> Self {
-        let grid = Grid {
+        let grid = MarkerGrid {
             cols: 3,
             rows: 2,
             u0: 66.0,

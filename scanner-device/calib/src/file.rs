@@ -40,7 +40,7 @@ use scanner_core::{Camera, Distortion};
 use serde::{Deserialize, Serialize};
 
 use super::board::BoardFile;
-use super::{BoardFit, MarkerFit, PlaneMethod, SheetFit};
+use super::{BoardFit, BoardMethod, MarkerFit, SheetFit};
 
 /// Version of the file format.
 pub const VERSION: u32 = 1;
@@ -375,13 +375,13 @@ impl CalibrationFile {
         fit: &BoardFit,
         board: &BoardFile,
         camera: &Camera<f64>,
-        method: PlaneMethod,
-    ) -> PlaneMethod {
+        method: BoardMethod,
+    ) -> BoardMethod {
         let (planes, used) = match (method, fit.paper) {
-            (PlaneMethod::PaperLines, [Some(l), Some(r)]) => ([l, r], PlaneMethod::PaperLines),
+            (BoardMethod::PaperLines, [Some(l), Some(r)]) => ([l, r], BoardMethod::PaperLines),
             _ => (
                 [fit.sheets[0].plane, fit.sheets[1].plane],
-                PlaneMethod::LayoutPose,
+                BoardMethod::LayoutPose,
             ),
         };
         let crease = fit.board.crease();
@@ -391,8 +391,8 @@ impl CalibrationFile {
         });
         let board_geom = Board::new(planes[0], planes[1]).unwrap_or(fit.board);
         let spread = match used {
-            PlaneMethod::LayoutPose => crate::spread::board_spread(fit, board, camera).ok(),
-            PlaneMethod::PaperLines => None,
+            BoardMethod::LayoutPose => crate::spread::board_spread(fit, board, camera).ok(),
+            BoardMethod::PaperLines => None,
         };
         let mut sections = [&fit.sheets[0], &fit.sheets[1]]
             .iter()

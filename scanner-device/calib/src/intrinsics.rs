@@ -15,7 +15,7 @@
 use image::GrayImage;
 use scanner_core::Camera;
 use scanner_core::calib::bundle::{initial_camera, initial_pose, refine, residuals};
-use scanner_core::calib::{Free, View};
+use scanner_core::calib::{Free, TargetImage};
 use scanner_core::geometry::Pose;
 use scanner_core::nalgebra::{Point2, Vector2};
 
@@ -328,8 +328,8 @@ struct Active {
 }
 
 impl Active {
-    fn view(&self) -> View<'_> {
-        View {
+    fn view(&self) -> TargetImage<'_> {
+        TargetImage {
             layout: &self.layout,
             pixels: &self.pixels,
         }
@@ -613,7 +613,7 @@ fn fit_round(
     active: &[Active],
     radius: f64,
 ) -> Result<Round, CalibError> {
-    let views: Vec<View> = active.iter().map(Active::view).collect();
+    let views: Vec<TargetImage> = active.iter().map(Active::view).collect();
     let mut poses: Vec<Pose> = views
         .iter()
         .map(|v| initial_pose(camera, v))
@@ -755,7 +755,7 @@ fn closed_form(
     size: (u32, u32),
 ) -> Result<Camera<f64>, CalibError> {
     let run = |set: &[&Active]| {
-        let views: Vec<View> = set.iter().map(|a| a.view()).collect();
+        let views: Vec<TargetImage> = set.iter().map(|a| a.view()).collect();
         initial_camera(&views, size.0, size.1)
     };
     loop {
@@ -847,9 +847,9 @@ mod tests {
             .collect();
         views.insert(2, bad);
         let layout = grid();
-        let refs: Vec<View> = views
+        let refs: Vec<TargetImage> = views
             .iter()
-            .map(|p| View {
+            .map(|p| TargetImage {
                 layout: &layout,
                 pixels: p,
             })

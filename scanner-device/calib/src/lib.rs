@@ -55,7 +55,7 @@ pub mod text_file;
 
 use image::GrayImage;
 use scanner_core::calib::bundle::{initial_pose, refine, residuals};
-use scanner_core::calib::{CrossShot, Free, ImageDistance, View};
+use scanner_core::calib::{CrossShot, Free, ImageDistance, TargetImage};
 use scanner_core::geometry::board::plane_from_marker_lines;
 use scanner_core::geometry::{Board, Plane, Pose};
 use scanner_core::nalgebra::{Point2, Vector2};
@@ -399,7 +399,7 @@ pub(crate) fn fit_sheet(
     };
     let solve = |used: &[usize]| -> Result<SubsetFit, CalibError> {
         let (l, p) = view_of(used);
-        let view = View {
+        let view = TargetImage {
             layout: &l,
             pixels: &p,
         };
@@ -449,7 +449,7 @@ pub(crate) fn fit_sheet(
             // that misses it by more than PULL_PX and PULL_SPREADS times their RMS.
             Prune::Predicted => {
                 let (l, p) = view_of(&used);
-                let view = View {
+                let view = TargetImage {
                     layout: &l,
                     pixels: &p,
                 };
@@ -491,19 +491,19 @@ pub(crate) fn fit_sheet(
 
 /// How the board planes were obtained.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum PlaneMethod {
+pub enum BoardMethod {
     /// Every marker of a sheet with its known layout (homography, refined with the disc model).
     LayoutPose,
     /// The paper's construction: two lines of three markers per sheet (eq. 1–6).
     PaperLines,
 }
 
-impl PlaneMethod {
+impl BoardMethod {
     /// Name used in the calibration file.
     pub fn name(self) -> &'static str {
         match self {
-            PlaneMethod::LayoutPose => "layout-pose",
-            PlaneMethod::PaperLines => "paper-lines",
+            BoardMethod::LayoutPose => "layout-pose",
+            BoardMethod::PaperLines => "paper-lines",
         }
     }
 }

@@ -15,7 +15,7 @@
 //!   small the reprojection error.
 
 use scanner_core::Camera;
-use scanner_core::calib::View;
+use scanner_core::calib::TargetImage;
 use scanner_core::calib::bundle::{
     Covariance, INTRINSICS, camera_from, covariance, params, refine,
 };
@@ -217,12 +217,12 @@ impl Used {
         u
     }
 
-    fn views(&self, pick: impl Fn(usize) -> bool) -> (Vec<View<'_>>, Vec<Pose>) {
+    fn views(&self, pick: impl Fn(usize) -> bool) -> (Vec<TargetImage<'_>>, Vec<Pose>) {
         let mut views = Vec::new();
         let mut poses = Vec::new();
         for (i, (l, p)) in self.layout.iter().zip(&self.pixels).enumerate() {
             if pick(i) {
-                views.push(View {
+                views.push(TargetImage {
                     layout: l,
                     pixels: p,
                 });

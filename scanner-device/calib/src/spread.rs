@@ -3,7 +3,7 @@
 //! camera). With the intrinsics' covariance this gives the head the calibration's share of each
 //! point's uncertainty ([`scanner_core::calib::spread`]).
 
-use scanner_core::calib::View;
+use scanner_core::calib::TargetImage;
 use scanner_core::calib::bundle::{INTRINSICS, pose_spread, step_pose};
 use scanner_core::calib::spread::SheetSpread;
 use scanner_core::geometry::Pose;
@@ -61,7 +61,7 @@ pub fn board_spread(
             .filter(|m| m.residual.is_some())
             .filter_map(|m| Some((m.sheet, m.pixel?)))
             .unzip();
-        let view = View {
+        let view = TargetImage {
             layout: &layout,
             pixels: &pixels,
         };

@@ -228,7 +228,7 @@ fn bad_input_names_what_was_expected_and_found() {
     // A board file that disagrees with the printed board: a 3×3 grid.
     let mut other = BoardFile::default();
     for s in [&mut other.left, &mut other.right] {
-        s.grid = Some(scanner_calib::board::Grid {
+        s.grid = Some(scanner_calib::board::MarkerGrid {
             cols: 3,
             rows: 3,
             u0: 66.0,

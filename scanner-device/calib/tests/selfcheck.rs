@@ -6,7 +6,7 @@
 use scanner_calib::selfcheck::{MAP_CELLS, self_check};
 use scanner_calib::{IntrinsicsFit, Target, ViewFit};
 use scanner_core::calib::bundle::{initial_camera, initial_pose, refine};
-use scanner_core::calib::{Free, View};
+use scanner_core::calib::{Free, TargetImage};
 use scanner_core::geometry::Pose;
 use scanner_core::nalgebra::{Point2, Point3, Rotation3, Vector2, Vector3};
 use scanner_core::{Camera, Distortion};
@@ -113,10 +113,10 @@ fn calibrate(n: usize, skew: f64, sigma: f64, seed: u64) -> IntrinsicsFit {
         .iter()
         .map(|f| f.iter().map(|(_, p)| *p).collect())
         .collect();
-    let views: Vec<View> = layout
+    let views: Vec<TargetImage> = layout
         .iter()
         .zip(&pixels)
-        .map(|(l, p)| View {
+        .map(|(l, p)| TargetImage {
             layout: l,
             pixels: p,
         })

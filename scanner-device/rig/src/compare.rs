@@ -7,7 +7,7 @@ use std::collections::HashMap;
 
 use scanner_core::nalgebra::Point3;
 
-use crate::mesh::Mesh;
+use crate::mesh::SceneMesh;
 
 /// Area-weighted distances of one direction, mm.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -80,7 +80,7 @@ fn key(p: &Point3<f64>, cell: f64) -> [i64; 3] {
 /// Samples about `spacing` mm apart.
 pub fn compare(
     model: &[[Point3<f64>; 3]],
-    truth: &Mesh,
+    truth: &SceneMesh,
     seen: &Seen<'_>,
     spacing: f64,
 ) -> Comparison {
@@ -93,7 +93,7 @@ pub fn compare(
         .into_iter()
         .map(|(p, a)| (truth.distance(&p), a))
         .collect();
-    let model_mesh = Mesh::new(model.to_vec());
+    let model_mesh = SceneMesh::new(model.to_vec());
     let to_model: Vec<(f64, f64)> = samples(truth.triangles(), spacing)
         .into_iter()
         .filter(|(p, _)| seen.contains(p))
@@ -196,7 +196,7 @@ mod tests {
 
     #[test]
     fn a_shifted_cube_is_off_by_its_shift_where_seen_and_holes_count() {
-        let truth = Mesh::new(cube(10.0, Point3::origin()));
+        let truth = SceneMesh::new(cube(10.0, Point3::origin()));
         assert!((volume(truth.triangles()) - 8000.0).abs() < 1e-9);
         // Seen everywhere: the model shifted by 0.2 mm along x is 0.2 mm off on the faces across
         // x and on none of the others, measured both ways.

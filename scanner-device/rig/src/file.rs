@@ -529,12 +529,11 @@ fn shape(i: usize, o: ObjectFile, base: &std::path::Path) -> Result<Shape, RigEr
             ..
         } => {
             let at = Point3::from(centre);
-            let mesh = super::mesh::Mesh::load(&base.join(&path), height_mm, yaw_deg, at).map_err(
-                |e| RigError::Mesh {
+            let mesh = super::mesh::SceneMesh::load(&base.join(&path), height_mm, yaw_deg, at)
+                .map_err(|e| RigError::Mesh {
                     object: i,
                     source: e,
-                },
-            )?;
+                })?;
             Shape::Mesh(std::sync::Arc::new(mesh))
         }
         ObjectFile::Sphere { centre, radius, .. } => Shape::Sphere {

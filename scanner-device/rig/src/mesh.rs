@@ -8,7 +8,7 @@ use scanner_core::nalgebra::{Isometry3, Point3, Rotation3, Vector3};
 
 /// A placed triangle mesh with its hierarchy.
 #[derive(Debug, Clone, PartialEq)]
-pub struct Mesh {
+pub struct SceneMesh {
     triangles: Vec<[Point3<f64>; 3]>,
     nodes: Vec<Node>,
 }
@@ -49,7 +49,7 @@ pub enum MeshError {
     },
 }
 
-impl Mesh {
+impl SceneMesh {
     /// Loads an OBJ file and places it: scaled so that its height (extent along its own y) is
     /// `height_mm`, turned upright for the camera (+y down), turned by `yaw_deg` about the
     /// vertical, with the centre of its bounding box at `centre`.
@@ -61,16 +61,16 @@ impl Mesh {
         height_mm: f64,
         yaw_deg: f64,
         centre: Point3<f64>,
-    ) -> Result<Mesh, MeshError> {
-        Ok(Mesh::new(Self::triangles_of(
+    ) -> Result<SceneMesh, MeshError> {
+        Ok(SceneMesh::new(Self::triangles_of(
             path, height_mm, yaw_deg, centre,
         )?))
     }
 
-    /// The placed triangles of an OBJ file, as [`Mesh::load`] places them.
+    /// The placed triangles of an OBJ file, as [`SceneMesh::load`] places them.
     ///
     /// # Errors
-    /// As [`Mesh::load`].
+    /// As [`SceneMesh::load`].
     pub fn triangles_of(
         path: &Path,
         height_mm: f64,
@@ -125,8 +125,8 @@ impl Mesh {
     }
 
     /// A mesh from placed triangles.
-    pub fn new(triangles: Vec<[Point3<f64>; 3]>) -> Mesh {
-        let mut mesh = Mesh {
+    pub fn new(triangles: Vec<[Point3<f64>; 3]>) -> SceneMesh {
+        let mut mesh = SceneMesh {
             triangles,
             nodes: Vec::new(),
         };
@@ -136,8 +136,8 @@ impl Mesh {
     }
 
     /// The mesh moved rigidly by `pose`.
-    pub fn moved(&self, pose: &Isometry3<f64>) -> Mesh {
-        Mesh::new(self.triangles.iter().map(|t| t.map(|v| pose * v)).collect())
+    pub fn moved(&self, pose: &Isometry3<f64>) -> SceneMesh {
+        SceneMesh::new(self.triangles.iter().map(|t| t.map(|v| pose * v)).collect())
     }
 
     /// The mean of the triangles' corners.
@@ -399,7 +399,7 @@ mod tests {
                 tris.push([p(x, y), p(x + 1, y + 1), p(x, y + 1)]);
             }
         }
-        let mesh = Mesh::new(tris.clone());
+        let mesh = SceneMesh::new(tris.clone());
         for k in 0..300 {
             let f = k as f64;
             let p = Point3::new(

@@ -5,7 +5,7 @@
 //! `cargo run --release -p scanner-device --example accuracy_report` prints it.
 
 use crate::{Object, Rig, Scene, Shape};
-use scanner_calib::board::{BoardFile, Cross, Grid, SheetLayout, SheetSize};
+use scanner_calib::board::{BoardFile, Cross, MarkerGrid, SheetLayout, SheetSize};
 use scanner_calib::{DotGrid, Target, board_planes, intrinsics_auto};
 use scanner_core::Camera;
 use scanner_core::geometry::Board;
@@ -68,7 +68,7 @@ pub struct Row {
 
 /// The board file of the paper's layout with marker spacing `s` (mm).
 pub fn paper_board(s: f64) -> BoardFile {
-    let grid = Grid {
+    let grid = MarkerGrid {
         cols: 3,
         rows: 2,
         u0: 0.6 * s,

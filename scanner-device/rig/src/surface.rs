@@ -5,7 +5,7 @@ use std::sync::Arc;
 
 use scanner_core::nalgebra::{Isometry3, Point3, Unit, Vector3};
 
-use super::mesh::Mesh;
+use super::mesh::SceneMesh;
 
 /// Which surface a point lies on, as the ground truth reports it.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
@@ -62,7 +62,7 @@ pub enum Shape {
         axes: [Vector3<f64>; 3],
     },
     /// A placed triangle mesh.
-    Mesh(Arc<Mesh>),
+    Mesh(Arc<SceneMesh>),
     /// A flat disc (a print lying on the table): centre, two unit in-plane axes (the print's
     /// `x` and `y`), radius.
     Disc {

@@ -13,7 +13,7 @@ use scanner_calib::disc::{Disc, Paper};
 use scanner_calib::file::{CalibrationFile, write_atomic};
 use scanner_calib::selfcheck::{Halves, SelfCheck, self_check};
 use scanner_calib::{
-    CalibError, Coverage, DotGrid, PlaneMethod, Target, ViewFit, board_planes, check_size,
+    BoardMethod, CalibError, Coverage, DotGrid, Target, ViewFit, board_planes, check_size,
     intrinsics_auto, overlay, print, short,
 };
 
@@ -143,11 +143,11 @@ pub enum MethodArg {
     PaperLines,
 }
 
-impl From<MethodArg> for PlaneMethod {
-    fn from(m: MethodArg) -> PlaneMethod {
+impl From<MethodArg> for BoardMethod {
+    fn from(m: MethodArg) -> BoardMethod {
         match m {
-            MethodArg::LayoutPose => PlaneMethod::LayoutPose,
-            MethodArg::PaperLines => PlaneMethod::PaperLines,
+            MethodArg::LayoutPose => BoardMethod::LayoutPose,
+            MethodArg::PaperLines => BoardMethod::PaperLines,
         }
     }
 }
@@ -361,7 +361,7 @@ struct BoardPaths<'a> {
 }
 
 /// `calibrate board`: both planes from one image, the overlay written also when it fails.
-fn board_planes_command(p: &BoardPaths, method: PlaneMethod) -> Result<()> {
+fn board_planes_command(p: &BoardPaths, method: BoardMethod) -> Result<()> {
     let b = load_board(p.board)?;
     let cam_file = CalibrationFile::load(p.camera)?;
     let cam = cam_file

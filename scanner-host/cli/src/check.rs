@@ -38,7 +38,7 @@ impl CheckPlan {
     /// # Errors
     /// A figure out of range, named.
     pub fn check(self) -> Result<CheckPlan> {
-        scanner_host::sheet::check_thickness(self.sheet_mm)?;
+        scanner_host::thickness::check_thickness(self.sheet_mm)?;
         if self.spheres.len() > 2 {
             anyhow::bail!(
                 "--sphere is given once or twice (a bar of two spheres), found {} times",

@@ -68,7 +68,7 @@ impl MergePlan {
     ) -> Result<MergePlan> {
         options.check()?;
         if let Sheet::Mm(mm) = sheet {
-            scanner_host::sheet::check_thickness(mm)?;
+            scanner_host::thickness::check_thickness(mm)?;
         }
         Ok(MergePlan {
             views: views.to_vec(),

@@ -41,7 +41,7 @@ impl OutputPlan {
     /// # Errors
     /// A `--sheet` that is no sheet's thickness.
     pub fn new(o: &OutputArgs) -> Result<OutputPlan> {
-        scanner_host::sheet::check_thickness(o.sheet)?;
+        scanner_host::thickness::check_thickness(o.sheet)?;
         Ok(OutputPlan {
             dir: o.out.clone(),
             collect: CollectOptions {

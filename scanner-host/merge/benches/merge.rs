@@ -19,9 +19,9 @@ use scanner_merge::fuse::{check, fuse_with};
 use scanner_merge::fuse::{contradicted, edge_weight, fused_points};
 use scanner_merge::pose::RegisterOptions;
 use scanner_merge::pose::register_clouds;
-use scanner_merge::refine::{HINTED, Turns, found_turns, refine, refine_turns};
+use scanner_merge::refine::{GIVEN_STEP, Turns, found_turns, refine, refine_turns};
 use scanner_merge::spatial::Cloud;
-use scanner_merge::{MergeOptions, Surface, View};
+use scanner_merge::{MergeOptions, ScanPoints, View};
 
 const VIEWS: usize = 8;
 const POINTS: usize = 50_000;
@@ -131,9 +131,9 @@ fn main() {
         .iter()
         .enumerate()
         .map(|(k, c)| {
-            let surface = Surface {
+            let surface = ScanPoints {
                 cloud: c.clone(),
-                ..Surface::default()
+                ..ScanPoints::default()
             };
             View::new(format!("view {k}"), header(), &surface, None)
         })
@@ -191,13 +191,13 @@ fn main() {
         points.extend(c.points.iter().map(|q| p * q));
         normals.extend(c.normals.iter().map(|n| p * n));
     }
-    // As `merge` chooses the points it fuses: not isolated, not contradicted, not afloat.
+    // As `merge` chooses the points it fuses: not isolated, not contradicted, not off_surface.
     let weights: Vec<f64> = clear
         .iter()
         .flatten()
         .map(|&c| edge_weight(Some(c)))
         .collect();
-    let (keep, afloat_count) = fused_points(&points, &normals, &weights, &off);
+    let (keep, off_surface_count) = fused_points(&points, &normals, &weights, &off);
     let points: Vec<Point3<f64>> = keep.iter().map(|&i| points[i]).collect();
     let normals: Vec<Vector3<f64>> = keep.iter().map(|&i| normals[i]).collect();
     let weights: Vec<f64> = keep.iter().map(|&i| weights[i]).collect();
@@ -229,7 +229,7 @@ fn main() {
         off.iter().filter(|&&o| o).count()
     );
     println!(
-        "| outlier filter and edge points off the surface by the winding number ({afloat_count} left out; {} points) | {t_filter:.2} |",
+        "| outlier filter and edge points off the surface by the winding number ({off_surface_count} left out; {} points) | {t_filter:.2} |",
         keep.len()
     );
     println!(
@@ -269,7 +269,7 @@ fn main() {
     let t8 = Instant::now();
     let on: Vec<bool> = stepped.iter().map(|r| r.on_turntable).collect();
     let start: Vec<Isometry3<f64>> = stepped.iter().map(|r| r.pose).collect();
-    let turns = Turns::fit(&start, &on, HINTED);
+    let turns = Turns::fit(&start, &on, GIVEN_STEP);
     let as_turns = turns.as_ref().map_or(0, |t| t.views.len());
     let (turned, _) = refine_turns(&refs, &start, turns, o.voxel_mm, 8, |_| {});
     let t_turns = t8.elapsed().as_secs_f64();

@@ -148,7 +148,7 @@ pub enum MergeError {
     #[error(
         "--sheet auto: the views nowhere overlap within {agree_mm} mm of each other, so they tell no sheet thickness; give it with --sheet MM"
     )]
-    NoSheet {
+    NoThickness {
         /// How near points of two views must lie to count, mm.
         agree_mm: f64,
     },
@@ -156,7 +156,7 @@ pub enum MergeError {
     #[error(
         "--sheet auto: {views} sets of views given for {tries} thicknesses to try: one set per thickness"
     )]
-    SheetTries {
+    ThicknessTries {
         /// Sets given.
         views: usize,
         /// Thicknesses tried.

@@ -5,7 +5,7 @@
 //! model, the report`. It depends on `scanner-core` alone (the wire's header: each view's
 //! camera and board). The input is data ([`View`]: points, normals, colours, uncertainties and
 //! the header), the output is data ([`Merged`]: poses, the model, [`MergeReport`]); the one
-//! entry point is [`run`], with [`find_sheet`] for the laser sheet's thickness.
+//! entry point is [`run`], with [`find_thickness`] for the laser sheet's thickness.
 //!
 //! How, in four stages, each a folder whose files are private behind the stage's functions:
 //! 1. [`pose`]: where the poses come from is chosen once ([`pose`]'s `Source`): the turntable
@@ -53,5 +53,7 @@ pub use error::MergeError;
 pub use fuse::Closing;
 pub use fuse::Model;
 pub use report::MergeReport;
-pub use run::{MergeOptions, Merged, Progress, Registered, Stage, find_sheet, run, sheet_tries};
-pub use view::{Surface, View};
+pub use run::{
+    MergeOptions, Merged, Progress, Registered, Stage, find_thickness, run, thickness_tries,
+};
+pub use view::{ScanPoints, View};

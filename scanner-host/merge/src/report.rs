@@ -19,7 +19,7 @@ use crate::view::View;
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct MergeReport {
     /// The laser sheet's thickness found (`--sheet auto`); `None` when it was given.
-    pub sheet_search: Option<SheetSearch>,
+    pub sheet_search: Option<ThicknessSearch>,
     /// Each view, in order: view 0 fixes the frame.
     pub views: Vec<ViewReport>,
     /// The views refined as turns about one axis (a turntable's), if any.
@@ -41,11 +41,11 @@ pub struct MergeReport {
 
 /// `--sheet auto`: each thickness tried and where the views agree best.
 #[derive(Debug, Clone, PartialEq, Serialize)]
-pub struct SheetSearch {
+pub struct ThicknessSearch {
     /// The thickness taken, mm (σ across the sheet).
     pub sigma_mm: f64,
     /// Each thickness tried with the views' disagreement at it.
-    pub tried: Vec<SheetTry>,
+    pub tried: Vec<ThicknessTry>,
     /// Whether the thickest tried was taken (the sheet may be thicker, or the views disagree
     /// for another reason).
     pub at_thickest: bool,
@@ -53,7 +53,7 @@ pub struct SheetSearch {
 
 /// One thickness `--sheet auto` tried.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
-pub struct SheetTry {
+pub struct ThicknessTry {
     /// σ, mm.
     pub sigma_mm: f64,
     /// RMS distance between overlapping views' surfaces, mm; `None` where none overlap.
@@ -163,7 +163,7 @@ impl MergeReport {
         results: &[ViewResult],
         closure: &Closure,
         (worst, tolerance_mm): (Option<Conflict>, f64),
-        sheet_search: Option<SheetSearch>,
+        sheet_search: Option<ThicknessSearch>,
     ) -> MergeReport {
         let turned: Vec<Turn> = results
             .iter()
@@ -345,7 +345,7 @@ fn list(v: &[usize]) -> String {
 }
 
 /// `--sheet auto`'s line.
-fn sheet_line(search: &SheetSearch) -> String {
+fn sheet_line(search: &ThicknessSearch) -> String {
     let tried: Vec<String> = search
         .tried
         .iter()
@@ -410,7 +410,7 @@ fn free_space_line(f: &FreeSpaceReport) -> String {
 fn fusion_lines(f: &FusionFigures) -> String {
     let mut s = format!(
         "points on the views' edges left out of the fusion: {} more than {} mm off the surface another view saw clear of its edges, {} where the winding number of all the points is over {} from ½ (off the surface they wind around)\n",
-        f.contradicted, f.edge_off_mm, f.afloat, f.afloat_margin
+        f.contradicted, f.edge_off_mm, f.off_surface, f.off_surface_margin
     );
     let reach = f.unseen_reach_mm;
     s += &match (f.closing, f.trimmed_faces) {

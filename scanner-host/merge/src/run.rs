@@ -1,5 +1,5 @@
 //! The merge's one entry point, [`run`]: views in, poses, checks, the model and the report out;
-//! and [`find_sheet`], the laser sheet's thickness where the views agree best.
+//! and [`find_thickness`], the laser sheet's thickness where the views agree best.
 
 use std::fmt;
 
@@ -11,7 +11,7 @@ use crate::fuse::Closing;
 use crate::fuse::Model;
 use crate::pose::RegisterOptions;
 use crate::pose::Source;
-use crate::report::{MergeReport, SheetSearch, SheetTry};
+use crate::report::{MergeReport, ThicknessSearch, ThicknessTry};
 use crate::view::View;
 
 /// How a merge runs. [`MergeOptions::check`] holds every range.
@@ -29,9 +29,9 @@ pub struct MergeOptions {
     pub turntable_deg: Option<f64>,
     /// How the surface no view saw is closed.
     pub closing: Closing,
-    /// The laser sheet's thickness found by [`find_sheet`], for the report (the views were read
+    /// The laser sheet's thickness found by [`find_thickness`], for the report (the views were read
     /// with it).
-    pub sheet: Option<SheetSearch>,
+    pub sheet: Option<ThicknessSearch>,
     /// Pose the views that carry the turntable disc's pose by it (two or more needed).
     pub use_disc: bool,
 }
@@ -97,14 +97,14 @@ impl MergeOptions {
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum Stage {
     /// `--sheet auto`: registering pairs of views once, without a correction.
-    SheetRegistering {
+    ThicknessRegistering {
         /// Pairs done.
         done: usize,
         /// Pairs in all.
         of: usize,
     },
     /// `--sheet auto`: refining the views read with one thickness.
-    SheetRefining {
+    ThicknessRefining {
         /// The thickness, mm.
         sigma_mm: f64,
         /// Which try, from 1.
@@ -138,13 +138,13 @@ pub enum Stage {
 impl fmt::Display for Stage {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match *self {
-            Stage::SheetRegistering { done, of } => {
+            Stage::ThicknessRegistering { done, of } => {
                 write!(
                     f,
                     "--sheet auto: registering pairs of views: {done} of {of}"
                 )
             }
-            Stage::SheetRefining {
+            Stage::ThicknessRefining {
                 sigma_mm,
                 tried,
                 of,
@@ -336,30 +336,30 @@ pub fn run(
     })
 }
 
-/// The laser sheet's thicknesses (σ, mm) [`find_sheet`] tries: from none to twice the
+/// The laser sheet's thicknesses (σ, mm) [`find_thickness`] tries: from none to twice the
 /// thickest a scanning line laser's line usually is (a line 5.7 mm wide at half its brightness).
-pub fn sheet_tries() -> &'static [f64] {
-    &crate::refine::SHEET_TRIES
+pub fn thickness_tries() -> &'static [f64] {
+    &crate::refine::THICKNESS_TRIES
 }
 
 /// `--sheet auto`: the laser sheet's thickness where the views agree best. `tries[i]` are the
-/// views read with the sheet's correction for the thickness [`sheet_tries`]`()[i]`; the views
+/// views read with the sheet's correction for the thickness [`thickness_tries`]`()[i]`; the views
 /// are registered once without a correction (`tries[0]`), then refined from those poses with
 /// each thickness's views and their disagreement measured; the least, refined by a parabola
 /// through it and its neighbours, is the thickness found.
 ///
 /// # Errors
-/// As [`run`]'s registration; [`MergeError::SheetTries`] when `tries` is not one set of views
-/// per thickness; [`MergeError::NoSheet`] when the views nowhere overlap.
-pub fn find_sheet(
+/// As [`run`]'s registration; [`MergeError::ThicknessTries`] when `tries` is not one set of views
+/// per thickness; [`MergeError::NoThickness`] when the views nowhere overlap.
+pub fn find_thickness(
     tries: &[Vec<View>],
     options: &MergeOptions,
     progress: &mut impl Progress,
-) -> Result<SheetSearch, MergeError> {
+) -> Result<ThicknessSearch, MergeError> {
     options.check()?;
-    let sigmas = sheet_tries();
+    let sigmas = thickness_tries();
     if tries.len() != sigmas.len() {
-        return Err(MergeError::SheetTries {
+        return Err(MergeError::ThicknessTries {
             views: tries.len(),
             tries: sigmas.len(),
         });
@@ -367,19 +367,19 @@ pub fn find_sheet(
     let o = options.register();
     let registered =
         crate::pose::register_views(&tries[0], &o, options.turntable_deg, |done, of| {
-            progress.stage(Stage::SheetRegistering { done, of });
+            progress.stage(Stage::ThicknessRegistering { done, of });
         })?;
     let mut tried = Vec::with_capacity(sigmas.len());
     for (i, (&sigma_mm, views)) in sigmas.iter().zip(tries).enumerate() {
         let mut results = registered.clone();
         crate::refine::refine_views(views, &mut results, &o, |_| {
-            progress.stage(Stage::SheetRefining {
+            progress.stage(Stage::ThicknessRefining {
                 sigma_mm,
                 tried: i + 1,
                 of: sigmas.len(),
             });
         });
-        tried.push(SheetTry {
+        tried.push(ThicknessTry {
             sigma_mm,
             disagreement_mm: crate::refine::disagreement(views, &results),
         });
@@ -388,10 +388,10 @@ pub fn find_sheet(
         .iter()
         .map(|t| (t.sigma_mm, t.disagreement_mm.unwrap_or(f64::NAN)))
         .collect();
-    let best = crate::refine::best_sheet(&measured).ok_or(MergeError::NoSheet {
+    let best = crate::refine::best_thickness(&measured).ok_or(MergeError::NoThickness {
         agree_mm: crate::refine::AGREE_MM,
     })?;
-    Ok(SheetSearch {
+    Ok(ThicknessSearch {
         sigma_mm: best,
         tried,
         at_thickest: best >= sigmas[sigmas.len() - 1],

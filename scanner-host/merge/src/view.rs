@@ -14,9 +14,9 @@ use crate::spatial::{Cloud, thin_with};
 /// 49 000 points merge in 8 s instead of 21, `cargo bench -p scanner-merge --bench merge`).
 const THIN_MM: f64 = 0.75;
 
-/// Points at least this clear of their view's edges ([`View::clear`]) register; the others
+/// Points at least this clear of their view's edges ([`View::clearance`]) register; the others
 /// only fill in the fusion where nothing better saw the surface.
-pub(crate) const CLEAR: f64 = 0.5;
+pub(crate) const MIN_CLEARANCE: f64 = 0.5;
 
 /// One view: its points in its own camera frame (mm), thinned.
 #[derive(Debug, Clone)]
@@ -33,13 +33,13 @@ pub struct View {
     /// it that lie away from an occluding edge, a shadow's border or the view's outline; 0 on an
     /// edge, 1 clear of it. The joint refinement pairs only points at least half clear; the
     /// fusion weighs them by it.
-    pub clear: Vec<f64>,
+    pub clearance: Vec<f64>,
     /// Each point's standard uncertainty, mm (empty: the scan carried none).
     pub sigma: Vec<f64>,
     /// With the laser sheet's correction: the samples it moved, of all; `None`: not asked.
     pub sheet_moved: Option<(u64, u64)>,
     /// The turntable disc's pose in this view's camera frame (disc → camera), when its head
-    /// found the disc: the merge then poses it by the disc ([`crate::pose::disc`]).
+    /// found the disc: the merge then poses it by the disc ([`crate::pose`]).
     pub disc: Option<Isometry3<f64>>,
     /// What the view saw beyond the object, its camera frame (mm): the points on and under the
     /// disc's plane (the disc, the table it lies on), left out of the view's surface. Only the
@@ -49,22 +49,22 @@ pub struct View {
 
 /// What a view is read from, before it is thinned ([`View::new`]).
 #[derive(Debug, Clone, Default)]
-pub struct Surface {
+pub struct ScanPoints {
     /// Points and unit normals, the view's camera frame.
     pub cloud: Cloud,
     /// Colours, one per point, or none.
     pub colours: Vec<[u8; 3]>,
-    /// Each point's share clear of the view's edges ([`View::clear`]), one per point, or none
+    /// Each point's share clear of the view's edges ([`View::clearance`]), one per point, or none
     /// (all clear).
-    pub clear: Vec<f64>,
+    pub clearance: Vec<f64>,
     /// Each point's standard uncertainty, mm, one per point, or none.
     pub sigma: Vec<f64>,
 }
 
-impl Surface {
+impl ScanPoints {
     /// The surface with only the points `keep` (indices, in order); a list of another length
     /// than the points (none given) stays empty.
-    pub fn subset(&self, keep: &[usize]) -> Surface {
+    pub fn subset(&self, keep: &[usize]) -> ScanPoints {
         let n = self.cloud.points.len();
         let pick = |v: &[f64]| -> Vec<f64> {
             if v.len() == n {
@@ -73,7 +73,7 @@ impl Surface {
                 Vec::new()
             }
         };
-        Surface {
+        ScanPoints {
             cloud: Cloud {
                 points: keep.iter().map(|&i| self.cloud.points[i]).collect(),
                 normals: keep.iter().map(|&i| self.cloud.normals[i]).collect(),
@@ -83,7 +83,7 @@ impl Surface {
             } else {
                 Vec::new()
             },
-            clear: pick(&self.clear),
+            clearance: pick(&self.clearance),
             sigma: pick(&self.sigma),
         }
     }
@@ -95,23 +95,23 @@ impl View {
     pub fn new(
         name: impl Into<String>,
         header: Header,
-        surface: &Surface,
+        surface: &ScanPoints,
         sheet_moved: Option<(u64, u64)>,
     ) -> View {
         let (cloud, colours, mut values) = thin_with(
             &surface.cloud,
             &surface.colours,
-            &[&surface.clear, &surface.sigma],
+            &[&surface.clearance, &surface.sigma],
             THIN_MM,
         );
         let sigma = values.pop().unwrap_or_default();
-        let clear = values.pop().unwrap_or_default();
+        let clearance = values.pop().unwrap_or_default();
         View {
             name: name.into(),
             header,
             cloud,
             colours,
-            clear,
+            clearance,
             sigma,
             sheet_moved,
             disc: None,
@@ -122,10 +122,10 @@ impl View {
     /// Whether point `i` lies at least half clear of the view's edges (a point without a share
     /// counts as clear).
     pub(crate) fn is_clear(&self, i: usize) -> bool {
-        self.clear.get(i).is_none_or(|&c| c >= CLEAR)
+        self.clearance.get(i).is_none_or(|&c| c >= MIN_CLEARANCE)
     }
 
-    /// The view's points clear of its edges (`CLEAR`; all of them when fewer than half are:
+    /// The view's points clear of its edges (`MIN_CLEARANCE`; all of them when fewer than half are:
     /// a view that is all edge registers as it is).
     pub fn clear_cloud(&self) -> Cloud {
         let keep: Vec<usize> = (0..self.cloud.points.len())
@@ -142,17 +142,17 @@ impl View {
 
     /// The view with only the points `keep` (indices, in order).
     pub(crate) fn subset(&self, keep: &[usize]) -> View {
-        let s = Surface {
+        let s = ScanPoints {
             cloud: self.cloud.clone(),
             colours: self.colours.clone(),
-            clear: self.clear.clone(),
+            clearance: self.clearance.clone(),
             sigma: self.sigma.clone(),
         }
         .subset(keep);
         View {
             cloud: s.cloud,
             colours: s.colours,
-            clear: s.clear,
+            clearance: s.clearance,
             sigma: s.sigma,
             ..self.clone()
         }
@@ -222,7 +222,7 @@ impl View {
                 method: scanner_wire::PlaneMethod::LeastSquares,
             },
             colours: Vec::new(),
-            clear: Vec::new(),
+            clearance: Vec::new(),
             sigma: Vec::new(),
             sheet_moved: None,
             disc: None,

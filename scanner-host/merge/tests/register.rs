@@ -260,13 +260,14 @@ fn noisy_chain(sigma: f64) -> (Vec<Cloud>, Vec<Isometry3<f64>>, Vec<Isometry3<f6
 /// turn's angle stays).
 #[test]
 fn views_on_a_turntable_are_refined_as_turns_about_one_axis() {
-    use scanner_merge::refine::{HINTED, Turns, refine, refine_turns};
+    use scanner_merge::refine::{GIVEN_STEP, Turns, refine, refine_turns};
     let (clouds, chain, truth) = noisy_chain(0.15);
     let refs: Vec<&Cloud> = clouds.iter().collect();
     let free = refine(&refs, &chain, 3.0, 8, |_| {});
-    let start = Turns::fit(&chain, &[true; 6], HINTED).expect("six views turned about one axis");
+    let start =
+        Turns::fit(&chain, &[true; 6], GIVEN_STEP).expect("six views turned about one axis");
     assert_eq!(start.views, [1, 2, 3, 4, 5]);
-    assert!(Turns::fit(&chain, &[false, true, true, true, true, true], HINTED).is_none());
+    assert!(Turns::fit(&chain, &[false, true, true, true, true, true], GIVEN_STEP).is_none());
     // A view flagged on the turntable that is not one of its turns (laid on its side, 90° about
     // the camera's z; or turned 3° off the axis) is left out of them.
     {
@@ -279,7 +280,7 @@ fn views_on_a_turntable_are_refined_as_turns_about_one_axis() {
         ));
         let tilt = UnitQuaternion::from_axis_angle(&Vector3::x_axis(), 3f64.to_radians());
         poses[2] = Isometry3::from_parts(poses[2].translation, tilt * poses[2].rotation);
-        let fitted = Turns::fit(&poses, &[true; 7], HINTED).expect("the others are turns");
+        let fitted = Turns::fit(&poses, &[true; 7], GIVEN_STEP).expect("the others are turns");
         assert_eq!(fitted.views, [1, 3, 4, 5]);
     }
     let (turned, turns) = refine_turns(&refs, &chain, Some(start), 3.0, 8, |_| {});

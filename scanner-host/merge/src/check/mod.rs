@@ -1,8 +1,8 @@
 //! The third stage: the plausibility checks of the registered views, before anything is fused.
 //! Each refuses the merge (no model is written) with the views and figures that failed it:
-//! views posed by the disc that see through each other ([`disc`]: the object moved on it), loops
-//! of views that do not close ([`loops`]), points where another view saw empty space
-//! ([`free_space`]).
+//! views posed by the disc that see through each other (`disc`: the object moved on it), loops
+//! of views that do not close (`loops`), points where another view saw empty space
+//! (`free_space`).
 
 mod disc;
 mod free_space;

@@ -1,17 +1,17 @@
 //! The last stage, the fusion into one model. What it takes from the registered views — their points in view 0's frame, less
 //! the isolated ones and the edge points that another view's clear surface or the winding
 //! number of all contradicts, each weighed by how clear of its view's edges it lies — and the
-//! fusion of them into one model ([`crate::fuse::surface`]), its unseen surface closed as asked.
+//! fusion of them into one model (`crate::fuse::surface`), its unseen surface closed as asked.
 
 pub(crate) mod hull;
 mod surface;
 mod winding;
 
-pub(crate) use surface::{AFLOAT_MARGIN, colour_from};
 pub use surface::{
-    Fill, HalfSpace, MeshCheck, Model, afloat, area, area_on, area_share, check, fuse, fuse_cut,
-    fuse_filled, fuse_with, inliers, trim, unseen_faces,
+    Fill, HalfSpace, MeshCheck, Model, area, area_on, area_share, check, fuse, fuse_cut,
+    fuse_filled, fuse_with, inliers, off_surface, trim, unseen_faces,
 };
+pub(crate) use surface::{OFF_SURFACE_MARGIN, colour_from};
 pub use winding::Winding;
 
 use scanner_core::nalgebra::{Isometry3, Point3, Vector3};
@@ -77,14 +77,14 @@ pub struct FusionInput {
     /// (`contradicted_edges`).
     pub contradicted: usize,
     /// Points on views' edges left out: clearly off the surface all the points wind around
-    /// ([`crate::fuse::afloat`]).
-    pub afloat: usize,
+    /// ([`crate::fuse::off_surface`]).
+    pub off_surface: usize,
     /// The median of the views' points' standard uncertainties, mm (0 when the views carried
     /// none).
     pub sigma_mm: f64,
 }
 
-/// A point on a view's edge ([`View::clear`] under [`crate::view::CLEAR`]) is not fused when a point clear
+/// A point on a view's edge ([`View::clearance`] under [`crate::view::MIN_CLEARANCE`]) is not fused when a point clear
 /// of another view's edges lies within [`CONFIRM_MM`] of it and it lies more than this off that
 /// point's tangent plane, mm: the stripe cut at an occluding edge placed it off the surface that
 /// the other view saw clear (on the 360° demo 0.1–0.15 mm is the median error of edge points,
@@ -95,12 +95,12 @@ const EDGE_OFF_MM: f64 = 0.4;
 const CONFIRM_MM: f64 = 2.0;
 
 /// For every point of every view (views in order, as [`registered_points`] lists them), whether
-/// it lies on its view's edge ([`View::clear`] under [`crate::view::CLEAR`]) and, at the merged poses, more
+/// it lies on its view's edge ([`View::clearance`] under [`crate::view::MIN_CLEARANCE`]) and, at the merged poses, more
 /// than [`EDGE_OFF_MM`] off the tangent plane of the nearest point clear of another view's edges
 /// within [`CONFIRM_MM`] ([`contradicted`]).
 pub(crate) fn contradicted_edges(views: &[View], poses: &[Isometry3<f64>]) -> Vec<bool> {
     let clouds: Vec<&Cloud> = views.iter().map(|v| &v.cloud).collect();
-    let clear: Vec<&[f64]> = views.iter().map(|v| &v.clear[..]).collect();
+    let clear: Vec<&[f64]> = views.iter().map(|v| &v.clearance[..]).collect();
     contradicted(&clouds, &clear, poses)
 }
 
@@ -108,7 +108,11 @@ pub(crate) fn contradicted_edges(views: &[View], poses: &[Isometry3<f64>]) -> Ve
 /// their points' shares clear of the edges `clear` (a missing share counts as clear). An edge
 /// point no other view saw clear stays.
 pub fn contradicted(clouds: &[&Cloud], clear: &[&[f64]], poses: &[Isometry3<f64>]) -> Vec<bool> {
-    let is_clear = |k: usize, i: usize| clear[k].get(i).is_none_or(|&c| c >= crate::view::CLEAR);
+    let is_clear = |k: usize, i: usize| {
+        clear[k]
+            .get(i)
+            .is_none_or(|&c| c >= crate::view::MIN_CLEARANCE)
+    };
     // each view's clear points (indices into its cloud) and their tree, in its own frame
     let judges: Vec<(Vec<usize>, kiddo::KdTree<f64, 3>)> = clouds
         .iter()
@@ -158,8 +162,8 @@ pub fn edge_weight(clear: Option<f64>) -> f64 {
 
 /// Which of the registered `points` (with `normals` and fusion `weights`) are fused: not
 /// isolated ([`crate::fuse::inliers`]), not `contradicted` ([`contradicted`]), and of the edge
-/// points left not afloat ([`crate::fuse::afloat`]). Returns their indices and how many were
-/// afloat.
+/// points left not off_surface ([`crate::fuse::off_surface`]). Returns their indices and how many were
+/// off_surface.
 pub fn fused_points(
     points: &[Point3<f64>],
     normals: &[Vector3<f64>],
@@ -173,19 +177,19 @@ pub fn fused_points(
     let pick = |i: &usize| (points[*i], normals[*i], weights[*i]);
     let (p, (n, w)): (Vec<_>, (Vec<_>, Vec<_>)) =
         kept.iter().map(pick).map(|(p, n, w)| (p, (n, w))).unzip();
-    let afloat = crate::fuse::afloat(&p, &n, &w);
+    let off_surface = crate::fuse::off_surface(&p, &n, &w);
     let keep = kept
         .iter()
-        .zip(&afloat)
+        .zip(&off_surface)
         .filter(|(_, a)| !**a)
         .map(|(&i, _)| i)
         .collect();
-    (keep, afloat.iter().filter(|&&a| a).count())
+    (keep, off_surface.iter().filter(|&&a| a).count())
 }
 
 /// [`registered_points`] without isolated points and without the edge points that another view's
 /// clear surface contradicts ([`contradicted_edges`]) or that float off the surface of all the
-/// points ([`crate::fuse::afloat`]), with their view colours.
+/// points ([`crate::fuse::off_surface`]), with their view colours.
 pub(crate) fn fusion_input(views: &[View], poses: &[Isometry3<f64>]) -> FusionInput {
     let (points, normals) = registered_points(views, poses);
     let off = contradicted_edges(views, poses);
@@ -203,15 +207,15 @@ pub(crate) fn fusion_input(views: &[View], poses: &[Isometry3<f64>]) -> FusionIn
     };
     let weights: Vec<f64> = views
         .iter()
-        .flat_map(|v| (0..v.cloud.points.len()).map(|i| edge_weight(v.clear.get(i).copied())))
+        .flat_map(|v| (0..v.cloud.points.len()).map(|i| edge_weight(v.clearance.get(i).copied())))
         .collect();
-    let (keep, afloat) = fused_points(&points, &normals, &weights, &off);
+    let (keep, off_surface) = fused_points(&points, &normals, &weights, &off);
     let mut sigma: Vec<f64> = views.iter().flat_map(|v| v.sigma.iter().copied()).collect();
     sigma.sort_by(f64::total_cmp);
     FusionInput {
         sigma_mm: sigma.get(sigma.len() / 2).copied().unwrap_or(0.0),
         contradicted: off.iter().filter(|&&o| o).count(),
-        afloat,
+        off_surface,
         weights: keep.iter().map(|&i| weights[i]).collect(),
         points: keep.iter().map(|&i| points[i]).collect(),
         normals: keep.iter().map(|&i| normals[i]).collect(),
@@ -255,10 +259,10 @@ pub struct FusionFigures {
     /// The distance off that surface that leaves an edge point out, mm.
     pub edge_off_mm: f64,
     /// Points on the views' edges left out: where the winding number of all the points is
-    /// more than `afloat_margin` from ½.
-    pub afloat: usize,
+    /// more than `off_surface_margin` from ½.
+    pub off_surface: usize,
     /// That margin.
-    pub afloat_margin: f64,
+    pub off_surface_margin: f64,
     /// How the unseen surface was closed.
     pub closing: Closing,
     /// Surface farther than this from every point counts as unseen, mm.
@@ -361,8 +365,8 @@ pub(crate) fn fuse_views(
     let figures = FusionFigures {
         contradicted: input.contradicted,
         edge_off_mm: EDGE_OFF_MM,
-        afloat: input.afloat,
-        afloat_margin: crate::fuse::AFLOAT_MARGIN,
+        off_surface: input.off_surface,
+        off_surface_margin: crate::fuse::OFF_SURFACE_MARGIN,
         closing,
         unseen_reach_mm: reach,
         unseen_share,
@@ -387,7 +391,7 @@ mod tests {
         let normals = vec![Vector3::new(0.0, 0.0, -1.0); points.len()];
         let cloud: Vec<Point3<f64>> = points.iter().map(|p| p.0).collect();
         View {
-            clear: points.iter().map(|p| p.1).collect(),
+            clearance: points.iter().map(|p| p.1).collect(),
             ..View::for_tests(&cloud, &normals)
         }
     }

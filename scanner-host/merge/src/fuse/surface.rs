@@ -6,7 +6,7 @@
 //! points' generalized winding number's ([`crate::fuse::winding`]): inside where it exceeds ½, which
 //! closes the gaps the views left with a smooth patch instead of letting tangent planes run on
 //! as sheets. Points that are less sure (`SURE`: on a view's edge) do not set the side against
-//! a clear verdict of the winding number ([`afloat`]). Checked after: edges in exactly two
+//! a clear verdict of the winding number ([`off_surface`]). Checked after: edges in exactly two
 //! faces, fans around vertices, components, the enclosed volume; [`unseen_faces`] says which
 //! surface no view saw (for the report, or [`trim`]).
 
@@ -53,7 +53,7 @@ const MIN_PIECE: f64 = 0.02;
 const NEIGHBOURS: usize = 8;
 /// Grid points within this many cells of a point (and over it) take its signed distance.
 const BAND: f64 = 2.0;
-/// Points of a smaller weight are less sure ([`afloat`]; `merge` gives the points on a view's
+/// Points of a smaller weight are less sure ([`off_surface`]; `merge` gives the points on a view's
 /// edge 0.05).
 const SURE: f64 = 0.5;
 
@@ -247,14 +247,14 @@ pub fn fuse_filled(
             }
             let signed = (sum / wsum) as f32;
             // Beside a less sure point its plane does not set the side where the winding number
-            // of all the points clearly says the other ([`afloat`]'s rule for the grid point):
+            // of all the points clearly says the other ([`off_surface`]'s rule for the grid point):
             // a stray point that stayed raises no bead of surface of its own.
             if weights[p] < SURE {
                 let w = wound();
                 let against = if signed >= 0.0 {
-                    w > 0.5 + AFLOAT_MARGIN
+                    w > 0.5 + OFF_SURFACE_MARGIN
                 } else {
-                    w < 0.5 - AFLOAT_MARGIN
+                    w < 0.5 - OFF_SURFACE_MARGIN
                 };
                 if against {
                     return (closing(w), None);
@@ -362,12 +362,12 @@ fn volume(m: &Model) -> f64 {
 }
 
 /// How far from ½ the winding number of all the points may be where a less sure point lies
-/// ([`afloat`]).
-pub(crate) const AFLOAT_MARGIN: f64 = 0.35;
+/// ([`off_surface`]).
+pub(crate) const OFF_SURFACE_MARGIN: f64 = 0.35;
 
 /// For each point, whether it is less sure (weight under `SURE`) and the generalized winding
 /// number of all the points puts it clearly inside or outside the surface they wind around (more
-/// than `AFLOAT_MARGIN` from ½, where a point on the surface has about ½). A stripe cut by
+/// than `OFF_SURFACE_MARGIN` from ½, where a point on the surface has about ½). A stripe cut by
 /// an occluding edge places a point up to 2 mm off the surface, mostly nearer the camera; its
 /// plane would raise a bead of surface of its own, and where no other view saw the surface clear
 /// nothing else contradicts it ([`crate::fuse::contradicted`]). The margin is wide because
@@ -377,7 +377,7 @@ pub(crate) const AFLOAT_MARGIN: f64 = 0.35;
 /// 0.16 %); at 0.40 fewer strays go and the clean scenes' volumes came out 0.53–0.59 % large
 /// (docs/reports.md). The fusion applies the same rule to the grid points beside the less sure
 /// points that stay.
-pub fn afloat(points: &[Point3<f64>], normals: &[Vector3<f64>], weights: &[f64]) -> Vec<bool> {
+pub fn off_surface(points: &[Point3<f64>], normals: &[Vector3<f64>], weights: &[f64]) -> Vec<bool> {
     let sure = |i: usize| weights.get(i).is_none_or(|&w| w >= SURE);
     if (0..points.len()).all(sure) {
         return vec![false; points.len()];
@@ -388,7 +388,7 @@ pub fn afloat(points: &[Point3<f64>], normals: &[Vector3<f64>], weights: &[f64])
     points
         .iter()
         .enumerate()
-        .map(|(i, p)| !sure(i) && (winding.at(p) - 0.5).abs() > AFLOAT_MARGIN)
+        .map(|(i, p)| !sure(i) && (winding.at(p) - 0.5).abs() > OFF_SURFACE_MARGIN)
         .collect()
 }
 
@@ -930,14 +930,14 @@ mod tests {
         let (points, normals): (Vec<_>, Vec<_>) = cloud.into_iter().unzip();
         let mut weights = vec![1.0; sure];
         weights.extend([0.05; 3]);
-        let off = afloat(&points, &normals, &weights);
+        let off = off_surface(&points, &normals, &weights);
         assert!(
             off[..sure].iter().all(|&o| !o),
-            "sure points are never afloat"
+            "sure points are never off_surface"
         );
         assert_eq!(&off[sure..], &[false, true, true]);
         // All sure (or no weights): none.
-        assert!(afloat(&points, &normals, &[]).iter().all(|&o| !o));
+        assert!(off_surface(&points, &normals, &[]).iter().all(|&o| !o));
         // The upper half only, its rim less sure: the winding number there falls towards ¼
         // (the hole is as wide as the object), and the rim stays.
         let half = sphere(30.0, 6000, |d| d.y > 0.0);
@@ -948,7 +948,7 @@ mod tests {
             .collect();
         let rim = weights.iter().filter(|&&w| w < 1.0).count();
         assert!(rim > 50);
-        let off = afloat(&points, &normals, &weights);
+        let off = off_surface(&points, &normals, &weights);
         assert_eq!(off.iter().filter(|&&o| o).count(), 0, "of {rim} rim points");
     }
 

@@ -1,13 +1,13 @@
 //! The first stage: the views' poses. By the turntable disc where two or more views carry its
-//! pose ([`disc`]), otherwise by the views' shapes: every pair of views registered into
-//! candidate motions ([`register`]), the candidates
-//! that agree around the loops of views chosen together ([`crate::pose::select`]), then each view
+//! pose (`disc`), otherwise by the views' shapes: every pair of views registered into
+//! candidate motions (`register`), the candidates
+//! that agree around the loops of views chosen together (`crate::pose::select`), then each view
 //! fitted finely onto the view it was placed from. A choice whose views contradict each other's
 //! free space ([`crate::free`]) is made again without its weakest link.
 
+mod consensus;
 pub(crate) mod disc;
 mod register;
-mod select;
 pub(crate) mod still;
 
 pub use register::{
@@ -18,7 +18,7 @@ pub use register::{
 use scanner_core::nalgebra::{Isometry3, Point3};
 
 use crate::error::{MergeError, RegisterError};
-use crate::pose::select::Edge;
+use crate::pose::consensus::Edge;
 use crate::spatial::Cloud;
 use crate::view::View;
 
@@ -235,7 +235,7 @@ pub fn register_clouds(
     loop {
         let live: Vec<usize> = (0..edges.len()).filter(|&i| !dropped[i]).collect();
         let live_edges: Vec<Edge> = live.iter().map(|&i| edges[i]).collect();
-        let choice = crate::pose::select::choose(n, &live_edges, &centres, o.voxel_mm);
+        let choice = crate::pose::consensus::choose(n, &live_edges, &centres, o.voxel_mm);
         if let Some(k) = choice.poses.iter().position(Option::is_none) {
             if let Some(first) = first_implausible.take() {
                 return Ok(first);
@@ -407,10 +407,11 @@ fn fine_tree(
     Ok((out.into_iter().flatten().collect(), by))
 }
 
-/// Whether `pose`'s rotation agrees with one of `hints`' (within [`crate::pose::select::AGREE_DEG`]).
+/// Whether `pose`'s rotation agrees with one of `hints`' (within [`crate::pose::consensus::AGREE_DEG`]).
 fn agrees_with_hint(pose: &Isometry3<f64>, hints: &[Isometry3<f64>]) -> bool {
     hints.iter().any(|h| {
-        (h.rotation.inverse() * pose.rotation).angle() < crate::pose::select::AGREE_DEG.to_radians()
+        (h.rotation.inverse() * pose.rotation).angle()
+            < crate::pose::consensus::AGREE_DEG.to_radians()
     })
 }
 
@@ -475,7 +476,7 @@ mod tests {
 
     #[test]
     fn a_turntables_step_decides_between_its_views_and_leaves_a_view_turned_by_hand_alone() {
-        use crate::pose::select::{Edge, tests::turn};
+        use crate::pose::consensus::{Edge, tests::turn};
         let edge = |from, to, deg, fit| Edge {
             from,
             to,

@@ -104,7 +104,7 @@ pub struct TurnTolerance {
 
 /// With a turntable's step (`--turntable`): the registration's poses are within about 0.2°, and
 /// by a step's coincidence a view turned over by hand can agree with the step.
-pub const HINTED: TurnTolerance = TurnTolerance {
+pub const GIVEN_STEP: TurnTolerance = TurnTolerance {
     axis_deg: 2.0,
     off_deg: 1.0,
     off_mm: 3.0,

@@ -1,4 +1,4 @@
-//! The second stage: all views refined together from the poses the first found ([`clouds`]: the
+//! The second stage: all views refined together from the poses the first found (`clouds`: the
 //! joint refinement of point clouds),
 //! and the loop-closure check of the result; the laser sheet's thickness where the views agree
 //! best.
@@ -7,7 +7,7 @@ mod clouds;
 
 pub(crate) use clouds::{AGREE_MM, surface_gap};
 pub use clouds::{
-    HINTED, LoopError, TurnTolerance, Turns, found_turns, loop_error, refine, refine_turns,
+    GIVEN_STEP, LoopError, TurnTolerance, Turns, found_turns, loop_error, refine, refine_turns,
 };
 
 use scanner_core::nalgebra::Isometry3;
@@ -61,7 +61,7 @@ pub(crate) fn refine_views(
     let before = closure(&poses);
     // Views on a turntable (view 0 among them) stay turns about one axis.
     let on: Vec<bool> = results.iter().map(|r| r.on_turntable).collect();
-    let hinted = crate::refine::Turns::fit(&poses, &on, crate::refine::HINTED);
+    let hinted = crate::refine::Turns::fit(&poses, &on, crate::refine::GIVEN_STEP);
     let (joint, turns) = if hinted.is_some() {
         refine_turns(&clouds, &poses, hinted, o.voxel_mm, ROUNDS, progress)
     } else {
@@ -88,7 +88,7 @@ pub(crate) fn refine_views(
 
 /// The laser sheet's thicknesses (σ, mm) `merge --sheet auto` tries: from none to twice the
 /// thickest a scanning line laser's line usually is (a line 5.7 mm wide at half its brightness).
-pub(crate) const SHEET_TRIES: [f64; 7] = [0.0, 0.2, 0.4, 0.6, 0.8, 1.0, 1.2];
+pub(crate) const THICKNESS_TRIES: [f64; 7] = [0.0, 0.2, 0.4, 0.6, 0.8, 1.0, 1.2];
 
 /// How far the views' surfaces lie apart where they overlap ([`crate::refine::surface_gap`] of
 /// their points clear of their edges, placed by `results`); `None` where no view overlaps
@@ -110,7 +110,7 @@ pub(crate) fn disagreement(views: &[View], results: &[ViewResult]) -> Option<f64
 /// order, so the squared disagreement is a parabola in σ² where the bias dominates), its vertex
 /// kept between the neighbours; at either end of the list, that end. `None` when no thickness
 /// was measured.
-pub(crate) fn best_sheet(tried: &[(f64, f64)]) -> Option<f64> {
+pub(crate) fn best_thickness(tried: &[(f64, f64)]) -> Option<f64> {
     let (i, _) = tried
         .iter()
         .enumerate()
@@ -138,16 +138,16 @@ mod tests {
     fn best_sheet_is_the_parabola_vertex_inside_the_grid_and_the_end_outside() {
         // the squared disagreement a parabola in σ², least at σ 0.57 mm
         let d = |s: f64| (0.01 + (s * s - 0.57f64.powi(2)).powi(2)).sqrt();
-        let tried: Vec<(f64, f64)> = SHEET_TRIES.iter().map(|&s| (s, d(s))).collect();
-        let best = best_sheet(&tried).unwrap();
+        let tried: Vec<(f64, f64)> = THICKNESS_TRIES.iter().map(|&s| (s, d(s))).collect();
+        let best = best_thickness(&tried).unwrap();
         assert!((best - 0.57).abs() < 1e-9, "{best}");
         // falling all the way: the thickest tried
-        let falling: Vec<(f64, f64)> = SHEET_TRIES.iter().map(|&s| (s, 1.0 - s)).collect();
-        assert_eq!(best_sheet(&falling), Some(1.2));
+        let falling: Vec<(f64, f64)> = THICKNESS_TRIES.iter().map(|&s| (s, 1.0 - s)).collect();
+        assert_eq!(best_thickness(&falling), Some(1.2));
         // a measurement missing where it would be least is passed over
         let mut gap = tried.clone();
         gap[3].1 = f64::NAN;
-        assert!(best_sheet(&gap).is_some_and(|b| (0.4..=0.8).contains(&b)));
-        assert_eq!(best_sheet(&[]), None);
+        assert!(best_thickness(&gap).is_some_and(|b| (0.4..=0.8).contains(&b)));
+        assert_eq!(best_thickness(&[]), None);
     }
 }

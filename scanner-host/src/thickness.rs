@@ -234,13 +234,13 @@ pub fn shifted(p: &Point3<f64>, m: &Vector3<f64>, rows: f64, fy: f64) -> Option<
 /// sweep turns the sheet about one line (the source's), so along that line the planes say little;
 /// there the point nearest the camera is taken. Sums of the planes only: fixed memory.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
-pub struct Pencil {
+pub struct LaserOrigin {
     a: Matrix3<f64>,
     b: Vector3<f64>,
     planes: usize,
 }
 
-impl Pencil {
+impl LaserOrigin {
     /// Adds a frame's plane `n·x + d = 0` (`[nx, ny, nz, d]`, `n` a unit vector); others are
     /// ignored.
     pub fn add(&mut self, plane: [f32; 4]) {
@@ -530,7 +530,7 @@ mod tests {
         // camera's centre's, 0, is taken; turned by ±10° they fix it.
         let source = Point3::new(20.0, -150.0, 30.0);
         for roll_deg in [0.0f64, 1.5, 10.0] {
-            let mut pencil = Pencil::default();
+            let mut pencil = LaserOrigin::default();
             for i in 0..60 {
                 let aim = Point3::new(0.0, -150.0 + 380.0 * i as f64 / 59.0, 800.0);
                 let roll = (roll_deg * if i % 2 == 0 { 1.0 } else { -1.0 }).to_radians();
@@ -546,7 +546,7 @@ mod tests {
                 "roll {roll_deg}°: {found}"
             );
         }
-        assert_eq!(Pencil::default().source(), None);
+        assert_eq!(LaserOrigin::default().source(), None);
     }
 
     #[test]
