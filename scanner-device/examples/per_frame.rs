@@ -77,7 +77,7 @@ fn prepare(dir: &Path, size: &str) -> Result<(), String> {
     }
     for (name, y, c) in &picked {
         std::fs::write(dir.join(format!("{name}.yuyv")), &y.data).map_err(|e| e.to_string())?;
-        let jpeg = scanner_rig::mjpeg(&c.data, w, h, 90)?;
+        let jpeg = scanner_rig::mjpeg(&c.data, w, h, 90).map_err(|e| e.to_string())?;
         std::fs::write(dir.join(format!("{name}.jpg")), jpeg).map_err(|e| e.to_string())?;
     }
     std::fs::write(dir.join("size"), format!("{w}x{h}")).map_err(|e| e.to_string())?;

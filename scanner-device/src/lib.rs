@@ -8,9 +8,11 @@
 //! in them), the link to the host ([`link`]) and the command line ([`cli`]: scan, preview, and
 //! the calibration and rig commands, which call `scanner-calib` and `scanner-rig`).
 //!
-//! The arrows run one way: `cli` → `preview` → `session` → `source`, `link` → `scanner-core`; `cli` →
-//! `scanner-calib` (and `scanner-rig` with the feature). Nothing here is imported by the crates
-//! it uses.
+//! The arrows run one way: `cli` → `preview` → `session` → [`axis`] (which way the stripe runs)
+//! → `source`, `link` → `scanner-core`. The head uses `scanner-calib` for what it finds in a
+//! picture (the preview's dots, the session's turntable disc) and the CLI for its procedures;
+//! `scanner-rig` with the feature; image and text files come through `scanner-io`. Nothing here
+//! is imported by the crates it uses.
 //!
 //! # Layers
 //! Each module uses only modules on its own line or below (`tests/tests/layers.rs` checks it):
@@ -18,6 +20,7 @@
 //! cli
 //! preview
 //! session
+//! axis
 //! source  link
 //! ```
 #![deny(missing_docs)]
@@ -37,6 +40,7 @@ pub fn error_chain(e: &dyn std::error::Error) -> String {
     text
 }
 
+pub mod axis;
 pub mod cli;
 pub mod link;
 pub mod preview;

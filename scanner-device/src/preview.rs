@@ -247,7 +247,7 @@ impl<'c> Work<'c> {
             .collect();
         // The line against the reference, and which way it runs.
         if let (true, Some(r)) = (self.opts.find_axis, reference)
-            && let Ok(axis) = crate::source::stripe_axis(frame, r, &self.opts.head.stripe)
+            && let Ok(axis) = crate::axis::stripe_axis(frame, r, &self.opts.head.stripe)
         {
             self.axis = axis;
         }

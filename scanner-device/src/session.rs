@@ -35,7 +35,7 @@ pub struct ScanOptions {
     pub status_every: u32,
     /// Scan id (random per scan unless given).
     pub scan_id: u32,
-    /// Find which way the stripe runs from the first laser frame ([`crate::source::stripe_axis`])
+    /// Find which way the stripe runs from the first laser frame ([`crate::axis::stripe_axis`])
     /// instead of taking `head.stripe.axis`.
     pub find_axis: bool,
     /// Look for this turntable disc in the reference frame and send its pose after each header.
@@ -86,7 +86,7 @@ pub enum SessionError {
     FirstFrame(#[source] SourceError),
     /// The first laser frame does not tell which way the stripe runs.
     #[error("{0}")]
-    Axis(String),
+    Axis(crate::axis::AxisError),
     /// A message did not fit its buffer (a bug: the buffers are sized for the largest).
     #[error("encoding a message")]
     Encode(#[source] scanner_wire::WireError),
@@ -704,7 +704,7 @@ pub fn run_scan_until(
     }
     let mut axis_seen = None;
     if let Some(frame) = &first {
-        match crate::source::stripe_axis(frame, &reference, &opts.head.stripe) {
+        match crate::axis::stripe_axis(frame, &reference, &opts.head.stripe) {
             Ok(axis) => axis_seen = Some(axis),
             Err(e) if opts.find_axis => return Err(SessionError::Axis(e)),
             Err(_) => {}

@@ -10,8 +10,9 @@ use std::path::{Path, PathBuf};
 
 use scanner_core::pipeline::{Head, HeadConfig};
 use scanner_core::stripe::{Axis, Method, PixelFormat, StripeConfig};
+use scanner_device::axis::stripe_axis;
 use scanner_device::source::convert::{CameraFormat, Converter};
-use scanner_device::source::{OwnedFrame, image_format, load_frame, stripe_axis};
+use scanner_device::source::{OwnedFrame, image_format, load_frame};
 
 const PAIRS: [&str; 2] = ["20220331_faa7cdf", "20220405_9eb8eaa"];
 

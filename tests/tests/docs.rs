@@ -102,12 +102,56 @@ fn links(text: &str) -> Vec<(usize, String, String)> {
     out
 }
 
-/// What the checker finds wrong with the figures of `docs` against the registry's text.
-fn figure_problems(docs: &[(String, String)], figures: &str) -> Vec<String> {
-    let mut problems = Vec::new();
-    let known = registry(figures, &mut problems);
+/// What the figure checker finds wrong.
+#[derive(Debug, Clone, PartialEq, Eq)]
+enum FigureProblem {
+    /// A row of the registry that is not one (its line and why).
+    Row(String),
+    /// A link to a figure the registry does not hold.
+    Unknown {
+        page: String,
+        line: usize,
+        id: String,
+    },
+    /// A link that shows another value than the registry's.
+    Differs {
+        page: String,
+        line: usize,
+        id: String,
+        shown: String,
+    },
+    /// A registered figure's value written out without its link.
+    Unlinked {
+        page: String,
+        line: usize,
+        id: String,
+    },
+    /// A registered figure no page states.
+    Unused(String),
+}
+
+/// Whether `value` stands in `line` at byte `at` as a figure of its own (not the end of a longer
+/// number or range, not the start of one).
+fn stands_alone(line: &str, at: usize, value: &str) -> bool {
+    let before = line[..at].chars().next_back();
+    let after = line[at + value.len()..].chars().next();
+    !before.is_some_and(|c| c.is_ascii_digit() || ".,–−+-".contains(c))
+        && !after.is_some_and(|c| c.is_ascii_digit())
+}
+
+/// What the checker finds wrong with the figures of `docs` against the registry's text: links to
+/// unknown figures or with other values, and a registered value written out anywhere — in a
+/// sentence or deep in a page's table — without its link.
+fn figure_problems(docs: &[(String, String)], figures: &str) -> Vec<FigureProblem> {
+    let mut rows = Vec::new();
+    let known = registry(figures, &mut rows);
+    let mut problems: Vec<FigureProblem> = rows.into_iter().map(FigureProblem::Row).collect();
     let mut used = BTreeSet::new();
     for (name, text) in docs {
+        if name.ends_with("figures.md") {
+            continue;
+        }
+        let mut linked_at: BTreeSet<(usize, String)> = BTreeSet::new();
         for (line, shown, target) in links(text) {
             let Some((file, id)) = target.split_once('#') else {
                 continue;
@@ -116,17 +160,56 @@ fn figure_problems(docs: &[(String, String)], figures: &str) -> Vec<String> {
                 continue;
             }
             used.insert(id.to_string());
+            linked_at.insert((line, shown.clone()));
             match known.get(id) {
-                None => problems.push(format!("{name}:{line}: no figure {id} in docs/figures.md")),
-                Some(value) if value != &shown => problems.push(format!(
-                    "{name}:{line}: figure {id} stated as {shown:?}, docs/figures.md gives {value:?}"
-                )),
+                None => problems.push(FigureProblem::Unknown {
+                    page: name.clone(),
+                    line,
+                    id: id.to_string(),
+                }),
+                Some(value) if value != &shown => problems.push(FigureProblem::Differs {
+                    page: name.clone(),
+                    line,
+                    id: id.to_string(),
+                    shown,
+                }),
                 Some(_) => {}
+            }
+        }
+        let mut fenced = false;
+        for (n, line) in text.lines().enumerate() {
+            if line.trim_start().starts_with("```") {
+                fenced = !fenced;
+            }
+            if fenced {
+                continue;
+            }
+            for (id, value) in &known {
+                // A bare count ("50") is too common a number to tell; a value with its unit is.
+                let has_unit = value
+                    .chars()
+                    .any(|c| !(c.is_ascii_digit() || c == '.' || c == ' '));
+                if !value.chars().any(|c| c.is_ascii_digit()) || !has_unit {
+                    continue;
+                }
+                let unlinked = line.match_indices(value.as_str()).any(|(at, _)| {
+                    let in_link = line[..at].ends_with('[')
+                        && line[at + value.len()..].starts_with("](")
+                        && linked_at.contains(&(n + 1, value.clone()));
+                    stands_alone(line, at, value) && !in_link
+                });
+                if unlinked {
+                    problems.push(FigureProblem::Unlinked {
+                        page: name.clone(),
+                        line: n + 1,
+                        id: id.clone(),
+                    });
+                }
             }
         }
     }
     for id in known.keys().filter(|id| !used.contains(*id)) {
-        problems.push(format!("docs/figures.md: figure {id} is stated nowhere"));
+        problems.push(FigureProblem::Unused(id.clone()));
     }
     problems
 }
@@ -140,7 +223,7 @@ fn every_figure_is_stated_with_the_value_its_command_gave() {
         .expect("docs/figures.md")
         .1;
     let problems = figure_problems(&docs, figures);
-    assert!(problems.is_empty(), "{}", problems.join("\n"));
+    assert!(problems.is_empty(), "{problems:#?}");
     let mut none = Vec::new();
     assert!(
         registry(figures, &mut none).len() >= 10,
@@ -149,7 +232,8 @@ fn every_figure_is_stated_with_the_value_its_command_gave() {
 }
 
 /// The checker itself: a figure stated with another value, an unknown id, a figure stated
-/// nowhere and a row without its command are each found.
+/// nowhere, a row without its command and a value written out without its link (in a table
+/// too) are each found; a longer number that ends in a figure's digits is not that figure.
 #[test]
 fn the_figure_checker_finds_a_figure_stated_twice_differently() {
     let figures = "| figure | value | what | command | machine |\n|---|---|---|---|---|\n\
@@ -159,23 +243,58 @@ fn the_figure_checker_finds_a_figure_stated_twice_differently() {
     let docs = vec![
         (
             "README.md".to_string(),
-            "merges in [5.07 s](docs/figures.md#a) and [3](docs/figures.md#c)".to_string(),
+            "merges in [5.07 s](docs/figures.md#a) and [3](docs/figures.md#c); 15.07 s, 1/3"
+                .to_string(),
         ),
         (
             "docs/360.md".to_string(),
-            "the bench: [11.3 s](figures.md#a); [1](figures.md#zz)".to_string(),
+            "the bench: [11.3 s](figures.md#a); [1](figures.md#zz)\n| merge | 5.07 s |".to_string(),
         ),
     ];
     let problems = figure_problems(&docs, figures);
-    let has = |s: &str| problems.iter().any(|p| p.contains(s));
+    let page = |p: &str| p.to_string();
     assert!(
-        has("docs/360.md:1: figure a stated as \"11.3 s\""),
+        problems.contains(&FigureProblem::Differs {
+            page: page("docs/360.md"),
+            line: 1,
+            id: "a".into(),
+            shown: "11.3 s".into()
+        }),
         "{problems:?}"
     );
-    assert!(has("no figure zz"), "{problems:?}");
-    assert!(has("figure b is stated nowhere"), "{problems:?}");
-    assert!(has("figure c names no command"), "{problems:?}");
-    assert!(!has("README.md:1"), "{problems:?}");
+    assert!(
+        problems.contains(&FigureProblem::Unknown {
+            page: page("docs/360.md"),
+            line: 1,
+            id: "zz".into()
+        }),
+        "{problems:?}"
+    );
+    assert!(
+        problems.contains(&FigureProblem::Unlinked {
+            page: page("docs/360.md"),
+            line: 2,
+            id: "a".into()
+        }),
+        "{problems:?}"
+    );
+    assert!(
+        problems.contains(&FigureProblem::Unused("b".into())),
+        "{problems:?}"
+    );
+    assert!(
+        problems
+            .iter()
+            .any(|p| matches!(p, FigureProblem::Row(r) if r.contains("figure c names no command"))),
+        "{problems:?}"
+    );
+    assert!(
+        !problems.iter().any(|p| matches!(p,
+            FigureProblem::Unknown { page, .. }
+            | FigureProblem::Differs { page, .. }
+            | FigureProblem::Unlinked { page, .. } if page == "README.md")),
+        "{problems:?}"
+    );
 }
 
 #[test]
@@ -285,8 +404,8 @@ fn variants(path: &str, name: &str) -> Vec<String> {
         .collect()
 }
 
-/// Every error the head and the calibration can print, and every reason a frame is skipped, has
-/// its entry: each entry names the variants it covers as `Enum::Variant`.
+/// Every error the head, the calibration and the merge can print, and every reason a frame is
+/// skipped, has its entry: each entry names the variants it covers as `Enum::Variant`.
 #[test]
 fn troubleshooting_covers_every_refusal_of_the_head_and_the_calibration() {
     let page = std::fs::read_to_string(repo().join("docs/troubleshooting.md")).unwrap();
@@ -294,11 +413,16 @@ fn troubleshooting_covers_every_refusal_of_the_head_and_the_calibration() {
         ("scanner-device/src/source/mod.rs", "SourceError"),
         ("scanner-device/src/source/convert.rs", "ConvertError"),
         ("scanner-device/src/session.rs", "SessionError"),
+        ("scanner-device/src/axis.rs", "AxisError"),
+        ("scanner-device/calib/src/file.rs", "CovarianceError"),
+        ("scanner-host/merge/src/error.rs", "MergeError"),
+        ("scanner-host/merge/src/error.rs", "RegisterError"),
+        ("scanner-host/merge/src/error.rs", "FuseError"),
         ("scanner-device/src/link.rs", "LinkError"),
         ("scanner-device/calib/src/file.rs", "FileError"),
         ("scanner-device/calib/src/disc.rs", "DiscMiss"),
         ("scanner-device/calib/src/board.rs", "BoardError"),
-        ("scanner-device/calib/src/image_file.rs", "ImageFileError"),
+        ("scanner-core/io/src/image_file.rs", "ImageFileError"),
         ("scanner-device/calib/src/lib.rs", "CalibError"),
         ("scanner-core/src/error.rs", "GeomError"),
         ("scanner-core/src/stripe/mod.rs", "StripeError"),

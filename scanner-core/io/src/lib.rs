@@ -3,6 +3,8 @@
 //! - [`outln!`] and [`errln!`]: a line to standard output or error, where a closed stream (the
 //!   output piped into `head`, say) is not an error for the work itself;
 //! - [`write_atomic`] and [`write_atomic_with`]: a file written whole or not at all;
+//! - [`image_file`] and [`text_file`]: image and text files read with their sizes checked
+//!   against stated limits before anything is allocated;
 //! - [`link_spec`]: the `serial:PATH[@BAUD]` name of a link, as both ends parse it;
 //! - [`words`]: what the wire's numbers (skip reasons, notices, camera controls) say to people.
 //!
@@ -10,11 +12,13 @@
 //!
 //! # Layers
 //! ```text
-//! link_spec  words
+//! image_file  link_spec  text_file  words
 //! ```
 #![deny(missing_docs)]
 
+pub mod image_file;
 pub mod link_spec;
+pub mod text_file;
 pub mod words;
 
 use std::io::Write as _;

@@ -287,7 +287,7 @@ impl BoardFile {
     /// # Errors
     /// [`BoardError`] naming the file and what is wrong.
     pub fn load(path: &Path) -> Result<BoardFile, BoardError> {
-        let text = crate::text_file::read(path).map_err(|source| BoardError::Read {
+        let text = scanner_io::text_file::read(path).map_err(|source| BoardError::Read {
             path: path.display().to_string(),
             source,
         })?;

@@ -458,7 +458,7 @@ impl CalibrationFile {
     /// # Errors
     /// [`FileError`] naming the file and the problem.
     pub fn load(path: &Path) -> Result<Self, FileError> {
-        let text = crate::text_file::read(path).map_err(|source| FileError::Io {
+        let text = scanner_io::text_file::read(path).map_err(|source| FileError::Io {
             path: path.display().to_string(),
             source,
         })?;
@@ -546,31 +546,59 @@ impl CalibrationFile {
 
 pub use scanner_io::write_atomic;
 
+/// Why a calibration file's covariance is not one the head can use ([`check_covariance`]).
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum CovarianceError {
+    /// Not 9 rows.
+    #[error("{0} rows, 9 expected (fx, fy, cx, cy, k1, k2, p1, p2, k3)")]
+    Rows(usize),
+    /// An entry that is not a number (row and column from 1).
+    #[error("row {row}, column {column}: {value} is not a number")]
+    NotANumber {
+        /// Its row, from 1.
+        row: usize,
+        /// Its column, from 1.
+        column: usize,
+        /// What was there.
+        value: String,
+    },
+    /// An entry unlike its mirror across the diagonal.
+    #[error("not symmetric at row {row}, column {column}")]
+    NotSymmetric {
+        /// Its row, from 1.
+        row: usize,
+        /// Its column, from 1.
+        column: usize,
+    },
+    /// A negative variance on the diagonal.
+    #[error("negative variance in row {0}")]
+    NegativeVariance(usize),
+}
+
 /// A covariance the head can use: 9 rows, finite, symmetric, no negative variance.
-fn check_covariance(rows: &[[f64; 9]]) -> Result<(), String> {
+fn check_covariance(rows: &[[f64; 9]]) -> Result<(), CovarianceError> {
     if rows.len() != 9 {
-        return Err(format!(
-            "{} rows, 9 expected (fx, fy, cx, cy, k1, k2, p1, p2, k3)",
-            rows.len()
-        ));
+        return Err(CovarianceError::Rows(rows.len()));
     }
     for (i, row) in rows.iter().enumerate() {
         for (j, &a) in row.iter().enumerate() {
             let b = rows[j][i];
             if !a.is_finite() {
-                return Err(format!(
-                    "row {}, column {}: {} is not a number",
-                    i + 1,
-                    j + 1,
-                    short(a)
-                ));
+                return Err(CovarianceError::NotANumber {
+                    row: i + 1,
+                    column: j + 1,
+                    value: short(a),
+                });
             }
             if (a - b).abs() > 1e-9 * (a.abs() + b.abs()).max(1e-300) {
-                return Err(format!("not symmetric at row {}, column {}", i + 1, j + 1));
+                return Err(CovarianceError::NotSymmetric {
+                    row: i + 1,
+                    column: j + 1,
+                });
             }
         }
         if row[i] < 0.0 {
-            return Err(format!("negative variance in row {}", i + 1));
+            return Err(CovarianceError::NegativeVariance(i + 1));
         }
     }
     Ok(())

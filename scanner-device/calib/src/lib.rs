@@ -22,7 +22,7 @@
 //! selfcheck
 //! intrinsics  identify  file  spread
 //! corners  lattice  board
-//! detect  blur  text_file  image_file  speckle
+//! detect  blur  speckle
 //! ```
 #![deny(missing_docs)]
 
@@ -43,7 +43,6 @@ pub mod detect;
 pub mod disc;
 pub mod file;
 pub mod identify;
-pub mod image_file;
 pub mod intrinsics;
 pub mod lattice;
 pub mod overlay;
@@ -51,7 +50,6 @@ pub mod print;
 pub mod selfcheck;
 pub mod speckle;
 pub mod spread;
-pub mod text_file;
 
 use image::GrayImage;
 use scanner_core::calib::bundle::{initial_pose, refine, residuals};

@@ -173,7 +173,7 @@ fn parse_grid(s: &str) -> Result<(usize, usize), String> {
 /// # Errors
 /// Names the file and the problem.
 pub fn load_gray(path: &Path) -> Result<GrayImage> {
-    Ok(scanner_calib::image_file::open(path)?.to_luma8())
+    Ok(scanner_io::image_file::open(path)?.to_luma8())
 }
 
 pub(crate) fn load_board(path: Option<&Path>) -> Result<BoardFile> {

@@ -87,7 +87,7 @@ pub fn load_scene(path: Option<&Path>) -> Result<Scene> {
     match path {
         None => Ok(Scene::demo(640, 480)),
         Some(p) => {
-            let text = scanner_calib::text_file::read(p)
+            let text = scanner_io::text_file::read(p)
                 .with_context(|| format!("reading scene file {}", p.display()))?;
             let base = p.parent().unwrap_or(Path::new("."));
             Scene::from_toml_in(&text, base).with_context(|| format!("scene file {}", p.display()))

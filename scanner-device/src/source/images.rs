@@ -13,7 +13,7 @@ pub fn load_frame(
     format: PixelFormat,
     index: u64,
 ) -> Result<OwnedFrame, SourceError> {
-    let img = scanner_calib::image_file::open(path).map_err(SourceError::Image)?;
+    let img = scanner_io::image_file::open(path).map_err(SourceError::Image)?;
     let rgb = img.to_rgb8();
     let (w, h) = (rgb.width() as usize, rgb.height() as usize);
     let mut data = Vec::new();
@@ -58,7 +58,7 @@ pub struct ImageDir {
 /// # Errors
 /// [`SourceError::Image`] naming the file.
 pub fn native_format(path: &std::path::Path) -> Result<PixelFormat, SourceError> {
-    let img = scanner_calib::image_file::open(path).map_err(SourceError::Image)?;
+    let img = scanner_io::image_file::open(path).map_err(SourceError::Image)?;
     Ok(match img.color() {
         image::ColorType::L8
         | image::ColorType::L16

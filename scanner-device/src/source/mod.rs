@@ -70,7 +70,7 @@ pub enum SourceError {
     Rig(#[source] scanner_rig::RigError),
     /// An image file could not be read or decoded, or is too large.
     #[error(transparent)]
-    Image(scanner_calib::image_file::ImageFileError),
+    Image(scanner_io::image_file::ImageFileError),
     /// A folder could not be listed.
     #[error("image folder {}", path.display())]
     Folder {
@@ -371,49 +371,6 @@ pub fn stripe_lines(frame: &OwnedFrame, reference: &OwnedFrame) -> Option<(usize
         }
     }
     best
-}
-
-/// Which way the stripe runs in a laser frame: the axis along which the extractor (with the
-/// scan's settings `cfg`, its axis aside) finds a valid centre on the larger share of the lines
-/// — a stripe across the lines is found on most of them, one along them on few. It must be found
-/// on at least a tenth of the lines one way, and on twice the share of the other.
-///
-/// # Errors
-/// Why the frame does not tell, with what to give instead (`--rows` or `--columns`).
-pub fn stripe_axis(
-    frame: &OwnedFrame,
-    reference: &OwnedFrame,
-    cfg: &scanner_core::stripe::StripeConfig,
-) -> Result<scanner_core::stripe::Axis, String> {
-    use scanner_core::stripe::{Axis, Extractor, Status, StripeConfig};
-    let (Ok(f), Ok(r)) = (frame.view(), reference.view()) else {
-        return Err("the first laser frame does not match the reference".into());
-    };
-    let mut ex = Box::new(Extractor::<{ scanner_core::config::MAX_LINES }>::new());
-    let mut share = |axis: Axis| {
-        let c = StripeConfig { axis, ..*cfg };
-        ex.extract(&f, Some(&r), &c).map_or(0.0, |found| {
-            let valid = found
-                .points
-                .iter()
-                .filter(|p| p.status == Status::Valid)
-                .count();
-            valid as f64 / found.points.len().max(1) as f64
-        })
-    };
-    let (columns, rows) = (share(Axis::Columns), share(Axis::Rows));
-    let pct = |s: f64| 100.0 * s;
-    if columns >= 0.1 && columns >= 2.0 * rows {
-        Ok(Axis::Columns)
-    } else if rows >= 0.1 && rows >= 2.0 * columns {
-        Ok(Axis::Rows)
-    } else {
-        Err(format!(
-            "the first laser frame does not tell which way the stripe runs (a stripe found on {:.0} % of the columns and {:.0} % of the rows): give --columns for a horizontal stripe (the laser sweeps up and down) or --rows for a vertical one (it sweeps sideways), and check the laser is on after the reference",
-            pct(columns),
-            pct(rows)
-        ))
-    }
 }
 
 /// The pixel format a source's frames are read in when none is asked: a camera's as it sends

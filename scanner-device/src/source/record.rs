@@ -85,8 +85,7 @@ impl Recorder {
             controls: Some(inner.controls()).filter(|c| *c != Controls::default()),
         };
         let text = toml::to_string(&meta).map_err(|e| bad(dir, e.to_string()))?;
-        scanner_calib::file::write_atomic(&dir.join("recording.toml"), text.as_bytes())
-            .map_err(io(dir))?;
+        scanner_io::write_atomic(&dir.join("recording.toml"), text.as_bytes()).map_err(io(dir))?;
         let frames = std::fs::File::create(dir.join("frames.raw")).map_err(io(dir))?;
         Ok(Recorder {
             inner,
@@ -120,7 +119,7 @@ impl FrameSource for Recorder {
 
     fn reference(&mut self) -> Result<OwnedFrame, SourceError> {
         let r = self.inner.reference()?;
-        scanner_calib::file::write_atomic(&self.dir.join("reference.raw"), &r.data)
+        scanner_io::write_atomic(&self.dir.join("reference.raw"), &r.data)
             .map_err(io(&self.dir))?;
         Ok(r)
     }
@@ -166,7 +165,7 @@ impl RecordingSource {
     /// # Errors
     /// A missing or unreadable file, another format version, a size beyond [`MAX_SIDE`].
     pub fn open(dir: &Path) -> Result<RecordingSource, SourceError> {
-        let text = scanner_calib::text_file::read(&dir.join("recording.toml")).map_err(io(dir))?;
+        let text = scanner_io::text_file::read(&dir.join("recording.toml")).map_err(io(dir))?;
         let meta: Meta = toml::from_str(&text).map_err(|e| bad(dir, e.to_string()))?;
         if meta.version != VERSION {
             return Err(bad(

@@ -7,8 +7,8 @@ use std::path::{Path, PathBuf};
 use image::{DynamicImage, ImageReader};
 
 /// The longest side of an image taken from a file or a camera, pixels: the head's per-frame
-/// buffers hold [`scanner_core::config::MAX_LINES`] lines.
-pub const MAX_IMAGE_SIDE: u32 = scanner_core::config::MAX_LINES as u32;
+/// buffers hold a line per point of a frame (the wire's [`scanner_wire::MAX_POINTS`]).
+pub const MAX_IMAGE_SIDE: u32 = scanner_wire::MAX_POINTS as u32;
 
 /// Most bytes the decoder may allocate for one image (an RGBA image of the largest size, 16-bit
 /// channels: 4096² × 8 = 128 MiB).

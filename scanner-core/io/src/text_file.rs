@@ -5,7 +5,7 @@ use std::io::Read;
 use std::path::Path;
 
 /// The largest board, calibration or scene file read, bytes (the files are a few hundred bytes;
-/// a board of [`scanner_core::config::MAX_MARKERS`] listed markers is under 10 KB).
+/// a board of 256 listed markers is under 10 KB).
 pub const MAX_TEXT_FILE_BYTES: u64 = 1 << 20;
 
 /// Reads a UTF-8 text file of at most [`MAX_TEXT_FILE_BYTES`].
