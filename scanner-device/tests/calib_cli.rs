@@ -415,7 +415,7 @@ fn json(path: &Path) -> serde_json::Value {
 fn the_papers_large_set_up_is_a_board_like_any_other() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
-    let (scene, board) = scanner_rig::report::scene(1280, 960, 3200.0, 4);
+    let (scene, board) = scanner_tests::accuracy::scene(1280, 960, 3200.0, 4);
     assert!(board.sheet.width > 1500.0, "{:?}", board.sheet);
     std::fs::write(d.join("big.toml"), board.to_toml().unwrap()).unwrap();
     let (ok, _, err) = run(&[

@@ -1,9 +1,16 @@
 //! Workspace-level end-to-end tests live in `tests/tests/`; this library holds what tests across
-//! the workspace share.
+//! the workspace share: finding and checking the workspace's binaries, the accuracy harness
+//! ([`accuracy`]) and the browser driver ([`browser`]).
+//!
+//! # Layers
+//! ```text
+//! accuracy  browser
+//! ```
 #![deny(missing_docs)]
 
 use std::process::Command;
 
+pub mod accuracy;
 pub mod browser;
 
 /// Checks a binary of the workspace from the outside: `--info` succeeds and starts with its name

@@ -6,7 +6,8 @@
 
 use scanner_core::pipeline::HeadConfig;
 use scanner_core::stripe::{Axis, Method, StripeConfig};
-use scanner_rig::{Rig, report};
+use scanner_rig::Rig;
+use scanner_tests::accuracy as report;
 
 /// Points sent nearer a board sheet than any object (with their distance off the board, mm),
 /// and object points within 0.1 % of the distance of their surface.

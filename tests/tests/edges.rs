@@ -6,7 +6,8 @@
 
 use scanner_core::pipeline::HeadConfig;
 use scanner_core::stripe::{Axis, Method, StripeConfig};
-use scanner_rig::{Rig, Shape, report};
+use scanner_rig::{Rig, Shape};
+use scanner_tests::accuracy as report;
 
 /// Every point's distance to the nearest true surface, and whether it lies on the plate's outer
 /// 3 % rim.

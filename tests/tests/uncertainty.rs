@@ -14,7 +14,8 @@ use scanner_core::geometry::Board;
 use scanner_core::nalgebra::Point3;
 use scanner_core::pipeline::{Head, HeadConfig};
 use scanner_core::stripe::{Axis, Method, StripeConfig};
-use scanner_rig::{Rig, report};
+use scanner_rig::Rig;
+use scanner_tests::accuracy as report;
 use scanner_wire::points::uncertainty_mm;
 
 /// A point's error along its ray (see the module's docs), mm.
@@ -148,7 +149,7 @@ fn stated_uncertainties_with_a_calibration_from_images_match_the_errors() {
         DISTANCES
             .iter()
             .map(|&d| {
-                let (mut scene, board_file) = scanner_rig::report::scene(w, h, d, 16);
+                let (mut scene, board_file) = scanner_tests::accuracy::scene(w, h, d, 16);
                 // another sensor noise for the board's image and the sweep in each draw
                 scene.sensor.seed ^= 0x5EED * (draw + 1);
                 let rig = Rig::new(scene.clone()).unwrap();

@@ -21,10 +21,11 @@ use scanner_core::Camera;
 use scanner_core::geometry::Pose;
 use scanner_core::nalgebra::{Matrix3, Point2, Vector3};
 
+use crate::CalibError;
 use crate::detect::{DetectConfig, find_markers};
+use crate::fit::{Prune, fit_sheet, undistorted};
 use crate::identify::{Assignment, Orientation, candidates};
 use crate::print::Sheet;
-use crate::{CalibError, Prune, fit_sheet, undistorted};
 
 /// Dots per ring.
 pub const POSITIONS: usize = 24;

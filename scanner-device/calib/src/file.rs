@@ -546,7 +546,7 @@ impl CalibrationFile {
 
 pub use scanner_io::write_atomic;
 
-/// Why a calibration file's covariance is not one the head can use ([`check_covariance`]).
+/// Why a calibration file's covariance is not one the head can use (its `[camera] covariance`).
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum CovarianceError {
     /// Not 9 rows.

@@ -22,7 +22,8 @@ use scanner_core::nalgebra::{Point2, Vector2};
 use super::corners::{CornerConfig, find_corners};
 use super::detect::{Blob, DetectConfig, find_markers};
 use super::lattice::{MAX_FEATURES, lattices};
-use super::{CalibError, Target, geom};
+use super::{CalibError, Target};
+use crate::error::geom;
 
 /// A feature is dropped from the fit when its reprojection error exceeds this many times the
 /// median error of all features…

@@ -6,7 +6,7 @@
 use image::Rgb;
 
 use super::board::{BoardFile, Cross};
-use super::overlay::Canvas;
+use crate::canvas::Canvas;
 
 /// One printable sheet: circles and strokes in mm.
 #[derive(Debug, Clone, PartialEq, Default)]

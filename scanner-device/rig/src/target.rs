@@ -442,7 +442,7 @@ impl Rig {
                 flat[v * w + u] = [amb * a; 3];
             }
         }
-        let blurred: Vec<[f32; 3]> = super::blur(&flat, w, h, &self.kernel)
+        let blurred: Vec<[f32; 3]> = scanner_calib::blur::blur(&flat, w, h, &self.kernel)
             .into_iter()
             .map(|p| p.map(|v| v as f32))
             .collect();
@@ -647,7 +647,7 @@ impl<'a> ShotView<'a> {
                 sheet: s,
                 point,
                 projected,
-                centroid: super::polygon_centroid(&rim).unwrap_or(projected),
+                centroid: crate::render::polygon_centroid(&rim).unwrap_or(projected),
                 visible: self.visible(cam, size, s, clear),
             });
         }
@@ -664,5 +664,20 @@ impl<'a> ShotView<'a> {
             }
         }
         features
+    }
+}
+
+impl crate::Rig {
+    /// `n` rendered shots of a dot grid in front of the rig's camera
+    /// ([`TargetPose::sweep`] poses), gray.
+    pub fn dot_grid_shots(&self, grid: &scanner_calib::DotGrid, n: usize) -> Vec<image::GrayImage> {
+        let pattern = Pattern::from(grid);
+        (0..n)
+            .map(|i| {
+                self.shot(&pattern, &TargetPose::sweep(i, n), i as u64)
+                    .image
+                    .to_gray_image()
+            })
+            .collect()
     }
 }

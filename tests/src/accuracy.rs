@@ -1,10 +1,9 @@
-//! The accuracy report (the paper's Table 3) as a library, so that the report command and a
+//! The accuracy report (the paper's Table 3) as a test harness, so that the report command and a
 //! quick test run the same code: the paper's setup on the virtual rig at several distances —
 //! calibrate from rendered images, scan two spheres and a tilted plane, measure.
 //!
-//! `cargo run --release -p scanner-device --example accuracy_report` prints it.
+//! `cargo run --release -p scanner-tests --example accuracy_report` prints it.
 
-use crate::{Object, Rig, Scene, Shape};
 use scanner_calib::board::{BoardFile, Cross, MarkerGrid, SheetLayout, SheetSize};
 use scanner_calib::{DotGrid, Target, board_planes, intrinsics_auto};
 use scanner_core::Camera;
@@ -12,6 +11,7 @@ use scanner_core::geometry::Board;
 use scanner_core::nalgebra::{Matrix4, Point2, Point3, Unit, Vector3, Vector4};
 use scanner_core::pipeline::{Head, HeadConfig};
 use scanner_core::stripe::{Axis, Extractor, Frame, Method, PixelFormat, StripeConfig};
+use scanner_rig::{Object, Rig, Scene, Shape};
 use scanner_wire::points::dequantise;
 
 /// The paper's mean errors (mm) at 280, 400, 800, 1600 and 3200 mm.

@@ -5,19 +5,19 @@
 #[test]
 fn the_quick_accuracy_report_is_within_loose_bounds() {
     let (w, h) = (640, 480);
-    let (camera, _) = scanner_rig::report::calibrate_camera(w, h);
+    let (camera, _) = scanner_tests::accuracy::calibrate_camera(w, h);
     let mut rows = Vec::new();
     for d in [400.0, 1600.0] {
-        rows.extend(scanner_rig::report::run_distance(
+        rows.extend(scanner_tests::accuracy::run_distance(
             &camera,
             w,
             h,
             d,
             30,
-            scanner_rig::report::Light::Normal,
+            scanner_tests::accuracy::Light::Normal,
         ));
     }
-    println!("{}", scanner_rig::report::table(&rows));
+    println!("{}", scanner_tests::accuracy::table(&rows));
     for r in &rows {
         let pct = |v: f64| 100.0 * v.abs() / r.distance;
         assert!(r.points > 1000, "{r:?}");

@@ -5,7 +5,7 @@
 //! constructions; and 3200 mm again with a weak laser (a stripe about 30 DN above
 //! the background in noise of σ ≈ 3 DN).
 
-use scanner_rig::report::Light;
+use scanner_tests::accuracy::Light;
 
 fn main() {
     let frames: usize = std::env::args()
@@ -18,7 +18,7 @@ fn main() {
         .collect();
     let (w, h) = (1600, 1200);
     let t = std::time::Instant::now();
-    let (camera, k3_fixed) = scanner_rig::report::calibrate_camera(w, h);
+    let (camera, k3_fixed) = scanner_tests::accuracy::calibrate_camera(w, h);
     eprintln!(
         "intrinsics calibrated from 12 rendered dot-grid images in {:.1} s{}",
         t.elapsed().as_secs_f64(),
@@ -29,12 +29,12 @@ fn main() {
         }
     );
     let mut rows = Vec::new();
-    for (d, _) in scanner_rig::report::PAPER_MEAN_MM {
+    for (d, _) in scanner_tests::accuracy::PAPER_MEAN_MM {
         if !only.is_empty() && !only.contains(&d) {
             continue;
         }
         let t = std::time::Instant::now();
-        rows.extend(scanner_rig::report::run_distance(
+        rows.extend(scanner_tests::accuracy::run_distance(
             &camera,
             w,
             h,
@@ -46,7 +46,7 @@ fn main() {
     }
     // the weak stripe at the longest distance
     if only.is_empty() || only.contains(&3200.0) {
-        rows.extend(scanner_rig::report::run_distance(
+        rows.extend(scanner_tests::accuracy::run_distance(
             &camera,
             w,
             h,
@@ -55,5 +55,5 @@ fn main() {
             Light::Weak,
         ));
     }
-    print!("{}", scanner_rig::report::table(&rows));
+    print!("{}", scanner_tests::accuracy::table(&rows));
 }
