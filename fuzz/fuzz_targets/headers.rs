@@ -6,7 +6,7 @@
 use libfuzzer_sys::fuzz_target;
 use scanner_alloc::{live_bytes, peak_bytes, reset_peak};
 use scanner_host::collect::{CollectOptions, Collector};
-use scanner_wire::{Header, MAX_ENCODED, MAX_FRAME, Message, PlaneMethod, encode};
+use scanner_wire::{Header, MAX_ENCODED, MAX_MESSAGE, Message, PlaneMethod, encode};
 
 /// The host's peak memory limit with default options (README, reliability), bytes.
 const LIMIT: usize = 1 << 30;
@@ -15,7 +15,7 @@ const LIMIT: usize = 1 << 30;
 static A: scanner_alloc::Peak = scanner_alloc::Peak;
 
 fn through_host(h: &Header, rest: &[u8]) {
-    let (mut scratch, mut out) = (vec![0u8; MAX_FRAME], vec![0u8; MAX_ENCODED]);
+    let (mut scratch, mut out) = (vec![0u8; MAX_MESSAGE], vec![0u8; MAX_ENCODED]);
     let Ok(n) = encode(&Message::Header(*h), &mut scratch, &mut out) else {
         return;
     };

@@ -3,7 +3,7 @@
 //! output. Seeded with real frames (fuzz/seeds/jpeg).
 #![no_main]
 use libfuzzer_sys::fuzz_target;
-use scanner_jpeg::{Decoder, Output};
+use scanner_jpeg::{JpegDecoder, Output};
 
 fuzz_target!(|data: &[u8]| {
     if data.len() < 3 {
@@ -17,7 +17,7 @@ fuzz_target!(|data: &[u8]| {
         Output::Gray
     };
     let mut out = vec![0u8; 2 * w * h];
-    let mut decoder = Decoder::new();
+    let mut decoder = JpegDecoder::new();
     let _ = decoder.decode(&data[3..], w, h, output, &mut out);
     // The seeds' own size, whatever the first bytes say.
     let _ = decoder.decode(&data[3..], 202, 150, output, &mut vec![0u8; 2 * 202 * 150]);

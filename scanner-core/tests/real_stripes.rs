@@ -7,7 +7,7 @@
 
 mod support;
 
-use scanner_core::stripe::{Estimator, Status};
+use scanner_core::stripe::{Estimator, LineStatus};
 use support::real::{CASES, analyse};
 
 #[test]
@@ -35,7 +35,7 @@ fn real_stripes_are_found_straight_and_the_glint_is_rejected() {
         // narrower than half and weaker than a sixth of the median — and leaves them: too few
         // in a row for a border).
         assert!(
-            o.statuses.iter().all(|(s, _)| *s != Status::Cut),
+            o.statuses.iter().all(|(s, _)| *s != LineStatus::Cut),
             "{} {}: {:?}",
             case.image,
             case.stripe,

@@ -6,8 +6,8 @@ mod support;
 
 use proptest::prelude::*;
 use scanner_core::stripe::{
-    Axis, Estimator, Extractor, Frame, FrameError, LaserColour, Method, PixelFormat, Roi, Status,
-    StripeConfig, StripeError,
+    Axis, Estimator, Extractor, Frame, FrameError, LaserColour, LineStatus, Method, PixelFormat,
+    Roi, StripeConfig, StripeError,
 };
 use support::stripes::{HEIGHT, Synthetic, WIDTH, bench, mean, percentile, synthetic};
 
@@ -57,7 +57,7 @@ fn identical_frames_have_no_stripe() {
     let res = ex
         .extract(&f, Some(&f), &StripeConfig::new(Method::Dim, Axis::Columns))
         .unwrap();
-    assert!(res.points.iter().all(|p| p.status == Status::NoStripe));
+    assert!(res.points.iter().all(|p| p.status == LineStatus::NoStripe));
 }
 
 /// A frame built from a function of (x, y) → value, with a flat reference at 20 DN.
@@ -76,7 +76,7 @@ fn gauss(y: usize, c: f64, s: f64) -> f64 {
     (-u * u / (2.0 * s * s)).exp()
 }
 
-fn statuses(frame: &[u8], reference: &[u8]) -> Vec<Status> {
+fn statuses(frame: &[u8], reference: &[u8]) -> Vec<LineStatus> {
     let mut ex = extractor();
     let res = ex
         .extract(
@@ -92,19 +92,19 @@ fn statuses(frame: &[u8], reference: &[u8]) -> Vec<Status> {
 fn every_rejection_reason() {
     // two stripes 24 rows apart, the second at 80 %: competing peaks
     let (f, r) = build(|_, y| 150.0 * gauss(y, 20.0, 2.0) + 120.0 * gauss(y, 44.0, 2.0));
-    assert!(statuses(&f, &r).iter().all(|&s| s == Status::Ambiguous));
+    assert!(statuses(&f, &r).iter().all(|&s| s == LineStatus::Ambiguous));
     // a weak second stripe (30 %) is not a rival
     let (f, r) = build(|_, y| 150.0 * gauss(y, 20.0, 2.0) + 45.0 * gauss(y, 44.0, 2.0));
-    assert!(statuses(&f, &r).iter().all(|&s| s == Status::Valid));
+    assert!(statuses(&f, &r).iter().all(|&s| s == LineStatus::Valid));
     // a glint: a clipped plateau 20 rows wide
     let (f, r) = build(|_, y| if (22..42).contains(&y) { 400.0 } else { 0.0 });
-    assert!(statuses(&f, &r).iter().all(|&s| s == Status::Saturated));
+    assert!(statuses(&f, &r).iter().all(|&s| s == LineStatus::Saturated));
     // a wide, unclipped blur: σ 8 px (FWHM 19 px)
     let (f, r) = build(|_, y| 150.0 * gauss(y, 32.0, 8.0));
-    assert!(statuses(&f, &r).iter().all(|&s| s == Status::TooWide));
+    assert!(statuses(&f, &r).iter().all(|&s| s == LineStatus::TooWide));
     // a single bright row (a line of hot pixels): too narrow
     let (f, r) = build(|_, y| if y == 30 { 150.0 } else { 0.0 });
-    assert!(statuses(&f, &r).iter().all(|&s| s == Status::TooNarrow));
+    assert!(statuses(&f, &r).iter().all(|&s| s == LineStatus::TooNarrow));
 }
 
 #[test]
@@ -126,9 +126,9 @@ fn a_stripe_cut_by_an_edge_is_dropped_and_a_dark_speck_is_not() {
     let s = statuses(&f, &r);
     for (x, st) in s.iter().enumerate() {
         let want = if (20..32).contains(&x) {
-            Status::Cut
+            LineStatus::Cut
         } else {
-            Status::Valid
+            LineStatus::Valid
         };
         assert_eq!(*st, want, "column {x}");
     }
@@ -139,8 +139,12 @@ fn a_stripe_cut_by_an_edge_is_dropped_and_a_dark_speck_is_not() {
         ..StripeConfig::new(Method::Dim, Axis::Columns)
     };
     let res = ex.extract(&gray(&f), Some(&gray(&r)), &cfg).unwrap();
-    assert!(res.points[20..32].iter().all(|p| p.status == Status::Valid));
-    assert_eq!(Status::Cut.to_string(), "cut by an edge");
+    assert!(
+        res.points[20..32]
+            .iter()
+            .all(|p| p.status == LineStatus::Valid)
+    );
+    assert_eq!(LineStatus::Cut.to_string(), "cut by an edge");
 }
 
 #[test]
@@ -192,7 +196,7 @@ fn formats_agree() {
         .points
         .iter()
         .zip(&s.truth)
-        .filter(|(p, _)| p.status == Status::Valid)
+        .filter(|(p, _)| p.status == LineStatus::Valid)
         .map(|(p, t)| (f64::from(p.centre) - t).abs())
         .collect();
     assert!(
@@ -249,7 +253,7 @@ fn each_laser_colour_is_found_by_its_own_light_and_a_drop_never_makes_a_stripe()
                 .points
                 .iter()
                 .zip(&s.truth)
-                .filter(|(p, _)| p.status == Status::Valid)
+                .filter(|(p, _)| p.status == LineStatus::Valid)
                 .map(|(p, t)| (f64::from(p.centre) - t).abs())
                 .collect();
             assert!(
@@ -291,7 +295,9 @@ fn each_laser_colour_is_found_by_its_own_light_and_a_drop_never_makes_a_stripe()
         res.points
             .iter()
             .zip(&s.truth)
-            .filter(|(p, t)| p.status == Status::Valid && (f64::from(p.centre) - **t).abs() < 0.5)
+            .filter(|(p, t)| {
+                p.status == LineStatus::Valid && (f64::from(p.centre) - **t).abs() < 0.5
+            })
             .count()
     };
     let (red, luma) = (count(LaserColour::Red), count(LaserColour::White));
@@ -347,7 +353,7 @@ fn yuyv_colours_come_from_the_chroma() {
             .points
             .iter()
             .zip(&s.truth)
-            .filter(|(p, _)| p.status == Status::Valid)
+            .filter(|(p, _)| p.status == LineStatus::Valid)
             .map(|(p, t)| (f64::from(p.centre) - t).abs())
             .collect();
         assert!(
@@ -441,7 +447,7 @@ fn stride_and_roi() {
         .unwrap();
     assert_eq!((res.first_line, res.points.len()), (50, 100));
     for (i, p) in res.points.iter().enumerate() {
-        assert_eq!(p.status, Status::Valid);
+        assert_eq!(p.status, LineStatus::Valid);
         assert!((f64::from(p.centre) - s.truth[50 + i]).abs() < 0.3);
     }
 }
@@ -592,7 +598,7 @@ proptest! {
         cfg.colour = LaserColour::ALL[colour];
         let res = ex.extract(&f, Some(&r), &cfg).unwrap();
         let len = if cols { h } else { w } as f32;
-        for p in res.points.iter().filter(|p| p.status == Status::Valid) {
+        for p in res.points.iter().filter(|p| p.status == LineStatus::Valid) {
             prop_assert!(p.centre >= -0.5 && p.centre <= len - 0.5, "centre {} outside 0..{len}", p.centre);
             prop_assert!(p.width.is_finite());
         }
@@ -619,14 +625,14 @@ proptest! {
         let rough = reference_rough(&sig, w, h, cfg.separation, 2 * res.threshold);
         for (x, (p, &(best, at, second))) in res.points.iter().zip(&rough).enumerate() {
             // the reported peak is the largest sample within ±2 of the rough centre
-            if best == 0 { prop_assert_eq!(p.status, Status::NoStripe); continue; }
+            if best == 0 { prop_assert_eq!(p.status, LineStatus::NoStripe); continue; }
             let lo = usize::from(at).saturating_sub(2);
             let hi = (usize::from(at) + 3).min(h);
             let peak = (lo..hi).map(|y| sig(x, y)).max().unwrap();
             prop_assert_eq!(p.peak, peak, "column {}", x);
             let rival = u32::from(second) > 3 * u32::from(res.threshold) && f32::from(second) > cfg.ambiguity * f32::from(best);
             if peak >= res.threshold {
-                prop_assert_eq!(p.status == Status::Ambiguous, rival, "column {}", x);
+                prop_assert_eq!(p.status == LineStatus::Ambiguous, rival, "column {}", x);
             }
         }
     }

@@ -2,7 +2,7 @@
 //! reference: the head finds the stripe's centre along each column for a horizontal stripe and
 //! along each row for a vertical one.
 
-use scanner_core::stripe::{Axis, Extractor, Status, StripeConfig};
+use scanner_core::stripe::{Axis, Extractor, LineStatus, StripeConfig};
 
 use crate::source::OwnedFrame;
 
@@ -47,7 +47,7 @@ pub fn stripe_axis(
             let valid = found
                 .points
                 .iter()
-                .filter(|p| p.status == Status::Valid)
+                .filter(|p| p.status == LineStatus::Valid)
                 .count();
             valid as f64 / found.points.len().max(1) as f64
         })

@@ -58,7 +58,7 @@ pub enum LinkError {
 
 /// Where the stream goes, parsed from `serial:PATH[@BAUD]`, `file:PATH` (or a path) and `-`.
 #[derive(Debug, Clone, PartialEq, Eq)]
-pub enum Target {
+pub enum Destination {
     /// A serial port and its baud rate.
     Serial {
         /// Device path, e.g. `/dev/ttyUSB0`.
@@ -72,16 +72,16 @@ pub enum Target {
     Stdout,
 }
 
-impl std::str::FromStr for Target {
+impl std::str::FromStr for Destination {
     type Err = LinkError;
 
     fn from_str(s: &str) -> Result<Self, Self::Err> {
         if s == "-" {
-            return Ok(Target::Stdout);
+            return Ok(Destination::Stdout);
         }
         match SerialSpec::parse(s) {
             Ok(Some(spec)) => {
-                return Ok(Target::Serial {
+                return Ok(Destination::Serial {
                     path: spec.path.to_string(),
                     baud: spec.baud,
                 });
@@ -98,25 +98,25 @@ impl std::str::FromStr for Target {
         if path.is_empty() {
             return Err(LinkError::EmptyPath);
         }
-        Ok(Target::File(path.into()))
+        Ok(Destination::File(path.into()))
     }
 }
 
-impl Target {
+impl Destination {
     /// Opens the target for writing.
     ///
     /// # Errors
     /// [`LinkError::File`] or [`LinkError::Serial`], naming the file or port.
     pub fn open(&self) -> Result<Box<dyn Write + Send>, LinkError> {
         Ok(match self {
-            Target::Stdout => Box::new(std::io::stdout()),
-            Target::File(p) => {
+            Destination::Stdout => Box::new(std::io::stdout()),
+            Destination::File(p) => {
                 Box::new(std::fs::File::create(p).map_err(|source| LinkError::File {
                     path: p.clone(),
                     source,
                 })?)
             }
-            Target::Serial { path, baud } => Box::new(
+            Destination::Serial { path, baud } => Box::new(
                 serialport::new(path, *baud)
                     .timeout(Duration::from_secs(2))
                     .open_native()

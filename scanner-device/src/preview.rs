@@ -215,7 +215,7 @@ impl<'c> Work<'c> {
             axis: opts.head.stripe.axis,
             extractor: Box::new(Extractor::new()),
             head: None,
-            scratch: vec![0; scanner_wire::MAX_FRAME],
+            scratch: vec![0; scanner_wire::MAX_MESSAGE],
         }
     }
 

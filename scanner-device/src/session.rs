@@ -413,7 +413,7 @@ impl Session {
                 ..Status::default()
             },
             opts,
-            scratch: vec![0; scanner_wire::MAX_FRAME],
+            scratch: vec![0; scanner_wire::MAX_MESSAGE],
             xyz: vec![0; scanner_wire::MAX_XYZ_BYTES_PER_POINT * MAX_LINES],
             started: Instant::now(),
             last_us: 0,

@@ -1,9 +1,9 @@
 //! The camera controls a scan sets, chosen from control lists in `v4l2-ctl --list-ctrls-menus`
 //! form (tests/data/controls, see its README); what is set, refused and missing is reported.
 
-use scanner_device::source::controls::{Kind, id, parse_v4l2_ctl, plan, report};
+use scanner_device::source::controls::{ControlKind, id, parse_v4l2_ctl, plan, report};
 
-fn list(name: &str) -> Vec<scanner_device::source::controls::Control> {
+fn list(name: &str) -> Vec<scanner_device::source::controls::CameraControl> {
     let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
         .join("tests/data/controls")
         .join(name);
@@ -19,7 +19,7 @@ fn a_uvc_webcam_gets_manual_exposure_fixed_white_balance_and_focus_and_mains() {
     let c = list("uvc-webcam.txt");
     assert_eq!(c.len(), 10);
     let exposure = c.iter().find(|c| c.id == id::EXPOSURE_AUTO).unwrap();
-    assert_eq!(exposure.kind, Kind::Menu);
+    assert_eq!(exposure.kind, ControlKind::Menu);
     assert_eq!(exposure.menu.len(), 2);
     let p = plan(&c, Some(50));
     assert_eq!(value(&p, id::EXPOSURE_AUTO), Some(1));

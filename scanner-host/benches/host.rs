@@ -41,7 +41,7 @@ fn stream(frames: u32) -> Vec<u8> {
         false,
         scanner_wire::PlaneMethod::LeastSquares,
     );
-    let mut scratch = vec![0u8; scanner_wire::MAX_FRAME];
+    let mut scratch = vec![0u8; scanner_wire::MAX_MESSAGE];
     let mut out = vec![0u8; MAX_ENCODED];
     let mut s = Vec::new();
     let n = scanner_wire::encode(&Message::Header(header), &mut scratch, &mut out).unwrap();

@@ -32,8 +32,8 @@ fn main() {
         true,
         PlaneMethod::LeastSquares,
     );
-    let (mut scratch, mut out) = (vec![0u8; scanner_wire::MAX_FRAME], vec![0u8; MAX_ENCODED]);
-    let mut xyz = vec![0u8; scanner_wire::MAX_FRAME];
+    let (mut scratch, mut out) = (vec![0u8; scanner_wire::MAX_MESSAGE], vec![0u8; MAX_ENCODED]);
+    let mut xyz = vec![0u8; scanner_wire::MAX_MESSAGE];
     let mut c_ = Collector::new(CollectOptions::default(), None);
     let mut feed = |msg: &Message, c_: &mut Collector| {
         let n = scanner_wire::encode(msg, &mut scratch, &mut out).expect("encode");

@@ -30,7 +30,7 @@ pub struct Sphere {
 
 /// A plane `normal · p = offset`.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Plane {
+pub struct FittedPlane {
     /// Unit normal.
     pub normal: Vector3<f64>,
     /// Offset, mm.
@@ -126,7 +126,7 @@ pub fn fit_sphere(points: &[Point3<f64>]) -> Option<Sphere> {
 }
 
 /// Least-squares plane through `points` (the smallest axis of their covariance).
-pub fn fit_plane(points: &[Point3<f64>]) -> Option<Plane> {
+pub fn fit_plane(points: &[Point3<f64>]) -> Option<FittedPlane> {
     if points.len() < 3 {
         return None;
     }
@@ -138,7 +138,7 @@ pub fn fit_plane(points: &[Point3<f64>]) -> Option<Plane> {
     let e = SymmetricEigen::new(cov);
     let i = e.eigenvalues.imin();
     let n = e.eigenvectors.column(i).into_owned().normalize();
-    n.iter().all(|v| v.is_finite()).then_some(Plane {
+    n.iter().all(|v| v.is_finite()).then_some(FittedPlane {
         normal: n,
         offset: n.dot(&mean),
     })
@@ -216,17 +216,17 @@ pub fn find_sphere(
 
 /// Finds the plane that the most points lie within `band` mm of, and fits it: the plane and its
 /// points' indices. `None` with fewer than 100 such points.
-pub fn find_plane(points: &[Point3<f64>], band: f64) -> Option<(Plane, Vec<usize>)> {
+pub fn find_plane(points: &[Point3<f64>], band: f64) -> Option<(FittedPlane, Vec<usize>)> {
     if points.len() < 100 {
         return None;
     }
-    let near = |p: &Plane| -> Vec<usize> {
+    let near = |p: &FittedPlane| -> Vec<usize> {
         (0..points.len())
             .filter(|&i| (p.normal.dot(&points[i].coords) - p.offset).abs() <= band)
             .collect()
     };
     let mut draw = Draw(26342);
-    let mut best: Option<(Plane, usize)> = None;
+    let mut best: Option<(FittedPlane, usize)> = None;
     for _ in 0..300 {
         let (a, b, c) = (
             points[draw.below(points.len())],
@@ -238,7 +238,7 @@ pub fn find_plane(points: &[Point3<f64>], band: f64) -> Option<(Plane, Vec<usize
             continue;
         }
         let n = n.normalize();
-        let p = Plane {
+        let p = FittedPlane {
             normal: n,
             offset: n.dot(&a.coords),
         };
@@ -313,7 +313,7 @@ impl SphereResult {
 #[derive(Debug, Clone, PartialEq)]
 pub struct PlaneResult {
     /// The fitted plane.
-    pub plane: Plane,
+    pub plane: FittedPlane,
     /// Residuals.
     pub flatness: Spread,
     /// Distance of its points' centroid from the camera, mm.

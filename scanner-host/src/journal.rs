@@ -53,7 +53,7 @@ impl Journal {
             })?;
         Ok(Journal {
             file,
-            scratch: vec![0; scanner_wire::MAX_FRAME],
+            scratch: vec![0; scanner_wire::MAX_MESSAGE],
             out: vec![0; MAX_ENCODED],
             last_sync: Instant::now(),
         })

@@ -30,7 +30,7 @@ pub enum Input {
 
 /// Why an input cannot be opened.
 #[derive(Debug, thiserror::Error)]
-pub enum LinkError {
+pub enum InputError {
     /// A `serial:` name that is not one.
     #[error("{text:?}: {why}")]
     BadSerial {
@@ -74,11 +74,11 @@ pub enum LinkError {
 }
 
 impl std::str::FromStr for Input {
-    type Err = LinkError;
+    type Err = InputError;
 
     fn from_str(s: &str) -> Result<Self, Self::Err> {
         match s {
-            "" => return Err(LinkError::Empty),
+            "" => return Err(InputError::Empty),
             "-" => return Ok(Input::Stdin),
             "pty" => return Ok(Input::Pty),
             _ => {}
@@ -89,7 +89,7 @@ impl std::str::FromStr for Input {
                 baud: spec.baud,
             }),
             Ok(None) => Ok(Input::File(s.into())),
-            Err(why) => Err(LinkError::BadSerial {
+            Err(why) => Err(InputError::BadSerial {
                 text: s.chars().take(80).collect(),
                 why,
             }),
@@ -99,7 +99,7 @@ impl std::str::FromStr for Input {
 
 /// An open input: the reader, and for `pty` the device end's name and the far end, kept open
 /// here so that the head may open and close it freely.
-pub struct Opened {
+pub struct OpenedInput {
     /// The bytes.
     pub reader: Box<dyn Read>,
     /// For `pty`: the path the head writes to.
@@ -112,9 +112,9 @@ impl Input {
     /// quiet link does not block Ctrl-C.
     ///
     /// # Errors
-    /// [`LinkError`] naming the port or file.
-    pub fn open(&self) -> Result<Opened, LinkError> {
-        let plain = |reader: Box<dyn Read>| Opened {
+    /// [`InputError`] naming the port or file.
+    pub fn open(&self) -> Result<OpenedInput, InputError> {
+        let plain = |reader: Box<dyn Read>| OpenedInput {
             reader,
             device: None,
             _far_end: None,
@@ -126,7 +126,7 @@ impl Input {
                 serialport::new(path, *baud)
                     .timeout(READ_TIMEOUT)
                     .open_native()
-                    .map_err(|source| LinkError::Serial {
+                    .map_err(|source| InputError::Serial {
                         path: path.clone(),
                         baud: *baud,
                         source,
@@ -134,10 +134,10 @@ impl Input {
             )),
             Input::Pty => {
                 use serialport::SerialPort;
-                let (mut ours, theirs) = serialport::TTYPort::pair().map_err(LinkError::Pty)?;
+                let (mut ours, theirs) = serialport::TTYPort::pair().map_err(InputError::Pty)?;
                 let device = theirs.name();
-                ours.set_timeout(READ_TIMEOUT).map_err(LinkError::Pty)?;
-                Opened {
+                ours.set_timeout(READ_TIMEOUT).map_err(InputError::Pty)?;
+                OpenedInput {
                     reader: Box::new(ours),
                     device,
                     _far_end: Some(theirs),
@@ -150,15 +150,15 @@ impl Input {
 /// Opens a recorded stream or journal for reading; a folder is named as one.
 ///
 /// # Errors
-/// [`LinkError::Folder`] or [`LinkError::File`] naming the path.
-pub fn open_file(path: &std::path::Path) -> Result<std::fs::File, LinkError> {
-    let file = |source| LinkError::File {
+/// [`InputError::Folder`] or [`InputError::File`] naming the path.
+pub fn open_file(path: &std::path::Path) -> Result<std::fs::File, InputError> {
+    let file = |source| InputError::File {
         path: path.to_path_buf(),
         source,
     };
     let f = std::fs::File::open(path).map_err(file)?;
     if f.metadata().map_err(file)?.is_dir() {
-        return Err(LinkError::Folder {
+        return Err(InputError::Folder {
             path: path.to_path_buf(),
         });
     }

@@ -40,7 +40,7 @@ pub enum OutputError {
     Export(#[from] ExportError),
     /// The input of a replay cannot be opened.
     #[error(transparent)]
-    Open(#[from] crate::link::LinkError),
+    Open(#[from] crate::link::InputError),
     /// The input of a replay cannot be read.
     #[error("cannot read {}", path.display())]
     Input {

@@ -60,7 +60,7 @@ pub enum ViewsError {
     },
     /// The sheet's thickness is out of range.
     #[error(transparent)]
-    Sheet(#[from] crate::thickness::ThicknessError),
+    Thickness(#[from] crate::thickness::ThicknessError),
     /// The merge refused the views or failed.
     #[error(transparent)]
     Merge(#[from] MergeError),
@@ -309,21 +309,21 @@ pub fn load_views(
 /// The laser sheet's thickness for a merge: given (mm; 0 leaves the points as the head sent
 /// them), or found where the views agree best ([`scanner_merge::find_thickness`]).
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub enum Sheet {
+pub enum Thickness {
     /// Given, mm.
     Mm(f64),
     /// Found by the merge.
     Auto,
 }
 
-impl std::str::FromStr for Sheet {
+impl std::str::FromStr for Thickness {
     type Err = String;
     /// A thickness in mm, or `auto`.
     fn from_str(s: &str) -> Result<Self, Self::Err> {
         if s == "auto" {
-            return Ok(Sheet::Auto);
+            return Ok(Thickness::Auto);
         }
-        s.parse::<f64>().map(Sheet::Mm).map_err(|_| {
+        s.parse::<f64>().map(Thickness::Mm).map_err(|_| {
             format!(
                 "expected the sheet's thickness in mm (0 to {}) or \"auto\"",
                 crate::thickness::MAX_SIGMA_MM
@@ -340,7 +340,7 @@ pub trait MergeProgress: Progress {
 }
 
 /// Merges the views in `paths` (cells of `cell`): reads them with the sheet's thickness
-/// (`Sheet::Auto`: each thickness [`scanner_merge::thickness_tries`] names, to find the one where
+/// (`Thickness::Auto`: each thickness [`scanner_merge::thickness_tries`] names, to find the one where
 /// they agree best; then again with it) and runs [`scanner_merge::run`] on them.
 ///
 /// # Errors
@@ -348,12 +348,12 @@ pub trait MergeProgress: Progress {
 pub fn merge_folders(
     paths: &[PathBuf],
     cell: Option<Cell>,
-    sheet: Sheet,
+    sheet: Thickness,
     options: &MergeOptions,
     progress: &mut impl MergeProgress,
 ) -> Result<Merged, ViewsError> {
     options.check()?;
-    if let Sheet::Mm(mm) = sheet {
+    if let Thickness::Mm(mm) = sheet {
         crate::thickness::check_thickness(mm)?;
     }
     if paths.len() < 2 {
@@ -361,8 +361,8 @@ pub fn merge_folders(
     }
     let mut options = options.clone();
     let sheet_mm = match sheet {
-        Sheet::Mm(mm) => mm,
-        Sheet::Auto => {
+        Thickness::Mm(mm) => mm,
+        Thickness::Auto => {
             let mut tries = Vec::new();
             for &sigma in scanner_merge::thickness_tries() {
                 tries.push(load_views(paths, cell, sigma, |k| {

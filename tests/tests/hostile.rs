@@ -136,7 +136,7 @@ fn header_frame(width: u16, height: u16, edit: impl FnOnce(&mut Header)) -> Vec<
         PlaneMethod::LeastSquares,
     );
     edit(&mut h);
-    let (mut scratch, mut out) = (vec![0; scanner_wire::MAX_FRAME], vec![0; MAX_ENCODED]);
+    let (mut scratch, mut out) = (vec![0; scanner_wire::MAX_MESSAGE], vec![0; MAX_ENCODED]);
     let n = scanner_wire::encode(&Message::Header(h), &mut scratch, &mut out).unwrap();
     out.truncate(n);
     out

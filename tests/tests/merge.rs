@@ -958,9 +958,9 @@ fn open_edges(mesh: &tobj::Mesh) -> usize {
 /// A journal's frames with every header's right board plane replaced by its left one, each
 /// frame re-encoded as the head sends it.
 fn without_board(journal: &[u8]) -> Vec<u8> {
-    use scanner_wire::{Decoder, MAX_ENCODED, MAX_FRAME, Message};
+    use scanner_wire::{Decoder, MAX_ENCODED, MAX_MESSAGE, Message};
     let mut out = Vec::new();
-    let (mut scratch, mut frame) = (vec![0u8; MAX_FRAME], vec![0u8; MAX_ENCODED]);
+    let (mut scratch, mut frame) = (vec![0u8; MAX_MESSAGE], vec![0u8; MAX_ENCODED]);
     let mut decoder = Box::new(Decoder::<MAX_ENCODED>::new());
     decoder.feed(journal, |m| {
         let mut m = m.expect("a journal of good frames");

@@ -138,7 +138,7 @@ fn views_on_the_disc_are_posed_by_it_and_the_side_view_by_its_shape() {
 /// The wire stream `from` with every disc message replaced by the first of `disc_of` (its scan
 /// id made `from`'s).
 fn with_disc_of(from: &[u8], disc_of: &[u8]) -> Vec<u8> {
-    use scanner_wire::{Decoder, MAX_ENCODED, MAX_FRAME, Message, encode};
+    use scanner_wire::{Decoder, MAX_ENCODED, MAX_MESSAGE, Message, encode};
     let mut found = None;
     let mut d = Box::new(Decoder::<MAX_ENCODED>::new());
     d.feed(disc_of, |m| {
@@ -147,7 +147,7 @@ fn with_disc_of(from: &[u8], disc_of: &[u8]) -> Vec<u8> {
         }
     });
     let disc = found.expect("a disc message");
-    let (mut out, mut scratch, mut buf) = (Vec::new(), vec![0; MAX_FRAME], vec![0; MAX_ENCODED]);
+    let (mut out, mut scratch, mut buf) = (Vec::new(), vec![0; MAX_MESSAGE], vec![0; MAX_ENCODED]);
     let mut d = Box::new(Decoder::<MAX_ENCODED>::new());
     d.feed(from, |m| {
         let Ok(m) = m else { return };

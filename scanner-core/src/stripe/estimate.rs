@@ -32,7 +32,7 @@ pub struct Window<'a> {
     pub clipped: &'a [bool],
     /// Index of the rough centre (3×1 mask maximum).
     pub rough: usize,
-    /// Light less than this above the background is taken for noise by [`Shape::spread`] (0:
+    /// Light less than this above the background is taken for noise by [`Profile::spread`] (0:
     /// only its 15 %-of-the-height level applies). On a faint stripe 15 % of the height is about
     /// one noise σ, and the noise samples above it made a halo of nothing.
     pub noise: f32,
@@ -43,7 +43,7 @@ pub const MAX_WINDOW: usize = 2 * super::MAX_HALF_WINDOW + 1;
 
 /// Peak, background and extent of the stripe in a window.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Shape {
+pub struct Profile {
     /// Index of the largest sample near the rough centre.
     pub peak_index: usize,
     /// Largest sample near the rough centre.
@@ -124,13 +124,13 @@ fn crossings(n: usize, v: impl Fn(usize) -> f32, bg: (f32, f32), top: usize) -> 
 }
 
 impl Window<'_> {
-    fn bg(&self, shape: &Shape, i: usize) -> f32 {
+    fn bg(&self, shape: &Profile, i: usize) -> f32 {
         shape.background.0 + shape.background.1 * i as f32
     }
 
-    /// Background, peak, height and FWHM of the window (see [`Shape`]).
+    /// Background, peak, height and FWHM of the window (see [`Profile`]).
     #[inline]
-    pub fn shape(&self) -> Shape {
+    pub fn shape(&self) -> Profile {
         let n = self.signal.len().min(MAX_WINDOW);
         let s = &self.signal[..n];
         let raw = |i: usize| f32::from(s[i]);
@@ -198,7 +198,7 @@ impl Window<'_> {
         } else {
             0.0
         };
-        Shape {
+        Profile {
             peak_index,
             peak: raw(peak_index),
             height,
@@ -215,7 +215,7 @@ impl Window<'_> {
     /// The contiguous run around the peak where the background-subtracted signal exceeds
     /// `fraction` of the peak height, as `(first, last)` inclusive.
     #[inline]
-    fn run(&self, shape: &Shape, fraction: f32) -> (usize, usize) {
+    fn run(&self, shape: &Profile, fraction: f32) -> (usize, usize) {
         let height = shape.height;
         let level = |i: usize| f32::from(self.signal[i]) - self.bg(shape, i) > fraction * height;
         let (mut a, mut b) = (shape.peak_index, shape.peak_index);
@@ -231,7 +231,7 @@ impl Window<'_> {
     /// The centre by `estimator`; `sobel` holds the Sobel response along the line for
     /// [`Estimator::Paper`] (ignored by the others). `None` when the profile has no usable shape.
     #[inline]
-    pub fn centre(&self, shape: &Shape, estimator: Estimator, sobel: &[i32]) -> Option<f32> {
+    pub fn centre(&self, shape: &Profile, estimator: Estimator, sobel: &[i32]) -> Option<f32> {
         match estimator {
             Estimator::Paper => self.paper(sobel),
             Estimator::Centroid => self.centroid(shape),
@@ -269,7 +269,7 @@ impl Window<'_> {
     }
 
     #[inline]
-    fn centroid(&self, shape: &Shape) -> Option<f32> {
+    fn centroid(&self, shape: &Profile) -> Option<f32> {
         let height = shape.height;
         if !(height > 0.0) {
             return None;
@@ -286,7 +286,7 @@ impl Window<'_> {
         (den > 0.0).then(|| num / den)
     }
 
-    fn gaussian(&self, shape: &Shape) -> Option<f32> {
+    fn gaussian(&self, shape: &Profile) -> Option<f32> {
         let height = shape.height;
         if !(height > 0.0) {
             return None;

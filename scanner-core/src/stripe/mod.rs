@@ -27,7 +27,7 @@ mod frame;
 mod signal;
 mod simd;
 
-pub use estimate::{Estimator, MAX_WINDOW, Shape, Window};
+pub use estimate::{Estimator, MAX_WINDOW, Profile, Window};
 pub use frame::{Frame, FrameError, PixelFormat};
 pub use signal::{LaserColour, Method};
 
@@ -83,7 +83,7 @@ fn octave_value(bin: usize) -> f32 {
 }
 
 /// Marks valid lines that are both narrower than `fraction` of the median width of the frame's
-/// valid lines and weaker than half their median peak [`Status::Cut`]: the tail of the light
+/// valid lines and weaker than half their median peak [`LineStatus::Cut`]: the tail of the light
 /// sheet on a surface whose border it has passed. Narrow alone is not enough (a real stripe's
 /// width varies with speckle), nor weak alone (a dark surface).
 fn mark_cut(points: &mut [StripePoint], fraction: f32) {
@@ -95,7 +95,7 @@ fn mark_cut(points: &mut [StripePoint], fraction: f32) {
     let mut widths = [0u32; CUT_BINS];
     let mut peaks = [0u32; CUT_BINS];
     let mut n = 0u32;
-    for p in points.iter().filter(|p| p.status == Status::Valid) {
+    for p in points.iter().filter(|p| p.status == LineStatus::Valid) {
         widths[width_bin(p)] += 1;
         peaks[peak_bin(p)] += 1;
         n += 1;
@@ -105,8 +105,9 @@ fn mark_cut(points: &mut [StripePoint], fraction: f32) {
     }
     let width = fraction * (quantile(&widths, n, 0.5) as f32 + 0.5) / 4.0;
     let peak = 0.5 * octave_value(quantile(&peaks, n, 0.5));
-    let suspect =
-        |p: &StripePoint| p.status == Status::Valid && p.width < width && f32::from(p.peak) < peak;
+    let suspect = |p: &StripePoint| {
+        p.status == LineStatus::Valid && p.width < width && f32::from(p.peak) < peak
+    };
     // runs of at least CUT_RUN suspect lines (the gaps of invalid lines inside a run bridged)
     let mut i = 0;
     while i < points.len() {
@@ -115,7 +116,7 @@ fn mark_cut(points: &mut [StripePoint], fraction: f32) {
             continue;
         }
         let (start, mut end, mut count) = (i, i, 0);
-        while i < points.len() && (suspect(&points[i]) || points[i].status != Status::Valid) {
+        while i < points.len() && (suspect(&points[i]) || points[i].status != LineStatus::Valid) {
             if suspect(&points[i]) {
                 end = i;
                 count += 1;
@@ -126,7 +127,7 @@ fn mark_cut(points: &mut [StripePoint], fraction: f32) {
             for p in points[start..=end].iter_mut().filter(|p| suspect(p)) {
                 *p = StripePoint {
                     centre: 0.0,
-                    status: Status::Cut,
+                    status: LineStatus::Cut,
                     ..*p
                 };
             }
@@ -171,7 +172,7 @@ fn runs(points: &[StripePoint], parent: &mut [u16], size: &mut [u16]) {
         parent[i] = i as u16;
         size[i] = 0;
     }
-    let valid = |i: usize| points[i].status == Status::Valid;
+    let valid = |i: usize| points[i].status == LineStatus::Valid;
     for i in (0..n).filter(|&i| valid(i)) {
         for j in i.saturating_sub(CONTINUITY_GAP + 1)..i {
             if valid(j) && continuous((i, points[i].centre), (j, points[j].centre)) {
@@ -251,7 +252,7 @@ pub struct StripeConfig {
     /// Half size of the window read around each peak, pixels (≤ [`MAX_HALF_WINDOW`]).
     pub half_window: usize,
     /// A valid line narrower than this fraction of the median width of the frame's valid lines,
-    /// and weaker than half their median peak, is [`Status::Cut`] (0 keeps every line).
+    /// and weaker than half their median peak, is [`LineStatus::Cut`] (0 keeps every line).
     pub cut_width: f32,
     /// The laser speckle's share of a centre's standard uncertainty, pixels, added in
     /// quadrature to the sensor noise's ([`centre_sigma`]): [`SPECKLE_PX`] unless measured for
@@ -294,7 +295,7 @@ impl StripeConfig {
 
 /// Why a line has no valid centre, or that it has one.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
-pub enum Status {
+pub enum LineStatus {
     /// A valid centre.
     Valid,
     /// Nothing above the threshold.
@@ -322,22 +323,22 @@ pub enum Status {
     Isolated,
 }
 
-impl Status {
+impl LineStatus {
     /// Every status, in a fixed order (for tables and counters).
-    pub const ALL: [Status; 9] = [
-        Status::Valid,
-        Status::NoStripe,
-        Status::Ambiguous,
-        Status::Saturated,
-        Status::TooWide,
-        Status::TooNarrow,
-        Status::BadProfile,
-        Status::Cut,
-        Status::Isolated,
+    pub const ALL: [LineStatus; 9] = [
+        LineStatus::Valid,
+        LineStatus::NoStripe,
+        LineStatus::Ambiguous,
+        LineStatus::Saturated,
+        LineStatus::TooWide,
+        LineStatus::TooNarrow,
+        LineStatus::BadProfile,
+        LineStatus::Cut,
+        LineStatus::Isolated,
     ];
 }
 
-impl fmt::Display for Status {
+impl fmt::Display for LineStatus {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         f.write_str(match self {
             Self::Valid => "valid",
@@ -357,7 +358,7 @@ impl fmt::Display for Status {
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct StripePoint {
     /// Subpixel centre along the line in image coordinates (a row in column mode, a column in row
-    /// mode); 0 unless `status` is [`Status::Valid`].
+    /// mode); 0 unless `status` is [`LineStatus::Valid`].
     pub centre: f32,
     /// Largest signal sample near the peak.
     pub peak: u16,
@@ -367,7 +368,7 @@ pub struct StripePoint {
     /// speckle's ([`StripeConfig::speckle_px`]) in quadrature; 0 unless valid.
     pub sigma: f32,
     /// Valid, or why not.
-    pub status: Status,
+    pub status: LineStatus,
 }
 
 impl StripePoint {
@@ -376,7 +377,7 @@ impl StripePoint {
         peak: 0,
         width: 0.0,
         sigma: 0.0,
-        status: Status::NoStripe,
+        status: LineStatus::NoStripe,
     };
 }
 
@@ -411,7 +412,7 @@ pub fn centre_sigma(height: f32, fwhm: f32, noise: f32) -> f32 {
 /// (for the difference image of a coloured laser the signal is the magnitude squared over 9;
 /// otherwise the magnitude itself), for frames of `format` read with `cfg`.
 pub fn peak_dn(format: PixelFormat, cfg: &StripeConfig, peak: u16) -> u16 {
-    let kind = signal::Kind {
+    let kind = signal::SignalKind {
         format,
         method: cfg.method,
         colour: cfg.colour,
@@ -440,7 +441,7 @@ impl Extraction<'_> {
         self.points
             .iter()
             .enumerate()
-            .filter(|(_, p)| p.status == Status::Valid)
+            .filter(|(_, p)| p.status == LineStatus::Valid)
             .map(|(i, p)| (self.first_line + i, p))
     }
 }
@@ -609,7 +610,7 @@ impl<const W: usize> Extractor<W> {
         let io = Io {
             frame,
             reference: reference_or_frame,
-            kind: signal::Kind {
+            kind: signal::SignalKind {
                 format: frame.format(),
                 method: cfg.method,
                 colour: cfg.colour,
@@ -671,7 +672,7 @@ impl<const W: usize> Extractor<W> {
         };
         for line in 0..lines {
             let p = self.out[line];
-            if p.status != Status::Valid || self.run[line] >= MIN_RUN {
+            if p.status != LineStatus::Valid || self.run[line] >= MIN_RUN {
                 continue;
             }
             let second = usize::from(self.second_at[line]);
@@ -687,11 +688,11 @@ impl<const W: usize> Extractor<W> {
                         (&mut sig, &mut clipped),
                     )
                 })
-                .filter(|q| q.status == Status::Valid && continues(q.centre));
+                .filter(|q| q.status == LineStatus::Valid && continues(q.centre));
             self.out[line] = candidate.unwrap_or(StripePoint {
                 centre: 0.0,
                 sigma: 0.0,
-                status: Status::Isolated,
+                status: LineStatus::Isolated,
                 ..p
             });
         }
@@ -934,23 +935,23 @@ impl<const W: usize> Extractor<W> {
         let strong_second = u32::from(self.second[line]) > t3
             && f32::from(self.second[line]) > cfg.ambiguity * f32::from(self.best[line]);
         point.status = if point.peak < threshold {
-            Status::NoStripe
+            LineStatus::NoStripe
         } else if strong_second {
-            Status::Ambiguous
+            LineStatus::Ambiguous
         } else if shape.clipped_run > cfg.max_plateau {
-            Status::Saturated
+            LineStatus::Saturated
         } else if shape.fwhm > cfg.max_width
             || shape.spread > 2.0 * shape.fwhm + 1.0
             || shape.stray as f32 > shape.fwhm
             || shape.stray_peak > 1.0
         {
-            Status::TooWide
+            LineStatus::TooWide
         } else if shape.fwhm < cfg.min_width {
-            Status::TooNarrow
+            LineStatus::TooNarrow
         } else {
-            Status::Valid
+            LineStatus::Valid
         };
-        if point.status != Status::Valid {
+        if point.status != LineStatus::Valid {
             return point;
         }
         let centre = if cfg.estimator == Estimator::Paper {
@@ -979,7 +980,7 @@ impl<const W: usize> Extractor<W> {
                     cfg.speckle_px,
                 );
             }
-            _ => point.status = Status::BadProfile,
+            _ => point.status = LineStatus::BadProfile,
         }
         point
     }
@@ -989,7 +990,7 @@ impl<const W: usize> Extractor<W> {
 struct Io<'f, 'd> {
     frame: &'f Frame<'d>,
     reference: &'f Frame<'d>,
-    kind: signal::Kind,
+    kind: signal::SignalKind,
     axis: Axis,
     roi: Roi,
 }

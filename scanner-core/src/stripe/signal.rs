@@ -68,7 +68,7 @@ impl LaserColour {
 
 /// What the signal is made of: the frame's format, the method and the laser's colour.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub(crate) struct Kind {
+pub(crate) struct SignalKind {
     pub format: PixelFormat,
     pub method: Method,
     pub colour: LaserColour,
@@ -128,7 +128,7 @@ fn yuyv_at(row: &[u8], x: usize) -> (u8, u8, u8) {
 }
 
 /// What the signal is made of: the frame's format, the method and the laser's colour.
-impl Kind {
+impl SignalKind {
     /// Whether the signal is the squared magnitude (DIM of a coloured laser).
     #[inline]
     pub(crate) fn squared(self) -> bool {
@@ -154,7 +154,7 @@ impl Kind {
 
 /// The magnitude of pixel `x` of a row (the per-pixel form of [`magnitudes`]).
 #[inline]
-fn magnitude(k: Kind, row: &[u8], reference: &[u8], x: usize) -> u8 {
+fn magnitude(k: SignalKind, row: &[u8], reference: &[u8], x: usize) -> u8 {
     match k.format {
         PixelFormat::Gray8 => match k.method {
             Method::Lim => row[x],
@@ -229,7 +229,7 @@ fn yuyv_dim(c: LaserColour, now: [u8; 3], before: [u8; 3]) -> u8 {
 /// DIM (the caller checks). The luma kernels read 16 pixels at a time through fixed-size arrays
 /// so that the even-byte gather of YUYV becomes a vector mask-and-pack.
 #[inline]
-pub(crate) fn magnitudes(k: Kind, row: &[u8], reference: &[u8], x0: usize, out: &mut [u8]) {
+pub(crate) fn magnitudes(k: SignalKind, row: &[u8], reference: &[u8], x0: usize, out: &mut [u8]) {
     let n = out.len();
     match (k.format, k.method, k.colour) {
         (PixelFormat::Gray8, Method::Lim, _) => out.copy_from_slice(&row[x0..x0 + n]),
@@ -341,7 +341,7 @@ fn rgb_colour(
         }
     }
     let done = n - outs.into_remainder().len();
-    let k = Kind {
+    let k = SignalKind {
         format: PixelFormat::Rgb24,
         method,
         colour,
@@ -403,7 +403,7 @@ fn yuyv_colour(
     x0: usize,
     out: &mut [u8],
 ) {
-    let k = Kind {
+    let k = SignalKind {
         format: PixelFormat::Yuyv,
         method,
         colour,
@@ -470,7 +470,7 @@ fn yuyv_colour(
 /// The signal of the pixels `x0 .. x0 + out.len()` of one row, 256 at a time through a byte
 /// buffer of magnitudes.
 #[inline]
-pub(crate) fn row(k: Kind, row: &[u8], reference: &[u8], x0: usize, out: &mut [u16]) {
+pub(crate) fn row(k: SignalKind, row: &[u8], reference: &[u8], x0: usize, out: &mut [u16]) {
     let mut buf = [0u8; 256];
     for (c, chunk) in out.chunks_mut(256).enumerate() {
         let m = &mut buf[..chunk.len()];
@@ -484,7 +484,7 @@ pub(crate) fn row(k: Kind, row: &[u8], reference: &[u8], x0: usize, out: &mut [u
 /// Signal of the single pixel `x` of a row, and whether its raw value is clipped (255 in any
 /// channel of RGB, in Y of YUYV).
 #[inline]
-pub(crate) fn pixel(k: Kind, row: &[u8], reference: &[u8], x: usize) -> (u16, bool) {
+pub(crate) fn pixel(k: SignalKind, row: &[u8], reference: &[u8], x: usize) -> (u16, bool) {
     let bpp = k.format.bytes_per_pixel();
     let p = &row[x * bpp..][..bpp];
     let clipped = match k.format {
@@ -500,7 +500,7 @@ pub(crate) fn pixel(k: Kind, row: &[u8], reference: &[u8], x: usize) -> (u16, bo
 /// otherwise seem noise-free). Gray and white-laser YUYV read their bytes directly.
 #[inline]
 pub(crate) fn signed_changes(
-    k: Kind,
+    k: SignalKind,
     row: &[u8],
     reference: &[u8],
     xs: core::ops::Range<usize>,
@@ -552,8 +552,8 @@ pub(crate) fn signed_changes(
 
 /// The LIM signal of one pixel (for the background histogram of LIM).
 #[inline]
-pub(crate) fn lim_of(k: Kind, row: &[u8], x: usize) -> u8 {
-    let lim = Kind {
+pub(crate) fn lim_of(k: SignalKind, row: &[u8], x: usize) -> u8 {
+    let lim = SignalKind {
         method: Method::Lim,
         ..k
     };
@@ -565,7 +565,7 @@ pub(crate) fn lim_of(k: Kind, row: &[u8], x: usize) -> u8 {
 /// (`step == stride`) or along a row. Gray and white-laser YUYV read their bytes directly; the
 /// others each pixel on its row (a YUYV pixel's chroma is found from its place in the row).
 pub(crate) fn fill(
-    k: Kind,
+    k: SignalKind,
     frame: &[u8],
     reference: &[u8],
     stride: usize,

@@ -4,7 +4,8 @@
 //! quadratic x(y) (a straight line up to lens distortion).
 
 use scanner_core::stripe::{
-    Axis, Estimator, Extractor, Frame, LaserColour, Method, PixelFormat, Roi, Status, StripeConfig,
+    Axis, Estimator, Extractor, Frame, LaserColour, LineStatus, Method, PixelFormat, Roi,
+    StripeConfig,
 };
 
 /// One stripe of one photograph.
@@ -94,8 +95,8 @@ pub struct Outcome {
     pub glint_rows: usize,
     pub glint_rejected: usize,
     pub glint_max_off: f64,
-    /// Status counts over all rows of the band.
-    pub statuses: Vec<(Status, usize)>,
+    /// LineStatus counts over all rows of the band.
+    pub statuses: Vec<(LineStatus, usize)>,
 }
 
 pub fn fit_quadratic(pts: &[(f64, f64)]) -> impl Fn(f64) -> f64 + use<> {
@@ -150,14 +151,14 @@ pub fn analyse(case: &Case, estimator: Estimator) -> Outcome {
         let y = res.first_line + i;
         if in_glint(y) {
             glint_rows += 1;
-            if p.status == Status::Valid {
+            if p.status == LineStatus::Valid {
                 glint_max_off = glint_max_off.max((f64::from(p.centre) - curve(y as f64)).abs());
             } else {
                 glint_rejected += 1;
             }
         }
     }
-    let statuses = Status::ALL
+    let statuses = LineStatus::ALL
         .iter()
         .map(|&s| (s, res.points.iter().filter(|p| p.status == s).count()))
         .filter(|(_, n)| *n > 0)
@@ -242,7 +243,7 @@ pub fn full_height(case: &Case, method: Method, colour: LaserColour, to: usize) 
         dark_valid: 0,
     };
     for (y, p) in res.points.iter().enumerate() {
-        let valid = p.status == Status::Valid;
+        let valid = p.status == LineStatus::Valid;
         if on_board(y) {
             out.board_rows += 1;
             if valid {
@@ -274,8 +275,8 @@ pub struct FullWidth {
     /// something else (a colour fringe at a square's edge, a speck), with their rows and
     /// columns.
     pub off: Vec<(usize, f32)>,
-    /// Status counts over the rows.
-    pub statuses: Vec<(Status, usize)>,
+    /// LineStatus counts over the rows.
+    pub statuses: Vec<(LineStatus, usize)>,
 }
 
 /// [`FullWidth`] of the photograph `image` (its two cases in [`CASES`]) in `format`.
@@ -336,7 +337,7 @@ pub fn full_width(image: &str, format: PixelFormat) -> FullWidth {
         })
         .map(|(y, p)| (y, p.centre))
         .collect();
-    let statuses = Status::ALL
+    let statuses = LineStatus::ALL
         .iter()
         .map(|&s| (s, res.points.iter().filter(|p| p.status == s).count()))
         .filter(|(_, n)| *n > 0)

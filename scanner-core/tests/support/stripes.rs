@@ -10,7 +10,7 @@
 use rand::{SeedableRng, rngs::StdRng};
 use rand_distr::{Distribution, Normal};
 use scanner_core::stripe::{
-    Axis, Estimator, Extractor, Frame, Method, PixelFormat, Status, StripeConfig,
+    Axis, Estimator, Extractor, Frame, LineStatus, Method, PixelFormat, StripeConfig,
 };
 
 pub const WIDTH: usize = 200;
@@ -111,7 +111,7 @@ pub fn bench(estimator: Estimator, method: Method, noise: f64, repeats: u64) -> 
                     if amp >= 60.0 {
                         out.judged_high += 1;
                     }
-                    if p.status != Status::Valid {
+                    if p.status != LineStatus::Valid {
                         continue;
                     }
                     let e = (f64::from(p.centre) - s.truth[x]).abs();
@@ -174,7 +174,7 @@ pub fn stated(sigma: f64, amplitude: f64, frames: u64) -> Stated {
         let res = ex.extract(&f, Some(&r), &cfg).unwrap();
         out.judged += res.points.len();
         for (x, p) in res.points.iter().enumerate() {
-            if p.status != Status::Valid {
+            if p.status != LineStatus::Valid {
                 continue;
             }
             let e = f64::from(p.centre) - s.truth[x];

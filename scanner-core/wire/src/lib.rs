@@ -3,7 +3,7 @@
 //! into the caller's buffers, decoding borrows from them). The format is written down in
 //! `docs/wire.md`; smoltcp's `wire` is the model, one message per module.
 //!
-//! A frame on the wire ([`frame`]):
+//! A frame on the wire ([`framing`]):
 //! ```text
 //! 0x00 ‖ COBS( version:u8 ‖ postcard(Message) ‖ crc32(version ‖ postcard(Message)):u32 LE ) ‖ 0x00
 //! ```
@@ -29,7 +29,7 @@
 //!
 //! # Layers
 //! ```text
-//! frame
+//! framing
 //! message
 //! preview
 //! header  points  status  controls  planes  disc_pose  notice
@@ -73,7 +73,7 @@ macro_rules! wire_enum {
 pub mod controls;
 pub mod disc_pose;
 mod error;
-pub mod frame;
+pub mod framing;
 pub mod header;
 pub mod message;
 pub mod notice;
@@ -85,7 +85,7 @@ pub mod status;
 pub use controls::{Control, Controls};
 pub use disc_pose::{DiscFound, DiscPose};
 pub use error::WireError;
-pub use frame::{DecodeStats, Decoder, decode_frame, encode};
+pub use framing::{DecodeStats, Decoder, decode, encode};
 pub use header::{CameraBlock, Header, PlaneBlock, PlaneMethod};
 pub use message::Message;
 pub use notice::{Notice, NoticeKind};
@@ -113,8 +113,8 @@ pub const UNCERTAINTY_BYTES_PER_POINT: usize = 1;
 /// Room for a message's fields besides its points (ids, time, plane, counts, lengths), bytes.
 pub const MESSAGE_OVERHEAD: usize = 256;
 /// Largest message before COBS, bytes: [`MAX_POINTS`] points with colour and uncertainty fit.
-pub const MAX_FRAME: usize = MAX_POINTS
+pub const MAX_MESSAGE: usize = MAX_POINTS
     * (MAX_XYZ_BYTES_PER_POINT + RGB_BYTES_PER_POINT + UNCERTAINTY_BYTES_PER_POINT)
     + MESSAGE_OVERHEAD;
 /// Largest encoded frame including COBS overhead and both delimiters.
-pub const MAX_ENCODED: usize = cobs::max_encoding_length(MAX_FRAME) + 2;
+pub const MAX_ENCODED: usize = cobs::max_encoding_length(MAX_MESSAGE) + 2;

@@ -3,9 +3,9 @@
 
 use proptest::prelude::*;
 use scanner_wire::{
-    CameraBlock, Decoder, EndReason, Header, MAX_ENCODED, MAX_FRAME, Message, Notice, NoticeKind,
+    CameraBlock, Decoder, EndReason, Header, MAX_ENCODED, MAX_MESSAGE, Message, Notice, NoticeKind,
     PREVIEW_MAX_PIXELS, PlaneBlock, PlaneMethod, Points, Preview, PreviewState, Status, WireError,
-    decode_frame, encode, points,
+    decode, encode, points,
 };
 
 fn header() -> Header {
@@ -60,7 +60,7 @@ fn stripe(n: usize) -> Vec<[i32; 3]> {
 }
 
 fn frame_bytes(msg: &Message) -> Vec<u8> {
-    let mut scratch = vec![0u8; MAX_FRAME];
+    let mut scratch = vec![0u8; MAX_MESSAGE];
     let mut out = vec![0u8; MAX_ENCODED];
     let n = encode(msg, &mut scratch, &mut out).unwrap();
     out.truncate(n);
@@ -270,8 +270,8 @@ fn the_golden_header_frame_of_the_spec_is_what_the_encoder_writes() {
 #[test]
 fn wire_enums_and_blocks_are_checked_at_the_parse() {
     // The method byte of a header frame set to 7: the frame is refused, not misread.
-    let mut scratch = vec![0u8; MAX_FRAME];
-    let mut payload = vec![0u8; MAX_FRAME];
+    let mut scratch = vec![0u8; MAX_MESSAGE];
+    let mut payload = vec![0u8; MAX_MESSAGE];
     let n = postcard::to_slice(&Message::Header(header()), &mut payload)
         .unwrap()
         .len();
@@ -309,7 +309,7 @@ fn frame_v1(body: &[u8]) -> Vec<u8> {
 #[test]
 fn version_1_frames_are_still_read_and_their_points_carry_no_uncertainty() {
     // The documented sizes of the largest frame.
-    assert_eq!(scanner_wire::MAX_FRAME, 78_080);
+    assert_eq!(scanner_wire::MAX_MESSAGE, 78_080);
     assert_eq!(scanner_wire::MAX_ENCODED, 78_390);
     let pts = stripe(50);
     let mut xyz = vec![0u8; 15 * pts.len()];
@@ -416,7 +416,7 @@ fn notices_and_previews_round_trip_and_bad_ones_are_refused() {
         let mut bytes = frame_bytes(m);
         assert!(bytes.len() <= MAX_ENCODED);
         let n = bytes.len();
-        assert_eq!(decode_frame(&mut bytes[1..n - 1]), Ok(*m));
+        assert_eq!(decode(&mut bytes[1..n - 1]), Ok(*m));
     }
     let short = &pixels[..pixels.len() - 1];
     let odd = &markers[..3];
@@ -438,10 +438,7 @@ fn notices_and_previews_round_trip_and_bad_ones_are_refused() {
         assert!(!p.is_consistent());
         let mut bytes = frame_bytes(&Message::Preview(p));
         let n = bytes.len();
-        assert_eq!(
-            decode_frame(&mut bytes[1..n - 1]),
-            Err(WireError::BadPayload)
-        );
+        assert_eq!(decode(&mut bytes[1..n - 1]), Err(WireError::BadPayload));
     }
     // A notice's kind byte set to 9: refused.
     let mut body = body_of(&good[0]);

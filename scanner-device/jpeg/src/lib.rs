@@ -9,7 +9,7 @@
 //! tables of ITU T.81 Annex K, which are used then). Progressive, lossless, arithmetic-coded and
 //! 12-bit images are refused by name.
 //!
-//! Fixed memory: a [`Decoder`] holds its tables (about 12 KiB) and is reused frame after frame;
+//! Fixed memory: a [`JpegDecoder`] holds its tables (about 12 KiB) and is reused frame after frame;
 //! it allocates nothing. The inverse DCT is the floating-point AAN factorisation of the IJG's
 //! `jidctflt`, written over eight lanes at once so that it compiles to vector instructions on
 //! x86-64 (SSE2) and aarch64 (NEON) alike; no input makes it panic (integer arithmetic wraps,
@@ -354,7 +354,7 @@ struct Component {
 /// A reusable baseline JPEG decoder, no allocation. Each frame starts from the standard Huffman
 /// tables (a motion-JPEG frame without its own means them), so that tables a corrupt frame
 /// defined never reach the next one; quantisation tables, which every frame carries, are kept.
-pub struct Decoder {
+pub struct JpegDecoder {
     quant: [[u16; 64]; 4],
     quant_defined: [bool; 4],
     dc: [Huffman; 4],
@@ -363,7 +363,7 @@ pub struct Decoder {
     custom_tables: bool,
 }
 
-impl Default for Decoder {
+impl Default for JpegDecoder {
     fn default() -> Self {
         Self::new()
     }
@@ -430,10 +430,10 @@ fn be16(data: &[u8], at: usize) -> Option<usize> {
     Some(usize::from(*data.get(at)?) << 8 | usize::from(*data.get(at + 1)?))
 }
 
-impl Decoder {
+impl JpegDecoder {
     /// A decoder with the standard Huffman tables and no quantisation tables yet.
     pub fn new() -> Self {
-        let mut d = Decoder {
+        let mut d = JpegDecoder {
             quant: [[0; 64]; 4],
             quant_defined: [false; 4],
             dc: [
@@ -1146,7 +1146,7 @@ mod tests {
     /// Huffman tables of one frame (here one whose image never comes) do not reach the next.
     #[test]
     fn a_frames_own_huffman_tables_end_with_it() {
-        let mut d = Decoder::new();
+        let mut d = JpegDecoder::new();
         let standard = d.dc[0].lookup;
         // SOI, then DHT: DC table 0 with one code of length 1 (symbol 7), then EOI.
         let frame = [
@@ -1178,7 +1178,7 @@ mod tests {
 
     #[test]
     fn the_standard_tables_decode_their_own_codes() {
-        let d = Decoder::new();
+        let d = JpegDecoder::new();
         // The luminance DC code for size 0 is `00`, for size 5 `110`, for 11 `111111110`.
         for (bits, len, symbol) in [(0b00u32, 2, 0u8), (0b110, 3, 5), (0b1_1111_1110, 9, 11)] {
             let word = [(bits << (32 - len)).to_be_bytes(), [0; 4]].concat();

@@ -37,7 +37,7 @@ fn success(power: f64, ambient: f64, method: Method, ex: &mut Extractor<1024>) -
             }
             total += 1;
             let p = res.points[x - res.first_line];
-            if p.status == scanner_core::stripe::Status::Valid
+            if p.status == scanner_core::stripe::LineStatus::Valid
                 && (f64::from(p.centre) - t.row).abs() <= 1.0
             {
                 good += 1;

@@ -292,7 +292,7 @@ impl Scene {
                 .transpose()?
                 .map(|(i, paper, centre, turn_deg)| {
                     let disc = scanner_calib::disc::Disc::new(paper);
-                    super::Turntable {
+                    super::TurntableSpec {
                         object: i,
                         disc,
                         sheet: std::sync::Arc::new(disc.sheet()),

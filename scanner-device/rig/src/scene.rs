@@ -233,7 +233,7 @@ pub struct Scene {
     /// with the objects.
     pub object_pose: Isometry3<f64>,
     /// The turntable disc the objects stand on, if any: one of the objects, printed.
-    pub turntable: Option<Turntable>,
+    pub turntable: Option<TurntableSpec>,
     /// Objects that stay put in every view (indices into `objects`): the table or stand a
     /// turntable sits on, which the hand turns do not move.
     pub fixed: Vec<usize>,
@@ -242,7 +242,7 @@ pub struct Scene {
 /// The printed turntable disc ([`scanner_calib::disc`]) under the objects: a [`Shape::Disc`]
 /// among the objects, rendered with the print's ink, turning with the objects in every view.
 #[derive(Debug, Clone, PartialEq)]
-pub struct Turntable {
+pub struct TurntableSpec {
     /// Its index among the scene's objects.
     pub object: usize,
     /// The disc printed.

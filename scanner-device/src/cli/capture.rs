@@ -11,7 +11,7 @@ use scanner_calib::{Target, board_planes, find_grid};
 use scanner_core::stripe::PixelFormat;
 
 use super::calibrate::{TargetArgs, load_board};
-use super::report::{CaptureData, GridData, Refusal, SheetData, ShotData, write_json};
+use super::report::{CaptureData, GridData, ImageRefusal, SheetData, ShotData, write_json};
 use crate::source::OwnedFrame;
 
 /// `capture`'s options.
@@ -78,11 +78,11 @@ impl Check {
                         .collect();
                     shot.angle_deg = Some(fit.board.angle().to_degrees());
                 }
-                Err(e) => shot.refused = Some(Refusal::of(&e, |i| i.to_string())),
+                Err(e) => shot.refused = Some(ImageRefusal::of(&e, |i| i.to_string())),
             },
             Check::Grid(target) => match find_grid(gray, target) {
                 Ok(v) => shot.grid = Some(GridData::of(&v)),
-                Err(e) => shot.refused = Some(Refusal::of(&e, |i| i.to_string())),
+                Err(e) => shot.refused = Some(ImageRefusal::of(&e, |i| i.to_string())),
             },
         }
         shot

@@ -211,7 +211,7 @@ impl SheetData {
 
 /// Why an image or a shot was not used.
 #[derive(Debug, Clone, PartialEq, Serialize)]
-pub struct Refusal {
+pub struct ImageRefusal {
     /// A short name of the reason: `same_view`, `count_mismatch` (a grid larger than the target
     /// given), `reprojection` (the fit's error too high), `no_grid`, `no_markers`,
     /// `too_few_markers`, `size` (another image size), or `other`.
@@ -222,9 +222,9 @@ pub struct Refusal {
     pub message: String,
 }
 
-impl Refusal {
+impl ImageRefusal {
     /// The refusal `e`; `name(i)` names image `i`.
-    pub fn of(e: &CalibError, name: impl Fn(usize) -> String) -> Refusal {
+    pub fn of(e: &CalibError, name: impl Fn(usize) -> String) -> ImageRefusal {
         let (reason, same_as) = match e {
             CalibError::SameView { other } => ("same_view", Some(name(*other))),
             CalibError::CountMismatch { .. } | CalibError::CountTooLarge { .. } => {
@@ -237,7 +237,7 @@ impl Refusal {
             CalibError::ImageSize { .. } | CalibError::MixedSizes { .. } => ("size", None),
             _ => ("other", None),
         };
-        Refusal {
+        ImageRefusal {
             reason,
             same_as,
             message: e.to_string(),
@@ -259,7 +259,7 @@ pub struct IntrinsicsImage {
     /// Features identified but left out of the fit, far off it: (layout index, error px).
     pub dropped: Vec<(usize, f64)>,
     /// Why it was not used.
-    pub refused: Option<Refusal>,
+    pub refused: Option<ImageRefusal>,
     /// Its size where it was one pixel larger than the rest and was cropped to theirs.
     pub cropped_from: Option<(u32, u32)>,
 }
@@ -298,7 +298,7 @@ impl IntrinsicsImage {
                 rms_px: None,
                 max_px: None,
                 dropped: Vec::new(),
-                refused: Some(Refusal::of(e, name)),
+                refused: Some(ImageRefusal::of(e, name)),
                 cropped_from: None,
             },
         }
@@ -499,7 +499,7 @@ pub struct ShotData {
     /// With the board: the angle the sheets meet at, degrees.
     pub angle_deg: Option<f64>,
     /// Why it is not usable.
-    pub refused: Option<Refusal>,
+    pub refused: Option<ImageRefusal>,
 }
 
 /// A grid found in a shot.

@@ -11,7 +11,7 @@ use scanner_core::stripe::{Axis, LaserColour, Method, PixelFormat, StripeConfig}
 use scanner_wire::PlaneMethod;
 use scanner_wire::Skip;
 
-use crate::link::{Link, Target};
+use crate::link::{Destination, Link};
 use crate::session::{Calibration, DiscOutcome, ScanOptions, ScanReport, StopWhen, run_scan_until};
 use crate::source::convert::CameraFormat;
 use crate::source::{FrameSource, SourceOptions, open_with};
@@ -381,7 +381,7 @@ pub fn plan(a: &ScanArgs) -> Result<ScanPlan> {
 
 /// What `scan` and `preview` open alike: the source, the calibration when given, the
 /// pipeline's settings, the link and when to stop.
-pub(super) struct Opened {
+pub(super) struct OpenedSource {
     /// The frame source.
     pub source: Box<dyn FrameSource>,
     /// The calibration, checked against the source's size, when given.
@@ -402,7 +402,7 @@ pub(super) struct Opened {
 ///
 /// # Errors
 /// As [`plan`].
-pub(super) fn open(a: &ScanArgs) -> Result<Opened> {
+pub(super) fn open(a: &ScanArgs) -> Result<OpenedSource> {
     if let Some(f) = &a.camera.fourcc {
         CameraFormat::parse(f)?;
     }
@@ -435,7 +435,7 @@ pub(super) fn open(a: &ScanArgs) -> Result<Opened> {
         .as_ref()
         .map(|p| read_calibration(p, source.as_ref(), &a.source))
         .transpose()?;
-    let target: Target = a.out.parse().context("--out")?;
+    let target: Destination = a.out.parse().context("--out")?;
     let link = Link::spawn(target.open()?, a.link_depth, scanner_wire::MAX_ENCODED);
     let live = a.source.starts_with("/dev/") || a.source.starts_with("v4l:");
     let stop = StopWhen {
@@ -449,7 +449,7 @@ pub(super) fn open(a: &ScanArgs) -> Result<Opened> {
             None => None,
         },
     };
-    Ok(Opened {
+    Ok(OpenedSource {
         source,
         calibration,
         head: head_config(a),

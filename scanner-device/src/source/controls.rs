@@ -6,7 +6,7 @@
 
 /// A control's kind.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Kind {
+pub enum ControlKind {
     /// An integer range.
     Integer,
     /// On or off.
@@ -19,13 +19,13 @@ pub enum Kind {
 
 /// One control a camera offers.
 #[derive(Debug, Clone, PartialEq, Eq)]
-pub struct Control {
+pub struct CameraControl {
     /// V4L2 control id.
     pub id: u32,
     /// Its name as the driver gives it.
     pub name: String,
     /// Its kind.
-    pub kind: Kind,
+    pub kind: ControlKind,
     /// Smallest value.
     pub min: i64,
     /// Largest value.
@@ -36,12 +36,12 @@ pub struct Control {
     pub read_only: bool,
 }
 
-impl Control {
+impl CameraControl {
     fn offers(&self, value: i64) -> bool {
         !self.read_only
             && value >= self.min
             && value <= self.max
-            && (self.kind != Kind::Menu || self.menu.iter().any(|(i, _)| *i == value))
+            && (self.kind != ControlKind::Menu || self.menu.iter().any(|(i, _)| *i == value))
     }
 }
 
@@ -64,12 +64,12 @@ pub mod id {
 /// One control to set, and what the value means.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct Setting {
-    /// Control id.
+    /// CameraControl id.
     pub id: u32,
     /// The control's name (the driver's).
     pub control: String,
     /// Its kind (how the value is sent).
-    pub kind: Kind,
+    pub kind: ControlKind,
     /// The value.
     pub value: i64,
     /// What it does, for people.
@@ -87,7 +87,7 @@ pub struct Plan {
 
 /// Chooses the settings from the controls a camera offers; `mains_hz` is the local mains
 /// frequency (50 or 60) when known, else the camera's automatic choice is taken if it has one.
-pub fn plan(controls: &[Control], mains_hz: Option<u32>) -> Plan {
+pub fn plan(controls: &[CameraControl], mains_hz: Option<u32>) -> Plan {
     let find = |id: u32| controls.iter().find(|c| c.id == id);
     let mut p = Plan::default();
     let mut want =
@@ -198,15 +198,15 @@ pub fn on_wire(plan: &Plan, refused: &[(String, String)]) -> scanner_wire::Contr
 /// Reads `v4l2-ctl --list-ctrls-menus` output (what a camera offers, recorded once with that
 /// tool): `name 0xID (kind) : min=… max=… … flags=…`, menus followed by `N: Name` lines.
 /// Lines that are neither are skipped.
-pub fn parse_v4l2_ctl(text: &str) -> Vec<Control> {
-    let mut out: Vec<Control> = Vec::new();
+pub fn parse_v4l2_ctl(text: &str) -> Vec<CameraControl> {
+    let mut out: Vec<CameraControl> = Vec::new();
     for line in text.lines() {
         let t = line.trim();
         if let Some((index, name)) = t.split_once(": ")
             && let Ok(i) = index.trim().parse::<i64>()
         {
             if let Some(c) = out.last_mut()
-                && c.kind == Kind::Menu
+                && c.kind == ControlKind::Menu
             {
                 c.menu.push((i, name.trim().to_string()));
             }
@@ -233,17 +233,17 @@ pub fn parse_v4l2_ctl(text: &str) -> Vec<Control> {
             })
         };
         let kind = match kind {
-            "(int)" => Kind::Integer,
-            "(bool)" => Kind::Boolean,
-            "(menu)" | "(intmenu)" => Kind::Menu,
-            _ => Kind::Other,
+            "(int)" => ControlKind::Integer,
+            "(bool)" => ControlKind::Boolean,
+            "(menu)" | "(intmenu)" => ControlKind::Menu,
+            _ => ControlKind::Other,
         };
-        out.push(Control {
+        out.push(CameraControl {
             id,
             name: name.to_string(),
             kind,
             min: field("min").unwrap_or(0),
-            max: field("max").unwrap_or(if kind == Kind::Boolean { 1 } else { 0 }),
+            max: field("max").unwrap_or(if kind == ControlKind::Boolean { 1 } else { 0 }),
             menu: Vec::new(),
             read_only: fields.contains("read-only"),
         });

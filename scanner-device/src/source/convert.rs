@@ -7,7 +7,7 @@
 
 use scanner_core::colour::{luma, rgb_pair_to_yuyv, yuv_to_rgb};
 use scanner_core::stripe::PixelFormat;
-use scanner_jpeg::{Decoder, JpegError, Output};
+use scanner_jpeg::{JpegDecoder, JpegError, Output};
 
 /// A camera's pixel format.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -124,7 +124,7 @@ pub enum ConvertError {
 /// decoder (its tables built once) and, for RGB, the decoded YUYV. Once `out` has its size, a frame allocates
 /// nothing.
 pub struct Converter {
-    jpeg: Box<Decoder>,
+    jpeg: Box<JpegDecoder>,
     yuyv: Vec<u8>,
 }
 
@@ -138,7 +138,7 @@ impl Converter {
     /// A converter with the standard JPEG tables.
     pub fn new() -> Self {
         Converter {
-            jpeg: Box::new(Decoder::new()),
+            jpeg: Box::new(JpegDecoder::new()),
             yuyv: Vec::new(),
         }
     }

@@ -364,7 +364,7 @@ pub fn stripe_lines(frame: &OwnedFrame, reference: &OwnedFrame) -> Option<(usize
         let lines = found
             .points
             .iter()
-            .filter(|p| p.status != scanner_core::stripe::Status::NoStripe)
+            .filter(|p| p.status != scanner_core::stripe::LineStatus::NoStripe)
             .count();
         if best.is_none_or(|(l, t)| lines * t > l * total) {
             best = Some((lines, total));

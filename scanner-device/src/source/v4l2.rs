@@ -127,19 +127,19 @@ mod imp {
     }
 
     /// The camera's controls as [`controls::Control`]s.
-    fn offered(dev: &Device) -> Vec<controls::Control> {
+    fn offered(dev: &Device) -> Vec<controls::CameraControl> {
         use v4l::control::{Flags, MenuItem, Type as CType};
         dev.query_controls()
             .unwrap_or_default()
             .into_iter()
-            .map(|d| controls::Control {
+            .map(|d| controls::CameraControl {
                 id: d.id,
                 name: d.name.clone(),
                 kind: match d.typ {
-                    CType::Integer | CType::Integer64 => controls::Kind::Integer,
-                    CType::Boolean => controls::Kind::Boolean,
-                    CType::Menu | CType::IntegerMenu => controls::Kind::Menu,
-                    _ => controls::Kind::Other,
+                    CType::Integer | CType::Integer64 => controls::ControlKind::Integer,
+                    CType::Boolean => controls::ControlKind::Boolean,
+                    CType::Menu | CType::IntegerMenu => controls::ControlKind::Menu,
+                    _ => controls::ControlKind::Other,
                 },
                 min: d.minimum,
                 max: d.maximum,
@@ -169,7 +169,7 @@ mod imp {
             .iter()
             .filter_map(|s| {
                 let value = match s.kind {
-                    controls::Kind::Boolean => Value::Boolean(s.value != 0),
+                    controls::ControlKind::Boolean => Value::Boolean(s.value != 0),
                     _ => Value::Integer(s.value),
                 };
                 dev.set_control(Control { id: s.id, value })

@@ -6,7 +6,7 @@ use std::path::PathBuf;
 use clap::{Parser, Subcommand};
 use scanner_host::grid::Cell;
 use scanner_host::link::Input;
-use scanner_host::views::Sheet;
+use scanner_host::views::Thickness;
 use scanner_merge::MergeOptions;
 
 /// Command line of the host tool.
@@ -162,7 +162,7 @@ pub enum Command {
         /// thickness reads and refines the views again: the 360° demo's merge takes 18 s
         /// instead of 7 s; reported).
         #[arg(long, value_name = "MM|auto", default_value = "0")]
-        sheet: Sheet,
+        sheet: Thickness,
         /// Remove the surface no view saw (farther than three fusion cells from every point):
         /// by default the fusion closes it smoothly (by the points' winding number) and the
         /// model is watertight; trimmed, it is open where the views left gaps.

@@ -10,7 +10,7 @@ use scanner_host::export::{self, write_atomic, write_atomic_with};
 use scanner_host::grid::Cell;
 use scanner_host::live::LiveView;
 use scanner_host::mesh::{Mesh, MeshFrame};
-use scanner_host::views::{MergeProgress, Sheet, ViewsError, merge_folders};
+use scanner_host::views::{MergeProgress, Thickness, ViewsError, merge_folders};
 use scanner_host::{errln, outln};
 use scanner_merge::{Closing, MergeOptions, MergeReport, Progress, Registered, Stage};
 
@@ -47,7 +47,7 @@ pub struct MergePlan {
     /// Each view's grid cell (`None`: in proportion to its image, [`scanner_host::views::cell_for`]).
     pub cell: Option<Cell>,
     /// The laser sheet's thickness.
-    pub sheet: Sheet,
+    pub sheet: Thickness,
     /// The merge's options.
     pub options: MergeOptions,
     /// No progress display.
@@ -62,12 +62,12 @@ impl MergePlan {
     pub fn new(
         views: &[PathBuf],
         out: &Path,
-        (cell, sheet): (Option<Cell>, Sheet),
+        (cell, sheet): (Option<Cell>, Thickness),
         options: MergeOptions,
         quiet: bool,
     ) -> Result<MergePlan> {
         options.check()?;
-        if let Sheet::Mm(mm) = sheet {
+        if let Thickness::Mm(mm) = sheet {
             scanner_host::thickness::check_thickness(mm)?;
         }
         Ok(MergePlan {
@@ -284,7 +284,7 @@ pub fn sweeps(
     let plan = MergePlan::new(
         &folders,
         &out.dir.join("model"),
-        (Some(out.collect.cell), Sheet::Mm(out.sheet_mm)),
+        (Some(out.collect.cell), Thickness::Mm(out.sheet_mm)),
         options,
         out.quiet,
     )?;

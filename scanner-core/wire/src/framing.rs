@@ -40,7 +40,7 @@ pub fn encode(msg: &Message, scratch: &mut [u8], out: &mut [u8]) -> Result<usize
 ///
 /// # Errors
 /// Every [`WireError`] but [`WireError::BufferFull`].
-pub fn decode_frame(frame: &mut [u8]) -> Result<Message<'_>, WireError> {
+pub fn decode(frame: &mut [u8]) -> Result<Message<'_>, WireError> {
     let n = cobs::decode_in_place(frame).map_err(|_| WireError::BadCobs)?;
     if n < 5 {
         return Err(WireError::Truncated);
@@ -203,7 +203,7 @@ impl<const N: usize> Decoder<N> {
             if len == 0 {
                 continue;
             }
-            let res = decode_frame(&mut self.buf[..len]);
+            let res = decode(&mut self.buf[..len]);
             match &res {
                 Ok(_) => self.stats.frames += 1,
                 Err(WireError::BadCobs) => self.stats.bad_cobs += 1,
