@@ -45,7 +45,7 @@ pub type Found = Vec<(usize, Point2<f64>)>;
 
 /// The target as found in one image.
 #[derive(Debug, Clone, PartialEq)]
-pub struct GridView {
+pub struct FoundGrid {
     /// Every feature detected (dots or corners), identified or not.
     pub features: Vec<Blob>,
     /// The identified ones: `(layout index, pixel)`.
@@ -62,7 +62,7 @@ pub struct GridView {
 /// [`CalibError::NoMarkers`] (nothing detected), [`CalibError::TooManyFeatures`],
 /// [`CalibError::NoGrid`], [`CalibError::CountMismatch`] (a grid larger than the target
 /// described), [`CalibError::TooFewMarkers`] (less than half the target).
-pub fn find_grid(img: &GrayImage, target: &Target) -> Result<GridView, CalibError> {
+pub fn find_grid(img: &GrayImage, target: &Target) -> Result<FoundGrid, CalibError> {
     let (features, rejected) = match target {
         Target::Dots(_) => {
             let det = find_markers(img, &DetectConfig::default());
@@ -124,7 +124,7 @@ pub fn find_grid(img: &GrayImage, target: &Target) -> Result<GridView, CalibErro
                 .collect(),
         });
     }
-    Ok(GridView {
+    Ok(FoundGrid {
         features,
         found,
         extent: placed.extent,
@@ -134,7 +134,7 @@ pub fn find_grid(img: &GrayImage, target: &Target) -> Result<GridView, CalibErro
 
 /// One image's part in the fit.
 #[derive(Debug, Clone, PartialEq)]
-pub struct ViewFit {
+pub struct ImageFit {
     /// Layout index and pixel of every feature used.
     pub found: Found,
     /// Their reprojection errors (predicted − found), pixels.
@@ -153,9 +153,9 @@ pub struct ViewFit {
 #[derive(Debug, Clone, PartialEq)]
 pub struct ImageReport {
     /// The grid found in it (`None`: not found, see `status`).
-    pub grid: Option<GridView>,
+    pub grid: Option<FoundGrid>,
     /// Used with its fit, or refused and why.
-    pub status: Result<ViewFit, CalibError>,
+    pub status: Result<ImageFit, CalibError>,
     /// Its size where it was one pixel larger than the rest and cropped to theirs (its last
     /// column or row dropped).
     pub cropped_from: Option<(u32, u32)>,
@@ -198,7 +198,7 @@ pub struct IntrinsicsFit {
     /// RMS reprojection error over all features used, pixels.
     pub rms_px: f64,
     /// Per image (in the order given; `Err` for an image that was left out, and why).
-    pub views: Vec<Result<ViewFit, CalibError>>,
+    pub views: Vec<Result<ImageFit, CalibError>>,
     /// The intrinsics estimated (the others held at their start).
     pub free: Free,
 }
@@ -256,7 +256,7 @@ impl Coverage {
     }
 
     /// The coverage of the features `views` used, over an image of `size`.
-    pub fn of_views<'a>(size: (u32, u32), views: impl Iterator<Item = &'a ViewFit>) -> Coverage {
+    pub fn of_views<'a>(size: (u32, u32), views: impl Iterator<Item = &'a ImageFit>) -> Coverage {
         let (cols, rows) = COVER_CELLS;
         let (w, h) = (f64::from(size.0.max(1)), f64::from(size.1.max(1)));
         let mut covered = vec![false; cols * rows];
@@ -311,7 +311,7 @@ impl Coverage {
 }
 
 /// Status of an image whose grid was found, until the fit says more.
-fn pending() -> Result<ViewFit, CalibError> {
+fn pending() -> Result<ImageFit, CalibError> {
     Err(CalibError::NotSolved)
 }
 
@@ -435,7 +435,7 @@ fn solve_outcome(
 /// say), not the images. (A stray feature may join a grid when the target given leaves room for
 /// it: such an image is not complete and does not count against.)
 fn count_too_large(reports: &[ImageReport], target: &Target) -> Option<CalibError> {
-    let grids: Vec<&GridView> = reports.iter().filter_map(|r| r.grid.as_ref()).collect();
+    let grids: Vec<&FoundGrid> = reports.iter().filter_map(|r| r.grid.as_ref()).collect();
     let given = target.grid();
     let key = |e: (usize, usize)| (e.0.min(e.1), e.0.max(e.1));
     let complete: Vec<(usize, usize)> = grids
@@ -720,7 +720,7 @@ fn record_fits(
         let mut res = vec![Vector2::zeros(); a.layout.len()];
         let rms_px = residuals(camera, &a.view(), p, radius, &mut res)
             .map_err(geom("intrinsics: residuals"))?;
-        reports[a.image].status = Ok(ViewFit {
+        reports[a.image].status = Ok(ImageFit {
             found: a
                 .index
                 .iter()
@@ -862,7 +862,7 @@ mod tests {
         let mut reports: Vec<ImageReport> = views
             .iter()
             .map(|p| ImageReport {
-                grid: Some(GridView {
+                grid: Some(FoundGrid {
                     features: Vec::new(),
                     found: p.iter().copied().enumerate().collect(),
                     extent: (9, 6),

@@ -67,7 +67,7 @@ pub use fit::{
     BOARD_ANGLE_DEG, BoardFit, BoardMethod, MAX_FIT_RMS_PX, MAX_SHEET_RMS_PX, MarkerFit, SheetFit,
 };
 pub use intrinsics::{
-    Coverage, Found, GridView, ImageReport, IntrinsicsFit, IntrinsicsOutcome, ViewFit, find_grid,
+    Coverage, Found, FoundGrid, ImageFit, ImageReport, IntrinsicsFit, IntrinsicsOutcome, find_grid,
     intrinsics, intrinsics_auto, intrinsics_outcome,
 };
 pub use planes::{BoardOutcome, TurntableSeen, board_planes, check_size};

@@ -4,7 +4,7 @@
 //! noise: a warning).
 
 use scanner_calib::selfcheck::{MAP_CELLS, self_check};
-use scanner_calib::{IntrinsicsFit, Target, ViewFit};
+use scanner_calib::{ImageFit, IntrinsicsFit, Target};
 use scanner_core::calib::bundle::{initial_camera, initial_pose, refine};
 use scanner_core::calib::{Free, TargetImage};
 use scanner_core::geometry::Pose;
@@ -135,7 +135,7 @@ fn calibrate(n: usize, skew: f64, sigma: f64, seed: u64) -> IntrinsicsFit {
             .into_iter()
             .zip(fitted)
             .map(|(f, pose)| {
-                Ok(ViewFit {
+                Ok(ImageFit {
                     residuals: vec![Vector2::zeros(); f.len()],
                     found: f,
                     dropped: Vec::new(),

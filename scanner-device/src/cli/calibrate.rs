@@ -13,7 +13,7 @@ use scanner_calib::disc::{Disc, Paper};
 use scanner_calib::file::{CalibrationFile, write_atomic};
 use scanner_calib::selfcheck::{Halves, SelfCheck, self_check};
 use scanner_calib::{
-    BoardMethod, CalibError, Coverage, DotGrid, Target, ViewFit, board_planes, check_size,
+    BoardMethod, CalibError, Coverage, DotGrid, ImageFit, Target, board_planes, check_size,
     intrinsics_auto, overlay, print, short,
 };
 
@@ -630,7 +630,7 @@ fn print_self_check(c: &SelfCheck, picture: &Path) {
 }
 
 /// What `calibrate intrinsics` says about one image.
-fn image_line(status: &Result<ViewFit, CalibError>, name: impl Fn(usize) -> String) -> String {
+fn image_line(status: &Result<ImageFit, CalibError>, name: impl Fn(usize) -> String) -> String {
     match status {
         Ok(v) if v.dropped.is_empty() => format!(
             "used: {} features, rms {:.3} px, max {:.3} px",

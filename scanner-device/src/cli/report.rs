@@ -7,7 +7,7 @@ use std::path::{Path, PathBuf};
 use anyhow::{Context, Result};
 use scanner_calib::selfcheck::SelfCheck;
 use scanner_calib::{
-    CalibError, Coverage, GridView, ImageReport, IntrinsicsFit, SheetFit, ViewFit,
+    CalibError, Coverage, FoundGrid, ImageFit, ImageReport, IntrinsicsFit, SheetFit,
 };
 use scanner_wire::Skip;
 use serde::Serialize;
@@ -279,7 +279,7 @@ impl IntrinsicsImage {
 
     fn of_status(
         path: String,
-        status: &Result<ViewFit, CalibError>,
+        status: &Result<ImageFit, CalibError>,
         name: impl Fn(usize) -> String,
     ) -> IntrinsicsImage {
         match status {
@@ -517,7 +517,7 @@ pub struct GridData {
 
 impl GridData {
     /// The grid of a view.
-    pub fn of(v: &GridView) -> GridData {
+    pub fn of(v: &FoundGrid) -> GridData {
         GridData {
             points: v.found.len(),
             cols: v.extent.0,
