@@ -9,6 +9,9 @@ fn main() -> ExitCode {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
             scanner_device::errln!("scanner-device: error: {e:#}");
+            scanner_io::error_record_if_asked(|| {
+                scanner_io::error_record("scanner-device", e.chain())
+            });
             let never_on = e.chain().any(|c| {
                 matches!(
                     c.downcast_ref::<scanner_device::session::SessionError>(),

@@ -5,6 +5,11 @@ fn run(args: &[&str]) -> (bool, String, String) {
     scanner_tests::run(env!("CARGO_BIN_EXE_scanner-device"), args)
 }
 
+/// Whether a failed command's error (from its stderr) has a cause of this kind.
+fn has_kind(err: &str, kind: &str) -> bool {
+    scanner_tests::error_kinds(err).iter().any(|k| k == kind)
+}
+
 /// The demo rig's truth at `w × h` as a calibration file in `dir` (what `render-calibration`
 /// writes as `truth-calibration.toml`); its path.
 fn truth_file(dir: &std::path::Path, w: u32, h: u32) -> String {
@@ -67,7 +72,7 @@ fn errors_before_the_first_frame_are_clear() {
         &d("b"),
     ]);
     assert!(
-        !ok && err.contains("is for 1280×960 images but rig:320x240 gives 320×240"),
+        !ok && err.contains("1280×960") && err.contains("320×240"),
         "{err}"
     );
     // A calibration without a board.
@@ -122,7 +127,7 @@ fn errors_before_the_first_frame_are_clear() {
         &d("f"),
     ]);
     assert!(
-        !ok && err.contains("unsupported camera pixel format \"H264\""),
+        !ok && has_kind(&err, "UnsupportedFormat") && err.contains("\"H264\""),
         "{err}"
     );
     let (ok, _, err) = run(&["scan", "--format", "bayer", "--calibration", &truth]);
@@ -138,7 +143,7 @@ fn errors_before_the_first_frame_are_clear() {
         "/nonexistent-dir/x.stream",
     ]);
     assert!(
-        !ok && err.contains("cannot write the stream to /nonexistent-dir/x.stream"),
+        !ok && has_kind(&err, "File") && err.contains("/nonexistent-dir/x.stream"),
         "{err}"
     );
     // A serial port that is not there.
@@ -152,7 +157,7 @@ fn errors_before_the_first_frame_are_clear() {
         "serial:/dev/ttyNONE@115200",
     ]);
     assert!(
-        !ok && err.contains("cannot open serial port /dev/ttyNONE at 115200 baud"),
+        !ok && has_kind(&err, "Serial") && err.contains("/dev/ttyNONE at 115200"),
         "{err}"
     );
     // The rig's truth for another size than the source's.
@@ -459,10 +464,7 @@ fn waiting_for_the_laser_skips_the_frames_before_it() {
         "5",
         "-q",
     ]);
-    assert!(
-        !ok && err.contains("the source ended before the laser appeared"),
-        "{err}"
-    );
+    assert!(!ok && has_kind(&err, "NoLaser"), "{err}");
 }
 
 /// A JSON report a command wrote.

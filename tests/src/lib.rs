@@ -74,12 +74,17 @@ pub fn link_losses(summary: &serde_json::Value) -> Vec<(String, u64)> {
         .collect()
 }
 
-/// Runs a binary with arguments: (success, stdout, stderr).
+/// Runs a binary with arguments: (success, stdout, stderr). A failing command's stderr ends with
+/// its error as data ([`error_kinds`] reads it).
 ///
 /// # Panics
 /// When the binary cannot be started: this is a test helper.
 pub fn run(exe: &str, args: &[&str]) -> (bool, String, String) {
-    let out = Command::new(exe).args(args).output().expect("binary runs");
+    let out = Command::new(exe)
+        .args(args)
+        .env(scanner_io::ERRORS_ENV, "json")
+        .output()
+        .expect("binary runs");
     (
         out.status.success(),
         String::from_utf8_lossy(&out.stdout).into_owned(),
@@ -99,6 +104,7 @@ pub fn run_in(
     let out = Command::new(exe)
         .args(args)
         .current_dir(dir)
+        .env(scanner_io::ERRORS_ENV, "json")
         .output()
         .expect("binary runs");
     (
@@ -286,4 +292,21 @@ pub fn interrupt(mut child: std::process::Child) {
         );
         std::thread::sleep(std::time::Duration::from_millis(50));
     }
+}
+
+/// The kinds of a failed command's error and its causes, outermost first (a wrapped variant's
+/// names one by one), from the line of JSON
+/// its stderr ends with ([`scanner_io::error_record`]); empty when there is none.
+pub fn error_kinds(stderr: &str) -> Vec<String> {
+    stderr
+        .lines()
+        .rev()
+        .find(|l| l.starts_with("{\"program\":"))
+        .and_then(|l| serde_json::from_str::<serde_json::Value>(l).ok())
+        .and_then(|v| v["error"].as_array().cloned())
+        .unwrap_or_default()
+        .iter()
+        .filter_map(|c| c["kind"].as_str().map(String::from))
+        .flat_map(|k| k.split("::").map(String::from).collect::<Vec<_>>())
+        .collect()
 }

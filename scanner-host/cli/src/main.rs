@@ -30,6 +30,9 @@ fn main() -> ExitCode {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
             errln!("scanner-host: error: {e:#}");
+            scanner_io::error_record_if_asked(|| {
+                scanner_io::error_record("scanner-host", e.chain())
+            });
             ExitCode::FAILURE
         }
     }
