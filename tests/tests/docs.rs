@@ -423,7 +423,7 @@ fn troubleshooting_covers_every_refusal_of_the_head_and_the_calibration() {
         ("scanner-device/calib/src/disc.rs", "DiscMiss"),
         ("scanner-device/calib/src/board.rs", "BoardError"),
         ("scanner-core/io/src/image_file.rs", "ImageFileError"),
-        ("scanner-device/calib/src/lib.rs", "CalibError"),
+        ("scanner-device/calib/src/error.rs", "CalibError"),
         ("scanner-core/src/error.rs", "GeomError"),
         ("scanner-core/src/stripe/mod.rs", "StripeError"),
         ("scanner-core/src/stripe/frame.rs", "FrameError"),
