@@ -21,6 +21,16 @@ target_dir() {
     printf '%s' "$meta" | grep -o '"target_directory":"[^"]*"' | head -1 | cut -d'"' -f4
 }
 
+# The target folder of the aarch64 builds: $SCANNER_CROSS_TARGET_DIR when set (CI keeps one between
+# its runs on a machine, so that a warm run rebuilds only what changed), else the workspace's.
+cross_target_dir() {
+    if [ -n "${SCANNER_CROSS_TARGET_DIR:-}" ]; then
+        mkdir -p "$SCANNER_CROSS_TARGET_DIR" && printf '%s' "$SCANNER_CROSS_TARGET_DIR"
+    else
+        target_dir
+    fi
+}
+
 bin() {
     local dir
     dir="$(target_dir)"

@@ -253,35 +253,27 @@ fn the_figure_checker_finds_a_figure_stated_twice_differently() {
     ];
     let problems = figure_problems(&docs, figures);
     let page = |p: &str| p.to_string();
-    assert!(
-        problems.contains(&FigureProblem::Differs {
+    for want in [
+        FigureProblem::Differs {
             page: page("docs/360.md"),
             line: 1,
             id: "a".into(),
-            shown: "11.3 s".into()
-        }),
-        "{problems:?}"
-    );
-    assert!(
-        problems.contains(&FigureProblem::Unknown {
+            shown: "11.3 s".into(),
+        },
+        FigureProblem::Unknown {
             page: page("docs/360.md"),
             line: 1,
-            id: "zz".into()
-        }),
-        "{problems:?}"
-    );
-    assert!(
-        problems.contains(&FigureProblem::Unlinked {
+            id: "zz".into(),
+        },
+        FigureProblem::Unlinked {
             page: page("docs/360.md"),
             line: 2,
-            id: "a".into()
-        }),
-        "{problems:?}"
-    );
-    assert!(
-        problems.contains(&FigureProblem::Unused("b".into())),
-        "{problems:?}"
-    );
+            id: "a".into(),
+        },
+        FigureProblem::Unused("b".into()),
+    ] {
+        assert!(problems.contains(&want), "{want:?} not in {problems:?}");
+    }
     assert!(
         problems
             .iter()
@@ -427,7 +419,7 @@ fn troubleshooting_covers_every_refusal_of_the_head_and_the_calibration() {
         ("scanner-core/src/error.rs", "GeomError"),
         ("scanner-core/src/stripe/mod.rs", "StripeError"),
         ("scanner-core/src/stripe/frame.rs", "FrameError"),
-        ("scanner-device/jpeg/src/lib.rs", "JpegError"),
+        ("scanner-device/jpeg/src/error.rs", "JpegError"),
         ("scanner-core/io/src/link_spec.rs", "SpecError"),
         ("scanner-core/wire/src/status.rs", "Skip"),
         ("scanner-core/wire/src/error.rs", "WireError"),
