@@ -62,9 +62,29 @@ fn recorded_scan(dir: &Path) -> PathBuf {
     stream
 }
 
+/// A host the test started, killed when the test ends without having stopped it (a failed
+/// assertion would otherwise leave it running).
+struct Started(Option<Child>);
+
+impl Started {
+    /// The host, for the test to stop itself.
+    fn take(mut self) -> Child {
+        self.0.take().expect("the host, not yet taken")
+    }
+}
+
+impl Drop for Started {
+    fn drop(&mut self) {
+        if let Some(mut c) = self.0.take() {
+            let _ = c.kill();
+            let _ = c.wait();
+        }
+    }
+}
+
 /// `receive pty --until-done --view` into `out`: the host, its stderr's lines, the page's
 /// address and the device end of its link.
-fn live_host(out: &Path, extra: &[&str]) -> (Child, Receiver<String>, String, String) {
+fn live_host(out: &Path, extra: &[&str]) -> (Started, Receiver<String>, String, String) {
     let mut child = Command::new(bin("scanner-host"))
         .args(["receive", "pty", "--until-done", "--quiet", "--out"])
         .arg(out)
@@ -78,7 +98,7 @@ fn live_host(out: &Path, extra: &[&str]) -> (Child, Receiver<String>, String, St
         wait_line(&lines, "live view: ", Duration::from_secs(20)).expect("the page's address");
     let port = wait_line(&lines, "device end of the link: ", Duration::from_secs(20))
         .expect("the link's device end");
-    (child, lines, url, port)
+    (Started(Some(child)), lines, url, port)
 }
 
 /// Writes `stream` into the serial device `port` in `chunks` pieces, `gap` apart (a head that
@@ -238,7 +258,7 @@ fn the_page_shows_the_scan_as_it_streams_then_offers_the_mesh() {
     let body = http_get(&url, "/files/scan.obj");
     assert_eq!(body.0, 200);
     assert_eq!(body.1, std::fs::read(live.join("scan.obj")).unwrap());
-    interrupt(host);
+    interrupt(host.take());
 
     // The same bytes without the live view: identical outputs and journal.
     let plain = dir.path().join("plain");
@@ -550,7 +570,7 @@ fn fifty_connections_at_once_leave_the_scan_untouched() {
         }
     }
     writer.join().unwrap();
-    let mut child = host;
+    let mut child = host.take();
     let t0 = Instant::now();
     let status = loop {
         if let Some(st) = child.try_wait().unwrap() {
@@ -666,7 +686,7 @@ fn the_preview_shows_the_picture_the_dots_and_why_a_scan_would_skip() {
     let shots = shots_dir(d);
     std::fs::create_dir_all(&shots).unwrap();
     shot.save(shots.join("live-view-preview.png")).unwrap();
-    interrupt(host);
+    interrupt(host.take());
     let summary = scanner_tests::summary(&live);
     assert_eq!(summary["previews"], 4, "{summary}");
 }
