@@ -54,6 +54,20 @@ pub struct HeadConfig {
     /// behind it (the stripe blurred across the occlusion: "flying pixels") have none. 0 keeps
     /// every point.
     pub continuity: f32,
+    /// A fixed laser's plane, calibrated once (a turntable scanner's): every frame's stripe is
+    /// triangulated with it, and the board's planes only say what is not the object. `None`: the
+    /// plane is fitted to each frame's stripe on the board (the hand-held laser).
+    pub fixed_plane: Option<FixedPlane>,
+}
+
+/// A fixed laser's plane and how sure it is ([`HeadConfig::fixed_plane`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FixedPlane {
+    /// The plane, camera coordinates.
+    pub plane: Plane<f32>,
+    /// The standard uncertainty of a point on it along its normal, mm (its calibration's
+    /// scatter).
+    pub sigma: f32,
 }
 
 impl HeadConfig {
@@ -82,6 +96,7 @@ impl HeadConfig {
             silhouette: 0.85,
             board_fringe: 4,
             continuity: 6.0,
+            fixed_plane: None,
         }
     }
 }
@@ -231,7 +246,10 @@ impl<const W: usize> Head<W> {
             (&mut self.stripe, &mut self.known),
         );
         let [left, right, on_disc] = &self.known;
-        let fit = laser_plane(&self.board, &self.cfg, [left, right, on_disc])?;
+        let fit = match &self.cfg.fixed_plane {
+            Some(fixed) => fixed_fit(fixed),
+            None => laser_plane(&self.board, &self.cfg, [left, right, on_disc])?,
+        };
         let plane = fit.plane;
         let step = match self.cfg.stripe.axis {
             Axis::Columns => Vector3::new(0.0, 1.0 / self.camera.fy(), 0.0),
@@ -470,6 +488,23 @@ const DISC_TILT_SHARE: f32 = 0.5;
 /// part, or the stripe on one sheet is too short to fix the plane's tilt), and the stripe
 /// crosses the turntable disc, the least-squares plane over the sheets and the disc together;
 /// the board-only reason stands when that fails too.
+/// A fixed plane as a fit: its scatter as the offset's uncertainty, no tilt.
+fn fixed_fit(fixed: &FixedPlane) -> LaserPlane<f32> {
+    LaserPlane {
+        plane: fixed.plane,
+        quality: crate::geometry::LaserQuality {
+            rms: 0.0,
+            max: 0.0,
+            used: 1,
+            rejected: 0,
+            st_gap: None,
+            tilt: 0.0,
+            sigma: fixed.sigma,
+            centroid: Point3::origin(),
+        },
+    }
+}
+
 fn laser_plane(
     board: &Board<f32>,
     cfg: &HeadConfig,

@@ -9,8 +9,8 @@ use scanner_core::geometry::Board;
 use scanner_core::pipeline::{Head, HeadConfig};
 use scanner_core::stripe::PixelFormat;
 use scanner_wire::{
-    Controls, DiscFound, DiscPose, Header, Message, Notice, NoticeKind, Planes, Points, Skip,
-    Status,
+    Controls, DiscFound, DiscPose, FixedLaser, Header, Message, Notice, NoticeKind, Planes, Points,
+    Skip, Status,
 };
 
 use crate::link::Link;
@@ -40,6 +40,10 @@ pub struct ScanOptions {
     pub find_axis: bool,
     /// Look for this turntable disc in the reference frame and send its pose after each header.
     pub disc: Option<scanner_calib::disc::Disc>,
+    /// A fixed laser over a turning platform (with `head.fixed_plane` its plane): the frames
+    /// are dark and laser-only, so no laser-off reference is taken (the light-intensity method
+    /// reads each frame alone), and this message follows each header.
+    pub fixed: Option<scanner_wire::FixedLaser>,
 }
 
 /// Why a scan could not start or go on.
@@ -498,6 +502,16 @@ impl Session {
         if let Some(d) = self.disc {
             self.send(link, &Message::Disc(d), false)?;
         }
+        if let Some(f) = self.opts.fixed {
+            self.send(
+                link,
+                &Message::FixedLaser(FixedLaser {
+                    scan_id: self.opts.scan_id,
+                    ..f
+                }),
+                false,
+            )?;
+        }
         self.frames_since_header = 0;
         Ok(())
     }
@@ -679,9 +693,24 @@ pub fn run_scan_until(
     if waits.is_some() {
         prompt(link, id, NoticeKind::TakingReference, 0)?;
     }
-    let reference = source.reference().map_err(SessionError::Reference)?;
     let mut first = None;
-    if let Some(limit) = waits {
+    let reference = if opts.fixed.is_some() {
+        // dark, laser-only frames: nothing to subtract, and a black reference says so
+        let frame = source
+            .next_frame()
+            .map_err(SessionError::FirstFrame)?
+            .ok_or_else(|| SessionError::NoLaser("the source gave no frame".into()))?;
+        let black = OwnedFrame {
+            data: vec![0; frame.data.len()],
+            time_us: None,
+            ..frame.clone()
+        };
+        first = Some(frame);
+        black
+    } else {
+        source.reference().map_err(SessionError::Reference)?
+    };
+    if let (Some(limit), None) = (waits, opts.fixed) {
         let seconds = limit.as_secs_f64().ceil() as u64;
         prompt(link, id, NoticeKind::SwitchLaserOn, seconds)?;
         match wait_for_laser(source, &reference, limit, stop) {

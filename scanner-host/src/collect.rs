@@ -9,8 +9,8 @@ use scanner_core::nalgebra::{
 };
 use scanner_core::{Camera, GeomError};
 use scanner_wire::{
-    Controls, DecodeStats, Decoder, DiscFound, DiscPose, Header, MAX_ENCODED, Message, Notice,
-    Planes, PreviewState, SKIP_REASONS, Status, points,
+    Controls, DecodeStats, Decoder, DiscFound, DiscPose, FixedLaser, Header, MAX_ENCODED, Message,
+    Notice, Planes, PreviewState, SKIP_REASONS, Status, points,
 };
 
 use crate::grid::{Cell, Grid, GridError};
@@ -96,6 +96,10 @@ pub struct Counts {
     pub planes: BTreeMap<u32, Planes>,
     /// What the head found of the turntable disc in each scan, as it reported it.
     pub discs: BTreeMap<u32, DiscPose>,
+    /// Each fixed-laser scan's platform, by scan id.
+    pub fixed: BTreeMap<u32, FixedLaser>,
+    /// Frames' points not kept for a fixed-laser model: beyond [`MAX_KEPT_POINTS`].
+    pub not_kept: u64,
     /// Capture time span of the points, µs (first, last).
     pub time_us: Option<(u64, u64)>,
     /// The head's prompts and events, in order (the latest [`MAX_NOTICES`]).
@@ -187,8 +191,27 @@ struct State {
     sheet: Option<(crate::thickness::Correction, u64)>,
     /// The latest preview picture not yet taken.
     preview: Option<PreviewImage>,
+    /// Every accepted frame's points, camera frame, up to [`MAX_KEPT_POINTS`]: a fixed-laser
+    /// scan's model is made from them (its frames overlap in the camera's view, so no image
+    /// grid holds them).
+    kept: Vec<KeptFrame>,
+    kept_points: usize,
     /// Notices not yet taken.
     fresh_notices: Vec<Notice>,
+}
+
+/// Most frames' points a collector keeps for a fixed-laser model (12 bytes each: 240 MB).
+pub const MAX_KEPT_POINTS: usize = 20_000_000;
+
+/// One accepted frame's points, camera frame, mm.
+#[derive(Debug, Clone, PartialEq)]
+pub struct KeptFrame {
+    /// Its scan.
+    pub scan_id: u32,
+    /// Its number in the scan.
+    pub frame: u32,
+    /// Its points.
+    pub points: Vec<Point3<f32>>,
 }
 
 /// One accepted frame's points (camera frame, mm) and colours (empty: none), for a live view.
@@ -231,6 +254,16 @@ impl Collector {
             Translation3::from(Vector3::from(d.translation.map(f64::from))),
             UnitQuaternion::from_quaternion(q),
         ))
+    }
+
+    /// The first scan's fixed laser and platform, when it is a fixed-laser scan.
+    pub fn fixed(&self) -> Option<&FixedLaser> {
+        self.state.counts.fixed.get(&self.state.header?.scan_id)
+    }
+
+    /// Every accepted frame's points, in arrival order (up to [`MAX_KEPT_POINTS`]).
+    pub fn kept(&self) -> &[KeptFrame] {
+        &self.state.kept
     }
 
     /// The grid (once a header has arrived).
@@ -355,6 +388,8 @@ impl State {
             sheet: None,
             preview: None,
             fresh_notices: Vec::new(),
+            kept: Vec::new(),
+            kept_points: 0,
         }
     }
 
@@ -389,6 +424,10 @@ impl State {
             Message::Disc(d) => {
                 self.counts.scans.insert(d.scan_id);
                 self.counts.discs.insert(d.scan_id, *d);
+            }
+            Message::FixedLaser(f) => {
+                self.counts.scans.insert(f.scan_id);
+                self.counts.fixed.insert(f.scan_id, *f);
             }
             Message::Notice(n) => {
                 if self.counts.notices.len() == MAX_NOTICES {
@@ -468,6 +507,16 @@ impl State {
                 }
                 if let Some(w) = &mut self.watched {
                     w.push((self.points.clone(), rgb.clone()));
+                }
+                if self.kept_points + self.points.len() <= MAX_KEPT_POINTS {
+                    self.kept_points += self.points.len();
+                    self.kept.push(KeptFrame {
+                        scan_id: p.scan_id,
+                        frame: p.frame,
+                        points: self.points.clone(),
+                    });
+                } else {
+                    self.counts.not_kept += self.points.len() as u64;
                 }
                 if self.grid.is_some() {
                     let points = std::mem::take(&mut self.points);

@@ -14,6 +14,8 @@
 //! - [`mesh`]: triangles from neighbouring cells;
 //! - [`export`] and [`outputs`]: OBJ, PLY, STL, 3MF, depth and preview pictures, the summary
 //!   (text and JSON), written atomically;
+//! - [`platform`]: a fixed-laser turntable scan's points in the platform's frame, and its
+//!   closed model;
 //! - [`views`]: scans read as views for the 360° merge, and the merge of view folders;
 //! - [`check`]: the acceptance check on a known artefact (spheres, a plane);
 //! - [`live`]: the live view in a web browser (`receive --view`).
@@ -23,6 +25,7 @@
 //! ```text
 //! views  live  check
 //! outputs
+//! platform
 //! collect  export
 //! mesh  journal  thickness
 //! grid  link
@@ -40,6 +43,7 @@ pub mod link;
 pub mod live;
 pub mod mesh;
 pub mod outputs;
+pub mod platform;
 pub mod thickness;
 pub mod views;
 

@@ -10,6 +10,7 @@ use crate::collect::{CollectError, CollectOptions, Collector, Counts};
 use crate::export::{self, ExportError};
 use crate::grid::Grid;
 use crate::mesh::{self, Mesh, MeshFrame, MeshOptions};
+use scanner_core::nalgebra::Point3;
 
 /// Why the outputs could not be made.
 #[derive(Debug, thiserror::Error)]
@@ -53,6 +54,9 @@ pub enum OutputError {
     /// The collection failed while replaying.
     #[error(transparent)]
     Collect(#[from] CollectError),
+    /// A fixed-laser scan's model could not be made.
+    #[error(transparent)]
+    Platform(#[from] crate::platform::PlatformError),
 }
 
 /// What a run produced.
@@ -77,6 +81,34 @@ pub struct Summary {
     pub uncertainty: Option<(f32, f32)>,
     /// Points moved by the laser sheet's correction (`--sheet`), of all; `None`: not asked.
     pub sheet_moved: Option<u64>,
+    /// A fixed-laser turntable scan's figures.
+    pub fixed: Option<FixedFigures>,
+}
+
+/// What a fixed-laser turntable scan's model was made of (`summary.json` → `fixed`).
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct FixedFigures {
+    /// Which laser.
+    pub laser: u8,
+    /// Frames with points.
+    pub frames: usize,
+    /// The turn they cover, degrees.
+    pub turned_deg: f64,
+    /// The object's points (in `cloud.ply`).
+    pub object_points: usize,
+    /// Points on the platform's top, left out.
+    pub on_top: usize,
+    /// Points beyond the platform's radius, left out.
+    pub off_platform: usize,
+    /// Points that stood still in the camera's view while the platform turned (the
+    /// background), left out.
+    pub still: usize,
+    /// The fusion's cell, mm.
+    pub cell_mm: f64,
+    /// Whether the model is closed (every edge shared by two faces) and manifold.
+    pub watertight: bool,
+    /// The model's volume, mm³.
+    pub volume_mm3: f64,
 }
 
 impl Summary {
@@ -221,6 +253,9 @@ pub struct SummaryData {
     pub previews: u64,
     /// The head's prompts and events, in order.
     pub notices: Vec<NoticeData>,
+    /// A fixed-laser turntable scan's figures (absent for any other scan).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub fixed: Option<FixedFigures>,
 }
 
 /// One prompt or event of the head.
@@ -359,6 +394,7 @@ impl Summary {
                 .collect(),
             previews: c.previews,
             notices: notice_data(c),
+            fixed: self.fixed,
         }
     }
 }
@@ -443,6 +479,9 @@ pub fn write_outputs(
         export::write_atomic(&dir.join("summary.txt"), e.to_string().as_bytes())?;
         return Err(e);
     };
+    if let Some(f) = c.fixed() {
+        return fixed_outputs(c, f, dir);
+    }
     let m = camera_mesh(grid, header, (c.colour(), c.uncertainty()), out);
     // The pictures are the camera's view; then the meshes, in their frame, streamed to their
     // files (the mesh is never held twice in memory).
@@ -480,6 +519,104 @@ pub fn write_outputs(
         frame: m.frame.describe(),
         uncertainty: quantiles(&m.quality),
         sheet_moved: c.sheet_corrected(),
+        fixed: None,
+    };
+    write_summary(&summary, dir)?;
+    Ok(summary)
+}
+
+/// The fusion's cell for a fixed-laser model: the object's size over this many, mm.
+const FIXED_CELLS_ACROSS: f64 = 400.0;
+
+/// A fixed-laser model's cell against the arc between neighbouring frames' stripes.
+const FIXED_ARC_SHARE: f64 = 0.75;
+
+/// The finest fusion cell of a fixed-laser model, mm.
+const FIXED_MIN_CELL_MM: f64 = 0.2;
+
+/// The outputs of a fixed-laser turntable scan: `cloud.ply` (the points in the platform's
+/// frame), the closed model with a flat base as `scan.obj`, `scan.ply`, `scan.stl` and
+/// `scan.3mf` (y up the platform's axis), `preview.png` (the model from four sides) and the
+/// summary. The camera's depth picture means nothing for frames of a turning object: none.
+fn fixed_outputs(
+    c: &Collector,
+    f: &scanner_wire::FixedLaser,
+    dir: &Path,
+) -> Result<Summary, OutputError> {
+    let _ = std::fs::remove_file(dir.join("depth.png"));
+    let cloud = crate::platform::platform_cloud(f, c.kept())?;
+    let (lo, hi) = cloud.points.iter().fold(
+        (
+            Point3::new(f64::INFINITY, f64::INFINITY, f64::INFINITY),
+            Point3::new(f64::NEG_INFINITY, f64::NEG_INFINITY, f64::NEG_INFINITY),
+        ),
+        |(lo, hi), p| (lo.inf(p), hi.sup(p)),
+    );
+    let size = (hi - lo).max();
+    // Neighbouring frames' stripes lie a turn apart: the arc at the points' median distance
+    // from the axis. The fusion's band must bridge it.
+    let mut radii: Vec<f64> = cloud.points.iter().map(|p| p.x.hypot(p.y)).collect();
+    radii.sort_by(f64::total_cmp);
+    let arc = radii
+        .get(radii.len() / 2)
+        .map_or(0.0, |r| r * f64::from(f.turn).abs());
+    let cell = if size.is_finite() {
+        (size / FIXED_CELLS_ACROSS)
+            .max(FIXED_MIN_CELL_MM)
+            .max(FIXED_ARC_SHARE * arc)
+    } else {
+        1.0
+    };
+    let cloud_mesh = Mesh {
+        vertices: cloud
+            .points
+            .iter()
+            .map(|p| Point3::new(p.x as f32, p.z as f32, -p.y as f32))
+            .collect(),
+        ..Mesh::default()
+    };
+    export::write_atomic_with(&dir.join("cloud.ply"), |w| {
+        export::write_ply(&cloud_mesh, w)
+    })?;
+    let mut model = crate::platform::model(&cloud, cell, |_, _| {})?;
+    let check = scanner_merge::fuse::check(&model);
+    crate::platform::y_up(&mut model);
+    let m = Mesh::from(model);
+    export::write_atomic_with(&dir.join("preview.png"), |w| {
+        export::write_png(&export::orbit_png(&m), w)
+    })?;
+    export::write_atomic_with(&dir.join("scan.obj"), |w| export::write_obj(&m, w))?;
+    export::write_atomic_with(&dir.join("scan.ply"), |w| export::write_ply(&m, w))?;
+    export::write_atomic_with(&dir.join("scan.stl"), |w| export::write_stl(&m, w))?;
+    export::write_atomic_with(&dir.join("scan.3mf"), |w| export::write_3mf(&m, w))?;
+    let counts = c.counts();
+    let span = counts.time_us.map_or(0.0, |(a, b)| (b - a) as f64 / 1e6);
+    let summary = Summary {
+        point_rate: if span > 0.0 {
+            counts.points as f64 / span
+        } else {
+            0.0
+        },
+        counts,
+        vertices: m.vertices.len(),
+        faces: m.faces.len(),
+        coverage: 0.0,
+        outliers: 0,
+        frame: "platform frame, y up: +y up the turning axis, origin on the axis at the platform's top, x and -z on the top at the first frame's turn".into(),
+        uncertainty: None,
+        sheet_moved: None,
+        fixed: Some(FixedFigures {
+            laser: f.laser,
+            frames: cloud.frames,
+            turned_deg: cloud.turned_deg,
+            object_points: cloud.points.len(),
+            on_top: cloud.on_top,
+            off_platform: cloud.off_platform,
+            still: cloud.still,
+            cell_mm: cell,
+            watertight: check.watertight && check.nonmanifold_vertices == 0,
+            volume_mm3: check.volume_mm3,
+        }),
     };
     write_summary(&summary, dir)?;
     Ok(summary)
@@ -501,6 +638,7 @@ fn preview_summary(counts: Counts, dir: &Path) -> Result<Summary, OutputError> {
         frame: "none: a preview session sends pictures, no points".into(),
         uncertainty: None,
         sheet_moved: None,
+        fixed: None,
     };
     write_summary(&summary, dir)?;
     Ok(summary)

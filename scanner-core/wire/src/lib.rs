@@ -18,6 +18,7 @@
 //! | [`Header`] | [`header`] | at the start, then periodically (a host that joins late can decode) |
 //! | [`Controls`] | [`controls`] | after each header: the camera controls the head fixed |
 //! | [`DiscPose`] | [`disc_pose`] | after each header, when asked: the turntable disc in the reference |
+//! | [`FixedLaser`] | [`fixed_laser`] | after each header of a fixed-laser scan: the turning platform |
 //! | [`Points`] | [`points`] | one per frame, self-contained (losing one loses only that frame) |
 //! | [`Planes`] | [`planes`] | before each status: how well the laser planes fitted |
 //! | [`Status`] | [`status`] | periodically and at the end: counters, skip reasons, why it ended |
@@ -32,7 +33,7 @@
 //! framing
 //! message
 //! preview
-//! header  points  status  controls  planes  disc_pose  notice
+//! header  points  status  controls  planes  disc_pose  fixed_laser  notice
 //! error
 //! ```
 #![no_std]
@@ -73,6 +74,7 @@ macro_rules! wire_enum {
 pub mod controls;
 pub mod disc_pose;
 mod error;
+pub mod fixed_laser;
 pub mod framing;
 pub mod header;
 pub mod message;
@@ -85,6 +87,7 @@ pub mod status;
 pub use controls::{Control, Controls};
 pub use disc_pose::{DiscFound, DiscPose};
 pub use error::WireError;
+pub use fixed_laser::FixedLaser;
 pub use framing::{DecodeStats, Decoder, decode, encode};
 pub use header::{CameraBlock, Header, PlaneBlock, PlaneMethod};
 pub use message::Message;

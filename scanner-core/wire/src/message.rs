@@ -2,7 +2,7 @@
 
 use serde::{Deserialize, Serialize};
 
-use crate::{Controls, DiscPose, Header, Notice, Planes, Points, Preview, Status};
+use crate::{Controls, DiscPose, FixedLaser, Header, Notice, Planes, Points, Preview, Status};
 
 /// A message.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -25,6 +25,8 @@ pub enum Message<'a> {
     /// A thumbnail of the camera's picture with what the head found in it.
     #[serde(borrow)]
     Preview(Preview<'a>),
+    /// The turning platform of a fixed-laser scan (after each header of one).
+    FixedLaser(FixedLaser),
 }
 
 impl Message<'_> {
@@ -39,6 +41,7 @@ impl Message<'_> {
             Message::Disc(d) => d.scan_id,
             Message::Notice(n) => n.scan_id,
             Message::Preview(p) => p.scan_id,
+            Message::FixedLaser(f) => f.scan_id,
         }
     }
 }

@@ -24,6 +24,9 @@
 //! [board.paper]            # the paper's construction, where it applies (for comparison)
 //! [regions]                # image polygons, pixels: each sheet's outline, and the object's
 //!                          # region between the marker lines
+//! [[laser]]                # a turntable scanner's fixed laser planes: normal, offset
+//! [platform]               # its platform: rotation (rows; columns x, y, axis), origin,
+//!                          # radius, steps_per_turn
 //! ```
 
 use scanner_core::config::MAX_PLANE_OFFSET_MM;
@@ -34,8 +37,8 @@ use std::path::Path;
 use scanner_core::calib::bundle::Covariance;
 use scanner_core::calib::model::predict;
 use scanner_core::calib::spread::{CalibrationSpread, SheetSpread};
-use scanner_core::geometry::{Board, Plane, Pose};
-use scanner_core::nalgebra::{Point2, Vector3};
+use scanner_core::geometry::{Board, Plane, Platform, Pose};
+use scanner_core::nalgebra::{Matrix3, Point2, Point3, Vector3};
 use scanner_core::{Camera, Distortion};
 use serde::{Deserialize, Serialize};
 
@@ -110,6 +113,97 @@ pub struct PlaneEq {
     pub normal: [f64; 3],
     /// Offset, mm.
     pub offset: f64,
+}
+
+/// A turntable scanner's platform: where it stands at turn 0, camera coordinates.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PlatformSection {
+    /// Rotation platform → camera, rows; its columns are the platform's `x`, `y` and `z` (up
+    /// the turning axis).
+    pub rotation: [[f64; 3]; 3],
+    /// The platform's origin: the axis at its top, mm.
+    pub origin: [f64; 3],
+    /// The platform's radius, mm (0: not known): nothing farther from the axis is the object.
+    pub radius: f64,
+    /// Motor steps in one turn of the platform.
+    pub steps_per_turn: u32,
+}
+
+/// Longest platform radius, mm.
+pub const MAX_PLATFORM_RADIUS_MM: f64 = 2000.0;
+
+/// Most motor steps in one turn (a 200-step motor at 256 microsteps through a 100:1 gear).
+pub const MAX_STEPS_PER_TURN: u32 = 5_120_000;
+
+impl PlatformSection {
+    /// The platform.
+    ///
+    /// # Errors
+    /// [`scanner_core::GeomError`] for numbers that are not a platform's pose.
+    pub fn platform(&self) -> Result<Platform<f64>, scanner_core::GeomError> {
+        let r = self.rotation;
+        Platform::new(
+            Matrix3::new(
+                r[0][0], r[0][1], r[0][2], r[1][0], r[1][1], r[1][2], r[2][0], r[2][1], r[2][2],
+            ),
+            Point3::from(self.origin),
+        )
+    }
+}
+
+impl PlaneEq {
+    /// The plane.
+    ///
+    /// # Errors
+    /// [`scanner_core::GeomError`] for a normal of zero or numbers that are not finite.
+    pub fn plane(&self) -> Result<Plane<f64>, scanner_core::GeomError> {
+        Plane::new(Vector3::from(self.normal), self.offset)
+    }
+}
+
+/// The fixed lasers and the platform of a file checked: planes that are planes and miss the
+/// camera, a platform that is a pose, a radius and a step count in range.
+fn check_fixed(f: &CalibrationFile) -> Result<(), String> {
+    for (k, l) in f.lasers.iter().enumerate() {
+        let plane = l.plane().map_err(|e| {
+            format!(
+                "[[laser]] {k}: {e} (normal {:?}, offset {})",
+                l.normal,
+                short(l.offset)
+            )
+        })?;
+        if !(plane.offset().abs() >= 1.0 && plane.offset().abs() <= MAX_PLANE_OFFSET_MM) {
+            return Err(format!(
+                "[[laser]] {k}: the plane passes {} mm from the camera: a laser plane through the camera (or beyond {MAX_PLANE_OFFSET_MM} mm) triangulates nothing",
+                short(plane.offset().abs())
+            ));
+        }
+    }
+    if let Some(p) = &f.platform {
+        p.platform().map_err(|e| format!("[platform]: {e}"))?;
+        if p.steps_per_turn == 0 || p.steps_per_turn > MAX_STEPS_PER_TURN {
+            return Err(format!(
+                "[platform] steps_per_turn {} is not a turntable's (1 to {MAX_STEPS_PER_TURN})",
+                p.steps_per_turn
+            ));
+        }
+        if !(0.0..=MAX_PLATFORM_RADIUS_MM).contains(&p.radius) {
+            return Err(format!(
+                "[platform] radius {} mm is not a platform's (0 to {MAX_PLATFORM_RADIUS_MM} mm)",
+                short(p.radius)
+            ));
+        }
+        if !(p.origin.iter().all(|v| v.is_finite())
+            && Vector3::from(p.origin).norm() <= MAX_PLANE_OFFSET_MM)
+        {
+            return Err(format!(
+                "[platform] origin {:?} is not within {MAX_PLANE_OFFSET_MM} mm of the camera",
+                p.origin
+            ));
+        }
+    }
+    Ok(())
 }
 
 /// One marker's record.
@@ -212,6 +306,13 @@ pub struct CalibrationFile {
     /// Image regions.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub regions: Option<Regions>,
+    /// A turntable scanner's fixed laser planes, camera coordinates (`[[laser]]`, laser 0
+    /// first).
+    #[serde(default, skip_serializing_if = "Vec::is_empty", rename = "laser")]
+    pub lasers: Vec<PlaneEq>,
+    /// A turntable scanner's platform.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub platform: Option<PlatformSection>,
 }
 
 /// Why a calibration file is unusable.
@@ -329,6 +430,8 @@ impl CalibrationFile {
             },
             board: None,
             regions: None,
+            lasers: Vec::new(),
+            platform: None,
         }
     }
 
@@ -525,6 +628,7 @@ impl CalibrationFile {
         if let Some(b) = f.board() {
             b.map_err(|e| invalid(format!("[board]: {e}")))?;
         }
+        check_fixed(&f).map_err(invalid)?;
         Ok(f)
     }
 

@@ -16,7 +16,7 @@
 //! # Layers
 //! Each module uses only modules on its own line or below (`tests/tests/layers.rs` checks it):
 //! ```text
-//! overlay
+//! overlay  fixed
 //! planes  distance
 //! disc
 //! print
@@ -50,6 +50,7 @@ mod distance;
 mod error;
 pub mod file;
 mod fit;
+pub mod fixed;
 pub mod identify;
 pub mod intrinsics;
 pub mod lattice;

@@ -106,6 +106,16 @@ pub enum Command {
     Preview(preview::PreviewArgs),
     /// List the V4L2 cameras with their formats and sizes.
     Devices,
+    /// Import a FabScanPi config (`*.config.json`): its camera, laser planes and platform into
+    /// a calibration file for `scan --fixed-laser`, turned back to the frames as the camera
+    /// stores them.
+    ImportFabscan {
+        /// FabScanPi's config.
+        config: PathBuf,
+        /// The calibration file to write.
+        #[arg(long, default_value = "calibration.toml")]
+        out: PathBuf,
+    },
 }
 
 /// Runs the scanner head with parsed arguments.
@@ -188,6 +198,26 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
         }
         Some(Command::Capture(a)) => capture::capture(a)?,
         Some(Command::Devices) => scan::devices(),
+        Some(Command::ImportFabscan { config, out }) => {
+            let imported = scanner_calib::fixed::import_fabscan(config)?;
+            imported.file.save(out)?;
+            let o = imported.orientation;
+            crate::outln!(
+                "wrote {}: {}×{} stored frames (FabScanPi turned them: rotate {}, hflip {}, vflip {}), {} laser plane(s), platform {}",
+                out.display(),
+                imported.file.image.width,
+                imported.file.image.height,
+                o.rotate,
+                o.hflip,
+                o.vflip,
+                imported.file.lasers.len(),
+                if imported.file.platform.is_some() {
+                    "yes"
+                } else {
+                    "no"
+                }
+            );
+        }
         None => crate::outln!("scanner-device: nothing to do yet (try --help)"),
     }
     Ok(())

@@ -74,6 +74,23 @@ pub struct ScanArgs {
     /// host's 360° merge knows how far the object was turned.
     #[arg(long, value_name = "PAPER")]
     pub disc: Option<scanner_calib::disc::Paper>,
+    /// A turntable scanner: laser N of the calibration's `[[laser]]` planes, fixed, over its
+    /// `[platform]` (`scanner-device import-fabscan` writes such a file). The frames are dark
+    /// and laser-only: no reference is taken. Give the platform's turn per frame with
+    /// `--turn-deg`, `--steps-per-frame` or `--frames-per-turn`.
+    #[arg(long, value_name = "N")]
+    pub fixed_laser: Option<usize>,
+    /// With --fixed-laser: the platform turns this many degrees between frames (negative:
+    /// clockwise seen from above).
+    #[arg(long, allow_hyphen_values = true, conflicts_with_all = ["steps_per_frame", "frames_per_turn"])]
+    pub turn_deg: Option<f64>,
+    /// With --fixed-laser: the motor makes this many steps between frames (of the platform's
+    /// `steps_per_turn`).
+    #[arg(long, conflicts_with = "frames_per_turn")]
+    pub steps_per_frame: Option<u32>,
+    /// With --fixed-laser: frames in one whole turn (FabScanPi's resolution 1 is 100).
+    #[arg(long)]
+    pub frames_per_turn: Option<u32>,
     /// Send the stripe's board points too.
     #[arg(long)]
     pub keep_board: bool,
@@ -364,6 +381,7 @@ pub fn plan(a: &ScanArgs) -> Result<ScanPlan> {
     let options = ScanOptions {
         head: o.head,
         find_axis: o.find_axis,
+        fixed: o.fixed,
         disc: a.disc.map(scanner_calib::disc::Disc::new),
         header_every: 30,
         status_every: 30,
@@ -396,6 +414,8 @@ pub(super) struct OpenedSource {
     pub link: Link,
     /// When to stop.
     pub stop: StopWhen,
+    /// A fixed laser's platform and turn, for its message after each header.
+    pub fixed: Option<scanner_wire::FixedLaser>,
 }
 
 /// Checks the options and opens the source, the calibration (if given), the link.
@@ -430,10 +450,16 @@ pub(super) fn open(a: &ScanArgs) -> Result<OpenedSource> {
                 .with_context(|| format!("--record {}", dir.display()))?,
         );
     }
+    let fixed = a
+        .calibration
+        .as_ref()
+        .zip(a.fixed_laser)
+        .map(|(p, n)| read_fixed(p, n, a))
+        .transpose()?;
     let calibration = a
         .calibration
         .as_ref()
-        .map(|p| read_calibration(p, source.as_ref(), &a.source))
+        .map(|p| read_calibration(p, source.as_ref(), &a.source, fixed.as_ref()))
         .transpose()?;
     let target: Destination = a.out.parse().context("--out")?;
     let link = Link::spawn(target.open()?, a.link_depth, scanner_wire::MAX_ENCODED);
@@ -449,10 +475,15 @@ pub(super) fn open(a: &ScanArgs) -> Result<OpenedSource> {
             None => None,
         },
     };
+    let mut head = head_config(a);
+    if let Some(f) = &fixed {
+        head = fixed_head(head, f);
+    }
     Ok(OpenedSource {
+        fixed: fixed.map(|f| f.message),
         source,
         calibration,
-        head: head_config(a),
+        head,
         find_axis: !(a.rows || a.columns),
         scan_id: a.scan_id.unwrap_or_else(rand::random),
         link,
@@ -490,11 +521,116 @@ fn open_source(
         .with_context(|| format!("opening the frame source {:?}", a.source))
 }
 
-/// The calibration file's camera and board, checked against the source's frame size.
+/// A fixed laser read from a calibration file: its plane, its platform's known surfaces (what
+/// is not the object) and the message that tells the host the platform and the turn.
+struct Fixed {
+    plane: scanner_core::geometry::Plane<f64>,
+    board: scanner_core::geometry::Board<f64>,
+    message: scanner_wire::FixedLaser,
+}
+
+/// The platform's radius taken when the calibration does not know it, mm.
+const UNKNOWN_RADIUS_MM: f64 = 1000.0;
+
+/// Laser `n` of the calibration file at `path` over its platform, with the turn per frame
+/// the options give.
+fn read_fixed(path: &std::path::Path, n: usize, a: &ScanArgs) -> Result<Fixed> {
+    let file = CalibrationFile::load(path)?;
+    let name = path.display();
+    let Some(laser) = file.lasers.get(n) else {
+        bail!(
+            "--fixed-laser {n}: {name} has {} fixed laser plane(s) ([[laser]]){}",
+            file.lasers.len(),
+            if file.lasers.is_empty() {
+                "; calibrate them or import a scanner's own calibration (`scanner-device import-fabscan`)"
+            } else {
+                ""
+            }
+        );
+    };
+    let Some(section) = file.platform else {
+        bail!("--fixed-laser: {name} has no [platform]: the turntable's pose is needed");
+    };
+    let plane = laser
+        .plane()
+        .with_context(|| format!("[[laser]] {n} in {name}"))?;
+    let platform = section
+        .platform()
+        .with_context(|| format!("[platform] in {name}"))?;
+    let radius = if section.radius > 0.0 {
+        section.radius
+    } else {
+        UNKNOWN_RADIUS_MM
+    };
+    let board = platform
+        .known_surfaces(radius)
+        .with_context(|| format!("[platform] in {name}: the camera looks down its axis"))?;
+    let turn = match (a.turn_deg, a.steps_per_frame, a.frames_per_turn) {
+        (Some(d), _, _) if d.is_finite() && d != 0.0 && d.abs() <= 180.0 => d.to_radians(),
+        (Some(d), _, _) => {
+            bail!("--turn-deg {d}: give a turn between frames of up to ±180°, not 0")
+        }
+        (_, Some(0), _) => bail!("--steps-per-frame 0: the platform would not turn"),
+        (_, Some(s), _) if s <= section.steps_per_turn / 2 => {
+            std::f64::consts::TAU * f64::from(s) / f64::from(section.steps_per_turn)
+        }
+        (_, Some(s), _) => bail!(
+            "--steps-per-frame {s}: more than half of the platform's {} steps per turn",
+            section.steps_per_turn
+        ),
+        (_, _, Some(f)) if f >= 2 => std::f64::consts::TAU / f64::from(f),
+        (_, _, Some(f)) => bail!("--frames-per-turn {f}: a turn needs at least 2 frames"),
+        _ => bail!(
+            "--fixed-laser needs the platform's turn between frames: --turn-deg, --steps-per-frame or --frames-per-turn"
+        ),
+    };
+    let r = platform.rotation();
+    let o = platform.origin();
+    Ok(Fixed {
+        plane,
+        board,
+        message: scanner_wire::FixedLaser {
+            scan_id: 0,
+            laser: u8::try_from(n).unwrap_or(u8::MAX),
+            rotation: [0, 1, 2]
+                .map(|i| [r[(i, 0)], r[(i, 1)], r[(i, 2)]])
+                .as_flattened()
+                .try_into()
+                .map(|m: [f64; 9]| m.map(|v| v as f32))
+                .unwrap_or_default(),
+            origin: [o.x as f32, o.y as f32, o.z as f32],
+            turn: turn as f32,
+            radius: section.radius as f32,
+        },
+    })
+}
+
+/// The pipeline's settings for a fixed laser: its plane; the light-intensity method (the frames
+/// are dark: nothing to subtract); stripes up to 64 px wide with a halo around them (a laser
+/// close to a plaster or skin-like surface glows); the platform's top within 1 mm is the
+/// platform.
+fn fixed_head(mut head: HeadConfig, f: &Fixed) -> HeadConfig {
+    head.fixed_plane = Some(scanner_core::pipeline::FixedPlane {
+        plane: f.plane.cast(),
+        sigma: 0.05,
+    });
+    head.stripe.method = Method::Lim;
+    head.stripe.max_width = 64.0;
+    head.stripe.max_plateau = 40;
+    head.stripe.half_window = scanner_core::stripe::MAX_HALF_WINDOW;
+    head.stripe.separation = 24;
+    head.stripe.ambiguity = 0.8;
+    head.limits.board_tol = 1.0;
+    head
+}
+
+/// The calibration file's camera and board (or a fixed laser's platform), checked against the
+/// source's frame size.
 fn read_calibration(
     path: &std::path::Path,
     source: &dyn FrameSource,
     source_name: &str,
+    fixed: Option<&Fixed>,
 ) -> Result<Calibration> {
     let file = CalibrationFile::load(path)?;
     let (w, h) = source.size();
@@ -509,11 +645,13 @@ fn read_calibration(
     let camera = file
         .camera()
         .with_context(|| format!("camera in {}", path.display()))?;
-    let Some(board) = file.board() else {
-        bail!(
+    let board = match (fixed, file.board()) {
+        (Some(f), _) => Ok(f.board),
+        (None, Some(board)) => board,
+        (None, None) => bail!(
             "{} has no board: run `scanner-device calibrate board` first",
             path.display()
-        );
+        ),
     };
     let board = board.with_context(|| format!("board in {}", path.display()))?;
     let spread = file

@@ -1,0 +1,421 @@
+//! A turntable scanner with fixed lasers (FabScanPi, Ciclop): its calibration imported from
+//! the scanner's own files, re-expressed for the frames as the camera stores them.
+//!
+//! FabScanPi turns and flips every frame before it reads it (its `camera.rotate`, `hflip`,
+//! `vflip`) and calibrates in that orientation. Rather than turn each frame (a pass over every
+//! pixel), the import turns the calibration: the camera, the laser planes and the platform are
+//! given in the stored frame's camera coordinates, and the head reads the frames as they are.
+
+use std::path::Path;
+
+use scanner_core::geometry::Plane;
+use scanner_core::nalgebra::{Matrix2, Matrix3, Vector2, Vector3};
+use scanner_core::{Camera, Distortion};
+
+use crate::file::{CalibrationFile, PlaneEq, PlatformSection, VERSION};
+use crate::short;
+
+/// Why a scanner's own calibration cannot be imported.
+#[derive(Debug, thiserror::Error)]
+pub enum ImportError {
+    /// Not readable.
+    #[error("cannot read {path}")]
+    Io {
+        /// The file.
+        path: String,
+        /// Why.
+        #[source]
+        source: std::io::Error,
+    },
+    /// Not JSON of FabScanPi's config's shape.
+    #[error("{path} is not a FabScanPi config")]
+    Json {
+        /// The file.
+        path: String,
+        /// What is wrong.
+        #[source]
+        source: serde_json::Error,
+    },
+    /// Readable, but a value is unusable.
+    #[error("{path}: {why}")]
+    Invalid {
+        /// The file.
+        path: String,
+        /// What is wrong.
+        why: String,
+    },
+}
+
+/// How a scanner turns its stored frames before reading them: transposed first (`rotate`),
+/// then flipped left–right (`hflip`), then top–bottom (`vflip`), FabScanPi's order.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct Orientation {
+    /// Transposed.
+    pub rotate: bool,
+    /// Flipped left–right.
+    pub hflip: bool,
+    /// Flipped top–bottom.
+    pub vflip: bool,
+}
+
+impl Orientation {
+    /// The map of a stored pixel to the turned one, `p′ = P p + b`, for a stored frame of
+    /// `width` × `height`; and the turned frame's size.
+    fn map(self, (width, height): (u32, u32)) -> (Matrix2<f64>, Vector2<f64>, (u32, u32)) {
+        let (mut p, mut b, mut size) = (Matrix2::identity(), Vector2::zeros(), (width, height));
+        if self.rotate {
+            p = Matrix2::new(0.0, 1.0, 1.0, 0.0) * p;
+            b = Vector2::new(b.y, b.x);
+            size = (size.1, size.0);
+        }
+        if self.hflip {
+            p = Matrix2::new(-1.0, 0.0, 0.0, 1.0) * p;
+            b = Vector2::new(f64::from(size.0) - 1.0 - b.x, b.y);
+        }
+        if self.vflip {
+            p = Matrix2::new(1.0, 0.0, 0.0, -1.0) * p;
+            b = Vector2::new(b.x, f64::from(size.1) - 1.0 - b.y);
+        }
+        (p, b, size)
+    }
+}
+
+/// A calibration made in the turned frames (camera, laser planes, platform) re-expressed for
+/// the stored frames of `stored` size.
+///
+/// # Errors
+/// A mirroring orientation (one flip without the other, or with a transpose): the stored frames
+/// would show the world mirrored, which no camera pose reproduces; turn the frames instead.
+pub fn unturn(
+    turned: &CalibrationFile,
+    orientation: Orientation,
+    stored: (u32, u32),
+) -> Result<CalibrationFile, String> {
+    let (p, b, size) = orientation.map(stored);
+    if p.determinant() < 0.0 {
+        return Err(format!(
+            "the orientation {orientation:?} mirrors the frames; only turns are supported"
+        ));
+    }
+    if size != (turned.image.width, turned.image.height) {
+        return Err(format!(
+            "the calibration is for {}×{} frames, the turned frames are {}×{}",
+            turned.image.width, turned.image.height, size.0, size.1
+        ));
+    }
+    // camera axes as pixel axes: X′ = M X for the stored frame's X
+    let m = Matrix3::new(
+        p[(0, 0)],
+        p[(0, 1)],
+        0.0,
+        p[(1, 0)],
+        p[(1, 1)],
+        0.0,
+        0.0,
+        0.0,
+        1.0,
+    );
+    let c = &turned.camera;
+    let f = p.transpose() * Matrix2::new(c.fx, 0.0, 0.0, c.fy) * p;
+    let centre = p.transpose() * (Vector2::new(c.cx, c.cy) - b);
+    // the tangential terms are linear in (p1, p2): solve for the stored frame's pair at two
+    // normalised points (exact for a signed permutation)
+    let tangential = |p1: f64, p2: f64, n: Vector2<f64>| {
+        let r2 = n.norm_squared();
+        Vector2::new(
+            2.0 * p1 * n.x * n.y + p2 * (r2 + 2.0 * n.x * n.x),
+            p1 * (r2 + 2.0 * n.y * n.y) + 2.0 * p2 * n.x * n.y,
+        )
+    };
+    let probe = Vector2::new(0.3, 0.2);
+    let want = p.transpose() * tangential(c.p1, c.p2, p * probe);
+    let (a1, a2) = (tangential(1.0, 0.0, probe), tangential(0.0, 1.0, probe));
+    let (p1, p2) = Matrix2::new(a1.x, a2.x, a1.y, a2.y)
+        .try_inverse()
+        .map(|inv| {
+            let s = inv * want;
+            (s.x, s.y)
+        })
+        .ok_or("the tangential distortion cannot be turned")?;
+    let mut out = turned.clone();
+    out.image.width = stored.0;
+    out.image.height = stored.1;
+    out.camera.fx = f[(0, 0)].abs();
+    out.camera.fy = f[(1, 1)].abs();
+    out.camera.cx = centre.x;
+    out.camera.cy = centre.y;
+    out.camera.p1 = p1;
+    out.camera.p2 = p2;
+    out.camera.covariance = None;
+    out.camera.source = format!("{}, turned back to the stored frames", c.source);
+    let back = |v: [f64; 3]| -> [f64; 3] { (m.transpose() * Vector3::from(v)).into() };
+    out.lasers = turned
+        .lasers
+        .iter()
+        .map(|l| PlaneEq {
+            normal: back(l.normal),
+            offset: l.offset,
+        })
+        .collect();
+    if let Some(pl) = &turned.platform {
+        let r = Matrix3::from_fn(|i, j| pl.rotation[i][j]);
+        let rs = m.transpose() * r;
+        out.platform = Some(PlatformSection {
+            rotation: [0, 1, 2].map(|i| [rs[(i, 0)], rs[(i, 1)], rs[(i, 2)]]),
+            origin: back(pl.origin),
+            ..*pl
+        });
+    }
+    out.board = None;
+    out.regions = None;
+    Ok(out)
+}
+
+/// The parts of FabScanPi's config the import reads.
+#[derive(Debug, serde::Deserialize)]
+struct FabScanConfig {
+    calibration: FabScanCalibration,
+    camera: FabScanCamera,
+    turntable: FabScanTurntable,
+}
+
+#[derive(Debug, serde::Deserialize)]
+struct FabScanCalibration {
+    camera_matrix: [[f64; 3]; 3],
+    distortion_vector: [f64; 5],
+    #[serde(default)]
+    laser_planes: Vec<FabScanPlane>,
+    platform_translation: [f64; 3],
+    platform_rotation: [[f64; 3]; 3],
+}
+
+#[derive(Debug, serde::Deserialize)]
+struct FabScanPlane {
+    distance: f64,
+    normal: [f64; 3],
+}
+
+#[derive(Debug, serde::Deserialize)]
+struct FabScanCamera {
+    resolution: FabScanResolution,
+    #[serde(default)]
+    rotate: Flag,
+    #[serde(default)]
+    hflip: Flag,
+    #[serde(default)]
+    vflip: Flag,
+}
+
+#[derive(Debug, serde::Deserialize)]
+struct FabScanResolution {
+    width: u32,
+    height: u32,
+}
+
+#[derive(Debug, serde::Deserialize)]
+struct FabScanTurntable {
+    steps: u32,
+    #[serde(default)]
+    radius: f64,
+}
+
+/// FabScanPi's booleans are the strings "True" and "False" (or JSON booleans).
+#[derive(Debug, Default, serde::Deserialize)]
+#[serde(untagged)]
+enum Flag {
+    Bool(bool),
+    Text(String),
+    #[default]
+    Missing,
+}
+
+impl Flag {
+    fn get(&self, name: &str) -> Result<bool, String> {
+        match self {
+            Flag::Bool(b) => Ok(*b),
+            Flag::Text(t) if t.eq_ignore_ascii_case("true") => Ok(true),
+            Flag::Text(t) if t.eq_ignore_ascii_case("false") => Ok(false),
+            Flag::Text(t) => Err(format!("camera.{name} is {t:?}, not \"True\" or \"False\"")),
+            Flag::Missing => Ok(false),
+        }
+    }
+}
+
+/// What an import gives: the calibration for the stored frames and how they are turned.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Imported {
+    /// The calibration, stored frames' coordinates (checked as any calibration file).
+    pub file: CalibrationFile,
+    /// How the scanner turned its frames (what the import undid).
+    pub orientation: Orientation,
+}
+
+/// Reads a FabScanPi config (`<name>.config.json`): its camera, laser planes and platform, for
+/// the frames as the camera stores them.
+///
+/// # Errors
+/// [`ImportError`] naming the file and the value that is wrong (a NaN or a plane through the
+/// camera, a step count of 0 included).
+pub fn import_fabscan(path: &Path) -> Result<Imported, ImportError> {
+    let name = path.display().to_string();
+    let text = scanner_io::text_file::read(path).map_err(|source| ImportError::Io {
+        path: name.clone(),
+        source,
+    })?;
+    let cfg: FabScanConfig = serde_json::from_str(&text).map_err(|source| ImportError::Json {
+        path: name.clone(),
+        source,
+    })?;
+    let invalid = |why: String| ImportError::Invalid {
+        path: name.clone(),
+        why,
+    };
+    let orientation = Orientation {
+        rotate: cfg.camera.rotate.get("rotate").map_err(invalid)?,
+        hflip: cfg.camera.hflip.get("hflip").map_err(invalid)?,
+        vflip: cfg.camera.vflip.get("vflip").map_err(invalid)?,
+    };
+    let stored = (cfg.camera.resolution.width, cfg.camera.resolution.height);
+    let (_, _, turned_size) = orientation.map(stored);
+    let k = cfg.calibration.camera_matrix;
+    let d = cfg.calibration.distortion_vector;
+    if k[0][1] != 0.0 || k[1][0] != 0.0 || k[2] != [0.0, 0.0, 1.0] {
+        return Err(invalid(format!(
+            "calibration.camera_matrix {k:?} is not a pinhole camera's (skew or a bad last row)"
+        )));
+    }
+    let camera = Camera::new(
+        k[0][0],
+        k[1][1],
+        k[0][2],
+        k[1][2],
+        Distortion {
+            k1: d[0],
+            k2: d[1],
+            p1: d[2],
+            p2: d[3],
+            k3: d[4],
+        },
+    )
+    .map_err(|e| invalid(format!("calibration.camera_matrix: {e}")))?;
+    let mut turned = CalibrationFile::from_camera(
+        &camera,
+        turned_size,
+        format!("FabScanPi config {name}"),
+        None,
+    );
+    for (i, l) in cfg.calibration.laser_planes.iter().enumerate() {
+        // FabScanPi: normal · X = distance
+        let plane = Plane::new(Vector3::from(l.normal), -l.distance).map_err(|e| {
+            invalid(format!(
+                "calibration.laser_planes[{i}]: {e} (normal {:?}, distance {})",
+                l.normal,
+                short(l.distance)
+            ))
+        })?;
+        turned.lasers.push(PlaneEq {
+            normal: (*plane.normal()).into(),
+            offset: plane.offset(),
+        });
+    }
+    turned.platform = Some(PlatformSection {
+        rotation: cfg.calibration.platform_rotation,
+        origin: cfg.calibration.platform_translation,
+        radius: cfg.turntable.radius,
+        steps_per_turn: cfg.turntable.steps,
+    });
+    let file = unturn(&turned, orientation, stored).map_err(invalid)?;
+    // the checks of any calibration file (a NaN, a plane through the camera, 0 steps)
+    let text = toml::to_string(&file).map_err(|e| invalid(format!("cannot be written: {e}")))?;
+    let file = CalibrationFile::parse(&text, &name).map_err(|e| invalid(format!("{e}")))?;
+    debug_assert_eq!(file.version, VERSION);
+    Ok(Imported { file, orientation })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use scanner_core::nalgebra::{Point2, Point3};
+
+    /// A point seen in the turned frame and in the stored frame lands on the pixels that the
+    /// turn maps onto each other.
+    #[test]
+    fn unturned_camera_sees_the_same_pixels() {
+        let cam = Camera::new(
+            1319.6,
+            1322.35,
+            625.54,
+            808.36,
+            Distortion {
+                k1: 0.145,
+                k2: 0.154,
+                p1: -0.006,
+                p2: 0.006,
+                k3: -1.15,
+            },
+        )
+        .unwrap();
+        for orientation in [
+            Orientation::default(),
+            Orientation {
+                rotate: true,
+                hflip: true,
+                vflip: false,
+            },
+            Orientation {
+                rotate: true,
+                hflip: false,
+                vflip: true,
+            },
+            Orientation {
+                rotate: false,
+                hflip: true,
+                vflip: true,
+            },
+        ] {
+            let stored = if orientation.rotate {
+                (1640, 1232)
+            } else {
+                (1232, 1640)
+            };
+            let turned = CalibrationFile::from_camera(&cam, (1232, 1640), "t".into(), None);
+            let back = unturn(&turned, orientation, stored).unwrap();
+            let cs = back.camera().unwrap();
+            let (p, b, _) = orientation.map(stored);
+            let m = Matrix3::new(
+                p[(0, 0)],
+                p[(0, 1)],
+                0.0,
+                p[(1, 0)],
+                p[(1, 1)],
+                0.0,
+                0.0,
+                0.0,
+                1.0,
+            );
+            for x in [
+                Point3::new(10.0, -20.0, 150.0),
+                Point3::new(-40.0, 35.0, 120.0),
+            ] {
+                let ps = cs.project(&x).unwrap();
+                let pt = cam.project(&Point3::from(m * x.coords)).unwrap();
+                let mapped: Point2<f64> = Point2::from(p * ps.coords + b);
+                assert!(
+                    (mapped - pt).norm() < 1e-6,
+                    "{orientation:?}: {mapped} vs {pt}"
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn a_mirroring_orientation_is_refused() {
+        let cam = Camera::new(1000.0, 1000.0, 320.0, 240.0, Distortion::none()).unwrap();
+        let turned = CalibrationFile::from_camera(&cam, (640, 480), "t".into(), None);
+        let hflip = Orientation {
+            hflip: true,
+            ..Orientation::default()
+        };
+        assert!(unturn(&turned, hflip, (640, 480)).is_err());
+    }
+}

@@ -1,0 +1,202 @@
+//! A fixed-laser turntable scan's model: every frame's points carried into the turning
+//! platform's frame (where the object stands still), the platform itself and what lies off it
+//! left out, normals towards the camera that saw each point, and one closed mesh with a flat
+//! base — the whole 360° from one pass, with no registration.
+
+use scanner_core::geometry::Platform;
+use scanner_core::nalgebra::{Matrix3, Point3, Vector3};
+use scanner_merge::fuse::{self, HalfSpace};
+use scanner_merge::{Model, spatial};
+use scanner_wire::FixedLaser;
+
+use crate::collect::KeptFrame;
+
+/// Points within this height of the platform's top are the platform's, mm: its surface is
+/// never the object (the head's own margin is its `board_tol`; this is the host's, for the
+/// points it receives).
+pub const TOP_MARGIN_MM: f64 = 1.0;
+
+/// Neighbours of a point its normal is fitted to.
+const NORMAL_NEIGHBOURS: usize = 12;
+
+/// Why a fixed-laser model cannot be made.
+#[derive(Debug, thiserror::Error)]
+pub enum PlatformError {
+    /// The platform in the scan's message is not a pose.
+    #[error("the scan's platform is unusable: {0}")]
+    Platform(scanner_core::GeomError),
+    /// The turn per frame is not a number, or 0.
+    #[error("the scan's turn per frame is {0} rad: the platform would not turn")]
+    Turn(f32),
+    /// The fusion failed.
+    #[error(transparent)]
+    Fuse(#[from] scanner_merge::error::FuseError),
+}
+
+/// A fixed-laser scan's points in the platform's frame (`z` up the axis, origin on the axis at
+/// its top).
+#[derive(Debug, Clone, Default)]
+pub struct PlatformCloud {
+    /// The object's points.
+    pub points: Vec<Point3<f64>>,
+    /// Where the camera was, seen from the platform, when each point was taken.
+    pub seen_from: Vec<Point3<f64>>,
+    /// Points on (or below) the platform's top, left out.
+    pub on_top: usize,
+    /// Points farther from the axis than the platform's radius, left out.
+    pub off_platform: usize,
+    /// Points that stayed still in the camera's view while the platform turned (lit in many
+    /// frames at one place, off the axis): the background, left out.
+    pub still: usize,
+    /// Frames in the cloud.
+    pub frames: usize,
+    /// The turns the frames cover, degrees (from the first to the last frame).
+    pub turned_deg: f64,
+}
+
+/// The platform of a scan's message.
+///
+/// # Errors
+/// [`PlatformError::Platform`] for numbers that are not a pose.
+pub fn platform_of(f: &FixedLaser) -> Result<Platform<f64>, PlatformError> {
+    let r = f.rotation.map(f64::from);
+    Platform::new(
+        Matrix3::new(r[0], r[1], r[2], r[3], r[4], r[5], r[6], r[7], r[8]),
+        Point3::from(f.origin.map(f64::from)),
+    )
+    .map_err(PlatformError::Platform)
+}
+
+/// The points of scan `f.scan_id`'s frames in the platform's frame, frame `k` turned back by
+/// `k · turn`; the platform's top (within [`TOP_MARGIN_MM`]) and what lies beyond its radius
+/// left out.
+///
+/// # Errors
+/// An unusable platform or turn.
+pub fn platform_cloud(
+    f: &FixedLaser,
+    frames: &[KeptFrame],
+) -> Result<PlatformCloud, PlatformError> {
+    let platform = platform_of(f)?;
+    if !(f.turn.is_finite() && f.turn != 0.0) {
+        return Err(PlatformError::Turn(f.turn));
+    }
+    let radius = f64::from(f.radius);
+    let still = still_cells(f.scan_id, frames);
+    let mut cloud = PlatformCloud::default();
+    let (mut first, mut last) = (u32::MAX, 0);
+    for k in frames.iter().filter(|k| k.scan_id == f.scan_id) {
+        let angle = f64::from(k.frame) * f64::from(f.turn);
+        let eye = platform.camera_centre(angle);
+        cloud.frames += 1;
+        first = first.min(k.frame);
+        last = last.max(k.frame);
+        for p in &k.points {
+            let q = platform.to_platform(&p.cast(), angle);
+            if still.contains(&cell_of(p)) && q.x.hypot(q.y) > STILL_AXIS_MM {
+                cloud.still += 1;
+            } else if q.z < TOP_MARGIN_MM {
+                cloud.on_top += 1;
+            } else if radius > 0.0 && q.x.hypot(q.y) > radius {
+                cloud.off_platform += 1;
+            } else {
+                cloud.points.push(q);
+                cloud.seen_from.push(eye);
+            }
+        }
+    }
+    if cloud.frames > 0 {
+        cloud.turned_deg = (f64::from(last - first) * f64::from(f.turn))
+            .to_degrees()
+            .abs();
+    }
+    Ok(cloud)
+}
+
+/// The camera-frame cells of [`STILL_CELL_MM`] that [`still_cells`] counts in.
+fn cell_of(p: &Point3<f32>) -> (i32, i32, i32) {
+    let c = |v: f32| (v / STILL_CELL_MM).floor() as i32;
+    (c(p.x), c(p.y), c(p.z))
+}
+
+/// A cell of the camera's view lit in at least this share of a scan's frames holds something
+/// that did not turn with the platform.
+const STILL_SHARE: f64 = 0.25;
+
+/// The side of the camera-frame cells [`still_cells`] counts in, mm.
+const STILL_CELL_MM: f32 = 1.0;
+
+/// A point within this distance of the axis may be lit at one place in every frame and still be
+/// the object's (the crown of a head on the axis): it is never taken for the background, mm.
+const STILL_AXIS_MM: f64 = 5.0;
+
+/// The camera-frame cells lit in at least [`STILL_SHARE`] of scan `scan_id`'s frames (and in
+/// five at least): the laser on something that stood still while the object turned — a wall, a
+/// frame, the scanner's own case. On the object a cell is lit once per turn, near the axis a
+/// few times.
+fn still_cells(scan_id: u32, frames: &[KeptFrame]) -> std::collections::HashSet<(i32, i32, i32)> {
+    let mut lit: std::collections::HashMap<(i32, i32, i32), (u32, u32)> =
+        std::collections::HashMap::new();
+    let mut n = 0usize;
+    for k in frames.iter().filter(|k| k.scan_id == scan_id) {
+        n += 1;
+        for p in &k.points {
+            let e = lit.entry(cell_of(p)).or_insert((u32::MAX, 0));
+            if e.0 != k.frame {
+                *e = (k.frame, e.1 + 1);
+            }
+        }
+    }
+    let need = ((n as f64 * STILL_SHARE).ceil() as u32).max(5);
+    lit.into_iter()
+        .filter(|(_, (_, count))| *count >= need)
+        .map(|(c, _)| c)
+        .collect()
+}
+
+/// Each point's normal, fitted to its neighbours and turned towards the camera that saw it.
+pub fn normals(cloud: &PlatformCloud) -> Vec<Vector3<f64>> {
+    let mut n = spatial::normals(&cloud.points, NORMAL_NEIGHBOURS);
+    for ((n, p), eye) in n.iter_mut().zip(&cloud.points).zip(&cloud.seen_from) {
+        if n.dot(&(eye - p)) < 0.0 {
+            *n = -*n;
+        }
+    }
+    n
+}
+
+/// The closed model of a cloud with cells of `cell` mm: cut flat at the platform's top (a base
+/// to stand and print on).
+///
+/// # Errors
+/// [`PlatformError::Fuse`]: too few points, or a grid too large for the cell.
+pub fn model(
+    cloud: &PlatformCloud,
+    cell: f64,
+    progress: impl FnMut(usize, usize),
+) -> Result<Model, PlatformError> {
+    let normals = normals(cloud);
+    let keep = HalfSpace {
+        up: Vector3::z(),
+        at: TOP_MARGIN_MM,
+    };
+    Ok(fuse::fuse_cut(
+        &cloud.points,
+        &normals,
+        &[],
+        cell,
+        Some(keep),
+        progress,
+    )?)
+}
+
+/// The platform's frame turned for y-up viewers (MeshLab, Blender, CloudCompare): `(x, y, z)`
+/// becomes `(x, z, −y)`, up the axis is +y.
+pub fn y_up(m: &mut Model) {
+    for v in &mut m.vertices {
+        *v = Point3::new(v.x, v.z, -v.y);
+    }
+    for n in &mut m.normals {
+        *n = Vector3::new(n.x, n.z, -n.y);
+    }
+}
