@@ -113,6 +113,7 @@ fn main() {
             scan_id: 1,
             find_axis: false,
             disc: None,
+            fixed: None,
         };
         let mut session = Session::new(&cal, reference.clone(), opts).expect("session");
         let mut decoded = reference.clone();

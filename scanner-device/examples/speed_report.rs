@@ -63,6 +63,7 @@ fn main() {
                 scan_id: 1,
                 find_axis: false,
                 disc: None,
+                fixed: None,
             };
             let mut session = Session::new(&cal, reference.clone(), opts).expect("session");
             let mut link = Link::spawn(Box::new(std::io::sink()), 64, MAX_ENCODED);

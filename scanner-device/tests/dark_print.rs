@@ -48,6 +48,7 @@ fn a_chessboard_board_with_nothing_in_front_gives_no_object_point() {
                 scan_id: 1,
                 find_axis: true,
                 disc: None,
+                fixed: None,
             };
             let mut link = Link::spawn(
                 Box::new(std::io::sink()),

@@ -36,6 +36,7 @@ fn assert_steady_state_allocates_nothing(
         scan_id: 1,
         find_axis: false,
         disc: None,
+        fixed: None,
     };
     let mut frame = reference.clone();
     let mut session = Session::new(cal, reference, opts).unwrap();

@@ -24,6 +24,7 @@ fn options(scan_id: u32) -> ScanOptions {
         scan_id,
         find_axis: false,
         disc: None,
+        fixed: None,
     }
 }
 
@@ -52,7 +53,8 @@ fn decode(bytes: &[u8]) -> Decoded {
             | Message::Planes(_)
             | Message::Disc(_)
             | Message::Notice(_)
-            | Message::Preview(_) => {}
+            | Message::Preview(_)
+            | Message::FixedLaser(_) => {}
         });
     }
     (frames, headers, last, d.stats())

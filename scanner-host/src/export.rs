@@ -138,7 +138,9 @@ pub fn write_ply(mesh: &Mesh, w: &mut impl std::io::Write) -> std::io::Result<()
         mesh.faces.len()
     );
     w.write_all(h.as_bytes())?;
-    for (i, (v, n)) in mesh.vertices.iter().zip(&mesh.normals).enumerate() {
+    for (i, v) in mesh.vertices.iter().enumerate() {
+        // a point cloud may come without normals: zeros then, never a short file
+        let n = mesh.normals.get(i).copied().unwrap_or_default();
         for x in [v.x, v.y, v.z, n.x, n.y, n.z] {
             w.write_all(&x.to_le_bytes())?;
         }

@@ -42,6 +42,10 @@ pub enum MeshFrame {
         /// The origin in camera coordinates.
         origin: Point3<f32>,
     },
+    /// A fixed-laser turntable scan's: the turning platform's frame for y-up viewers, +y up the
+    /// axis, the origin on the axis at the platform's top, +x and −z on the top as it stood at
+    /// the first frame (`crate::platform`).
+    Platform,
 }
 
 impl MeshFrame {
@@ -50,7 +54,7 @@ impl MeshFrame {
     pub fn up(&self) -> Option<Vector3<f64>> {
         match self {
             MeshFrame::Board { rotation, .. } => Some(rotation.row(1).transpose().cast()),
-            MeshFrame::Camera => None,
+            MeshFrame::Camera | MeshFrame::Platform => None,
         }
     }
 
@@ -75,7 +79,7 @@ impl MeshFrame {
     /// A point in camera coordinates, in this frame.
     pub fn point(&self, p: &Point3<f32>) -> Point3<f32> {
         match self {
-            MeshFrame::Camera => *p,
+            MeshFrame::Camera | MeshFrame::Platform => *p,
             MeshFrame::Board { rotation, origin } => Point3::from(rotation * (p - origin)),
         }
     }
@@ -84,6 +88,7 @@ impl MeshFrame {
     pub fn describe(&self) -> String {
         match self {
             MeshFrame::Camera => "camera frame (+x right, +y down, +z forward)".into(),
+            MeshFrame::Platform => "platform frame, y up: +y up the turning axis, origin on the axis at the platform's top, +x and -z on the top as it stood at the first frame".into(),
             MeshFrame::Board {
                 rotation: r,
                 origin: o,

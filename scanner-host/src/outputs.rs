@@ -10,7 +10,7 @@ use crate::collect::{CollectError, CollectOptions, Collector, Counts};
 use crate::export::{self, ExportError};
 use crate::grid::Grid;
 use crate::mesh::{self, Mesh, MeshFrame, MeshOptions};
-use scanner_core::nalgebra::Point3;
+use scanner_core::nalgebra::{Point3, Vector3};
 
 /// Why the outputs could not be made.
 #[derive(Debug, thiserror::Error)]
@@ -567,21 +567,28 @@ fn fixed_outputs(
     } else {
         1.0
     };
+    let normals = crate::platform::normals(&cloud);
+    let y_up = |v: &Vector3<f64>| Vector3::new(v.x as f32, v.z as f32, -v.y as f32);
     let cloud_mesh = Mesh {
         vertices: cloud
             .points
             .iter()
-            .map(|p| Point3::new(p.x as f32, p.z as f32, -p.y as f32))
+            .map(|p| Point3::from(y_up(&p.coords)))
             .collect(),
+        normals: normals.iter().map(y_up).collect(),
+        frame: MeshFrame::Platform,
         ..Mesh::default()
     };
     export::write_atomic_with(&dir.join("cloud.ply"), |w| {
         export::write_ply(&cloud_mesh, w)
     })?;
-    let mut model = crate::platform::model(&cloud, cell, |_, _| {})?;
+    let mut model = crate::platform::model(&cloud, &normals, cell, |_, _| {})?;
     let check = scanner_merge::fuse::check(&model);
     crate::platform::y_up(&mut model);
-    let m = Mesh::from(model);
+    let m = Mesh {
+        frame: MeshFrame::Platform,
+        ..Mesh::from(model)
+    };
     export::write_atomic_with(&dir.join("preview.png"), |w| {
         export::write_png(&export::orbit_png(&m), w)
     })?;
@@ -602,7 +609,7 @@ fn fixed_outputs(
         faces: m.faces.len(),
         coverage: 0.0,
         outliers: 0,
-        frame: "platform frame, y up: +y up the turning axis, origin on the axis at the platform's top, x and -z on the top at the first frame's turn".into(),
+        frame: m.frame.describe(),
         uncertainty: None,
         sheet_moved: None,
         fixed: Some(FixedFigures {

@@ -165,29 +165,90 @@ pub fn normals(cloud: &PlatformCloud) -> Vec<Vector3<f64>> {
     n
 }
 
-/// The closed model of a cloud with cells of `cell` mm: cut flat at the platform's top (a base
+/// The closed model of a cloud (its points' `normals` from [`normals`]) with cells of `cell` mm: cut flat at the platform's top (a base
 /// to stand and print on).
 ///
 /// # Errors
 /// [`PlatformError::Fuse`]: too few points, or a grid too large for the cell.
 pub fn model(
     cloud: &PlatformCloud,
+    normals: &[Vector3<f64>],
     cell: f64,
     progress: impl FnMut(usize, usize),
 ) -> Result<Model, PlatformError> {
-    let normals = normals(cloud);
     let keep = HalfSpace {
         up: Vector3::z(),
         at: TOP_MARGIN_MM,
     };
-    Ok(fuse::fuse_cut(
-        &cloud.points,
-        &normals,
-        &[],
-        cell,
-        Some(keep),
-        progress,
-    )?)
+    let mut m = fuse::fuse_cut(&cloud.points, normals, &[], cell, Some(keep), progress)?;
+    standing(&mut m, TOP_MARGIN_MM + 2.0 * cell);
+    Ok(m)
+}
+
+/// Keeps the pieces of `m` that stand on the platform (reach down to `floor` mm): the object
+/// stands there, and a piece floating above it is what the laser lit elsewhere.
+fn standing(m: &mut Model, floor: f64) {
+    let n = m.vertices.len();
+    let mut parent: Vec<usize> = (0..n).collect();
+    fn root(parent: &mut [usize], mut i: usize) -> usize {
+        while parent[i] != i {
+            parent[i] = parent[parent[i]];
+            i = parent[i];
+        }
+        i
+    }
+    for f in &m.faces {
+        let a = root(&mut parent, f[0] as usize);
+        for &v in &f[1..] {
+            let b = root(&mut parent, v as usize);
+            parent[b] = a;
+        }
+    }
+    let mut low = vec![false; n];
+    for i in 0..n {
+        if f64::from(m.vertices[i].z) <= floor {
+            let r = root(&mut parent, i);
+            low[r] = true;
+        }
+    }
+    if !low.iter().any(|&l| l) {
+        return;
+    }
+    m.faces.retain(|f| {
+        let r = root(&mut parent, f[0] as usize);
+        low[r]
+    });
+    // the vertices of the pieces left out go too
+    let mut new = vec![u32::MAX; n];
+    let mut next = 0u32;
+    for f in &mut m.faces {
+        for v in f.iter_mut() {
+            let i = *v as usize;
+            if new[i] == u32::MAX {
+                new[i] = next;
+                next += 1;
+            }
+            *v = new[i];
+        }
+    }
+    keep_all(&mut m.vertices, &new, next);
+    keep_all(&mut m.normals, &new, next);
+    keep_all(&mut m.colours, &new, next);
+}
+
+/// `values` (one per old vertex, or none) reordered to the new numbering `new` of `count`
+/// vertices (`u32::MAX`: gone).
+fn keep_all<T: Copy + Default>(values: &mut Vec<T>, new: &[u32], count: u32) {
+    if values.len() != new.len() {
+        return;
+    }
+    let mut out = vec![T::default(); count as usize];
+    for (v, &k) in values.iter().zip(new) {
+        if k != u32::MAX {
+            out[k as usize] = *v;
+        }
+    }
+    *values = out;
 }
 
 /// The platform's frame turned for y-up viewers (MeshLab, Blender, CloudCompare): `(x, y, z)`

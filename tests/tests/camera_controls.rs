@@ -58,6 +58,7 @@ fn scan(source: &mut dyn FrameSource, out: &Path) {
         scan_id: 0x00c0_ffee,
         find_axis: false,
         disc: None,
+        fixed: None,
     };
     // A buffer for every message of the scan (24 frames, a header, its controls and a status
     // every 10, the last status: under 40): on a busy machine a shallower link drops point

@@ -45,6 +45,7 @@ fn clean_frames() -> &'static Vec<Vec<u8>> {
             scan_id: 21,
             find_axis: false,
             disc: None,
+            fixed: None,
         };
         scanner_tests::record_scan(
             &mut src,
@@ -384,6 +385,7 @@ fn faults_on_a_pseudo_terminal_link_between_head_and_host() {
         scan_id: 31,
         find_axis: false,
         disc: None,
+        fixed: None,
     };
     run_scan(&mut src, &cal, opts, &mut link, |_| {}, |_, _| {}).unwrap();
     link.finish().unwrap();

@@ -46,6 +46,7 @@ fn record(w: u32, h: u32, frames: usize, colour: bool, path: &Path) -> Rig {
         scan_id: 5,
         find_axis: false,
         disc: None,
+        fixed: None,
     };
     scanner_tests::record_scan(
         &mut source,

@@ -113,6 +113,7 @@ fn record(w: u32, h: u32, id: u32, path: &Path) {
         scan_id: id,
         find_axis: false,
         disc: None,
+        fixed: None,
     };
     scanner_tests::record_scan(
         &mut source,

@@ -49,7 +49,7 @@ pub enum ImportError {
 /// How a scanner turns its stored frames before reading them: transposed first (`rotate`),
 /// then flipped left–right (`hflip`), then top–bottom (`vflip`), FabScanPi's order.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
-pub struct Orientation {
+pub struct FrameTurn {
     /// Transposed.
     pub rotate: bool,
     /// Flipped left–right.
@@ -58,7 +58,7 @@ pub struct Orientation {
     pub vflip: bool,
 }
 
-impl Orientation {
+impl FrameTurn {
     /// The map of a stored pixel to the turned one, `p′ = P p + b`, for a stored frame of
     /// `width` × `height`; and the turned frame's size.
     fn map(self, (width, height): (u32, u32)) -> (Matrix2<f64>, Vector2<f64>, (u32, u32)) {
@@ -88,7 +88,7 @@ impl Orientation {
 /// would show the world mirrored, which no camera pose reproduces; turn the frames instead.
 pub fn unturn(
     turned: &CalibrationFile,
-    orientation: Orientation,
+    orientation: FrameTurn,
     stored: (u32, u32),
 ) -> Result<CalibrationFile, String> {
     let (p, b, size) = orientation.map(stored);
@@ -247,7 +247,7 @@ pub struct Imported {
     /// The calibration, stored frames' coordinates (checked as any calibration file).
     pub file: CalibrationFile,
     /// How the scanner turned its frames (what the import undid).
-    pub orientation: Orientation,
+    pub turn: FrameTurn,
 }
 
 /// Reads a FabScanPi config (`<name>.config.json`): its camera, laser planes and platform, for
@@ -270,7 +270,7 @@ pub fn import_fabscan(path: &Path) -> Result<Imported, ImportError> {
         path: name.clone(),
         why,
     };
-    let orientation = Orientation {
+    let orientation = FrameTurn {
         rotate: cfg.camera.rotate.get("rotate").map_err(invalid)?,
         hflip: cfg.camera.hflip.get("hflip").map_err(invalid)?,
         vflip: cfg.camera.vflip.get("vflip").map_err(invalid)?,
@@ -329,7 +329,10 @@ pub fn import_fabscan(path: &Path) -> Result<Imported, ImportError> {
     let text = toml::to_string(&file).map_err(|e| invalid(format!("cannot be written: {e}")))?;
     let file = CalibrationFile::parse(&text, &name).map_err(|e| invalid(format!("{e}")))?;
     debug_assert_eq!(file.version, VERSION);
-    Ok(Imported { file, orientation })
+    Ok(Imported {
+        file,
+        turn: orientation,
+    })
 }
 
 #[cfg(test)]
@@ -356,18 +359,18 @@ mod tests {
         )
         .unwrap();
         for orientation in [
-            Orientation::default(),
-            Orientation {
+            FrameTurn::default(),
+            FrameTurn {
                 rotate: true,
                 hflip: true,
                 vflip: false,
             },
-            Orientation {
+            FrameTurn {
                 rotate: true,
                 hflip: false,
                 vflip: true,
             },
-            Orientation {
+            FrameTurn {
                 rotate: false,
                 hflip: true,
                 vflip: true,
@@ -412,9 +415,9 @@ mod tests {
     fn a_mirroring_orientation_is_refused() {
         let cam = Camera::new(1000.0, 1000.0, 320.0, 240.0, Distortion::none()).unwrap();
         let turned = CalibrationFile::from_camera(&cam, (640, 480), "t".into(), None);
-        let hflip = Orientation {
+        let hflip = FrameTurn {
             hflip: true,
-            ..Orientation::default()
+            ..FrameTurn::default()
         };
         assert!(unturn(&turned, hflip, (640, 480)).is_err());
     }

@@ -201,7 +201,7 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
         Some(Command::ImportFabscan { config, out }) => {
             let imported = scanner_calib::fixed::import_fabscan(config)?;
             imported.file.save(out)?;
-            let o = imported.orientation;
+            let o = imported.turn;
             crate::outln!(
                 "wrote {}: {}×{} stored frames (FabScanPi turned them: rotate {}, hflip {}, vflip {}), {} laser plane(s), platform {}",
                 out.display(),

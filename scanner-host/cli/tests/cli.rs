@@ -36,6 +36,7 @@ fn recording(dir: &std::path::Path) -> std::path::PathBuf {
         scan_id: 3,
         find_axis: false,
         disc: None,
+        fixed: None,
     };
     scanner_device::session::run_scan(&mut src, &cal, opts, &mut link, |_| {}, |_, _| {}).unwrap();
     let stats = link.finish().unwrap();
@@ -248,6 +249,7 @@ fn head_to_host_over_a_pseudo_terminal() {
         scan_id: 8,
         find_axis: false,
         disc: None,
+        fixed: None,
     };
     let report =
         scanner_device::session::run_scan(&mut source, &cal, opts, &mut link, |_| {}, |_, _| {})
