@@ -100,9 +100,14 @@ pub struct FixedFigures {
     pub on_top: usize,
     /// Points beyond the platform's radius, left out.
     pub off_platform: usize,
-    /// Points that stood still in the camera's view while the platform turned (the
-    /// background), left out.
-    pub still: usize,
+    /// Points lit on what did not stand on the platform (the scanner's case): off the model,
+    /// left out of `cloud.ply`.
+    pub off_model: usize,
+    /// The platform's surface as the points showed it: its height on the axis above the
+    /// calibrated top, mm, and its tilt against it, degrees.
+    pub floor_mm: f64,
+    /// See `floor_mm`.
+    pub floor_tilt_deg: f64,
     /// The fusion's cell, mm.
     pub cell_mm: f64,
     /// Whether the model is closed (every edge shared by two faces) and manifold.
@@ -568,21 +573,30 @@ fn fixed_outputs(
         1.0
     };
     let normals = crate::platform::normals(&cloud);
+    let mut model = crate::platform::model(&cloud, &normals, cell, |_, _| {})?;
+    let near = crate::platform::near_model(&cloud, &model, cell);
+    let off_model = near.iter().filter(|&&n| !n).count();
     let y_up = |v: &Vector3<f64>| Vector3::new(v.x as f32, v.z as f32, -v.y as f32);
     let cloud_mesh = Mesh {
         vertices: cloud
             .points
             .iter()
-            .map(|p| Point3::from(y_up(&p.coords)))
+            .zip(&near)
+            .filter(|(_, n)| **n)
+            .map(|(p, _)| Point3::from(y_up(&p.coords)))
             .collect(),
-        normals: normals.iter().map(y_up).collect(),
+        normals: normals
+            .iter()
+            .zip(&near)
+            .filter(|(_, n)| **n)
+            .map(|(v, _)| y_up(v))
+            .collect(),
         frame: MeshFrame::Platform,
         ..Mesh::default()
     };
     export::write_atomic_with(&dir.join("cloud.ply"), |w| {
         export::write_ply(&cloud_mesh, w)
     })?;
-    let mut model = crate::platform::model(&cloud, &normals, cell, |_, _| {})?;
     let check = scanner_merge::fuse::check(&model);
     crate::platform::y_up(&mut model);
     let m = Mesh {
@@ -616,10 +630,12 @@ fn fixed_outputs(
             laser: f.laser,
             frames: cloud.frames,
             turned_deg: cloud.turned_deg,
-            object_points: cloud.points.len(),
+            object_points: cloud.points.len() - off_model,
             on_top: cloud.on_top,
             off_platform: cloud.off_platform,
-            still: cloud.still,
+            off_model,
+            floor_mm: cloud.floor.at - crate::platform::TOP_MARGIN_MM,
+            floor_tilt_deg: cloud.floor.up.z.clamp(-1.0, 1.0).acos().to_degrees(),
             cell_mm: cell,
             watertight: check.watertight && check.nonmanifold_vertices == 0,
             volume_mm3: check.volume_mm3,

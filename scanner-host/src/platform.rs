@@ -16,6 +16,10 @@ use crate::collect::KeptFrame;
 /// points it receives).
 pub const TOP_MARGIN_MM: f64 = 1.0;
 
+/// Cloud points farther than this many cells from the model are not the object's: they were
+/// lit on something that did not stand on the platform (its piece of the model went).
+pub const OFF_MODEL_CELLS: f64 = 2.0;
+
 /// Neighbours of a point its normal is fitted to.
 const NORMAL_NEIGHBOURS: usize = 12;
 
@@ -35,7 +39,7 @@ pub enum PlatformError {
 
 /// A fixed-laser scan's points in the platform's frame (`z` up the axis, origin on the axis at
 /// its top).
-#[derive(Debug, Clone, Default)]
+#[derive(Debug, Clone)]
 pub struct PlatformCloud {
     /// The object's points.
     pub points: Vec<Point3<f64>>,
@@ -45,9 +49,8 @@ pub struct PlatformCloud {
     pub on_top: usize,
     /// Points farther from the axis than the platform's radius, left out.
     pub off_platform: usize,
-    /// Points that stayed still in the camera's view while the platform turned (lit in many
-    /// frames at one place, off the axis): the background, left out.
-    pub still: usize,
+    /// The platform's surface as the points showed it ([`floor`]): what the model keeps.
+    pub floor: HalfSpace,
     /// Frames in the cloud.
     pub frames: usize,
     /// The turns the frames cover, degrees (from the first to the last frame).
@@ -68,8 +71,7 @@ pub fn platform_of(f: &FixedLaser) -> Result<Platform<f64>, PlatformError> {
 }
 
 /// The points of scan `f.scan_id`'s frames in the platform's frame, frame `k` turned back by
-/// `k · turn`; the platform's top (within [`TOP_MARGIN_MM`]) and what lies beyond its radius
-/// left out.
+/// `k · turn`; the platform's top ([`floor`]) and what lies beyond its radius left out.
 ///
 /// # Errors
 /// An unusable platform or turn.
@@ -83,7 +85,20 @@ pub fn platform_cloud(
     }
     let radius = f64::from(f.radius);
     let still = still_cells(f.scan_id, frames);
-    let mut cloud = PlatformCloud::default();
+    let mut all = Vec::new();
+    let mut low_still = Vec::new();
+    let mut cloud = PlatformCloud {
+        points: Vec::new(),
+        seen_from: Vec::new(),
+        on_top: 0,
+        off_platform: 0,
+        floor: HalfSpace {
+            up: Vector3::z(),
+            at: TOP_MARGIN_MM,
+        },
+        frames: 0,
+        turned_deg: 0.0,
+    };
     let (mut first, mut last) = (u32::MAX, 0);
     for k in frames.iter().filter(|k| k.scan_id == f.scan_id) {
         let angle = f64::from(k.frame) * f64::from(f.turn);
@@ -93,16 +108,22 @@ pub fn platform_cloud(
         last = last.max(k.frame);
         for p in &k.points {
             let q = platform.to_platform(&p.cast(), angle);
-            if still.contains(&cell_of(p)) && q.x.hypot(q.y) > STILL_AXIS_MM {
-                cloud.still += 1;
-            } else if q.z < TOP_MARGIN_MM {
-                cloud.on_top += 1;
-            } else if radius > 0.0 && q.x.hypot(q.y) > radius {
-                cloud.off_platform += 1;
-            } else {
-                cloud.points.push(q);
-                cloud.seen_from.push(eye);
+            if still.contains(&cell_of(p)) && q.z < FLOOR_SEARCH_MM {
+                low_still.push(q);
             }
+            all.push((q, eye));
+        }
+    }
+    cloud.floor = floor(&low_still);
+    let top = cloud.floor;
+    for (q, eye) in all {
+        if top.up.dot(&q.coords) < top.at {
+            cloud.on_top += 1;
+        } else if radius > 0.0 && q.x.hypot(q.y) > radius {
+            cloud.off_platform += 1;
+        } else {
+            cloud.points.push(q);
+            cloud.seen_from.push(eye);
         }
     }
     if cloud.frames > 0 {
@@ -113,6 +134,65 @@ pub fn platform_cloud(
     Ok(cloud)
 }
 
+/// Still points this low (mm above the calibrated top) may be the platform's surface.
+const FLOOR_SEARCH_MM: f64 = 10.0;
+
+/// Fewest still points that show the platform's surface.
+const FLOOR_POINTS: usize = 50;
+
+/// The platform's surface as the points show it, and [`TOP_MARGIN_MM`] above it: the plane
+/// fitted to the low points that stood still in the camera's view while the platform turned
+/// (a turning disc looks the same at every turn, so the laser lights it at the same pixels),
+/// their farthest fifth from it dropped and the plane fitted again. A calibration's top is a
+/// millimetre or two off the surface (the pattern's height above it is measured by hand, the
+/// disc may wobble): without this, a ring of the platform's surface stays on the model's
+/// foot. The calibrated top when too few such points are seen, or their plane tilts more than
+/// [`FLOOR_TILT_DEG`] from it.
+fn floor(low: &[Point3<f64>]) -> HalfSpace {
+    let calibrated = HalfSpace {
+        up: Vector3::z(),
+        at: TOP_MARGIN_MM,
+    };
+    if low.len() < FLOOR_POINTS {
+        return calibrated;
+    }
+    let Ok(first) = scanner_core::geometry::fit_plane(low.iter().copied()) else {
+        return calibrated;
+    };
+    let mut d: Vec<f64> = low
+        .iter()
+        .map(|p| first.plane.signed_distance(p).abs())
+        .collect();
+    d.sort_by(f64::total_cmp);
+    let cut = d[d.len() * 4 / 5];
+    let kept = low
+        .iter()
+        .copied()
+        .filter(|p| first.plane.signed_distance(p).abs() <= cut);
+    let Ok(fit) = scanner_core::geometry::fit_plane(kept) else {
+        return calibrated;
+    };
+    let n = *fit.plane.normal();
+    let up = if n.z < 0.0 { -n } else { n };
+    if up.z < FLOOR_TILT_DEG.to_radians().cos() {
+        return calibrated;
+    }
+    // the plane n·x + d = 0 with n up: up·x ≥ −d (+ margin) is above it
+    let offset = if n.z < 0.0 {
+        -fit.plane.offset()
+    } else {
+        fit.plane.offset()
+    };
+    HalfSpace {
+        up,
+        at: (-offset + TOP_MARGIN_MM).max(TOP_MARGIN_MM),
+    }
+}
+
+/// Largest tilt of the platform's surface seen in the points against the calibrated top,
+/// degrees.
+const FLOOR_TILT_DEG: f64 = 3.0;
+
 /// The camera-frame cells of [`STILL_CELL_MM`] that [`still_cells`] counts in.
 fn cell_of(p: &Point3<f32>) -> (i32, i32, i32) {
     let c = |v: f32| (v / STILL_CELL_MM).floor() as i32;
@@ -120,20 +200,16 @@ fn cell_of(p: &Point3<f32>) -> (i32, i32, i32) {
 }
 
 /// A cell of the camera's view lit in at least this share of a scan's frames holds something
-/// that did not turn with the platform.
+/// that looks the same at every turn.
 const STILL_SHARE: f64 = 0.25;
 
 /// The side of the camera-frame cells [`still_cells`] counts in, mm.
 const STILL_CELL_MM: f32 = 1.0;
 
-/// A point within this distance of the axis may be lit at one place in every frame and still be
-/// the object's (the crown of a head on the axis): it is never taken for the background, mm.
-const STILL_AXIS_MM: f64 = 5.0;
-
 /// The camera-frame cells lit in at least [`STILL_SHARE`] of scan `scan_id`'s frames (and in
-/// five at least): the laser on something that stood still while the object turned — a wall, a
-/// frame, the scanner's own case. On the object a cell is lit once per turn, near the axis a
-/// few times.
+/// five at least): the laser on something that looks the same at every turn — the platform's
+/// surface, the scanner's case, but also an object's part that is round about the axis (a
+/// vase's foot), so that stillness alone never takes a point from the object.
 fn still_cells(scan_id: u32, frames: &[KeptFrame]) -> std::collections::HashSet<(i32, i32, i32)> {
     let mut lit: std::collections::HashMap<(i32, i32, i32), (u32, u32)> =
         std::collections::HashMap::new();
@@ -176,18 +252,16 @@ pub fn model(
     cell: f64,
     progress: impl FnMut(usize, usize),
 ) -> Result<Model, PlatformError> {
-    let keep = HalfSpace {
-        up: Vector3::z(),
-        at: TOP_MARGIN_MM,
-    };
+    let keep = cloud.floor;
     let mut m = fuse::fuse_cut(&cloud.points, normals, &[], cell, Some(keep), progress)?;
-    standing(&mut m, TOP_MARGIN_MM + 2.0 * cell);
+    standing(&mut m, keep, 2.0 * cell);
     Ok(m)
 }
 
-/// Keeps the pieces of `m` that stand on the platform (reach down to `floor` mm): the object
-/// stands there, and a piece floating above it is what the laser lit elsewhere.
-fn standing(m: &mut Model, floor: f64) {
+/// Keeps the pieces of `m` that stand on the platform (reach down to within `reach` mm of
+/// `floor`): the object stands there, and a piece floating above it is what the laser lit
+/// elsewhere (the scanner's case behind the object).
+fn standing(m: &mut Model, floor: HalfSpace, reach: f64) {
     let n = m.vertices.len();
     let mut parent: Vec<usize> = (0..n).collect();
     fn root(parent: &mut [usize], mut i: usize) -> usize {
@@ -206,7 +280,7 @@ fn standing(m: &mut Model, floor: f64) {
     }
     let mut low = vec![false; n];
     for i in 0..n {
-        if f64::from(m.vertices[i].z) <= floor {
+        if floor.up.dot(&m.vertices[i].coords.cast()) <= floor.at + reach {
             let r = root(&mut parent, i);
             low[r] = true;
         }
@@ -249,6 +323,26 @@ fn keep_all<T: Copy + Default>(values: &mut Vec<T>, new: &[u32], count: u32) {
         }
     }
     *values = out;
+}
+
+/// Which of `cloud`'s points lie within [`OFF_MODEL_CELLS`] cells of the model `m` (both in the
+/// platform's frame): the object's, once the pieces that did not stand on the platform went.
+pub fn near_model(cloud: &PlatformCloud, m: &Model, cell: f64) -> Vec<bool> {
+    let vertices: Vec<Point3<f64>> = m.vertices.iter().map(|v| v.cast()).collect();
+    if vertices.is_empty() {
+        return vec![false; cloud.points.len()];
+    }
+    let t = spatial::tree(&vertices);
+    let reach = (OFF_MODEL_CELLS * cell).powi(2);
+    cloud
+        .points
+        .iter()
+        .map(|p| {
+            t.nearest_one::<kiddo::SquaredEuclidean>(&[p.x, p.y, p.z])
+                .distance
+                <= reach
+        })
+        .collect()
 }
 
 /// The platform's frame turned for y-up viewers (MeshLab, Blender, CloudCompare): `(x, y, z)`

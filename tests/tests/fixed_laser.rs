@@ -54,81 +54,264 @@ fn ply_vertices(path: &Path) -> Vec<[f32; 3]> {
         .collect()
 }
 
-#[test]
-fn the_real_bust_becomes_one_closed_model_without_the_platform() {
-    let data = fabscan();
-    let dir = tempfile::tempdir().unwrap();
+/// What the fixture made once: the imported and the own calibration, and the scans of both
+/// recordings with the own one (`1_1` with laser 0, `1_2` with laser 1) and of `1_1` with the
+/// imported one.
+struct Fixture {
+    dir: tempfile::TempDir,
+}
+
+impl Fixture {
+    fn path(&self, p: &str) -> PathBuf {
+        self.dir.path().join(p)
+    }
+}
+
+fn fixture() -> &'static Fixture {
+    static F: std::sync::OnceLock<Fixture> = std::sync::OnceLock::new();
+    F.get_or_init(|| {
+        let data = fabscan();
+        let dir = tempfile::tempdir().unwrap();
+        let device = workspace_bin("scanner-device");
+        let config = data.join("dummy.config.json");
+        let (ok, _, err) = run_in(
+            &device,
+            dir.path(),
+            &[
+                "import-fabscan",
+                config.to_str().unwrap(),
+                "--out",
+                "imported.toml",
+            ],
+        );
+        assert!(ok, "{err}");
+        let mut args = vec![
+            "calibrate",
+            "fixed",
+            "--chessboard-corners",
+            "10x8",
+            "--square",
+            "7",
+            "--origin-distance",
+            "12",
+            "--steps-per-turn",
+            "6400",
+            "--radius",
+            "70",
+            "--out",
+            "own.toml",
+        ];
+        let mut frames: Vec<PathBuf> = std::fs::read_dir(data.join("calibration_8x10"))
+            .unwrap()
+            .map(|e| e.unwrap().path())
+            .collect();
+        frames.sort();
+        let names: Vec<String> = frames.iter().map(|p| p.display().to_string()).collect();
+        args.extend(names.iter().map(String::as_str));
+        let (ok, out, err) = run_in(&device, dir.path(), &args);
+        assert!(ok, "{err}");
+        eprintln!("{out}");
+        for (cal, laser, rec, name) in [
+            ("imported.toml", "0", "1_1", "imported0"),
+            ("own.toml", "0", "1_1", "own0"),
+            ("own.toml", "1", "1_2", "own1"),
+        ] {
+            scan(dir.path(), cal, laser, &data.join(rec), name);
+        }
+        Fixture { dir }
+    })
+}
+
+/// Scans a recording with laser `laser` of calibration `cal` into the folder `name`.
+fn scan(dir: &Path, cal: &str, laser: &str, frames: &Path, name: &str) {
     let (device, host) = (
         workspace_bin("scanner-device"),
         workspace_bin("scanner-host"),
     );
-    let config = data.join("dummy.config.json");
+    let stream = format!("{name}.stream");
     let (ok, _, err) = run_in(
         &device,
-        dir.path(),
-        &[
-            "import-fabscan",
-            config.to_str().unwrap(),
-            "--out",
-            "cal.toml",
-        ],
-    );
-    assert!(ok, "{err}");
-    let frames = data.join("1_1");
-    let (ok, _, err) = run_in(
-        &device,
-        dir.path(),
+        dir,
         &[
             "scan",
             "--source",
             frames.to_str().unwrap(),
             "--calibration",
-            "cal.toml",
+            cal,
             "--fixed-laser",
-            "0",
+            laser,
             "--frames-per-turn",
             "100",
             "--columns",
             "--out",
-            "bust.stream",
+            &stream,
             "-q",
         ],
     );
     assert!(ok, "{err}");
-    let (ok, _, err) = run_in(
-        &host,
-        dir.path(),
-        &["receive", "bust.stream", "--out", "bust"],
-    );
+    let (ok, _, err) = run_in(&host, dir, &["receive", &stream, "--out", name]);
     assert!(ok, "{err}");
-    let summary = json(&dir.path().join("bust/summary.json"));
+}
+
+/// Checks one model of the bust: every frame used, a whole turn, closed, the background left
+/// out, the bust's size, and nothing of the platform's surface.
+fn check_model(dir: &Path) {
+    let summary = json(&dir.join("summary.json"));
     let fixed = &summary["fixed"];
-    eprintln!("{fixed}");
+    eprintln!("{}: {fixed}", dir.display());
     assert_eq!(fixed["frames"], 101, "every frame gave points");
     let turned = fixed["turned_deg"].as_f64().unwrap();
     assert!((turned - 360.0).abs() < 0.01, "{turned}");
     assert_eq!(fixed["watertight"], true);
     let object = fixed["object_points"].as_u64().unwrap();
-    let still = fixed["still"].as_u64().unwrap();
     assert!(object > 40_000, "{object} object points");
-    // the laser on what did not turn (the scanner's back and sides) is left out, and is not
-    // most of what was lit
-    assert!(still > 1_000 && still < object, "{still} still of {object}");
-    // the bust: about 110 mm across and 120 mm tall (FabScanPi's own model of it is)
-    let cloud = ply_vertices(&dir.path().join("bust/cloud.ply"));
-    let model = ply_vertices(&dir.path().join("bust/scan.ply"));
-    assert_eq!(cloud.len() as u64, object);
-    let height = cloud.iter().map(|v| v[1]).fold(f32::MIN, f32::max);
-    assert!((100.0..140.0).contains(&height), "{height} mm tall");
-    // no point of the platform's surface: nothing in the cloud under 1 mm above its top, and the
-    // model's base is its flat cut, not the turntable's disc around the bust
-    assert!(cloud.iter().all(|v| v[1] >= 1.0));
-    let base: Vec<&[f32; 3]> = model.iter().filter(|v| v[1] < 2.0).collect();
-    let reach = base.iter().map(|v| v[0].hypot(v[2])).fold(0.0f32, f32::max);
+    // the laser on what did not stand on the platform (the scanner's case) is left out, and
+    // is not most of what was lit
+    let off = fixed["off_model"].as_u64().unwrap() + fixed["off_platform"].as_u64().unwrap();
     assert!(
-        reach < 65.0,
-        "the base reaches {reach} mm from the axis: the platform's edge"
+        off > 1_000 && off < object,
+        "{off} off the model of {object}"
     );
+    // the platform's surface as the points show it: within 3 mm of the calibrated top, level
+    // with it within a degree
+    let (floor, tilt) = (
+        fixed["floor_mm"].as_f64().unwrap(),
+        fixed["floor_tilt_deg"].as_f64().unwrap(),
+    );
+    assert!(floor.abs() < 3.0 && tilt < 1.0, "floor {floor} mm, {tilt}°");
+    let cloud = ply_vertices(&dir.join("cloud.ply"));
+    assert_eq!(cloud.len() as u64, object);
+    // the bust: 76 mm tall (FabScanPi's own model of it is)
+    let mut heights: Vec<f32> = cloud.iter().map(|v| v[1]).collect();
+    heights.sort_by(f32::total_cmp);
+    let tall = heights[heights.len() * 995 / 1000];
+    assert!((70.0..90.0).contains(&tall), "{tall} mm tall");
+    // no point of the platform's surface: nothing in the cloud under 1 mm above it, and the
+    // model's base is its flat cut, not the turntable's disc around the bust (35 mm from the
+    // axis at most: the bust's foot)
+    let top = floor + 1.0;
+    assert!(cloud.iter().all(|v| f64::from(v[1]) >= top - 1.0));
+    let model = ply_vertices(&dir.join("scan.ply"));
+    let lowest = model.iter().map(|v| v[1]).fold(f32::MAX, f32::min);
+    let reach = model
+        .iter()
+        .filter(|v| v[1] < lowest + 1.0)
+        .map(|v| v[0].hypot(v[2]))
+        .fold(0.0f32, f32::max);
+    assert!(
+        reach < 35.0,
+        "the base reaches {reach} mm from the axis: the platform's top"
+    );
+}
+
+#[test]
+fn the_real_bust_becomes_one_closed_model_without_the_platform() {
+    let f = fixture();
+    for name in ["imported0", "own0", "own1"] {
+        check_model(&f.path(name));
+    }
+}
+
+#[test]
+fn the_own_calibration_from_the_raw_frames_is_close_to_fabscans() {
+    let f = fixture();
+    let report = json(&f.path("own-report.json"));
+    eprintln!("{report:#}");
+    let imported = scanner_calib::file::CalibrationFile::load(&f.path("imported.toml")).unwrap();
+    let own = scanner_calib::file::CalibrationFile::load(&f.path("own.toml")).unwrap();
+    // the focal lengths within 1 % of its stored camera matrix
+    for (a, b, name) in [
+        (own.camera.fx, imported.camera.fx, "fx"),
+        (own.camera.fy, imported.camera.fy, "fy"),
+    ] {
+        let off = (a / b - 1.0).abs();
+        eprintln!("{name}: own {a:.2}, FabScanPi {b:.2}: {:.3} %", 100.0 * off);
+        assert!(off < 0.01, "{name} {a} against {b}");
+    }
+    // most of the 100 lit shots (two show the pattern too steeply)
+    assert!(
+        report["camera"]["shots"].as_u64().unwrap() >= 60,
+        "{report}"
+    );
+    // laser 0 against FabScanPi's plane: the angle between them and their distance at the
+    // platform's origin (FabScanPi finds the stripe without the lens's distortion)
+    let (ours, theirs) = (
+        own.lasers[0].plane().unwrap().facing_camera(),
+        imported.lasers[0].plane().unwrap().facing_camera(),
+    );
+    let angle = ours
+        .normal()
+        .dot(theirs.normal())
+        .clamp(-1.0, 1.0)
+        .acos()
+        .to_degrees();
+    let origin = scanner_core::nalgebra::Point3::from(imported.platform.unwrap().origin);
+    let apart = (ours.signed_distance(&origin) - theirs.signed_distance(&origin)).abs();
+    eprintln!(
+        "laser 0: {angle:.3}° and {apart:.3} mm from FabScanPi's plane at the platform's origin"
+    );
+    assert!(angle < 2.0 && apart < 3.0, "{angle}° {apart} mm");
+    // the second laser, which FabScanPi's config has no plane for, is found too
+    assert_eq!(own.lasers.len(), 2);
+    // the platform: the pattern's centre on one circle, the axis near FabScanPi's
+    let circle = report["platform"]["circle_rms_mm"].as_f64().unwrap();
+    assert!(circle < 0.2, "{circle} mm");
+    let (a, b) = (
+        own.platform.unwrap().platform().unwrap(),
+        imported.platform.unwrap().platform().unwrap(),
+    );
+    let tilt = a.axis().dot(&b.axis()).clamp(-1.0, 1.0).acos().to_degrees();
+    let moved = (a.origin() - b.origin()).norm();
+    eprintln!("platform: axis {tilt:.3}° and origin {moved:.2} mm from FabScanPi's");
+    assert!(tilt < 2.0 && moved < 3.0, "{tilt}° {moved} mm");
+}
+
+/// Model `a`'s vertices' distances to model `b`'s surface (the nearest vertex's tangent plane),
+/// after `a` is moved onto `b` by ICP (two recordings: the bust stood otherwise on the
+/// platform): the median and the 90th percentile, mm.
+fn apart(a: &Path, b: &Path) -> (f64, f64) {
+    use scanner_core::nalgebra::{Isometry3, Point3};
+    use scanner_merge::spatial::{Cloud, normals, tree};
+    let cloud = |p: &Path| {
+        let points: Vec<Point3<f64>> = ply_vertices(p)
+            .iter()
+            .map(|v| Point3::new(f64::from(v[0]), f64::from(v[1]), f64::from(v[2])))
+            .collect();
+        let normals = normals(&points, 12);
+        Cloud { points, normals }
+    };
+    let (ca, cb) = (cloud(a), cloud(b));
+    let mut pose = Isometry3::identity();
+    for max in [10.0, 5.0, 2.0] {
+        pose = scanner_merge::pose::icp(&ca, &cb, pose, max, 40).pose;
+    }
+    let t = tree(&cb.points);
+    let mut d: Vec<f64> = ca
+        .points
+        .iter()
+        .map(|p| {
+            let q = pose * p;
+            let n = t.nearest_one::<kiddo::SquaredEuclidean>(&[q.x, q.y, q.z]);
+            let i = n.item as usize;
+            (q - cb.points[i]).dot(&cb.normals[i]).abs()
+        })
+        .collect();
+    d.sort_by(f64::total_cmp);
+    (d[d.len() / 2], d[d.len() * 9 / 10])
+}
+
+#[test]
+fn the_two_lasers_models_of_the_bust_are_compared() {
+    let f = fixture();
+    let (median, p90) = apart(&f.path("own0/scan.ply"), &f.path("own1/scan.ply"));
+    eprintln!("laser 0's model to laser 1's: median {median:.3} mm, p90 {p90:.3} mm");
+    // measured 1.7–2.3 mm: far from the 0.1 mm aimed at (docs/turntable-scanners.md says why)
+    assert!(median < 3.0, "{median}");
+    let (median, p90) = apart(&f.path("imported0/scan.ply"), &f.path("own0/scan.ply"));
+    eprintln!(
+        "laser 0 with FabScanPi's calibration to laser 0 with ours: median {median:.3} mm, p90 {p90:.3} mm"
+    );
+    assert!(median < 2.0, "{median}");
 }
 
 /// A FabScanPi config with one value replaced.
@@ -213,6 +396,13 @@ fn bad_configs_and_options_get_clear_errors() {
     assert!(!ok);
     assert!(
         err.contains("--fixed-laser 1") && err.contains("1 fixed laser plane"),
+        "{err}"
+    );
+    // 101 frames of a recording at 3.6° a frame said to be at 7.2°: more than one turn
+    let (ok, _, err) = scan(&["--fixed-laser", "0", "--steps-per-frame", "128"]);
+    assert!(!ok);
+    assert!(
+        err.contains("holds 101 frames") && err.contains("50 frames make a turn"),
         "{err}"
     );
     let (ok, _, err) = scan(&["--fixed-laser", "0", "--steps-per-frame", "0"]);

@@ -422,3 +422,253 @@ mod tests {
         assert!(unturn(&turned, hflip, (640, 480)).is_err());
     }
 }
+
+/// Most lines (columns or rows) of a laser frame the calibration reads.
+const MAX_LINES: usize = scanner_core::config::MAX_LINES;
+
+/// A laser's stripe is taken on the pattern only this far inside its printed edge, mm (the
+/// edge's own light and shadow stay out).
+const PATTERN_INSET_MM: f64 = 2.0;
+
+/// A laser's points farther from the first fit than this many of its RMS are dropped, and the
+/// plane fitted again (a glint beside the pattern, a stripe on the platform seen through it).
+const OUTLIER_RMS: f64 = 3.0;
+
+/// The stripe of a dark laser frame where it crosses the chessboard at `pose`: every line's
+/// centre whose ray meets the pattern inside its printed squares, as a point on the pattern's
+/// plane (camera coordinates, mm). The stripe is read along whichever axis gives more points on
+/// the pattern.
+///
+/// # Errors
+/// A frame that is no frame (a size of 0).
+pub fn laser_points(
+    camera: &Camera<f64>,
+    target: (usize, usize, f64),
+    pose: &scanner_core::geometry::Pose,
+    frame: &image::RgbImage,
+) -> Result<Vec<scanner_core::nalgebra::Point3<f64>>, String> {
+    use scanner_core::nalgebra::{Point2, Point3};
+    use scanner_core::stripe::{Axis, Extractor, Frame, Method, PixelFormat, StripeConfig};
+    let (w, h) = (frame.width() as usize, frame.height() as usize);
+    let view =
+        Frame::packed(frame.as_raw(), w, h, PixelFormat::Rgb24).map_err(|e| e.to_string())?;
+    let black = vec![0u8; frame.as_raw().len()];
+    let reference = Frame::packed(&black, w, h, PixelFormat::Rgb24).map_err(|e| e.to_string())?;
+    let plane = pose.plane().map_err(|e| e.to_string())?;
+    let (cols, rows, square) = target;
+    let (half_u, half_v) = (
+        cols as f64 / 2.0 * square - PATTERN_INSET_MM,
+        rows as f64 / 2.0 * square - PATTERN_INSET_MM,
+    );
+    let inverse = pose.rotation.inverse();
+    let on_pattern = |px: Point2<f64>| -> Option<Point3<f64>> {
+        let ray = camera.pixel_to_ray(&px).ok()?;
+        let p = plane.intersect_ray(&ray, 0.05).ok()?;
+        let uv = inverse * (p.coords - pose.translation);
+        (uv.x.abs() <= half_u && uv.y.abs() <= half_v).then_some(p)
+    };
+    let mut extractor = Box::new(Extractor::<MAX_LINES>::new());
+    let mut best = Vec::new();
+    for axis in [Axis::Columns, Axis::Rows] {
+        let mut cfg = StripeConfig::new(Method::Lim, axis);
+        cfg.max_width = 64.0;
+        cfg.max_plateau = 40;
+        cfg.half_window = scanner_core::stripe::MAX_HALF_WINDOW;
+        cfg.separation = 24;
+        cfg.ambiguity = 0.8;
+        let Ok(ex) = extractor.extract(&view, Some(&reference), &cfg) else {
+            continue;
+        };
+        let points: Vec<Point3<f64>> = ex
+            .valid()
+            .filter_map(|(line, s)| {
+                let c = f64::from(s.centre);
+                let px = match axis {
+                    Axis::Columns => Point2::new(line as f64, c),
+                    Axis::Rows => Point2::new(c, line as f64),
+                };
+                on_pattern(px)
+            })
+            .collect();
+        if points.len() > best.len() {
+            best = points;
+        }
+    }
+    Ok(best)
+}
+
+/// A fixed laser's plane fitted to its stripe's points on the pattern at several poses.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LaserFit {
+    /// The plane, camera coordinates, normal towards the camera.
+    pub plane: Plane<f64>,
+    /// Points used.
+    pub points: usize,
+    /// Points dropped as outliers.
+    pub dropped: usize,
+    /// RMS distance of the used points from the plane, mm.
+    pub rms_mm: f64,
+}
+
+/// The plane through `points` (from [`laser_points`] at two or more poses), refitted without
+/// the points [`OUTLIER_RMS`] RMS off the first fit.
+///
+/// # Errors
+/// Too few points, or points on one line (one pose only, or poses that do not turn the
+/// pattern).
+pub fn fit_laser(points: &[scanner_core::nalgebra::Point3<f64>]) -> Result<LaserFit, String> {
+    let first = scanner_core::geometry::fit_plane(points.iter().copied())
+        .map_err(|e| format!("{} points: {e}", points.len()))?;
+    let keep: Vec<_> = points
+        .iter()
+        .copied()
+        .filter(|p| first.plane.signed_distance(p).abs() <= OUTLIER_RMS * first.rms.max(0.01))
+        .collect();
+    let fit = scanner_core::geometry::fit_plane(keep.iter().copied())
+        .map_err(|e| format!("{} points kept: {e}", keep.len()))?;
+    Ok(LaserFit {
+        plane: fit.plane,
+        points: keep.len(),
+        dropped: points.len() - keep.len(),
+        rms_mm: fit.rms,
+    })
+}
+
+/// A turntable's platform found from a pattern standing on it, seen at several turns.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PlatformFit {
+    /// The platform (its top `origin_distance` below the pattern's lowest row of corners).
+    pub platform: scanner_core::geometry::Platform<f64>,
+    /// Poses used.
+    pub poses: usize,
+    /// RMS distance of the pattern's centre from the circle the axis turns it on, mm.
+    pub circle_rms_mm: f64,
+    /// The turn the poses span, degrees (the widest angle between two of them about the axis).
+    pub span_deg: f64,
+}
+
+/// The platform's axis and top from the poses of a pattern standing on it as it turned: its
+/// centre runs on a circle about the axis. The axis is the normal of that circle's plane
+/// through its centre; up is the side the camera is on (a turntable is
+/// looked at from above its top, or level with the object); the top lies `origin_distance` mm
+/// below the pattern's lowest row of corners (FabScanPi's `origin_distance`), and the platform's
+/// `x` points from the axis towards the camera.
+///
+/// # Errors
+/// Fewer than three poses, or poses that do not turn about one axis (a circle fit that fails,
+/// or a centre more than 2 mm off its circle, RMS).
+pub fn fit_platform(
+    target: (usize, usize, f64),
+    poses: &[scanner_core::geometry::Pose],
+    origin_distance: f64,
+) -> Result<PlatformFit, String> {
+    use scanner_core::nalgebra::{Point2, Point3};
+    if poses.len() < 3 {
+        return Err(format!(
+            "{} pattern pose(s): the platform's axis needs three turns at least",
+            poses.len()
+        ));
+    }
+    let (cols, rows, square) = target;
+    let corners: Vec<Point2<f64>> = (1..rows)
+        .flat_map(|r| {
+            (1..cols).map(move |c| {
+                Point2::new(
+                    (c as f64 - cols as f64 / 2.0) * square,
+                    (r as f64 - rows as f64 / 2.0) * square,
+                )
+            })
+        })
+        .collect();
+    // A chessboard reads the same turned by half a turn about its centre, so a corner's
+    // pose may come from either of two corners; its centre is the same for both. The centre
+    // runs on one circle about the axis.
+    let track: Vec<Point3<f64>> = poses
+        .iter()
+        .map(|p| p.transform(&Point2::origin()))
+        .collect();
+    let plane = scanner_core::geometry::fit_plane(track.iter().copied())
+        .map_err(|e| format!("the pattern's centre does not run on a circle: {e}"))?;
+    let axis = *plane.plane.normal();
+    let (e1, e2) = {
+        let a = if axis.x.abs() < 0.9 {
+            Vector3::x()
+        } else {
+            Vector3::y()
+        };
+        let e1 = axis.cross(&a).normalize();
+        (e1, axis.cross(&e1))
+    };
+    // algebraic circle fit in (e1, e2): x² + y² + D x + E y + F = 0
+    let mut ata = scanner_core::nalgebra::Matrix3::<f64>::zeros();
+    let mut atb = Vector3::zeros();
+    for p in &track {
+        let (x, y) = (p.coords.dot(&e1), p.coords.dot(&e2));
+        let row = Vector3::new(x, y, 1.0);
+        ata += row * row.transpose();
+        atb += row * -(x * x + y * y);
+    }
+    let s = ata
+        .try_inverse()
+        .map(|inv| inv * atb)
+        .ok_or("the pattern's poses do not turn it about an axis")?;
+    let (cx, cy) = (-s.x / 2.0, -s.y / 2.0);
+    let r = (cx * cx + cy * cy - s.z).max(0.0).sqrt();
+    let height = plane.centroid.coords.dot(&axis);
+    let residuals: Vec<f64> = track
+        .iter()
+        .map(|p| {
+            let (x, y) = (p.coords.dot(&e1), p.coords.dot(&e2));
+            let off_plane = p.coords.dot(&axis) - height;
+            ((x - cx).hypot(y - cy) - r).hypot(off_plane)
+        })
+        .collect();
+    let centres = [Point3::from(e1 * cx + e2 * cy + axis * height)];
+    let circle_rms_mm =
+        (residuals.iter().map(|r| r * r).sum::<f64>() / residuals.len() as f64).sqrt();
+    if !(circle_rms_mm <= 2.0) {
+        return Err(format!(
+            "the pattern's corners lie {circle_rms_mm:.2} mm (RMS) off circles about one axis: did the pattern move on the platform?"
+        ));
+    }
+    // a point of the axis: the centres' mean, moved along the axis
+    let centre = Point3::from(
+        centres.iter().fold(Vector3::zeros(), |a, p| a + p.coords) / centres.len() as f64,
+    );
+    // up: the camera's side
+    let up = if (-centre.coords).dot(&axis) >= 0.0 {
+        axis
+    } else {
+        -axis
+    };
+    let lowest = poses
+        .iter()
+        .flat_map(|p| corners.iter().map(move |c| p.transform(c).coords.dot(&up)))
+        .fold(f64::INFINITY, f64::min);
+    let origin = centre + up * (lowest - origin_distance - centre.coords.dot(&up));
+    let toward = -origin.coords - up * up.dot(&-origin.coords);
+    let x = toward.normalize();
+    let y = up.cross(&x);
+    let rotation = Matrix3::from_columns(&[x, y, up]);
+    let platform = scanner_core::geometry::Platform::new(rotation, origin)
+        .map_err(|e| format!("the platform found is not a pose: {e}"))?;
+    // the widest turn between two poses, seen along the axis (the pattern's normal: the same
+    // for both readings of a chessboard)
+    let dir = |p: &scanner_core::geometry::Pose| {
+        let v = p.rotation * Vector3::z();
+        let v = v - up * up.dot(&v);
+        v.normalize()
+    };
+    let mut span: f64 = 0.0;
+    for a in poses {
+        for b in poses {
+            span = span.max(dir(a).dot(&dir(b)).clamp(-1.0, 1.0).acos());
+        }
+    }
+    Ok(PlatformFit {
+        platform,
+        poses: poses.len(),
+        circle_rms_mm,
+        span_deg: span.to_degrees(),
+    })
+}

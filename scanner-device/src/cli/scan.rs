@@ -478,6 +478,18 @@ pub(super) fn open(a: &ScanArgs) -> Result<OpenedSource> {
     let mut head = head_config(a);
     if let Some(f) = &fixed {
         head = fixed_head(head, f);
+        // frames beyond one turn and its closing frame would lay the object over itself
+        let per_turn = std::f64::consts::TAU / f64::from(f.message.turn).abs();
+        if let Some(n) = source.frames_left()
+            && n as f64 > per_turn.round() + 1.0
+        {
+            bail!(
+                "{} holds {n} frames, but the platform turns {:.4}° a frame: {:.0} frames make a turn (and one more to close it); give the turn that was recorded (--frames-per-turn {n} if these frames make one turn)",
+                a.source,
+                f64::from(f.message.turn).to_degrees(),
+                per_turn
+            );
+        }
     }
     Ok(OpenedSource {
         fixed: fixed.map(|f| f.message),
@@ -592,12 +604,8 @@ fn read_fixed(path: &std::path::Path, n: usize, a: &ScanArgs) -> Result<Fixed> {
         message: scanner_wire::FixedLaser {
             scan_id: 0,
             laser: u8::try_from(n).unwrap_or(u8::MAX),
-            rotation: [0, 1, 2]
-                .map(|i| [r[(i, 0)], r[(i, 1)], r[(i, 2)]])
-                .as_flattened()
-                .try_into()
-                .map(|m: [f64; 9]| m.map(|v| v as f32))
-                .unwrap_or_default(),
+            // row-major
+            rotation: std::array::from_fn(|k| r[(k / 3, k % 3)] as f32),
             origin: [o.x as f32, o.y as f32, o.z as f32],
             turn: turn as f32,
             radius: section.radius as f32,

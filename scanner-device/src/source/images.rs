@@ -159,6 +159,10 @@ impl FrameSource for ImageDir {
         self.format
     }
 
+    fn frames_left(&self) -> Option<usize> {
+        Some(self.files.len().saturating_sub(self.next))
+    }
+
     fn size(&self) -> (usize, usize) {
         self.size
     }

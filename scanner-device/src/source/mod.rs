@@ -161,6 +161,11 @@ pub trait FrameSource {
     fn give_back(&mut self, frame: OwnedFrame) {
         drop(frame);
     }
+    /// How many frames are left, where the source knows (a folder of images); `None` for a
+    /// camera or the rig.
+    fn frames_left(&self) -> Option<usize> {
+        None
+    }
 }
 
 /// How a camera's frames arrived: its sequence numbers tell the frames it made that the head
