@@ -20,7 +20,7 @@
 //! cli
 //! preview
 //! session
-//! axis
+//! axis  motor
 //! source  link
 //! ```
 #![deny(missing_docs)]
@@ -43,6 +43,7 @@ pub fn error_chain(e: &dyn std::error::Error) -> String {
 pub mod axis;
 pub mod cli;
 pub mod link;
+pub mod motor;
 pub mod preview;
 pub mod session;
 pub mod source;

@@ -406,6 +406,8 @@ fn troubleshooting_covers_every_refusal_of_the_head_and_the_calibration() {
         ("scanner-device/src/source/convert.rs", "ConvertError"),
         ("scanner-device/src/session.rs", "SessionError"),
         ("scanner-device/src/axis.rs", "AxisError"),
+        ("scanner-device/src/motor.rs", "MotorError"),
+        ("scanner-device/calib/src/fixed.rs", "ImportError"),
         ("scanner-device/calib/src/file.rs", "CovarianceError"),
         ("scanner-host/merge/src/error.rs", "MergeError"),
         ("scanner-host/merge/src/error.rs", "RegisterError"),

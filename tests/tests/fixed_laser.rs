@@ -409,3 +409,186 @@ fn bad_configs_and_options_get_clear_errors() {
     assert!(!ok);
     assert!(err.contains("--steps-per-frame 0"), "{err}");
 }
+
+/// What the simulated FabScanPi firmware was told, and how it is to fail.
+#[derive(Debug, Default, Clone)]
+struct Told {
+    /// Every command line, in order.
+    commands: Vec<String>,
+}
+
+/// FabScanPi's firmware on the far end of a pseudo-terminal, as its source does it: every
+/// character echoed, a command run at the line's end, then `>`; `M200` answers its version.
+/// Stops answering after `silent_after` turns when given. Returns the port's device path and
+/// the thread, which ends when the port closes or falls silent, with what it was told.
+fn simulated_fabscan(
+    silent_after: Option<usize>,
+) -> (String, serialport::TTYPort, std::thread::JoinHandle<Told>) {
+    use serialport::SerialPort;
+    use std::io::{Read, Write};
+    let (mut ours, theirs) = serialport::TTYPort::pair().expect("a pseudo-terminal pair");
+    let path = theirs.name().expect("the pseudo-terminal's device path");
+    ours.set_timeout(std::time::Duration::from_millis(200))
+        .unwrap();
+    let thread = std::thread::spawn(move || {
+        let mut told = Told::default();
+        let (mut line, mut idle) = (Vec::new(), 0);
+        let mut turns = 0;
+        let mut buf = [0u8; 256];
+        loop {
+            let n = match ours.read(&mut buf) {
+                Ok(0) => break,
+                Ok(n) => n,
+                Err(e) if e.kind() == std::io::ErrorKind::TimedOut => {
+                    idle += 1;
+                    // the scan ends or fails: nothing more comes
+                    if idle > 50 {
+                        break;
+                    }
+                    continue;
+                }
+                Err(_) => break,
+            };
+            idle = 0;
+            for &c in &buf[..n] {
+                line.push(c);
+                if c != b'\n' {
+                    continue;
+                }
+                let command = String::from_utf8_lossy(&line).trim().to_string();
+                line.clear();
+                let silent = silent_after.is_some_and(|k| turns >= k);
+                if command.starts_with("G02") {
+                    turns += 1;
+                }
+                told.commands.push(command.clone());
+                if silent {
+                    continue;
+                }
+                let mut reply = format!("{command}\n");
+                if command == "M200" {
+                    reply += "v.20210318\n";
+                }
+                reply += ">\n";
+                let _ = ours.write_all(reply.as_bytes());
+            }
+        }
+        told
+    });
+    (path, theirs, thread)
+}
+
+#[test]
+fn the_simulated_firmware_turns_the_platform_through_a_whole_scan() {
+    let f = fixture();
+    let frames = fabscan().join("1_1");
+    let device = workspace_bin("scanner-device");
+    let host = workspace_bin("scanner-host");
+    let (path, _keep, firmware) = simulated_fabscan(None);
+    let motor = format!("serial:{path}@115200");
+    let (ok, _, err) = run_in(
+        &device,
+        f.dir.path(),
+        &[
+            "scan",
+            "--source",
+            frames.to_str().unwrap(),
+            "--calibration",
+            "imported.toml",
+            "--fixed-laser",
+            "0",
+            "--steps-per-frame",
+            "64",
+            "--motor",
+            &motor,
+            "--columns",
+            "--out",
+            "motor.stream",
+            "-q",
+        ],
+    );
+    assert!(ok, "{err}");
+    drop(_keep);
+    let told = firmware.join().unwrap();
+    let turns = told
+        .commands
+        .iter()
+        .filter(|c| *c == "G02 T64 F200")
+        .count();
+    // one turn between each two of the 101 frames; the laser on before, off after
+    assert_eq!(turns, 100, "{:?}", told.commands);
+    assert_eq!(told.commands.first().map(String::as_str), Some("M200"));
+    assert_eq!(told.commands.get(1).map(String::as_str), Some("M21"));
+    assert_eq!(told.commands.last().map(String::as_str), Some("M22"));
+    let (ok, _, err) = run_in(
+        &host,
+        f.dir.path(),
+        &["receive", "motor.stream", "--out", "motor"],
+    );
+    assert!(ok, "{err}");
+    let summary = json(&f.path("motor/summary.json"));
+    assert_eq!(summary["fixed"]["frames"], 101);
+    assert_eq!(summary["fixed"]["watertight"], true);
+}
+
+#[test]
+fn a_firmware_that_falls_silent_ends_the_scan_with_what_it_took() {
+    let f = fixture();
+    let frames = fabscan().join("1_1");
+    let device = workspace_bin("scanner-device");
+    let host = workspace_bin("scanner-host");
+    let (path, _keep, firmware) = simulated_fabscan(Some(30));
+    let motor = format!("serial:{path}@115200");
+    let (ok, _, err) = run_in(
+        &device,
+        f.dir.path(),
+        &[
+            "scan",
+            "--source",
+            frames.to_str().unwrap(),
+            "--calibration",
+            "imported.toml",
+            "--fixed-laser",
+            "0",
+            "--steps-per-frame",
+            "64",
+            "--motor",
+            &motor,
+            "--motor-timeout-ms",
+            "300",
+            "--columns",
+            "--out",
+            "silent.stream",
+            "-q",
+        ],
+    );
+    assert!(
+        !ok,
+        "a scan whose motor fell silent must not end as a success"
+    );
+    assert!(
+        err.contains("did not answer \"G02 T64 F200\" within 300 ms"),
+        "{err}"
+    );
+    drop(_keep);
+    let told = firmware.join().unwrap();
+    assert_eq!(
+        told.commands
+            .iter()
+            .filter(|c| c.starts_with("G02"))
+            .count(),
+        31
+    );
+    // the 31 frames taken before the silence (the first, then one per acknowledged turn) are
+    // on the link, with the final status, and make a model of what they saw
+    let (ok, _, err) = run_in(
+        &host,
+        f.dir.path(),
+        &["receive", "silent.stream", "--out", "silent"],
+    );
+    assert!(ok, "{err}");
+    let summary = json(&f.path("silent/summary.json"));
+    assert_eq!(summary["fixed"]["frames"], 31, "{summary}");
+    let turned = summary["fixed"]["turned_deg"].as_f64().unwrap();
+    assert!((turned - 108.0).abs() < 0.01, "{turned}");
+}

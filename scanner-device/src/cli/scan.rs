@@ -16,6 +16,15 @@ use crate::session::{Calibration, DiscOutcome, ScanOptions, ScanReport, StopWhen
 use crate::source::convert::CameraFormat;
 use crate::source::{FrameSource, SourceOptions, open_with};
 
+/// `--firmware` of `scan`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum FirmwareArg {
+    /// FabScanPi's (its HAT, or an Arduino with its firmware).
+    Fabscan,
+    /// Ciclop's horus-fw.
+    Horus,
+}
+
 /// Options of `scan`.
 #[derive(Debug, Args)]
 pub struct ScanArgs {
@@ -91,6 +100,18 @@ pub struct ScanArgs {
     /// With --fixed-laser: frames in one whole turn (FabScanPi's resolution 1 is 100).
     #[arg(long)]
     pub frames_per_turn: Option<u32>,
+    /// With --fixed-laser: the turntable's motor board, `serial:PATH[@BAUD]`:
+    /// the platform is turned `--steps-per-frame` before every frame after the first, and the
+    /// laser switched on for the scan, by its firmware (`--firmware`).
+    #[arg(long, value_name = "SERIAL", requires = "steps_per_frame")]
+    pub motor: Option<String>,
+    /// The motor board's firmware.
+    #[arg(long, value_enum, default_value_t = FirmwareArg::Fabscan)]
+    pub firmware: FirmwareArg,
+    /// How long the motor board may take to acknowledge a command (a whole turn step for
+    /// FabScanPi's), milliseconds.
+    #[arg(long, default_value_t = 5000, value_parser = clap::value_parser!(u64).range(1..=600_000))]
+    pub motor_timeout_ms: u64,
     /// Send the stripe's board points too.
     #[arg(long)]
     pub keep_board: bool,
@@ -444,6 +465,9 @@ pub(super) fn open(a: &ScanArgs) -> Result<OpenedSource> {
         );
     }
     let mut source = open_source(a, format, &opts)?;
+    if let Some(spec) = &a.motor {
+        source = turning(a, spec, source)?;
+    }
     if let Some(dir) = &a.record {
         source = Box::new(
             crate::source::record::Recorder::new(source, dir)
@@ -501,6 +525,51 @@ pub(super) fn open(a: &ScanArgs) -> Result<OpenedSource> {
         link,
         stop,
     })
+}
+
+/// The source's frames on a platform the motor board at `spec` turns.
+fn turning(a: &ScanArgs, spec: &str, source: Box<dyn FrameSource>) -> Result<Box<dyn FrameSource>> {
+    let (Some(laser), Some(steps), Some(cal)) = (a.fixed_laser, a.steps_per_frame, &a.calibration)
+    else {
+        bail!(
+            "--motor turns a fixed-laser scan's platform: give --fixed-laser, --steps-per-frame and --calibration"
+        );
+    };
+    let file = CalibrationFile::load(cal)?;
+    let Some(platform) = file.platform else {
+        bail!(
+            "--motor: {} has no [platform] (its steps per turn)",
+            cal.display()
+        );
+    };
+    let serial = scanner_io::link_spec::SerialSpec::parse(spec)
+        .map_err(|e| anyhow::anyhow!("--motor {spec:?}: {e}"))?
+        .ok_or_else(|| anyhow::anyhow!("--motor {spec:?}: give serial:PATH[@BAUD]"))?;
+    let port = serialport::new(serial.path, serial.baud)
+        .timeout(std::time::Duration::from_millis(20))
+        .open()
+        .with_context(|| format!("--motor: opening {}", serial.path))?;
+    let firmware = match a.firmware {
+        FirmwareArg::Fabscan => crate::motor::Firmware::FabScan,
+        FirmwareArg::Horus => crate::motor::Firmware::Horus,
+    };
+    let controller = crate::motor::Controller::connect(
+        port,
+        firmware,
+        platform.steps_per_turn,
+        std::time::Duration::from_millis(a.motor_timeout_ms),
+    )
+    .with_context(|| format!("--motor {spec}"))?;
+    // one turn and the frame that closes it, unless --frames says otherwise
+    let per_turn = platform.steps_per_turn.div_ceil(steps.max(1));
+    let frames = a.frames.unwrap_or(per_turn + 1);
+    Ok(Box::new(crate::motor::Turning::new(
+        source,
+        controller,
+        u8::try_from(laser).unwrap_or(u8::MAX),
+        i64::from(steps),
+        frames,
+    )))
 }
 
 /// The frame source: the rig with a scene file, or one opened by name.

@@ -83,6 +83,9 @@ pub enum SourceError {
     /// Images that do not make a scan (none, of different sizes, a reference of another size).
     #[error("{0}")]
     Images(String),
+    /// The turntable's motor board failed (its words: `crate::motor::MotorError`).
+    #[error("{0}")]
+    Motor(String),
     /// A buffer could not be converted to the pipeline's format.
     #[error("{what}")]
     Convert {
