@@ -21,7 +21,7 @@ pub const TOP_MARGIN_MM: f64 = 1.0;
 pub const OFF_MODEL_CELLS: f64 = 2.0;
 
 /// Neighbours of a point its normal is fitted to.
-const NORMAL_NEIGHBOURS: usize = 12;
+const NORMAL_NEIGHBOURS: usize = 48;
 
 /// Why a fixed-laser model cannot be made.
 #[derive(Debug, thiserror::Error)]
@@ -45,11 +45,15 @@ pub struct PlatformCloud {
     pub points: Vec<Point3<f64>>,
     /// Where the camera was, seen from the platform, when each point was taken.
     pub seen_from: Vec<Point3<f64>>,
+    /// Whether each point was lit where something looked the same at every turn (a cell of the
+    /// camera's view lit in a quarter of the frames or more).
+    pub still: Vec<bool>,
     /// Points on (or below) the platform's top, left out.
     pub on_top: usize,
     /// Points farther from the axis than the platform's radius, left out.
     pub off_platform: usize,
-    /// The platform's surface as the points showed it ([`floor`]): what the model keeps.
+    /// The platform's surface as the points showed it (the plane of the low points that
+    /// stood still while the platform turned), [`TOP_MARGIN_MM`] above it: what the model keeps.
     pub floor: HalfSpace,
     /// Frames in the cloud.
     pub frames: usize,
@@ -71,7 +75,8 @@ pub fn platform_of(f: &FixedLaser) -> Result<Platform<f64>, PlatformError> {
 }
 
 /// The points of scan `f.scan_id`'s frames in the platform's frame, frame `k` turned back by
-/// `k · turn`; the platform's top ([`floor`]) and what lies beyond its radius left out.
+/// `k · turn`; the platform's surface as the points show it and what lies beyond its radius
+/// left out.
 ///
 /// # Errors
 /// An unusable platform or turn.
@@ -90,6 +95,7 @@ pub fn platform_cloud(
     let mut cloud = PlatformCloud {
         points: Vec::new(),
         seen_from: Vec::new(),
+        still: Vec::new(),
         on_top: 0,
         off_platform: 0,
         floor: HalfSpace {
@@ -108,15 +114,16 @@ pub fn platform_cloud(
         last = last.max(k.frame);
         for p in &k.points {
             let q = platform.to_platform(&p.cast(), angle);
-            if still.contains(&cell_of(p)) && q.z < FLOOR_SEARCH_MM {
+            let is_still = still.contains(&cell_of(p));
+            if is_still && q.z < FLOOR_SEARCH_MM {
                 low_still.push(q);
             }
-            all.push((q, eye));
+            all.push((q, eye, is_still));
         }
     }
     cloud.floor = floor(&low_still);
     let top = cloud.floor;
-    for (q, eye) in all {
+    for (q, eye, is_still) in all {
         if top.up.dot(&q.coords) < top.at {
             cloud.on_top += 1;
         } else if radius > 0.0 && q.x.hypot(q.y) > radius {
@@ -124,6 +131,7 @@ pub fn platform_cloud(
         } else {
             cloud.points.push(q);
             cloud.seen_from.push(eye);
+            cloud.still.push(is_still);
         }
     }
     if cloud.frames > 0 {
@@ -254,14 +262,16 @@ pub fn model(
 ) -> Result<Model, PlatformError> {
     let keep = cloud.floor;
     let mut m = fuse::fuse_cut(&cloud.points, normals, &[], cell, Some(keep), progress)?;
-    standing(&mut m, keep, 2.0 * cell);
+    standing(&mut m, cloud, keep, 2.0 * cell);
     Ok(m)
 }
 
-/// Keeps the pieces of `m` that stand on the platform (reach down to within `reach` mm of
-/// `floor`): the object stands there, and a piece floating above it is what the laser lit
-/// elsewhere (the scanner's case behind the object).
-fn standing(m: &mut Model, floor: HalfSpace, reach: f64) {
+/// Drops the pieces of `m` that float (reach nowhere down to within `reach` mm of `floor`) and
+/// were made mostly of still points ([`still_cells`]): the laser on the scanner's case, which
+/// looks the same at every turn. A floating piece of the object (a ball resting on its unseen
+/// underside) has points lit once a turn, and stays; so does a piece standing on the platform,
+/// still or not (a vase, round about the axis).
+fn standing(m: &mut Model, cloud: &PlatformCloud, floor: HalfSpace, reach: f64) {
     let n = m.vertices.len();
     let mut parent: Vec<usize> = (0..n).collect();
     fn root(parent: &mut [usize], mut i: usize) -> usize {
@@ -285,12 +295,26 @@ fn standing(m: &mut Model, floor: HalfSpace, reach: f64) {
             low[r] = true;
         }
     }
-    if !low.iter().any(|&l| l) {
-        return;
+    // each piece's cloud points, still and in all (by the nearest vertex)
+    let mut counts = vec![(0usize, 0usize); n];
+    if n > 0 {
+        let vertices: Vec<Point3<f64>> = m.vertices.iter().map(|v| v.cast()).collect();
+        let t = spatial::tree(&vertices);
+        for (p, &still) in cloud.points.iter().zip(&cloud.still) {
+            let i = t
+                .nearest_one::<kiddo::SquaredEuclidean>(&[p.x, p.y, p.z])
+                .item as usize;
+            let r = root(&mut parent, i);
+            counts[r].0 += usize::from(still);
+            counts[r].1 += 1;
+        }
     }
+    let keep: Vec<bool> = (0..n)
+        .map(|r| low[r] || 2 * counts[r].0 <= counts[r].1)
+        .collect();
     m.faces.retain(|f| {
         let r = root(&mut parent, f[0] as usize);
-        low[r]
+        keep[r]
     });
     // the vertices of the pieces left out go too
     let mut new = vec![u32::MAX; n];

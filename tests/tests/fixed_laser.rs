@@ -98,6 +98,7 @@ fn fixture() -> &'static Fixture {
             "6400",
             "--radius",
             "70",
+            "--clockwise",
             "--out",
             "own.toml",
         ];

@@ -4,8 +4,9 @@
 //!
 //! The platform's frame: origin on the turning axis at the platform's top, `z` up the axis,
 //! `x` and `y` on the top (at turn 0). A point `X` seen by the camera when the platform has
-//! turned by `θ` lies at `Rz(θ) · Rᵀ (X − t)` in the platform's frame, `R` and `t` the
-//! platform's pose at turn 0 (its axes' directions and its origin in camera coordinates).
+//! turned by `θ` (counter-clockwise seen from above, about `z`) lies at `Rz(−θ) · Rᵀ (X − t)` in
+//! the platform's frame, `R` and `t` the platform's pose at turn 0 (its axes' directions and its
+//! origin in camera coordinates): the turn undone.
 
 use nalgebra::{Matrix3, Point3, Vector3};
 
@@ -71,11 +72,11 @@ impl<T: Real> Platform<T> {
         Plane::new(axis, d)
     }
 
-    /// `p` (camera coordinates, seen with the platform turned by `angle` radians) in the
-    /// platform's frame.
+    /// `p` (camera coordinates, seen with the platform turned by `angle` radians,
+    /// counter-clockwise seen from above) in the platform's frame: the turn undone.
     pub fn to_platform(&self, p: &Point3<T>, angle: T) -> Point3<T> {
         let q = self.rotation.transpose() * (p - self.origin);
-        let (s, c) = (angle.sin(), angle.cos());
+        let (s, c) = ((-angle).sin(), (-angle).cos());
         Point3::new(c * q.x - s * q.y, s * q.x + c * q.y, q.z)
     }
 
@@ -129,13 +130,14 @@ mod tests {
     }
 
     #[test]
-    fn a_quarter_turn_carries_x_to_y() {
+    fn a_quarter_turn_is_undone() {
         let p = platform();
+        // seen on the platform's +x after a quarter turn counter-clockwise: it stood on −y
         let q = p.to_platform(
             &Point3::new(10.0, 50.0, 300.0),
             core::f64::consts::FRAC_PI_2,
         );
-        assert!((q - Point3::new(0.0, 10.0, 0.0)).norm() < 1e-12, "{q}");
+        assert!((q - Point3::new(0.0, -10.0, 0.0)).norm() < 1e-12, "{q}");
     }
 
     #[test]

@@ -26,7 +26,7 @@
 //!                          # region between the marker lines
 //! [[laser]]                # a turntable scanner's fixed laser planes: normal, offset
 //! [platform]               # its platform: rotation (rows; columns x, y, axis), origin,
-//!                          # radius, steps_per_turn
+//!                          # radius, steps_per_turn, clockwise, height
 //! ```
 
 use scanner_core::config::MAX_PLANE_OFFSET_MM;
@@ -128,6 +128,14 @@ pub struct PlatformSection {
     pub radius: f64,
     /// Motor steps in one turn of the platform.
     pub steps_per_turn: u32,
+    /// The platform turns clockwise seen from above (its motor's direction for positive
+    /// steps); counter-clockwise without.
+    #[serde(default)]
+    pub clockwise: bool,
+    /// The tallest object the scanner takes, mm (0: not known): the head reads only the part
+    /// of the picture where the cylinder of the platform's radius and this height shows.
+    #[serde(default)]
+    pub height: f64,
 }
 
 /// Longest platform radius, mm.
@@ -186,6 +194,12 @@ fn check_fixed(f: &CalibrationFile) -> Result<(), String> {
             return Err(format!(
                 "[platform] steps_per_turn {} is not a turntable's (1 to {MAX_STEPS_PER_TURN})",
                 p.steps_per_turn
+            ));
+        }
+        if !(0.0..=MAX_PLATFORM_RADIUS_MM).contains(&p.height) {
+            return Err(format!(
+                "[platform] height {} mm is not a scanner's (0 to {MAX_PLATFORM_RADIUS_MM} mm)",
+                short(p.height)
             ));
         }
         if !(0.0..=MAX_PLATFORM_RADIUS_MM).contains(&p.radius) {

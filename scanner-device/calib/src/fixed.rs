@@ -217,6 +217,8 @@ struct FabScanTurntable {
     steps: u32,
     #[serde(default)]
     radius: f64,
+    #[serde(default)]
+    height: f64,
 }
 
 /// FabScanPi's booleans are the strings "True" and "False" (or JSON booleans).
@@ -323,6 +325,10 @@ pub fn import_fabscan(path: &Path) -> Result<Imported, ImportError> {
         origin: cfg.calibration.platform_translation,
         radius: cfg.turntable.radius,
         steps_per_turn: cfg.turntable.steps,
+        // FabScanPi undoes a frame's turn by turning its points +angle about its z: the
+        // platform turns the other way
+        clockwise: true,
+        height: cfg.turntable.height,
     });
     let file = unturn(&turned, orientation, stored).map_err(invalid)?;
     // the checks of any calibration file (a NaN, a plane through the camera, 0 steps)
@@ -511,7 +517,7 @@ pub struct LaserFit {
 }
 
 /// The plane through `points` (from [`laser_points`] at two or more poses), refitted without
-/// the points [`OUTLIER_RMS`] RMS off the first fit.
+/// the points three RMS off the first fit.
 ///
 /// # Errors
 /// Too few points, or points on one line (one pose only, or poses that do not turn the
@@ -545,6 +551,9 @@ pub struct PlatformFit {
     pub circle_rms_mm: f64,
     /// The turn the poses span, degrees (the widest angle between two of them about the axis).
     pub span_deg: f64,
+    /// Consecutive shots turned clockwise seen from above, and counter-clockwise (a
+    /// calibration may turn the platform the other way than a scan: FabScanPi's does).
+    pub turns: (usize, usize),
 }
 
 /// The platform's axis and top from the poses of a pattern standing on it as it turned: its
@@ -665,10 +674,21 @@ pub fn fit_platform(
             span = span.max(dir(a).dot(&dir(b)).clamp(-1.0, 1.0).acos());
         }
     }
+    // the direction it turned: the pattern's normal about the axis, shot after shot
+    let (mut cw, mut ccw) = (0, 0);
+    for w in poses.windows(2) {
+        let s = dir(&w[0]).cross(&dir(&w[1])).dot(&up);
+        if s > 1e-6 {
+            ccw += 1;
+        } else if s < -1e-6 {
+            cw += 1;
+        }
+    }
     Ok(PlatformFit {
         platform,
         poses: poses.len(),
         circle_rms_mm,
         span_deg: span.to_degrees(),
+        turns: (cw, ccw),
     })
 }

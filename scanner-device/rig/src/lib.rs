@@ -34,13 +34,17 @@
 //! The board's markers come from a board file ([`scanner_calib::board`]): discs or a chessboard
 //! per sheet.
 //!
+//! A turntable scanner with a fixed laser is rendered by [`TurningScan`]: the objects turned a
+//! step about the platform's axis in every frame, with their true surfaces and the true
+//! calibration.
+//!
 //! Scenes can be read from TOML ([`Scene::from_toml`]); `scanner-device render` writes a scene's
 //! frames as PNG files with their ground truth.
 //!
 //! # Layers
 //! Each module uses only modules on its own line or below (`tests/tests/layers.rs` checks it):
 //! ```text
-//! file  compare  target
+//! file  compare  target  turning
 //! render
 //! scene  mjpeg
 //! error
@@ -59,9 +63,11 @@ mod render;
 mod scene;
 pub mod surface;
 pub mod target;
+mod turning;
 
 pub use error::RigError;
 pub use mjpeg::{MjpegError, mjpeg};
 pub use render::*;
 pub use scene::*;
 pub use surface::{Hit, Shape, SurfaceId};
+pub use turning::TurningScan;

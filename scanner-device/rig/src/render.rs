@@ -494,6 +494,12 @@ impl Rig {
     /// wobble and jitter are random per frame and move linearly between frames.
     pub(crate) fn laser_at(&self, t: f64) -> Result<Laser, RigError> {
         let l = &self.scene.laser;
+        if let Some(normal) = l.fixed {
+            let plane = Plane::from_point_normal(&l.source, &normal)
+                .map_err(RigError::Geometry)?
+                .facing_camera();
+            return Ok((l.source, plane));
+        }
         let t = t.clamp(0.0, (l.frames - 1) as f64);
         let shake = |k: usize| -> [f64; 4] {
             let mut rng =

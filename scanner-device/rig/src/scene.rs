@@ -180,6 +180,9 @@ pub struct LaserSpec {
     pub speckle: f64,
     /// Seed of the wobble.
     pub seed: u64,
+    /// A fixed laser (a turntable scanner's): the light plane through `source` with this normal
+    /// in every frame, no sweep, wobble or jitter. `None`: the hand-held sweep.
+    pub fixed: Option<Vector3<f64>>,
 }
 
 /// The sensor: radiance to 8-bit numbers.
@@ -347,6 +350,7 @@ impl Scene {
                 colour: [1.0, 0.05, 0.02],
                 speckle: 0.2,
                 seed: 2012,
+                fixed: None,
             },
             ambient: 0.45,
             blur_px: 1.0,

@@ -131,6 +131,10 @@ pub enum Calibrate {
         /// The platform's radius, mm (0: not known).
         #[arg(long, default_value_t = 0.0)]
         radius: f64,
+        /// The platform turns clockwise seen from above when the motor steps forward, as in a
+        /// scan (FabScanPi's do; its calibration turns them the other way).
+        #[arg(long)]
+        clockwise: bool,
         /// Output calibration file.
         #[arg(long, default_value = "calibration.toml")]
         out: PathBuf,
@@ -295,12 +299,13 @@ pub fn calibrate(cmd: &Calibrate) -> Result<()> {
             origin_distance,
             steps_per_turn,
             radius,
+            clockwise,
             out,
             images,
         } => fixed_command(
             &target.target()?,
             images,
-            (*origin_distance, *steps_per_turn, *radius),
+            (*origin_distance, *steps_per_turn, *radius, *clockwise),
             out,
         ),
         Calibrate::Board {
@@ -334,7 +339,7 @@ const MAX_FIXED_LASERS: usize = 8;
 fn fixed_command(
     target: &Target,
     images: &[PathBuf],
-    (origin_distance, steps_per_turn, radius): (f64, u32, f64),
+    (origin_distance, steps_per_turn, radius, clockwise): (f64, u32, f64, bool),
     out: &Path,
 ) -> Result<()> {
     let Target::Chessboard { cols, rows, square } = *target else {
@@ -457,6 +462,8 @@ fn fixed_command(
         origin: pl.origin().coords.into(),
         radius,
         steps_per_turn,
+        clockwise,
+        height: 0.0,
     });
     // the checks any calibration file gets
     let text = toml::to_string(&file).context("the calibration as TOML")?;
@@ -491,6 +498,8 @@ fn fixed_command(
         "lasers": laser_data,
         "platform": {"axis": [a.x, a.y, a.z], "origin": [pl.origin().x, pl.origin().y, pl.origin().z],
                      "poses": platform.poses, "span_deg": platform.span_deg,
+                     "clockwise": clockwise,
+                     "turns_clockwise": platform.turns.0, "turns_counter_clockwise": platform.turns.1,
                      "circle_rms_mm": platform.circle_rms_mm},
         "images": images.len(), "dark": dark.iter().filter(|&&d| d).count(),
     });

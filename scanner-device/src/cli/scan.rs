@@ -89,15 +89,16 @@ pub struct ScanArgs {
     /// `--turn-deg`, `--steps-per-frame` or `--frames-per-turn`.
     #[arg(long, value_name = "N")]
     pub fixed_laser: Option<usize>,
-    /// With --fixed-laser: the platform turns this many degrees between frames (negative:
-    /// clockwise seen from above).
+    /// With --fixed-laser: the platform turns this many degrees between frames (positive:
+    /// counter-clockwise seen from above, negative: clockwise).
     #[arg(long, allow_hyphen_values = true, conflicts_with_all = ["steps_per_frame", "frames_per_turn"])]
     pub turn_deg: Option<f64>,
     /// With --fixed-laser: the motor makes this many steps between frames (of the platform's
-    /// `steps_per_turn`).
+    /// `steps_per_turn`, in its `clockwise` direction).
     #[arg(long, conflicts_with = "frames_per_turn")]
     pub steps_per_frame: Option<u32>,
-    /// With --fixed-laser: frames in one whole turn (FabScanPi's resolution 1 is 100).
+    /// With --fixed-laser: frames in one whole turn (FabScanPi's resolution 1 is 100), in the
+    /// platform's `clockwise` direction.
     #[arg(long)]
     pub frames_per_turn: Option<u32>,
     /// With --fixed-laser: the turntable's motor board, `serial:PATH[@BAUD]`:
@@ -608,6 +609,9 @@ struct Fixed {
     plane: scanner_core::geometry::Plane<f64>,
     board: scanner_core::geometry::Board<f64>,
     message: scanner_wire::FixedLaser,
+    /// The part of the picture where the platform's cylinder shows (its radius and the
+    /// scanner's height), when both are known.
+    roi: Option<scanner_core::stripe::Roi>,
 }
 
 /// The platform's radius taken when the calibration does not know it, mm.
@@ -646,6 +650,8 @@ fn read_fixed(path: &std::path::Path, n: usize, a: &ScanArgs) -> Result<Fixed> {
     let board = platform
         .known_surfaces(radius)
         .with_context(|| format!("[platform] in {name}: the camera looks down its axis"))?;
+    // the calibration's direction for the motor's steps and a count of frames
+    let sense = if section.clockwise { -1.0 } else { 1.0 };
     let turn = match (a.turn_deg, a.steps_per_frame, a.frames_per_turn) {
         (Some(d), _, _) if d.is_finite() && d != 0.0 && d.abs() <= 180.0 => d.to_radians(),
         (Some(d), _, _) => {
@@ -653,13 +659,13 @@ fn read_fixed(path: &std::path::Path, n: usize, a: &ScanArgs) -> Result<Fixed> {
         }
         (_, Some(0), _) => bail!("--steps-per-frame 0: the platform would not turn"),
         (_, Some(s), _) if s <= section.steps_per_turn / 2 => {
-            std::f64::consts::TAU * f64::from(s) / f64::from(section.steps_per_turn)
+            sense * std::f64::consts::TAU * f64::from(s) / f64::from(section.steps_per_turn)
         }
         (_, Some(s), _) => bail!(
             "--steps-per-frame {s}: more than half of the platform's {} steps per turn",
             section.steps_per_turn
         ),
-        (_, _, Some(f)) if f >= 2 => std::f64::consts::TAU / f64::from(f),
+        (_, _, Some(f)) if f >= 2 => sense * std::f64::consts::TAU / f64::from(f),
         (_, _, Some(f)) => bail!("--frames-per-turn {f}: a turn needs at least 2 frames"),
         _ => bail!(
             "--fixed-laser needs the platform's turn between frames: --turn-deg, --steps-per-frame or --frames-per-turn"
@@ -667,7 +673,17 @@ fn read_fixed(path: &std::path::Path, n: usize, a: &ScanArgs) -> Result<Fixed> {
     };
     let r = platform.rotation();
     let o = platform.origin();
+    let camera = file.camera().with_context(|| format!("camera in {name}"))?;
+    let roi = (section.radius > 0.0 && section.height > 0.0).then(|| {
+        platform_roi(
+            &camera,
+            &platform,
+            (section.radius, section.height),
+            (file.image.width, file.image.height),
+        )
+    });
     Ok(Fixed {
+        roi: roi.flatten(),
         plane,
         board,
         message: scanner_wire::FixedLaser {
@@ -679,6 +695,38 @@ fn read_fixed(path: &std::path::Path, n: usize, a: &ScanArgs) -> Result<Fixed> {
             turn: turn as f32,
             radius: section.radius as f32,
         },
+    })
+}
+
+/// The smallest rectangle of the picture that holds the cylinder of `radius` and `height` on
+/// the platform (its circles at the top and bottom, 32 points each, projected), with a margin of
+/// 8 px; `None` when a point does not project (behind the camera) or nothing is left.
+fn platform_roi(
+    camera: &scanner_core::Camera<f64>,
+    platform: &scanner_core::geometry::Platform<f64>,
+    (radius, height): (f64, f64),
+    (w, h): (u32, u32),
+) -> Option<scanner_core::stripe::Roi> {
+    use scanner_core::nalgebra::Vector3;
+    let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
+    for k in 0..32 {
+        let a = std::f64::consts::TAU * f64::from(k) / 32.0;
+        for z in [0.0, height] {
+            let local = Vector3::new(radius * a.cos(), radius * a.sin(), z);
+            let p = platform.origin() + platform.rotation() * local;
+            let px = camera.project(&p).ok()?;
+            lo = [lo[0].min(px.x), lo[1].min(px.y)];
+            hi = [hi[0].max(px.x), hi[1].max(px.y)];
+        }
+    }
+    let clamp = |v: f64, n: u32| (v.max(0.0) as usize).min(n as usize);
+    let (x0, y0) = (clamp(lo[0] - 8.0, w), clamp(lo[1] - 8.0, h));
+    let (x1, y1) = (clamp(hi[0] + 9.0, w), clamp(hi[1] + 9.0, h));
+    (x1 > x0 + 1 && y1 > y0 + 1).then_some(scanner_core::stripe::Roi {
+        x: x0,
+        y: y0,
+        width: x1 - x0,
+        height: y1 - y0,
     })
 }
 
@@ -698,6 +746,7 @@ fn fixed_head(mut head: HeadConfig, f: &Fixed) -> HeadConfig {
     head.stripe.separation = 24;
     head.stripe.ambiguity = 0.8;
     head.limits.board_tol = 1.0;
+    head.stripe.roi = f.roi;
     head
 }
 
