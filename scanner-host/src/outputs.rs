@@ -509,13 +509,8 @@ pub fn write_outputs(
     export::write_atomic_with(&dir.join("scan.obj"), |w| export::write_obj(&m, w))?;
     export::write_atomic_with(&dir.join("scan.ply"), |w| export::write_ply(&m, w))?;
     export::write_atomic_with(&dir.join("scan.stl"), |w| export::write_stl(&m, w))?;
-    let span = counts.time_us.map_or(0.0, |(a, b)| (b - a) as f64 / 1e6);
     let summary = Summary {
-        point_rate: if span > 0.0 {
-            counts.points as f64 / span
-        } else {
-            0.0
-        },
+        point_rate: point_rate(&counts),
         counts,
         vertices: m.vertices.len(),
         faces: m.faces.len(),
@@ -611,13 +606,8 @@ fn fixed_outputs(
     export::write_atomic_with(&dir.join("scan.stl"), |w| export::write_stl(&m, w))?;
     export::write_atomic_with(&dir.join("scan.3mf"), |w| export::write_3mf(&m, w))?;
     let counts = c.counts();
-    let span = counts.time_us.map_or(0.0, |(a, b)| (b - a) as f64 / 1e6);
     let summary = Summary {
-        point_rate: if span > 0.0 {
-            counts.points as f64 / span
-        } else {
-            0.0
-        },
+        point_rate: point_rate(&counts),
         counts,
         vertices: m.vertices.len(),
         faces: m.faces.len(),
@@ -643,6 +633,16 @@ fn fixed_outputs(
     };
     write_summary(&summary, dir)?;
     Ok(summary)
+}
+
+/// Points per second of the frames' capture time (0 without a span).
+fn point_rate(counts: &Counts) -> f64 {
+    let span = counts.time_us.map_or(0.0, |(a, b)| (b - a) as f64 / 1e6);
+    if span > 0.0 {
+        counts.points as f64 / span
+    } else {
+        0.0
+    }
 }
 
 /// The summary of a preview session (`scanner-device preview`: pictures, no points, so no

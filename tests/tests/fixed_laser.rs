@@ -19,39 +19,9 @@ fn fabscan() -> PathBuf {
     dir
 }
 
-/// The vertices of a binary PLY written by the host (x, y, z first, floats).
+/// The vertices of a PLY the host wrote.
 fn ply_vertices(path: &Path) -> Vec<[f32; 3]> {
-    let bytes = std::fs::read(path).unwrap();
-    let end = bytes
-        .windows(11)
-        .position(|w| w == b"end_header\n")
-        .unwrap()
-        + 11;
-    let header = String::from_utf8_lossy(&bytes[..end]);
-    let n: usize = header
-        .lines()
-        .find_map(|l| l.strip_prefix("element vertex "))
-        .unwrap()
-        .trim()
-        .parse()
-        .unwrap();
-    let stride = 4 * header
-        .lines()
-        .filter(|l| l.starts_with("property float"))
-        .count()
-        + 3 * header
-            .lines()
-            .filter(|l| l.starts_with("property uchar"))
-            .count();
-    (0..n)
-        .map(|i| {
-            let f = |k: usize| {
-                let o = end + i * stride + 4 * k;
-                f32::from_le_bytes(bytes[o..o + 4].try_into().unwrap())
-            };
-            [f(0), f(1), f(2)]
-        })
-        .collect()
+    scanner_tests::read_ply(&std::fs::read(path).unwrap()).0
 }
 
 /// What the fixture made once: the imported and the own calibration, and the scans of both
@@ -479,35 +449,38 @@ fn simulated_fabscan(
     (path, theirs, thread)
 }
 
+/// Scans FabScanPi's `1_1` with laser 0 of the imported calibration, the platform turned 64
+/// steps a frame by the board at the pseudo-terminal `path`, into `stream`.
+fn motor_scan(f: &Fixture, path: &str, stream: &str, extra: &[&str]) -> (bool, String, String) {
+    let frames = fabscan().join("1_1");
+    let motor = format!("serial:{path}@115200");
+    let mut args = vec![
+        "scan",
+        "--source",
+        frames.to_str().unwrap(),
+        "--calibration",
+        "imported.toml",
+        "--fixed-laser",
+        "0",
+        "--steps-per-frame",
+        "64",
+        "--motor",
+        &motor,
+        "--columns",
+        "--out",
+        stream,
+        "-q",
+    ];
+    args.extend_from_slice(extra);
+    run_in(&workspace_bin("scanner-device"), f.dir.path(), &args)
+}
+
 #[test]
 fn the_simulated_firmware_turns_the_platform_through_a_whole_scan() {
     let f = fixture();
-    let frames = fabscan().join("1_1");
-    let device = workspace_bin("scanner-device");
     let host = workspace_bin("scanner-host");
     let (path, _keep, firmware) = simulated_fabscan(None);
-    let motor = format!("serial:{path}@115200");
-    let (ok, _, err) = run_in(
-        &device,
-        f.dir.path(),
-        &[
-            "scan",
-            "--source",
-            frames.to_str().unwrap(),
-            "--calibration",
-            "imported.toml",
-            "--fixed-laser",
-            "0",
-            "--steps-per-frame",
-            "64",
-            "--motor",
-            &motor,
-            "--columns",
-            "--out",
-            "motor.stream",
-            "-q",
-        ],
-    );
+    let (ok, _, err) = motor_scan(f, &path, "motor.stream", &[]);
     assert!(ok, "{err}");
     drop(_keep);
     let told = firmware.join().unwrap();
@@ -535,34 +508,9 @@ fn the_simulated_firmware_turns_the_platform_through_a_whole_scan() {
 #[test]
 fn a_firmware_that_falls_silent_ends_the_scan_with_what_it_took() {
     let f = fixture();
-    let frames = fabscan().join("1_1");
-    let device = workspace_bin("scanner-device");
     let host = workspace_bin("scanner-host");
     let (path, _keep, firmware) = simulated_fabscan(Some(30));
-    let motor = format!("serial:{path}@115200");
-    let (ok, _, err) = run_in(
-        &device,
-        f.dir.path(),
-        &[
-            "scan",
-            "--source",
-            frames.to_str().unwrap(),
-            "--calibration",
-            "imported.toml",
-            "--fixed-laser",
-            "0",
-            "--steps-per-frame",
-            "64",
-            "--motor",
-            &motor,
-            "--motor-timeout-ms",
-            "300",
-            "--columns",
-            "--out",
-            "silent.stream",
-            "-q",
-        ],
-    );
+    let (ok, _, err) = motor_scan(f, &path, "silent.stream", &["--motor-timeout-ms", "300"]);
     assert!(
         !ok,
         "a scan whose motor fell silent must not end as a success"

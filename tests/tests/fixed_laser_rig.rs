@@ -103,29 +103,13 @@ fn the_rigs_turntable_scan_is_accurate_and_closed() {
     assert!(pc(seen_mean) <= 0.03, "model mean {seen_mean} mm at {d} mm");
 }
 
-/// The vertices of a binary PLY written by the host, back in the platform's frame.
+/// The vertices of a PLY the host wrote, back in the platform's frame (written y up).
 fn vertices(path: &std::path::Path) -> Vec<scanner_core::nalgebra::Point3<f64>> {
-    let text = std::fs::read(path).unwrap();
-    let end = text.windows(11).position(|w| w == b"end_header\n").unwrap() + 11;
-    let header = String::from_utf8_lossy(&text[..end]);
-    let n: usize = header
-        .lines()
-        .find_map(|l| l.strip_prefix("element vertex "))
-        .unwrap()
-        .trim()
-        .parse()
-        .unwrap();
-    let stride = 4 * header
-        .lines()
-        .filter(|l| l.starts_with("property float"))
-        .count();
-    (0..n)
-        .map(|i| {
-            let f = |k: usize| {
-                let o = end + i * stride + 4 * k;
-                f64::from(f32::from_le_bytes(text[o..o + 4].try_into().unwrap()))
-            };
-            scanner_core::nalgebra::Point3::new(f(0), -f(2), f(1))
+    scanner_tests::read_ply(&std::fs::read(path).unwrap())
+        .0
+        .iter()
+        .map(|v| {
+            scanner_core::nalgebra::Point3::new(f64::from(v[0]), -f64::from(v[2]), f64::from(v[1]))
         })
         .collect()
 }

@@ -15,6 +15,7 @@ use scanner_device::source::RigSource;
 use scanner_host::collect::{CollectOptions, Collector, Journal};
 use scanner_host::{replay_into, write_outputs};
 use scanner_rig::{Rig, Scene};
+use scanner_tests::read_ply;
 use scanner_wire::{Decoder, MAX_ENCODED};
 
 /// Outputs in the camera frame, where the rig's truth is.
@@ -55,76 +56,6 @@ fn record(w: u32, h: u32, frames: usize, colour: bool, path: &Path) -> Rig {
         Box::new(std::fs::File::create(path).unwrap()),
     );
     rig
-}
-
-/// Reads a binary little-endian PLY back by its header (float and uchar vertex properties in any
-/// order): vertices, faces and the `quality` property (empty without).
-fn read_ply(bytes: &[u8]) -> (Vec<[f32; 3]>, Vec<[u32; 3]>, Vec<f32>) {
-    let end = bytes
-        .windows(11)
-        .position(|w| w == b"end_header\n")
-        .unwrap()
-        + 11;
-    let header = std::str::from_utf8(&bytes[..end]).unwrap();
-    let count = |el: &str| -> usize {
-        header
-            .lines()
-            .find(|l| l.starts_with(&format!("element {el} ")))
-            .unwrap()
-            .rsplit(' ')
-            .next()
-            .unwrap()
-            .parse()
-            .unwrap()
-    };
-    let (nv, nf) = (count("vertex"), count("face"));
-    // the vertex element's properties: (name, offset, size)
-    let mut props = Vec::new();
-    let mut stride = 0;
-    let mut in_vertex = false;
-    for l in header.lines() {
-        if l.starts_with("element ") {
-            in_vertex = l.starts_with("element vertex ");
-        } else if in_vertex && let Some(rest) = l.strip_prefix("property ") {
-            let (ty, name) = rest.split_once(' ').unwrap();
-            let size = match ty {
-                "float" => 4,
-                "uchar" => 1,
-                other => panic!("vertex property type {other}"),
-            };
-            props.push((name.to_string(), stride, size));
-            stride += size;
-        }
-    }
-    let at = |name: &str| props.iter().find(|p| p.0 == name).map(|p| p.1);
-    let f = |b: &[u8]| f32::from_le_bytes([b[0], b[1], b[2], b[3]]);
-    let (x, y, z) = (at("x").unwrap(), at("y").unwrap(), at("z").unwrap());
-    let q = at("quality");
-    let mut p = end;
-    let mut quality = Vec::new();
-    let verts = (0..nv)
-        .map(|_| {
-            let v = [f(&bytes[p + x..]), f(&bytes[p + y..]), f(&bytes[p + z..])];
-            if let Some(q) = q {
-                quality.push(f(&bytes[p + q..]));
-            }
-            p += stride;
-            v
-        })
-        .collect();
-    let faces = (0..nf)
-        .map(|_| {
-            assert_eq!(bytes[p], 3);
-            let i = |k: usize| {
-                i32::from_le_bytes(bytes[p + 1 + 4 * k..p + 5 + 4 * k].try_into().unwrap()) as u32
-            };
-            let face = [i(0), i(1), i(2)];
-            p += 13;
-            face
-        })
-        .collect();
-    assert_eq!(p, bytes.len());
-    (verts, faces, quality)
 }
 
 #[test]

@@ -55,16 +55,43 @@ fn limits() -> image::Limits {
     l
 }
 
-/// Reads an image file whose sides are at most [`MAX_IMAGE_SIDE`].
+/// The size of an image file (its header read only), checked: sides of 1 to
+/// [`MAX_IMAGE_SIDE`].
 ///
 /// # Errors
-/// [`ImageFileError`] naming the file: a folder, unreadable or undecodable, or too large.
-pub fn open(path: &Path) -> Result<DynamicImage, ImageFileError> {
+/// [`ImageFileError`] naming the file: a folder, unreadable, or too large.
+pub fn dimensions(path: &Path) -> Result<(u32, u32), ImageFileError> {
     if path.is_dir() {
         return Err(ImageFileError::Folder {
             path: path.to_path_buf(),
         });
     }
+    let read = |source| ImageFileError::Read {
+        path: path.to_path_buf(),
+        source,
+    };
+    let (width, height) = ImageReader::open(path)
+        .map_err(|e| read(image::ImageError::IoError(e)))?
+        .with_guessed_format()
+        .map_err(|e| read(image::ImageError::IoError(e)))?
+        .into_dimensions()
+        .map_err(read)?;
+    if width == 0 || height == 0 || width > MAX_IMAGE_SIDE || height > MAX_IMAGE_SIDE {
+        return Err(ImageFileError::Size {
+            path: path.to_path_buf(),
+            width,
+            height,
+        });
+    }
+    Ok((width, height))
+}
+
+/// Reads an image file whose sides are at most [`MAX_IMAGE_SIDE`].
+///
+/// # Errors
+/// [`ImageFileError`] naming the file: a folder, unreadable or undecodable, or too large.
+pub fn open(path: &Path) -> Result<DynamicImage, ImageFileError> {
+    dimensions(path)?;
     let read = |source| ImageFileError::Read {
         path: path.to_path_buf(),
         source,
@@ -75,14 +102,6 @@ pub fn open(path: &Path) -> Result<DynamicImage, ImageFileError> {
             .with_guessed_format()
             .map_err(|e| read(image::ImageError::IoError(e)))
     };
-    let (width, height) = reader()?.into_dimensions().map_err(read)?;
-    if width == 0 || height == 0 || width > MAX_IMAGE_SIDE || height > MAX_IMAGE_SIDE {
-        return Err(ImageFileError::Size {
-            path: path.to_path_buf(),
-            width,
-            height,
-        });
-    }
     let mut r = reader()?;
     r.limits(limits());
     r.decode().map_err(read)

@@ -80,6 +80,14 @@ impl FrameTurn {
     }
 }
 
+/// The pixel map's `P` on the camera's axes: `X′ = M X` for a point `X` in the stored frame's
+/// camera coordinates (the camera's `x` and `y` run along the pixel axes, `z` stays).
+fn camera_axes(p: &Matrix2<f64>) -> Matrix3<f64> {
+    let mut m = Matrix3::identity();
+    m.fixed_view_mut::<2, 2>(0, 0).copy_from(p);
+    m
+}
+
 /// A calibration made in the turned frames (camera, laser planes, platform) re-expressed for
 /// the stored frames of `stored` size.
 ///
@@ -103,18 +111,7 @@ pub fn unturn(
             turned.image.width, turned.image.height, size.0, size.1
         ));
     }
-    // camera axes as pixel axes: X′ = M X for the stored frame's X
-    let m = Matrix3::new(
-        p[(0, 0)],
-        p[(0, 1)],
-        0.0,
-        p[(1, 0)],
-        p[(1, 1)],
-        0.0,
-        0.0,
-        0.0,
-        1.0,
-    );
+    let m = camera_axes(&p);
     let c = &turned.camera;
     let f = p.transpose() * Matrix2::new(c.fx, 0.0, 0.0, c.fy) * p;
     let centre = p.transpose() * (Vector2::new(c.cx, c.cy) - b);
@@ -391,17 +388,7 @@ mod tests {
             let back = unturn(&turned, orientation, stored).unwrap();
             let cs = back.camera().unwrap();
             let (p, b, _) = orientation.map(stored);
-            let m = Matrix3::new(
-                p[(0, 0)],
-                p[(0, 1)],
-                0.0,
-                p[(1, 0)],
-                p[(1, 1)],
-                0.0,
-                0.0,
-                0.0,
-                1.0,
-            );
+            let m = camera_axes(&p);
             for x in [
                 Point3::new(10.0, -20.0, 150.0),
                 Point3::new(-40.0, 35.0, 120.0),

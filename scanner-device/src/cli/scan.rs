@@ -456,6 +456,9 @@ pub(super) fn open(a: &ScanArgs) -> Result<OpenedSource> {
     let format = match a.format {
         Some(f) => PixelFormat::from(f),
         None if a.scene.is_some() || a.source.starts_with("rig") => PixelFormat::Gray8,
+        // a fixed laser's dark frames: the laser's colour is wanted, and YUYV keeps it at half
+        // RGB's bytes (a folder of JPEGs then decodes straight into it)
+        None if a.fixed_laser.is_some() => PixelFormat::Yuyv,
         None => crate::source::native_format(&a.source, &opts)
             .with_context(|| format!("opening the frame source {:?}", a.source))?,
     };

@@ -13,6 +13,13 @@ pub fn load_frame(
     format: PixelFormat,
     index: u64,
 ) -> Result<OwnedFrame, SourceError> {
+    let jpeg = path
+        .extension()
+        .and_then(|e| e.to_str())
+        .is_some_and(|e| e.eq_ignore_ascii_case("jpg") || e.eq_ignore_ascii_case("jpeg"));
+    if jpeg && format != PixelFormat::Rgb24 {
+        return load_jpeg(path, format, index);
+    }
     let img = scanner_io::image_file::open(path).map_err(SourceError::Image)?;
     let rgb = img.to_rgb8();
     let (w, h) = (rgb.width() as usize, rgb.height() as usize);
@@ -33,6 +40,47 @@ pub fn load_frame(
     Ok(OwnedFrame {
         time_us: None,
         data,
+        width: w,
+        height: h,
+        format,
+        index,
+    })
+}
+
+/// A JPEG file straight into gray or YUYV by the head's own decoder (a camera's motion-JPEG
+/// frame is decoded the same way): no RGB between, and the blocks that hold nothing but their
+/// mean (a dark frame is mostly such blocks) skip the inverse transform.
+fn load_jpeg(
+    path: &std::path::Path,
+    format: PixelFormat,
+    index: u64,
+) -> Result<OwnedFrame, SourceError> {
+    let (w, h) = scanner_io::image_file::dimensions(path).map_err(SourceError::Image)?;
+    let data = std::fs::read(path).map_err(|source| {
+        SourceError::Image(scanner_io::image_file::ImageFileError::Read {
+            path: path.to_path_buf(),
+            source: image::ImageError::IoError(source),
+        })
+    })?;
+    let (w, h) = (w as usize, h as usize);
+    let mut out = Vec::new();
+    crate::source::convert::Converter::new()
+        .convert(
+            crate::source::convert::CameraFormat::Mjpeg,
+            &data,
+            w,
+            h,
+            0,
+            format,
+            &mut out,
+        )
+        .map_err(|source| SourceError::Convert {
+            what: path.display().to_string(),
+            source,
+        })?;
+    Ok(OwnedFrame {
+        time_us: None,
+        data: out,
         width: w,
         height: h,
         format,
