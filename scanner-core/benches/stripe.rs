@@ -12,7 +12,8 @@
 //! time of the pass beside another. So the ratio is taken against a robust floor: the least
 //! time per byte any floor pass of that frame size reached, times the bytes this row reads
 //! (the row's own floor is printed beside it). Colour frames (YUYV, RGB) show a red stripe on a gray
-//! ambient, read as a red laser (the default) and by brightness (`white`).
+//! ambient, read as a red laser (the default) and by brightness (`white`). The last row of each
+//! size is a gray frame with a wide line: a saturated, flat-topped band about 40 px wide.
 
 use std::hint::black_box;
 use std::time::{Duration, Instant};
@@ -25,7 +26,19 @@ const SIZES: [(usize, usize); 4] = [(640, 480), (960, 720), (1280, 960), (1600, 
 /// Frames in rotation: 12 × 3.8 MB (1600×1200 YUYV) ≈ 46 MB per set, frame and reference.
 const ROTATION: usize = 12;
 
-fn frames(w: usize, h: usize, format: PixelFormat, seed: u64) -> (Vec<Vec<u8>>, Vec<Vec<u8>>) {
+/// Full width at half maximum of the wide line's profile before it clips, pixels: with its
+/// height, a flat-topped band about 40 px wide.
+const WIDE_FWHM: f64 = 24.0;
+
+/// `wide`: the stripe is a saturated, flat-topped band about 40 px wide instead of a line of
+/// σ 1.5 px.
+fn frames(
+    w: usize,
+    h: usize,
+    format: PixelFormat,
+    seed: u64,
+    wide: bool,
+) -> (Vec<Vec<u8>>, Vec<Vec<u8>>) {
     let bpp = format.bytes_per_pixel();
     let mut x = seed | 1;
     let mut rnd = move || {
@@ -45,7 +58,12 @@ fn frames(w: usize, h: usize, format: PixelFormat, seed: u64) -> (Vec<Vec<u8>>, 
                 let before = 30 + (rnd() % 5) as u8;
                 let centre = h as f64 * (0.3 + 0.4 * c as f64 / w as f64) + k as f64;
                 let u = y as f64 - centre;
-                let stripe = (160.0 * (-u * u / 4.5).exp()) as u8;
+                let stripe = if wide {
+                    let s = WIDE_FWHM / 2.3548;
+                    (900.0 * (-u * u / (2.0 * s * s)).exp()).min(255.0) as u8
+                } else {
+                    (160.0 * (-u * u / 4.5).exp()) as u8
+                };
                 let i = (y * w + c) * bpp;
                 match format {
                     PixelFormat::Gray8 => {
@@ -130,6 +148,22 @@ struct Row {
     bytes: usize,
 }
 
+/// The median width of the valid lines of a gray frame, pixels.
+fn mean_width(
+    ex: &mut Extractor<4096>,
+    f: &[u8],
+    r: &[u8],
+    (w, h): (usize, usize),
+    cfg: &StripeConfig,
+) -> f32 {
+    let f = Frame::packed(f, w, h, PixelFormat::Gray8).unwrap();
+    let r = Frame::packed(r, w, h, PixelFormat::Gray8).unwrap();
+    let res = ex.extract(&f, Some(&r), cfg).unwrap();
+    let mut widths: Vec<f32> = res.valid().map(|(_, p)| p.width).collect();
+    widths.sort_by(f32::total_cmp);
+    widths.get(widths.len() / 2).copied().unwrap_or(0.0)
+}
+
 fn main() {
     let mut ex = Box::new(Extractor::<4096>::new());
     println!(
@@ -139,15 +173,16 @@ fn main() {
     for &(w, h) in &SIZES {
         let iterations = (2_000_000_000 / (w * h * 40)).clamp(40, 400);
         let kinds = [
-            (PixelFormat::Gray8, LaserColour::Red),
-            (PixelFormat::Yuyv, LaserColour::Red),
-            (PixelFormat::Yuyv, LaserColour::White),
-            (PixelFormat::Rgb24, LaserColour::Red),
-            (PixelFormat::Rgb24, LaserColour::White),
+            (PixelFormat::Gray8, LaserColour::Red, false),
+            (PixelFormat::Yuyv, LaserColour::Red, false),
+            (PixelFormat::Yuyv, LaserColour::White, false),
+            (PixelFormat::Rgb24, LaserColour::Red, false),
+            (PixelFormat::Rgb24, LaserColour::White, false),
+            (PixelFormat::Gray8, LaserColour::Red, true),
         ];
         let mut rows = Vec::new();
-        for (format, colour) in kinds {
-            let (fs, rs) = frames(w, h, format, 7);
+        for (format, colour, wide) in kinds {
+            let (fs, rs) = frames(w, h, format, 7, wide);
             let row = w * format.bytes_per_pixel();
             for method in [Method::Lim, Method::Dim] {
                 let cfg = StripeConfig {
@@ -184,7 +219,12 @@ fn main() {
                     valid * 10 >= w * 9,
                     "the bench frames must have a stripe in most columns ({valid}/{w})"
                 );
-                let laser = if format == PixelFormat::Gray8 {
+                let laser = if wide {
+                    format!(
+                        "— (a band {:.0} px wide)",
+                        mean_width(&mut ex, &fs[0], &rs[0], (w, h), &cfg)
+                    )
+                } else if format == PixelFormat::Gray8 {
                     "—".to_string()
                 } else {
                     colour.name().to_string()

@@ -11,7 +11,9 @@ use nalgebra::{Point2, Point3, Vector3};
 
 use crate::calib::spread::CalibrationSpread;
 use crate::geometry::{Board, LaserFitConfig, LaserPlane, Limits, Plane, Surface, laser};
-use crate::stripe::{Axis, Extraction, Extractor, Frame, PixelFormat, StripeConfig, StripeError};
+use crate::stripe::{
+    Axis, Extraction, Extractor, Frame, Locate, PixelFormat, StripeConfig, StripeError,
+};
 use crate::{Camera, GeomError};
 use scanner_wire::PlaneMethod;
 use scanner_wire::Skip;
@@ -58,6 +60,9 @@ pub struct HeadConfig {
     /// triangulated with it, and the board's planes only say what is not the object. `None`: the
     /// plane is fitted to each frame's stripe on the board (the hand-held laser).
     pub fixed_plane: Option<FixedPlane>,
+    /// What of each line's profile is triangulated: the stripe's centre (a laser), or one edge
+    /// of a shadow's band ([`Head::again`] gives the other edge of the same frame).
+    pub locate: Locate,
 }
 
 /// A fixed laser's plane and how sure it is ([`HeadConfig::fixed_plane`]).
@@ -97,6 +102,7 @@ impl HeadConfig {
             board_fringe: 4,
             continuity: 6.0,
             fixed_plane: None,
+            locate: Locate::Centre,
         }
     }
 }
@@ -217,6 +223,11 @@ impl<const W: usize> Head<W> {
         self.spread = spread;
     }
 
+    /// The last frame's extraction (every line's stripe, edges and status).
+    pub fn extraction(&self) -> Extraction<'_> {
+        self.extractor.last()
+    }
+
     /// The settings.
     pub fn config(&self) -> &HeadConfig {
         &self.cfg
@@ -232,14 +243,38 @@ impl<const W: usize> Head<W> {
         frame: &Frame<'_>,
         reference: Option<&Frame<'_>>,
     ) -> Result<FrameOutput<'_>, Skip> {
-        let ex = self
-            .extractor
+        self.extractor
             .extract(frame, reference, &self.cfg.stripe)
             // A frame of the wrong shape, or a configuration the head was built with wrongly:
             // either way this frame cannot be used.
             .map_err(|_: StripeError| Skip::BadFrame)?;
+        self.triangulate_last(self.cfg.locate, reference)
+    }
+
+    /// The last frame processed again, its lines located by `locate` instead (the other edge
+    /// of a shadow's band: a second plane of light in the same frame); `reference` as given to
+    /// [`Self::process`]. Nothing is extracted again.
+    ///
+    /// # Errors
+    /// The [`Skip`] reason when the frame gives no points.
+    pub fn again(
+        &mut self,
+        locate: Locate,
+        reference: Option<&Frame<'_>>,
+    ) -> Result<FrameOutput<'_>, Skip> {
+        self.triangulate_last(locate, reference)
+    }
+
+    /// The last extraction's lines located by `locate`: board points, the plane, the object
+    /// points.
+    fn triangulate_last(
+        &mut self,
+        locate: Locate,
+        reference: Option<&Frame<'_>>,
+    ) -> Result<FrameOutput<'_>, Skip> {
         board_points(
-            &ex,
+            &self.extractor.last(),
+            locate,
             &self.camera,
             (&self.board, self.turntable.as_ref()),
             &self.cfg,
@@ -420,6 +455,7 @@ fn drop_fringes(stripe: &[StripePixel], verdicts: &mut [Verdict], cfg: &HeadConf
 /// meets it first (it lies in front of the board).
 fn board_points<const W: usize>(
     ex: &Extraction<'_>,
+    locate: Locate,
     camera: &Camera<f32>,
     (board, turntable): (&Board<f32>, Option<&Turntable>),
     cfg: &HeadConfig,
@@ -431,9 +467,12 @@ fn board_points<const W: usize>(
     }
     let [left, right, on_disc] = known;
     for (line, p) in ex.valid() {
+        let Some((at, sigma_px)) = p.located(locate) else {
+            continue;
+        };
         let px = match cfg.stripe.axis {
-            Axis::Columns => Point2::new(line as f32, p.centre),
-            Axis::Rows => Point2::new(p.centre, line as f32),
+            Axis::Columns => Point2::new(line as f32, at),
+            Axis::Rows => Point2::new(at, line as f32),
         };
         let Ok(ray) = camera.pixel_to_ray(&px) else {
             continue;
@@ -445,7 +484,7 @@ fn board_points<const W: usize>(
                 ray,
                 point: None,
                 sensitivity: 0.0,
-                sigma_px: p.sigma,
+                sigma_px,
                 uncertainty: f32::INFINITY,
                 peak: p.peak,
                 on_board: None,

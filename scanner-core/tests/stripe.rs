@@ -96,12 +96,41 @@ fn every_rejection_reason() {
     // a weak second stripe (30 %) is not a rival
     let (f, r) = build(|_, y| 150.0 * gauss(y, 20.0, 2.0) + 45.0 * gauss(y, 44.0, 2.0));
     assert!(statuses(&f, &r).iter().all(|&s| s == LineStatus::Valid));
-    // a glint: a clipped plateau 20 rows wide
-    let (f, r) = build(|_, y| if (22..42).contains(&y) { 400.0 } else { 0.0 });
-    assert!(statuses(&f, &r).iter().all(|&s| s == LineStatus::Saturated));
-    // a wide, unclipped blur: σ 8 px (FWHM 19 px)
+    // a glint: a clipped plateau 20 rows wide over columns 100..110 of a stripe of σ 2 px
+    let (f, r) = build(|x, y| {
+        if (100..110).contains(&x) {
+            if (22..42).contains(&y) { 400.0 } else { 0.0 }
+        } else {
+            150.0 * gauss(y, 32.0, 2.0)
+        }
+    });
+    let s = statuses(&f, &r);
+    for (x, st) in s.iter().enumerate() {
+        let want = if (100..110).contains(&x) {
+            LineStatus::Saturated
+        } else {
+            LineStatus::Valid
+        };
+        assert_eq!(*st, want, "column {x}");
+    }
+    // a wide, unclipped blur (σ 8 px, FWHM 19 px) over columns 100..110 of the same stripe:
+    // wider than the stripe around it
+    let (f, r) = build(|x, y| {
+        let s = if (100..110).contains(&x) { 8.0 } else { 2.0 };
+        150.0 * gauss(y, 32.0, s)
+    });
+    let s = statuses(&f, &r);
+    for (x, st) in s.iter().enumerate() {
+        let want = if (100..110).contains(&x) {
+            LineStatus::TooWide
+        } else {
+            LineStatus::Valid
+        };
+        assert_eq!(*st, want, "column {x}");
+    }
+    // the same blur over every column is the stripe
     let (f, r) = build(|_, y| 150.0 * gauss(y, 32.0, 8.0));
-    assert!(statuses(&f, &r).iter().all(|&s| s == LineStatus::TooWide));
+    assert!(statuses(&f, &r).iter().all(|&s| s == LineStatus::Valid));
     // a single bright row (a line of hot pixels): too narrow
     let (f, r) = build(|_, y| if y == 30 { 150.0 } else { 0.0 });
     assert!(statuses(&f, &r).iter().all(|&s| s == LineStatus::TooNarrow));
@@ -132,10 +161,11 @@ fn a_stripe_cut_by_an_edge_is_dropped_and_a_dark_speck_is_not() {
         };
         assert_eq!(*st, want, "column {x}");
     }
-    // 0 turns the check off
+    // 0 turns the checks off
     let mut ex = extractor();
     let cfg = StripeConfig {
         cut_width: 0.0,
+        edge_ramp: 0.0,
         ..StripeConfig::new(Method::Dim, Axis::Columns)
     };
     let res = ex.extract(&gray(&f), Some(&gray(&r)), &cfg).unwrap();
@@ -679,4 +709,94 @@ fn a_peaks_signal_is_read_back_as_the_light_added() {
         ..red
     };
     assert_eq!(peak_dn(PixelFormat::Rgb24, &white, 90), 90);
+}
+
+/// A band across every row (the stripe runs down the frame; row mode): flat-topped between
+/// `edges` (each blurred by a Gaussian of σ `blur`, so that its half-maximum lies at the edge),
+/// `height` DN above a reference of 20 DN, clipped at 255.
+fn band(edges: impl Fn(usize) -> (f64, f64), blur: f64, height: f64) -> (Vec<u8>, Vec<u8>) {
+    // the Gaussian's cumulative distribution, from erf (Abramowitz & Stegun 7.1.26, 1.5e-7)
+    let erf = |x: f64| {
+        let t = 1.0 / (1.0 + 0.327_591_1 * x.abs());
+        let poly = t
+            * (0.254_829_592
+                + t * (-0.284_496_736
+                    + t * (1.421_413_741 + t * (-1.453_152_027 + t * 1.061_405_429))));
+        (1.0 - poly * (-x * x).exp()).copysign(x)
+    };
+    let erf_like = |u: f64| 0.5 * (1.0 + erf(u / (blur * std::f64::consts::SQRT_2)));
+    let mut frame = vec![0u8; WIDTH * HEIGHT];
+    for y in 0..HEIGHT {
+        let (a, b) = edges(y);
+        for x in 0..WIDTH {
+            let u = x as f64;
+            let v = height * (erf_like(u - a) - erf_like(u - b)).max(0.0);
+            frame[y * WIDTH + x] = (20.0 + v).round().clamp(0.0, 255.0) as u8;
+        }
+    }
+    (frame, vec![20u8; WIDTH * HEIGHT])
+}
+
+fn rows_cfg() -> StripeConfig {
+    StripeConfig::new(Method::Dim, Axis::Rows)
+}
+
+#[test]
+fn wide_bands_are_located_with_their_edges_and_only_a_band_beyond_the_limit_is_refused() {
+    use scanner_core::stripe::{Locate, band_limit};
+    let edges = |y: usize| {
+        let c = 100.3 + 0.07 * y as f64;
+        (c - 20.0, c + 20.0)
+    };
+    // 40 px, flat-topped and saturated (a 1000 DN band clipped at 255), and 40 px unclipped
+    for height in [1000.0, 150.0] {
+        let (f, r) = band(edges, 1.5, height);
+        let mut ex = extractor();
+        let res = ex.extract(&gray(&f), Some(&gray(&r)), &rows_cfg()).unwrap();
+        assert_eq!(res.width_limit, band_limit(WIDTH));
+        let mut worst = [0f64; 3];
+        for (y, p) in res.points.iter().enumerate() {
+            assert_eq!(
+                p.status,
+                LineStatus::Valid,
+                "row {y} of the {height} DN band"
+            );
+            let (a, b) = edges(y);
+            let got = [Locate::Centre, Locate::RisingEdge, Locate::FallingEdge]
+                .map(|l| f64::from(p.located(l).unwrap().0));
+            for (k, truth) in [(a + b) / 2.0, a, b].into_iter().enumerate() {
+                worst[k] = worst[k].max((got[k] - truth).abs());
+            }
+            // clipped, the half-maximum is half the clipped height: further out on the flanks
+            let widest = if height > 235.0 { 46.0 } else { 41.0 };
+            assert!((39.0..widest).contains(&p.width), "{}", p.width);
+        }
+        println!("{height} DN band, 40 px: worst error centre / rising / falling {worst:?} px");
+        assert!(worst[0] < 0.05, "{worst:?}");
+        if height < 235.0 {
+            assert!(worst.iter().all(|&e| e < 0.1), "{worst:?}");
+        }
+        // the next frame knows the stripe's width: peaks 1.5 widths apart to compete
+        let res = ex.extract(&gray(&f), Some(&gray(&r)), &rows_cfg()).unwrap();
+        assert!(
+            (39.0..46.0).contains(&res.typical_width),
+            "{}",
+            res.typical_width
+        );
+    }
+    // a band 90 px wide in a 200 px image: beyond the limit of 64 px
+    let (f, r) = band(|_| (50.0, 140.0), 1.5, 150.0);
+    let mut ex = extractor();
+    let res = ex.extract(&gray(&f), Some(&gray(&r)), &rows_cfg()).unwrap();
+    assert!(res.points.iter().all(|p| p.status == LineStatus::TooWide));
+    assert_eq!(res.width_limit, 64.0);
+    // a lower limit of one's own is kept
+    let cfg = StripeConfig {
+        max_width: 30.0,
+        ..rows_cfg()
+    };
+    let (f, r) = band(edges, 1.5, 150.0);
+    let res = ex.extract(&gray(&f), Some(&gray(&r)), &cfg).unwrap();
+    assert_eq!(res.width_limit, 30.0);
+    assert!(res.points.iter().all(|p| p.status == LineStatus::TooWide));
 }

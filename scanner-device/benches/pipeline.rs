@@ -114,6 +114,7 @@ fn main() {
             find_axis: false,
             disc: None,
             fixed: None,
+            shadow: false,
         };
         let mut session = Session::new(&cal, reference.clone(), opts).expect("session");
         let mut decoded = reference.clone();

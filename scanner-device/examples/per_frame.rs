@@ -151,6 +151,7 @@ fn run(dir: &Path, format: &str, n: usize) -> Result<(), String> {
         find_axis: false,
         disc: None,
         fixed: None,
+        shadow: false,
     };
     let mut session = Session::new(&cal, reference.clone(), opts).map_err(|e| e.to_string())?;
     let mut link = Link::spawn(Box::new(std::io::sink()), 64, MAX_ENCODED);

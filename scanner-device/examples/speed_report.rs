@@ -64,6 +64,7 @@ fn main() {
                 find_axis: false,
                 disc: None,
                 fixed: None,
+                shadow: false,
             };
             let mut session = Session::new(&cal, reference.clone(), opts).expect("session");
             let mut link = Link::spawn(Box::new(std::io::sink()), 64, MAX_ENCODED);

@@ -7,7 +7,7 @@ use crate::source::SourceError;
 use scanner_core::Camera;
 use scanner_core::geometry::Board;
 use scanner_core::pipeline::{Head, HeadConfig};
-use scanner_core::stripe::PixelFormat;
+use scanner_core::stripe::{Frame, LineStatus, Locate, PixelFormat};
 use scanner_wire::{
     Controls, DiscFound, DiscPose, FixedLaser, Header, Message, Notice, NoticeKind, Planes, Points,
     Skip, Status,
@@ -44,12 +44,37 @@ pub struct ScanOptions {
     /// are dark and laser-only, so no laser-off reference is taken (the light-intensity method
     /// reads each frame alone), and this message follows each header.
     pub fixed: Option<scanner_wire::FixedLaser>,
+    /// A shadow sweep (no laser: a rod's shadow from a small lamp): the reference is the scene
+    /// lit without the shadow, each frame is read as the share of light the shadow takes
+    /// ([`scanner_core::stripe::shadow`]), and each of the band's two edges gives a packet with
+    /// its own plane — numbered `2 × frame` (the rising edge) and `2 × frame + 1` (the falling).
+    pub shadow: bool,
 }
+
+/// Share of a shadow frame's pixels allowed brighter than the shadow-free frame by more than
+/// [`BRIGHTER_DN`]: more, and the shadow-free frame held a shadow itself (or the light changed).
+pub const MAX_BRIGHTER_SHARE: f64 = 0.005;
+
+/// How much brighter than the shadow-free frame a pixel must be to count against it, DN of
+/// luma (several noise σ of a webcam).
+pub const BRIGHTER_DN: u8 = 24;
 
 /// Why a scan could not start or go on.
 #[derive(Debug, thiserror::Error)]
 #[non_exhaustive]
 pub enum SessionError {
+    /// A shadow sweep's shadow-free frame is darker than a frame of the sweep over much of the
+    /// picture: it holds a shadow itself, or the light changed.
+    #[error(
+        "frame {frame} of the shadow sweep is brighter than the shadow-free frame over {permille}‰ of the picture (at most {}‰): that frame must show the scene lit with no shadow in it — take it before the rod enters (--reference FILE) or use each pixel's brightest over the sweep (--lit max)",
+        (MAX_BRIGHTER_SHARE * 1000.0) as u32
+    )]
+    ShadowInReference {
+        /// The frame, from 0.
+        frame: u32,
+        /// Its share of brighter pixels, per mille.
+        permille: u32,
+    },
     /// The camera's frames are not the size the calibration was made at.
     #[error(
         "the calibration is for {}×{} images but the camera gives {}×{}: calibrate at this resolution or choose {}×{}",
@@ -150,6 +175,32 @@ pub struct ScanReport {
     /// How the camera's frames arrived, when it numbers them: the frames it made that the head
     /// never took because the pipeline was slower.
     pub pace: Option<crate::source::CameraPace>,
+    /// A shadow sweep's bands, when the scan was one.
+    pub shadow: Option<ShadowBands>,
+    /// Lines refused because their stripe was wider than the frame's limit, and that limit
+    /// (pixels: [`scanner_core::stripe::band_limit`]).
+    pub beyond_limit: (u64, f32),
+}
+
+/// What a shadow sweep's frames showed of the shadow's band.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct ShadowBands {
+    /// Lines (over all frames) where a band was found.
+    pub lines: u64,
+    /// Of them, lines where at least one of its edges was found.
+    pub edged: u64,
+}
+
+impl ShadowBands {
+    /// Fewest band lines over a sweep for [`Self::blurred`] to judge.
+    pub const MIN_LINES: u64 = 200;
+
+    /// Whether the band was found but its edges almost never (fewer than one line in 20): its
+    /// flanks never pass the level of half the lamp hidden — a lamp too large, or too far from
+    /// the rod for the rod's width.
+    pub fn blurred(&self) -> bool {
+        self.lines >= Self::MIN_LINES && self.edged * 20 < self.lines
+    }
 }
 
 /// How a scan ends.
@@ -243,6 +294,13 @@ pub struct Session {
     disc: Option<DiscPose>,
     /// What was found of it, for the report.
     disc_found: Option<DiscOutcome>,
+    /// A shadow sweep's shadow-free frame, its frame with the lamp's light all hidden (when
+    /// known) and the contrast buffer each frame is read into.
+    shadow: Option<(OwnedFrame, Option<OwnedFrame>, Vec<u8>)>,
+    /// What the shadow sweep's frames showed of the band so far.
+    bands: ShadowBands,
+    /// Lines refused as wider than the frame's limit so far, and the limit.
+    beyond_limit: (u64, f32),
 }
 
 /// What the head found of the turntable disc in the reference frame.
@@ -376,6 +434,20 @@ impl Session {
     /// A calibration for another image size, or more lines than the head handles.
     pub fn new(cal: &Calibration, reference: OwnedFrame, opts: ScanOptions) -> Result<Session> {
         let (w, h) = (cal.size.0 as usize, cal.size.1 as usize);
+        // a shadow sweep: the reference is the lit scene; the head reads contrast frames
+        // (gray) against black
+        let (reference, shadow) = if opts.shadow {
+            let black = OwnedFrame {
+                data: vec![0; reference.width * reference.height],
+                format: PixelFormat::Gray8,
+                time_us: None,
+                ..reference
+            };
+            let contrast = vec![0; reference.width * reference.height];
+            (black, Some((reference, None, contrast)))
+        } else {
+            (reference, None)
+        };
         if (reference.width, reference.height) != (w, h) {
             return Err(SessionError::SizeMismatch {
                 calibrated: (w, h),
@@ -402,7 +474,7 @@ impl Session {
             opts.head.method,
         );
         let mut config = opts.head;
-        if let Some(s) = cal.speckle_px {
+        if let (Some(s), false) = (cal.speckle_px, opts.shadow) {
             config.stripe.speckle_px = s;
         }
         let mut head = Box::new(Head::new(camera.cast(), board.cast(), config));
@@ -427,6 +499,9 @@ impl Session {
             planes: (0, 0.0, 0.0),
             disc: None,
             disc_found: None,
+            shadow,
+            bands: ShadowBands::default(),
+            beyond_limit: (0, 0.0),
         })
     }
 
@@ -535,44 +610,83 @@ impl Session {
             .time_us
             .unwrap_or_else(|| self.started.elapsed().as_micros() as u64);
         self.last_us = time_us;
-        let outcome = match (frame.view(), self.reference.view()) {
-            (Ok(f), Ok(r)) => match self.head.process(&f, Some(&r)) {
-                Ok(out) => {
-                    self.planes.0 += 1;
-                    self.planes.1 += f64::from(out.plane_rms);
-                    self.planes.2 = self.planes.2.max(out.plane_rms);
-                    let n = scanner_wire::points::encode(out.points, &mut self.xyz)
-                        .map_err(SessionError::Encode)?;
-                    let msg = Message::Points(Points {
-                        scan_id: self.opts.scan_id,
-                        frame: number,
-                        time_us,
-                        plane: out.plane,
-                        count: out.points.len() as u32,
-                        xyz: &self.xyz[..n],
-                        rgb: out.rgb.as_flattened(),
-                        uncertainty: out.uncertainty,
-                    });
-                    let count = out.points.len() as u64;
-                    on_points(number, out.points);
-                    // The head's buffers are borrowed by `msg`: encode before they change.
-                    match encode_to_link(link, &mut self.scratch, &msg, false)? {
-                        None => {
-                            link.count_drop();
-                            Some(Skip::LinkFull)
-                        }
-                        Some(len) => {
-                            self.status.bytes += len as u64;
-                            self.status.packets += 1;
-                            self.status.points += count;
-                            None
+        let ready = match &mut self.shadow {
+            Some((lit, dark, buf)) => {
+                shadow_contrast(frame, (lit, dark.as_ref()), buf, number)?.is_some()
+            }
+            None => true,
+        };
+        let shadow = self.shadow.is_some();
+        let (view, reference) = match &self.shadow {
+            Some((_, _, buf)) => (
+                Frame::packed(buf, frame.width, frame.height, PixelFormat::Gray8),
+                self.reference.view(),
+            ),
+            None => (frame.view(), self.reference.view()),
+        };
+        let mut outcome = Some(Skip::BadFrame);
+        if ready && let (Ok(f), Ok(r)) = (view, reference) {
+            // a laser's centre; a shadow's rising edge, then its falling edge
+            for pass in 0..if shadow { 2 } else { 1 } {
+                let result = if pass == 0 {
+                    self.head.process(&f, Some(&r))
+                } else {
+                    self.head.again(Locate::FallingEdge, Some(&r))
+                };
+                let packet = if shadow { 2 * number + pass } else { number };
+                let sent = match result {
+                    Ok(out) => {
+                        self.planes.0 += 1;
+                        self.planes.1 += f64::from(out.plane_rms);
+                        self.planes.2 = self.planes.2.max(out.plane_rms);
+                        let n = scanner_wire::points::encode(out.points, &mut self.xyz)
+                            .map_err(SessionError::Encode)?;
+                        let msg = Message::Points(Points {
+                            scan_id: self.opts.scan_id,
+                            frame: packet,
+                            time_us,
+                            plane: out.plane,
+                            count: out.points.len() as u32,
+                            xyz: &self.xyz[..n],
+                            rgb: out.rgb.as_flattened(),
+                            uncertainty: out.uncertainty,
+                        });
+                        let count = out.points.len() as u64;
+                        on_points(packet, out.points);
+                        // The head's buffers are borrowed by `msg`: encode before they change.
+                        match encode_to_link(link, &mut self.scratch, &msg, false)? {
+                            None => {
+                                link.count_drop();
+                                Some(Skip::LinkFull)
+                            }
+                            Some(len) => {
+                                self.status.bytes += len as u64;
+                                self.status.packets += 1;
+                                self.status.points += count;
+                                None
+                            }
                         }
                     }
-                }
-                Err(skip) => Some(skip),
-            },
-            _ => Some(Skip::BadFrame),
-        };
+                    Err(skip) => Some(skip),
+                };
+                // a frame counts as skipped for the first reason when none of its packets went
+                outcome = match (pass, outcome, sent) {
+                    (0, _, s) => s,
+                    (_, None, _) | (_, _, None) => None,
+                    (_, o, _) => o,
+                };
+            }
+            if shadow {
+                self.count_bands();
+            }
+            let ex = self.head.extraction();
+            let beyond = ex
+                .points
+                .iter()
+                .filter(|p| p.status == LineStatus::TooWide && p.width > ex.width_limit)
+                .count();
+            self.beyond_limit = (self.beyond_limit.0 + beyond as u64, ex.width_limit);
+        }
         if let Some(s) = outcome {
             self.status.skipped[s as usize] += 1;
         }
@@ -586,6 +700,18 @@ impl Session {
             self.frames_since_status = 0;
         }
         Ok(outcome)
+    }
+
+    /// Adds the last frame's band lines to [`ShadowBands`].
+    fn count_bands(&mut self) {
+        let ex = self.head.extraction();
+        let lines = ex.valid().count();
+        let edged = ex
+            .valid()
+            .filter(|(_, p)| p.edges.iter().any(|e| e.is_finite()))
+            .count();
+        self.bands.lines += lines as u64;
+        self.bands.edged += edged as u64;
     }
 
     /// Sends the final status (waiting for the link) and reports.
@@ -624,6 +750,8 @@ impl Session {
             disc: self.disc_found,
             pipeline_ms: 0.0,
             pace: None,
+            shadow: self.shadow.as_ref().map(|_| self.bands),
+            beyond_limit: self.beyond_limit,
         })
     }
 }
@@ -710,7 +838,7 @@ pub fn run_scan_until(
     } else {
         source.reference().map_err(SessionError::Reference)?
     };
-    if let (Some(limit), None) = (waits, opts.fixed) {
+    if let (Some(limit), None, false) = (waits, opts.fixed, opts.shadow) {
         let seconds = limit.as_secs_f64().ceil() as u64;
         prompt(link, id, NoticeKind::SwitchLaserOn, seconds)?;
         match wait_for_laser(source, &reference, limit, stop) {
@@ -725,6 +853,8 @@ pub fn run_scan_until(
             Err(Waited::Ended(why)) => return Err(SessionError::NoLaser(why)),
         }
     }
+    // a shadow sweep's frame with the lamp's light all hidden, where the source knows it
+    let dark = if opts.shadow { source.darkest() } else { None };
     let mut opts = opts;
     // The first laser frame tells which way the stripe runs: the scan reads it that way when
     // asked to find it, and says so when it was told the other way.
@@ -733,7 +863,16 @@ pub fn run_scan_until(
     }
     let mut axis_seen = None;
     if let Some(frame) = &first {
-        match crate::axis::stripe_axis(frame, &reference, &opts.head.stripe) {
+        // a shadow's band shows in its contrast frame, against black
+        let contrast = opts
+            .shadow
+            .then(|| contrast_frames(frame, (&reference, dark.as_ref())))
+            .flatten();
+        let (frame, reference) = match &contrast {
+            Some((f, black)) => (f, black),
+            None => (frame, &reference),
+        };
+        match crate::axis::stripe_axis(frame, reference, &opts.head.stripe) {
             Ok(axis) => axis_seen = Some(axis),
             Err(e) if opts.find_axis => return Err(SessionError::Axis(e)),
             Err(_) => {}
@@ -744,6 +883,9 @@ pub fn run_scan_until(
     }
     let disc = opts.disc.map(|d| find_disc(&reference, &d, &cal.camera));
     let mut session = Session::new(cal, reference, opts)?;
+    if let (Some((_, slot, _)), Some(d)) = (&mut session.shadow, dark) {
+        *slot = Some(d);
+    }
     session.axis_seen = axis_seen;
     session.disc = disc.as_ref().map(|d| d.message(opts.scan_id));
     if let (Some(DiscOutcome::Found { pose, .. }), Some(printed)) = (&disc, &opts.disc) {
@@ -787,6 +929,63 @@ pub fn run_scan_until(
     report.pipeline_ms = mean_ms(working, report.status.frames);
     report.pace = source.pace();
     Ok(report)
+}
+
+/// A shadow sweep's frame as its contrast frame (gray) and a black frame of its size, when the
+/// two frames match.
+fn contrast_frames(
+    frame: &OwnedFrame,
+    (lit, dark): (&OwnedFrame, Option<&OwnedFrame>),
+) -> Option<(OwnedFrame, OwnedFrame)> {
+    let black = OwnedFrame {
+        data: vec![0; frame.width * frame.height],
+        width: frame.width,
+        height: frame.height,
+        format: PixelFormat::Gray8,
+        index: u64::MAX,
+        time_us: None,
+    };
+    let mut buf = black.data.clone();
+    let (f, l) = (frame.view().ok()?, lit.view().ok()?);
+    let d = dark.map(OwnedFrame::view).transpose().ok()?;
+    scanner_core::stripe::shadow::contrast(&f, (&l, d.as_ref()), &mut buf, BRIGHTER_DN).ok()?;
+    let contrast = OwnedFrame {
+        data: buf,
+        ..black.clone()
+    };
+    Some((contrast, black))
+}
+
+/// Frame `number` of a shadow sweep as the share of light the shadow takes, into `buf`;
+/// [`SessionError::ShadowInReference`] when the shadow-free frame `lit` is darker than it over
+/// more than [`MAX_BRIGHTER_SHARE`] of the picture. A frame of another shape gives `None` (a
+/// broken source: the frame is skipped).
+fn shadow_contrast(
+    frame: &OwnedFrame,
+    (lit, dark): (&OwnedFrame, Option<&OwnedFrame>),
+    buf: &mut [u8],
+    number: u32,
+) -> Result<Option<()>> {
+    let (Ok(f), Ok(l)) = (frame.view(), lit.view()) else {
+        return Ok(None);
+    };
+    let d = dark.map(OwnedFrame::view).transpose();
+    let Ok(d) = d else {
+        return Ok(None);
+    };
+    let Ok(brighter) =
+        scanner_core::stripe::shadow::contrast(&f, (&l, d.as_ref()), buf, BRIGHTER_DN)
+    else {
+        return Ok(None);
+    };
+    let share = brighter as f64 / (frame.width * frame.height).max(1) as f64;
+    if share > MAX_BRIGHTER_SHARE {
+        return Err(SessionError::ShadowInReference {
+            frame: number,
+            permille: (share * 1000.0).round() as u32,
+        });
+    }
+    Ok(Some(()))
 }
 
 /// The mean of `total` over `frames`, ms.

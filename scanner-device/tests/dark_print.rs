@@ -49,6 +49,7 @@ fn a_chessboard_board_with_nothing_in_front_gives_no_object_point() {
                 find_axis: true,
                 disc: None,
                 fixed: None,
+                shadow: false,
             };
             let mut link = Link::spawn(
                 Box::new(std::io::sink()),

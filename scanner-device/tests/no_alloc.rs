@@ -37,6 +37,7 @@ fn assert_steady_state_allocates_nothing(
         find_axis: false,
         disc: None,
         fixed: None,
+        shadow: false,
     };
     let mut frame = reference.clone();
     let mut session = Session::new(cal, reference, opts).unwrap();

@@ -25,6 +25,7 @@ fn options(scan_id: u32) -> ScanOptions {
         find_axis: false,
         disc: None,
         fixed: None,
+        shadow: false,
     }
 }
 

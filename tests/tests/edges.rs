@@ -17,6 +17,8 @@ fn scan(rig: &Rig, cut_width: f32, silhouette: f32) -> Vec<(f64, bool)> {
         silhouette,
         ..HeadConfig::new(StripeConfig {
             cut_width,
+            // the cut checks: narrow and weak, or a flank much sharper than the others
+            edge_ramp: if cut_width > 0.0 { 0.5 } else { 0.0 },
             ..StripeConfig::new(Method::Dim, Axis::Columns)
         })
     };

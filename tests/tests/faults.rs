@@ -46,6 +46,7 @@ fn clean_frames() -> &'static Vec<Vec<u8>> {
             find_axis: false,
             disc: None,
             fixed: None,
+            shadow: false,
         };
         scanner_tests::record_scan(
             &mut src,
@@ -386,6 +387,7 @@ fn faults_on_a_pseudo_terminal_link_between_head_and_host() {
         find_axis: false,
         disc: None,
         fixed: None,
+        shadow: false,
     };
     run_scan(&mut src, &cal, opts, &mut link, |_| {}, |_, _| {}).unwrap();
     link.finish().unwrap();

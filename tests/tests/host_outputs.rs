@@ -48,6 +48,7 @@ fn record(w: u32, h: u32, frames: usize, colour: bool, path: &Path) -> Rig {
         find_axis: false,
         disc: None,
         fixed: None,
+        shadow: false,
     };
     scanner_tests::record_scan(
         &mut source,

@@ -114,6 +114,7 @@ fn record(w: u32, h: u32, id: u32, path: &Path) {
         find_axis: false,
         disc: None,
         fixed: None,
+        shadow: false,
     };
     scanner_tests::record_scan(
         &mut source,

@@ -706,10 +706,12 @@ fn bad_views_are_refused_and_named() {
 
 /// The rig's part (`part.obj`, a twisted notched block of flat faces) in six views 60° apart
 /// about the vertical, scanned at 640×480 through the binaries: the merge either registers every
-/// view within 1° of the truth and writes the model, or refuses with the loop left open and
-/// writes no model — never a wrong model called watertight. In one run it refused: views 3 and
-/// 4 placed wrongly (174.1° found for 180°, 149.7° for 120°), the worst loop 1.46° and 6.5 mm open
-/// after the joint refinement (docs/reports.md: the registration's known failure on such parts).
+/// view within 1° of the truth and writes the model, or refuses (the loop left open, or a view's
+/// points in front of what another saw) and writes no model — never a wrong model called
+/// watertight. In one run it refused: views 3 and 4 placed wrongly (174.1° found for 180°,
+/// 149.7° for 120°), the worst loop 1.46° and 6.5 mm open after the joint refinement
+/// (docs/reports.md: the registration's known failure on such parts); in another, view 1's
+/// points 35 % in front of what view 3 saw.
 /// Refused with `--view`, the page says why and keeps what the refusal left.
 #[test]
 fn views_of_a_part_of_flat_faces_are_merged_right_or_refused() {
@@ -739,7 +741,11 @@ fn views_of_a_part_of_flat_faces_are_merged_right_or_refused() {
         }
         assert!(d.join("model/model.obj").exists());
     } else {
-        assert_eq!(r["refused"]["check"], "loop_open", "{r}");
+        // refused by one of the checks a wrong registration fails: the loop left open, or one
+        // view's points in front of what another saw (the order of the stripe's lines of any
+        // width moved which of the two speaks first)
+        let check = r["refused"]["check"].as_str().unwrap_or_default();
+        assert!(["loop_open", "seen_through"].contains(&check), "{r}");
         assert!(r["fusion"].is_null(), "{r}");
         assert!(!d.join("model/model.obj").exists() && !d.join("model/model.stl").exists());
         live_view_of_a_refused_merge(d);
@@ -769,7 +775,8 @@ fn live_view_of_a_refused_merge(d: &Path) {
     );
     assert_eq!(
         report(&d.join("refused-live"))["refused"]["check"],
-        "loop_open"
+        report(&d.join("model"))["refused"]["check"],
+        "the page's merge refuses as the command's did"
     );
     assert_eq!(
         b.eval("document.getElementById('state').className"),

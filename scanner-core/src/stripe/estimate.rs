@@ -38,6 +38,20 @@ pub struct Window<'a> {
     pub noise: f32,
 }
 
+/// An edge of a profile ([`Window::edges`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct EdgeFit {
+    /// Where the flank crosses half the height, samples.
+    pub at: f32,
+    /// The flank's slope there, signal per sample.
+    pub slope: f32,
+    /// Samples the flank's line was fitted to.
+    pub samples: usize,
+    /// The band's height it was measured against (the level over the middle half of its
+    /// half-maximum run, above the background).
+    pub height: f32,
+}
+
 /// Largest window an estimator handles.
 pub const MAX_WINDOW: usize = 2 * super::MAX_HALF_WINDOW + 1;
 
@@ -226,6 +240,109 @@ impl Window<'_> {
             b += 1;
         }
         (a, b)
+    }
+
+    /// The profile's two edges, rising then falling: where its flank crosses half the band's
+    /// height above the background (its level over the middle half of the half-maximum run),
+    /// from a least-squares line through the flank's unclipped samples
+    /// between 15 % and 85 % of the height (at least the two about the crossing), so that the
+    /// noise of a wide, shallow flank (a shadow's penumbra) averages out. Each with the line's
+    /// slope (signal per sample) and the number of samples it was fitted to; `None` for a flank
+    /// that does not come down inside the window.
+    ///
+    /// `level`, when positive, is the signal the edges cross instead of half the band's height
+    /// (a shadow's contrast scaled to the lamp's full share: half of it is where half the lamp
+    /// is hidden, however deep the band); a band that does not reach it has no edges.
+    pub fn edges(&self, shape: &Profile, level: f32) -> [Option<EdgeFit>; 2] {
+        let n = self.signal.len();
+        if !(shape.height > 0.0) || n < 3 {
+            return [None, None];
+        }
+        let v = |i: usize| f32::from(self.signal[i]) - self.bg(shape, i);
+        // The band's height: the mean over the middle half of its half-maximum run (a flat
+        // top's level; the largest sample alone stands a noise σ or more above it, and would
+        // pull both edges in).
+        let (lo, hi) = shape.half_max;
+        let quarter = (hi - lo) / 4.0;
+        let (from, to) = (
+            libm::ceilf(lo + quarter).max(0.0) as usize,
+            (libm::floorf(hi - quarter).max(0.0) as usize).min(n - 1),
+        );
+        let top = if from <= to {
+            (from..=to).map(v).sum::<f32>() / (to - from + 1) as f32
+        } else {
+            shape.height
+        };
+        // `h`: twice the level the edges cross, above the background
+        let peak_bg = self.bg(shape, shape.peak_index.min(n - 1));
+        let h = if level > 0.0 {
+            2.0 * (level - peak_bg)
+        } else {
+            top
+        };
+        if !(h > 0.0 && top > 0.5 * h) {
+            return [None, None];
+        }
+        let peak = shape.peak_index.min(n - 1);
+        let edge = |rising: bool| -> Option<EdgeFit> {
+            // the first sample beyond the crossing of half the height, walking out of the peak
+            let mut i = peak;
+            let crossed = loop {
+                if v(i) < 0.5 * h {
+                    break Some(i);
+                }
+                match (rising, i) {
+                    (true, 0) => break None,
+                    (true, _) => i -= 1,
+                    (false, _) if i + 1 >= n => break None,
+                    (false, _) => i += 1,
+                }
+            }?;
+            // the two samples about the crossing, widened along the flank while it stays
+            // between 15 % and 85 % of the height and keeps its direction
+            let (mut a, mut b) = if rising {
+                (crossed, crossed + 1)
+            } else {
+                (crossed - 1, crossed)
+            };
+            let inside = |i: usize| {
+                let x = v(i);
+                x > 0.15 * h && x < 0.85 * h.min(top) && !self.clipped[i]
+            };
+            let up = |i: usize, j: usize| (v(j) > v(i)) == rising;
+            while a > 0 && inside(a - 1) && up(a - 1, a) {
+                a -= 1;
+            }
+            while b + 1 < n && inside(b + 1) && up(b, b + 1) {
+                b += 1;
+            }
+            let m = (b - a + 1) as f32;
+            let (mut sx, mut sy, mut sxx, mut sxy) = (0f32, 0f32, 0f32, 0f32);
+            for i in a..=b {
+                let (x, y) = ((i - a) as f32, v(i));
+                sx += x;
+                sy += y;
+                sxx += x * x;
+                sxy += x * y;
+            }
+            let det = m * sxx - sx * sx;
+            if !(det > 0.0) {
+                return None;
+            }
+            let slope = (m * sxy - sx * sy) / det;
+            let at = (sy - slope * sx) / m;
+            if !((slope > 0.0) == rising && slope != 0.0) {
+                return None;
+            }
+            let x = a as f32 + (0.5 * h - at) / slope;
+            (x > a as f32 - 1.0 && x < b as f32 + 1.0).then_some(EdgeFit {
+                at: x,
+                slope: slope.abs(),
+                samples: b - a + 1,
+                height: h,
+            })
+        };
+        [edge(true), edge(false)]
     }
 
     /// The centre by `estimator`; `sobel` holds the Sobel response along the line for

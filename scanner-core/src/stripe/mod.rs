@@ -24,21 +24,37 @@
 
 mod estimate;
 mod frame;
+pub mod shadow;
 mod signal;
 mod simd;
 
-pub use estimate::{Estimator, MAX_WINDOW, Profile, Window};
+pub use estimate::{EdgeFit, Estimator, MAX_WINDOW, Profile, Window};
 pub use frame::{Frame, FrameError, PixelFormat};
 pub use signal::{LaserColour, Method};
 
 use core::fmt;
 
-/// Largest `half_window` an extractor accepts.
-pub const MAX_HALF_WINDOW: usize = 48;
+/// Largest `half_window` an extractor accepts: a window of 225 samples holds a band of
+/// [`MAX_BAND`] pixels with its flanks.
+pub const MAX_HALF_WINDOW: usize = 112;
+/// Widest band any frame may have, pixels: what a window of `2 × MAX_HALF_WINDOW + 1` samples
+/// holds with 32 samples of background either side ([`band_limit`] of a 4000-pixel image).
+pub const MAX_BAND: f32 = 160.0;
+/// The widest stripe or shadow band accepted in an image `width` pixels wide, pixels: 64 px or
+/// 4 % of the width, whichever is more (a laser out of focus, close to the object or seen by a
+/// 4K camera; a shadow's band), at most [`MAX_BAND`]. Within it, a line is refused as too wide
+/// only against the frame's own lines ([`StripeConfig::width_spread`]).
+pub fn band_limit(width: usize) -> f32 {
+    (0.04 * width as f32).clamp(64.0, MAX_BAND)
+}
 /// Widest region the byte-wide column pass takes (64 blocks of 64 columns, one bit each).
 pub const BYTE_PASS_WIDTH: usize = 64 * 64;
 /// Half size of the first, narrow window read around a peak.
 const NARROW_HALF_WINDOW: usize = 6;
+/// Smallest half size of the second window, read when the first has not come down to the
+/// background: room enough to see a halo or a hump beside a narrow stripe (the 3σ tails of a
+/// 14 px one).
+const HALO_HALF_WINDOW: usize = 24;
 
 /// `true` if both ends of a window (two samples each) are within 5 % of the height of the
 /// sample at `rough` above the lowest end sample: the stripe has come down to the background
@@ -54,9 +70,87 @@ fn settled(sig: &[u16], rough: usize) -> bool {
     let peak = sig[rough.min(n - 1)].max(lo);
     u32::from(hi) <= u32::from(lo) + u32::from(peak - lo) / 20
 }
-/// Bins of [`mark_cut`]'s medians: widths in quarter pixels up to 32 px (wider ones count in the
-/// last bin), peaks in eighths of an octave over the whole `u16` range.
-const CUT_BINS: usize = 128;
+/// The contiguous run around `rough` of samples above halfway from the lowest end sample to
+/// the sample at `rough`, as `(first, last)` inclusive.
+fn half_run(sig: &[u16], rough: usize) -> (usize, usize) {
+    let n = sig.len();
+    let lo = [sig[0], sig[n - 1]].into_iter().min().unwrap_or(0);
+    let top = sig[rough.min(n - 1)].max(lo);
+    let level = lo + (top - lo) / 2;
+    let (mut a, mut b) = (rough.min(n - 1), rough.min(n - 1));
+    while a > 0 && sig[a - 1] > level {
+        a -= 1;
+    }
+    while b + 1 < n && sig[b + 1] > level {
+        b += 1;
+    }
+    (a, b)
+}
+
+/// Bins of [`mark_cut`]'s and [`mark_too_wide`]'s medians: widths in half pixels up to
+/// [`MAX_BAND`] (wider ones count in the last bin); peaks in eighths of an octave over the whole
+/// `u16` range (the first 128 bins).
+const CUT_BINS: usize = 2 * MAX_BAND as usize + 1;
+
+/// Regions of a frame's lines over which [`mark_too_wide`] takes the stripe's median width.
+const WIDTH_REGIONS: usize = 8;
+
+/// Fewest valid lines of a region for its own median width (fewer: the frame's).
+const MIN_REGION_LINES: u32 = 8;
+
+/// The half-pixel bin of a width.
+fn width_bin(w: f32) -> usize {
+    ((w * 2.0) as usize).min(CUT_BINS - 1)
+}
+
+/// Marks valid lines wider than `spread` times the median width of the valid lines of their
+/// region (an eighth of the lines; the whole frame's when the region has fewer than
+/// [`MIN_REGION_LINES`]) [`LineStatus::TooWide`], or [`LineStatus::Saturated`] when their
+/// clipped plateau is longer than `max_plateau`: a halo, a glint or a blur beside the stripe,
+/// measured against the stripe itself rather than a fixed limit (a stripe saturated and wide
+/// everywhere is the stripe). `spread` 0 keeps every line.
+fn mark_too_wide(points: &mut [StripePoint], spread: f32, max_plateau: usize) {
+    if !(spread > 0.0) || points.is_empty() {
+        return;
+    }
+    let median = |points: &[StripePoint]| {
+        let mut widths = [0u32; CUT_BINS];
+        let mut n = 0u32;
+        for p in points.iter().filter(|p| p.status == LineStatus::Valid) {
+            widths[width_bin(p.width)] += 1;
+            n += 1;
+        }
+        (n, (quantile(&widths, n, 0.5) as f32 + 0.5) / 2.0)
+    };
+    let (all, frame_median) = median(points);
+    if all == 0 {
+        return;
+    }
+    let size = points.len().div_ceil(WIDTH_REGIONS);
+    for region in points.chunks_mut(size) {
+        let (n, m) = median(region);
+        let limit = spread
+            * if n >= MIN_REGION_LINES {
+                m
+            } else {
+                frame_median
+            };
+        for p in region
+            .iter_mut()
+            .filter(|p| p.status == LineStatus::Valid && p.width > limit)
+        {
+            let status = if usize::from(p.plateau) > max_plateau {
+                LineStatus::Saturated
+            } else {
+                LineStatus::TooWide
+            };
+            *p = StripePoint {
+                status,
+                ..StripePoint::invalid(*p)
+            };
+        }
+    }
+}
 
 /// Fewest neighbouring narrow, weak lines that [`mark_cut`] takes for a cut: the light sheet
 /// passing a border runs along it, while a dark speck on a surface weakens a line or three.
@@ -83,32 +177,37 @@ fn octave_value(bin: usize) -> f32 {
 }
 
 /// Marks valid lines that are both narrower than `fraction` of the median width of the frame's
-/// valid lines and weaker than half their median peak [`LineStatus::Cut`]: the tail of the light
+/// valid lines and weaker than `peak_fraction` of their median peak [`LineStatus::Cut`]: the tail of the light
 /// sheet on a surface whose border it has passed. Narrow alone is not enough (a real stripe's
 /// width varies with speckle), nor weak alone (a dark surface).
-fn mark_cut(points: &mut [StripePoint], fraction: f32) {
+fn mark_cut(points: &mut [StripePoint], fraction: f32, peak_fraction: f32) {
     if !(fraction > 0.0) {
         return;
     }
-    let width_bin = |p: &StripePoint| ((p.width * 4.0) as usize).min(CUT_BINS - 1);
     let peak_bin = |p: &StripePoint| octave_bin(p.peak);
     let mut widths = [0u32; CUT_BINS];
     let mut peaks = [0u32; CUT_BINS];
     let mut n = 0u32;
     for p in points.iter().filter(|p| p.status == LineStatus::Valid) {
-        widths[width_bin(p)] += 1;
+        widths[width_bin(p.width)] += 1;
         peaks[peak_bin(p)] += 1;
         n += 1;
     }
     if n == 0 {
         return;
     }
-    let width = fraction * (quantile(&widths, n, 0.5) as f32 + 0.5) / 4.0;
-    let peak = 0.5 * octave_value(quantile(&peaks, n, 0.5));
+    let width = fraction * (quantile(&widths, n, 0.5) as f32 + 0.5) / 2.0;
+    let peak = peak_fraction * octave_value(quantile(&peaks, n, 0.5));
     let suspect = |p: &StripePoint| {
         p.status == LineStatus::Valid && p.width < width && f32::from(p.peak) < peak
     };
-    // runs of at least CUT_RUN suspect lines (the gaps of invalid lines inside a run bridged)
+    cut_runs(points, suspect);
+}
+
+/// Marks [`LineStatus::Cut`] the `suspect` lines that make runs of at least [`CUT_RUN`] (the
+/// gaps of invalid lines inside a run bridged): the light sheet passing a border runs along it,
+/// while a dark speck on a surface touches a line or three.
+fn cut_runs(points: &mut [StripePoint], suspect: impl Fn(&StripePoint) -> bool) {
     let mut i = 0;
     while i < points.len() {
         if !suspect(&points[i]) {
@@ -126,13 +225,78 @@ fn mark_cut(points: &mut [StripePoint], fraction: f32) {
         if count >= CUT_RUN {
             for p in points[start..=end].iter_mut().filter(|p| suspect(p)) {
                 *p = StripePoint {
-                    centre: 0.0,
                     status: LineStatus::Cut,
-                    ..*p
+                    ..StripePoint::invalid(*p)
                 };
             }
         }
         i = end + 1;
+    }
+}
+
+/// Drops (NaN) each edge that moved less than `fraction` of its line's other edge since the
+/// last frame (`last`, then set to this frame's edges as found), where that one moved more
+/// than a pixel: an outline or ink cutting a moving band stays put. 0 keeps every edge.
+fn drop_still_edges(points: &mut [StripePoint], last: &mut [[f32; 2]], fraction: f32) {
+    for (p, before) in points.iter_mut().zip(last.iter_mut()) {
+        let now = p.edges;
+        let moved = [0, 1].map(|k| libm::fabsf(now[k] - before[k]));
+        if fraction > 0.0 && moved.iter().all(|m| m.is_finite()) {
+            for k in 0..2 {
+                let other = moved[1 - k];
+                if other > 1.0 && moved[k] < fraction * other {
+                    p.edges[k] = f32::NAN;
+                    p.edge_sigma[k] = 0.0;
+                }
+            }
+        }
+        *before = now;
+    }
+}
+
+/// Softest median ramp ([`StripePoint::ramps`]) of a frame's edges below which
+/// [`drop_sharp_edges`] marks no laser line cut, pixels: a stripe narrower than about 12 px
+/// keeps the narrow-and-weak check alone (its flanks hardly softer than the lens makes an
+/// outline; on the rig's plate at 280 mm the sharp check as well cost 2.4 % of the points).
+const MIN_SOFT_RAMP: f32 = 10.0;
+
+/// Drops (NaN) each edge of the valid lines that rises in less than `fraction` of the median
+/// ramp of that edge over the frame's valid lines ([`StripePoint::ramps`]): the band cut by an
+/// outline, a border or dark ink, sharper than its own flanks. With `cut` (a laser's stripe,
+/// whose centre such a cut pulls), the lines are [`LineStatus::Cut`] instead, where that median
+/// is at least [`MIN_SOFT_RAMP`] and the sharp lines make runs ([`cut_runs`]). `fraction` 0
+/// keeps every edge.
+fn drop_sharp_edges(points: &mut [StripePoint], fraction: f32, cut: bool) {
+    if !(fraction > 0.0) {
+        return;
+    }
+    for k in 0..2 {
+        let mut ramps = [0u32; CUT_BINS];
+        let mut n = 0;
+        for p in points
+            .iter()
+            .filter(|p| p.status == LineStatus::Valid && p.edges[k].is_finite())
+        {
+            ramps[width_bin(p.ramps[k])] += 1;
+            n += 1;
+        }
+        if n == 0 {
+            continue;
+        }
+        let median = (quantile(&ramps, n, 0.5) as f32 + 0.5) / 2.0;
+        let sharp = |p: &StripePoint| {
+            p.status == LineStatus::Valid
+                && p.edges[k].is_finite()
+                && p.ramps[k] < fraction * median
+        };
+        if !cut {
+            for p in points.iter_mut().filter(|p| sharp(p)) {
+                p.edges[k] = f32::NAN;
+                p.edge_sigma[k] = 0.0;
+            }
+        } else if median >= MIN_SOFT_RAMP {
+            cut_runs(points, sharp);
+        }
     }
 }
 
@@ -238,22 +402,53 @@ pub struct StripeConfig {
     pub colour: LaserColour,
     /// Subpixel estimator.
     pub estimator: Estimator,
-    /// Largest accepted full width at half maximum, pixels.
+    /// Largest accepted full width at half maximum, pixels; infinite by default, so that the
+    /// frame's [`band_limit`] and [`Self::width_spread`] decide (a value here only lowers them).
     pub max_width: f32,
     /// Smallest accepted full width at half maximum, pixels.
     pub min_width: f32,
-    /// Longest accepted run of clipped (255) pixels at the peak.
+    /// A line whose run of clipped (255) pixels at the peak is longer than this, and which is
+    /// wider than the stripe around it ([`Self::width_spread`]), is [`LineStatus::Saturated`]
+    /// (a glint) rather than too wide.
     pub max_plateau: usize,
     /// A second peak at least `separation` pixels away and stronger than this fraction of the
     /// first makes the line ambiguous.
     pub ambiguity: f32,
     /// Smallest distance between two peaks that count as different, pixels.
     pub separation: u16,
-    /// Half size of the window read around each peak, pixels (≤ [`MAX_HALF_WINDOW`]).
+    /// Largest half size of the window read around each peak, pixels (≤ [`MAX_HALF_WINDOW`]).
+    /// The window starts at ±6 and grows, centred on the profile's half-maximum run, only until
+    /// the profile comes down to the background at its ends.
     pub half_window: usize,
+    /// A valid line wider than this many times the median width of the frame's valid lines
+    /// around it (an eighth of the lines) is [`LineStatus::TooWide`]: the limit of width that
+    /// remains, measured on the stripe itself (0 keeps every line).
+    pub width_spread: f32,
     /// A valid line narrower than this fraction of the median width of the frame's valid lines,
-    /// and weaker than half their median peak, is [`LineStatus::Cut`] (0 keeps every line).
+    /// and weaker than [`Self::cut_peak`] of their median peak, is [`LineStatus::Cut`] (0 keeps
+    /// every line).
     pub cut_width: f32,
+    /// The signal the edges ([`StripePoint::edges`]) cross: positive for a band whose full
+    /// depth is known (a shadow's contrast scaled by the lamp's full share: 127.5 is half the
+    /// lamp hidden); 0 for half of each band's own height.
+    pub edge_level: f32,
+    /// An edge that rises through the band's height in less than this fraction of the frame's
+    /// median for that edge ([`StripePoint::ramps`]), where that median is softer than the lens
+    /// makes an outline, is dropped (NaN): a border, an object's outline or dark ink cutting a
+    /// wide stripe or a shadow's band, sharper than the band's own flanks (0 keeps every edge).
+    pub edge_ramp: f32,
+    /// A line with an edge dropped by [`Self::edge_ramp`] is [`LineStatus::Cut`] (true: a
+    /// laser's wide stripe cut by a border, its centre pulled), or keeps its other edge (false:
+    /// a shadow's).
+    pub cut_sharp: bool,
+    /// An edge that moved less than this fraction of its line's other edge since the last
+    /// frame, where that one moved more than a pixel, is dropped (NaN): an outline or ink
+    /// cutting a shadow's band stays put while the band moves on (0 keeps every edge).
+    pub edge_motion: f32,
+    /// The peak, as a fraction of the frame's median, below which a narrow line counts as cut:
+    /// 0.5 for a laser (the sheet's tail beyond a border is weak); infinite for a shadow, whose
+    /// band keeps its depth where an outline cuts it.
+    pub cut_peak: f32,
     /// The laser speckle's share of a centre's standard uncertainty, pixels, added in
     /// quadrature to the sensor noise's ([`centre_sigma`]): [`SPECKLE_PX`] unless measured for
     /// the camera and laser at hand.
@@ -269,11 +464,11 @@ pub struct StripeConfig {
 pub const SPECKLE_PX: f32 = 0.34;
 
 impl StripeConfig {
-    /// Defaults for a method and axis: whole frame, a red laser, centroid estimator (the most robust on real
-    /// webcam profiles, see the README), widths 1.5–14 px (narrower is
-    /// undersampled: no subpixel centre in it), plateaus
-    /// up to 12 px, ambiguity 0.5, separation 10 px, window ±24 px (the background at
-    /// the window's ends must be off the widest accepted stripe: 3σ for 14 px FWHM).
+    /// Defaults for a method and axis: whole frame, a red laser, centroid estimator (the most
+    /// robust on real webcam profiles, see the README), widths from 1.5 px (narrower is
+    /// undersampled: no subpixel centre in it) up to the frame's [`band_limit`] and 3× the
+    /// median width around the line, plateaus up to 12 px, ambiguity 0.5, separation 10 px
+    /// (more once the scan's stripe is known to be wider), windows up to ±[`MAX_HALF_WINDOW`].
     pub const fn new(method: Method, axis: Axis) -> Self {
         Self {
             axis,
@@ -281,13 +476,19 @@ impl StripeConfig {
             method,
             colour: LaserColour::Red,
             estimator: Estimator::Centroid,
-            max_width: 14.0,
+            max_width: f32::INFINITY,
             min_width: 1.5,
             max_plateau: 12,
             ambiguity: 0.5,
             separation: 10,
-            half_window: 24,
+            half_window: MAX_HALF_WINDOW,
+            width_spread: 3.0,
             cut_width: 0.5,
+            cut_peak: 0.5,
+            edge_level: 0.0,
+            edge_ramp: 0.5,
+            cut_sharp: true,
+            edge_motion: 0.2,
             speckle_px: SPECKLE_PX,
         }
     }
@@ -302,7 +503,7 @@ pub enum LineStatus {
     NoStripe,
     /// A second, separate peak nearly as strong (reflection, glint, second laser).
     Ambiguous,
-    /// A clipped plateau wider than allowed (glint or specular highlight).
+    /// A clipped plateau, wider than the stripe around it (glint or specular highlight).
     Saturated,
     /// Wider than allowed, sitting on a halo of scattered light much wider than the stripe, or
     /// with a second hump beside it in its window (a glint or reflection next to it) that would
@@ -369,6 +570,20 @@ pub struct StripePoint {
     pub sigma: f32,
     /// Valid, or why not.
     pub status: LineStatus,
+    /// Longest run of clipped pixels at the peak.
+    pub plateau: u16,
+    /// The profile's half-maximum crossings, image coordinates along the line: where the signal
+    /// rises through half its height and where it falls through it again (the two edges of a
+    /// shadow's band, [`Self::edge`]); NaN where the crossing is not inside the window read, and
+    /// both NaN unless `status` is valid.
+    pub edges: [f32; 2],
+    /// Standard uncertainty of each edge, pixels: the noise over the profile's slope at the
+    /// crossing, and the speckle's share, in quadrature; 0 where the edge is NaN.
+    pub edge_sigma: [f32; 2],
+    /// How many pixels each edge takes to rise through the band's height (the height over the
+    /// flank's slope): a shadow's penumbra, the same all along its edge, or an outline's or an
+    /// ink's edge, as sharp as the lens makes it.
+    pub ramps: [f32; 2],
 }
 
 impl StripePoint {
@@ -378,7 +593,55 @@ impl StripePoint {
         width: 0.0,
         sigma: 0.0,
         status: LineStatus::NoStripe,
+        plateau: 0,
+        edges: [f32::NAN; 2],
+        edge_sigma: [0.0; 2],
+        ramps: [0.0; 2],
     };
+
+    /// `p` without its centre and edges (its status to be set).
+    const fn invalid(p: Self) -> Self {
+        Self {
+            centre: 0.0,
+            sigma: 0.0,
+            edges: [f32::NAN; 2],
+            edge_sigma: [0.0; 2],
+            ramps: [0.0; 2],
+            ..p
+        }
+    }
+
+    /// What [`Locate`] picks of a valid line: its centre, or one of its edges, with its
+    /// standard uncertainty; `None` where that is missing.
+    pub fn located(&self, locate: Locate) -> Option<(f32, f32)> {
+        if self.status != LineStatus::Valid {
+            return None;
+        }
+        let (at, sigma) = match locate {
+            Locate::Centre => (self.centre, self.sigma),
+            Locate::RisingEdge => (self.edges[0], self.edge_sigma[0]),
+            Locate::FallingEdge => (self.edges[1], self.edge_sigma[1]),
+        };
+        at.is_finite().then_some((at, sigma))
+    }
+
+    /// Edge `k` (0 rising, 1 falling), NaN where there is none.
+    pub fn edge(&self, k: usize) -> f32 {
+        self.edges.get(k).copied().unwrap_or(f32::NAN)
+    }
+}
+
+/// What of a line's profile becomes its point: the stripe's centre (a laser), or one edge of the
+/// band (a shadow: each edge is the border of its own plane of light).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Locate {
+    /// The centre of the stripe ([`StripeConfig::estimator`]).
+    #[default]
+    Centre,
+    /// Where the signal rises through half the band's height, the lower coordinate.
+    RisingEdge,
+    /// Where it falls through it again, the higher coordinate.
+    FallingEdge,
 }
 
 /// How far the centroid's error exceeds the Cramér–Rao bound of a Gaussian profile
@@ -433,6 +696,13 @@ pub struct Extraction<'a> {
     /// at least a sixth of the threshold's margin; LIM: a sixth of the threshold above the
     /// background's bright tail, a rough figure).
     pub noise: f32,
+    /// The widest band this frame accepts, pixels: [`band_limit`] of its width, or
+    /// [`StripeConfig::max_width`] when that is less.
+    pub width_limit: f32,
+    /// The median width of the valid lines of the scan's last frame that had any, pixels (0
+    /// before): the stripe's width measured on the data, which sets how far apart two peaks must
+    /// be to compete (at least 1.5 of it).
+    pub typical_width: f32,
 }
 
 impl Extraction<'_> {
@@ -491,6 +761,12 @@ pub struct Extractor<const W: usize> {
     /// Runs of continuous centres: union-find parents, then each line's run length.
     parent: [u16; W],
     run: [u16; W],
+    /// The median width of the valid lines of the last frame that had any (0 before).
+    typical_width: f32,
+    /// Each line's edges in the last frame, as found (NaN where none).
+    last_edges: [[f32; 2]; W],
+    /// The last extraction's lines, first line, threshold, noise and width limit.
+    last: (usize, usize, u16, f32, f32),
 }
 
 impl<const W: usize> Default for Extractor<W> {
@@ -590,6 +866,22 @@ impl<const W: usize> Extractor<W> {
             out: [StripePoint::NONE; W],
             parent: [0; W],
             run: [0; W],
+            typical_width: 0.0,
+            last_edges: [[f32::NAN; 2]; W],
+            last: (0, 0, 0, 0.0, 0.0),
+        }
+    }
+
+    /// The last frame's extraction again (nothing before the first).
+    pub fn last(&self) -> Extraction<'_> {
+        let (lines, first_line, threshold, noise, width_limit) = self.last;
+        Extraction {
+            points: &self.out[..lines],
+            first_line,
+            threshold,
+            noise,
+            width_limit,
+            typical_width: self.typical_width,
         }
     }
 
@@ -631,13 +923,18 @@ impl<const W: usize> Extractor<W> {
                 (tail, 3 * (tail + 1), 0.0)
             }
         };
+        // Two peaks compete only when further apart than the stripe is wide.
+        let separation = cfg
+            .separation
+            .max(libm::ceilf(1.5 * self.typical_width).min(f32::from(u16::MAX)) as u16);
         match cfg.axis {
             Axis::Columns if roi.width <= BYTE_PASS_WIDTH => {
-                self.track_columns_u8(&io, cfg.separation, floor)
+                self.track_columns_u8(&io, separation, floor)
             }
-            Axis::Columns => self.track_columns(&io, cfg.separation, floor),
-            Axis::Rows => self.track_rows(&io, cfg.separation, floor),
+            Axis::Columns => self.track_columns(&io, separation, floor),
+            Axis::Rows => self.track_rows(&io, separation, floor),
         }
+        let width_limit = band_limit(frame.width()).min(cfg.max_width);
         let (threshold, noise) = match cfg.method {
             Method::Dim => (threshold, dim_noise),
             Method::Lim => {
@@ -654,7 +951,7 @@ impl<const W: usize> Extractor<W> {
                 &io,
                 cfg,
                 (line, rough),
-                length,
+                (length, width_limit),
                 (threshold, noise),
                 (&mut sig, &mut clipped),
             );
@@ -683,29 +980,43 @@ impl<const W: usize> Extractor<W> {
                         &io,
                         cfg,
                         (line, second),
-                        length,
+                        (length, width_limit),
                         (threshold, noise),
                         (&mut sig, &mut clipped),
                     )
                 })
                 .filter(|q| q.status == LineStatus::Valid && continues(q.centre));
             self.out[line] = candidate.unwrap_or(StripePoint {
-                centre: 0.0,
-                sigma: 0.0,
                 status: LineStatus::Isolated,
-                ..p
+                ..StripePoint::invalid(p)
             });
         }
-        mark_cut(&mut self.out[..lines], cfg.cut_width);
-        Ok(Extraction {
-            points: &self.out[..lines],
-            first_line: match cfg.axis {
-                Axis::Columns => roi.x,
-                Axis::Rows => roi.y,
-            },
-            threshold,
-            noise,
-        })
+        mark_too_wide(&mut self.out[..lines], cfg.width_spread, cfg.max_plateau);
+        mark_cut(&mut self.out[..lines], cfg.cut_width, cfg.cut_peak);
+        drop_still_edges(
+            &mut self.out[..lines],
+            &mut self.last_edges[..lines],
+            cfg.edge_motion,
+        );
+        drop_sharp_edges(&mut self.out[..lines], cfg.edge_ramp, cfg.cut_sharp);
+        let mut widths = [0u32; CUT_BINS];
+        let mut n = 0;
+        for p in self.out[..lines]
+            .iter()
+            .filter(|p| p.status == LineStatus::Valid)
+        {
+            widths[width_bin(p.width)] += 1;
+            n += 1;
+        }
+        if n > 0 {
+            self.typical_width = (quantile(&widths, n, 0.5) as f32 + 0.5) / 2.0;
+        }
+        let first_line = match cfg.axis {
+            Axis::Columns => roi.x,
+            Axis::Rows => roi.y,
+        };
+        self.last = (lines, first_line, threshold, noise, width_limit);
+        Ok(self.last())
     }
 
     fn reset(&mut self, lines: usize) {
@@ -895,7 +1206,7 @@ impl<const W: usize> Extractor<W> {
         io: &Io<'_, '_>,
         cfg: &StripeConfig,
         (line, rough): (usize, usize),
-        length: usize,
+        (length, width_limit): (usize, f32),
         (threshold, noise): (u16, f32),
         scratch: (&mut [u16; MAX_WINDOW], &mut [bool; MAX_WINDOW]),
     ) -> StripePoint {
@@ -904,18 +1215,32 @@ impl<const W: usize> Extractor<W> {
             return point;
         }
         let (sig, clipped) = scratch;
-        // A narrow window first; the full one only when the profile has not come down to the
-        // background at its ends (a wide stripe, or a halo around it).
-        let mut half = cfg.half_window.min(NARROW_HALF_WINDOW);
+        // A narrow window first; a wider one, centred on the profile's half-maximum run, only
+        // while the profile has not come down to the background at its ends (a wide stripe, a
+        // shadow's band). A halo that never comes down stops the growth once the window holds
+        // the run with room either side.
+        let (mut centre, mut half) = (rough, cfg.half_window.min(NARROW_HALF_WINDOW));
         let (start, n) = loop {
-            let start = rough.saturating_sub(half);
-            let end = (rough + half + 1).min(length);
+            let start = centre.saturating_sub(half).min(rough);
+            let end = (centre + half + 1).min(length).max(rough + 1);
             let n = end - start;
             io.window(line, start, &mut sig[..n], &mut clipped[..n]);
             if half >= cfg.half_window || settled(&sig[..n], rough - start) {
                 break (start, n);
             }
-            half = cfg.half_window;
+            let (a, b) = half_run(&sig[..n], rough - start);
+            let run = b - a + 1;
+            let touches = a == 0 || b + 1 == n;
+            let next = if touches {
+                2 * half.max(12)
+            } else {
+                (run + run / 3 + NARROW_HALF_WINDOW).max(HALO_HALF_WINDOW)
+            };
+            if next <= half {
+                break (start, n);
+            }
+            centre = start + (a + b) / 2;
+            half = next.min(cfg.half_window);
         };
         let end = start + n;
         let window = Window {
@@ -931,16 +1256,24 @@ impl<const W: usize> Extractor<W> {
         let shape = window.shape();
         point.peak = sig[shape.peak_index];
         point.width = shape.fwhm;
+        point.plateau = shape.clipped_run.min(usize::from(u16::MAX)) as u16;
         let t3 = 3 * u32::from(threshold);
-        let strong_second = u32::from(self.second[line]) > t3
+        // a second peak inside the same band (the signal between the two never below half of
+        // the second's) is the band's own top, not a rival
+        let second_at = usize::from(self.second_at[line]);
+        let same_band = second_at >= start && second_at < end && {
+            let (a, b) = (rough.min(second_at) - start, rough.max(second_at) - start);
+            let valley = sig[a..=b].iter().copied().min().unwrap_or(0);
+            3 * u32::from(valley) >= u32::from(self.second[line]) / 2
+        };
+        let strong_second = !same_band
+            && u32::from(self.second[line]) > t3
             && f32::from(self.second[line]) > cfg.ambiguity * f32::from(self.best[line]);
         point.status = if point.peak < threshold {
             LineStatus::NoStripe
         } else if strong_second {
             LineStatus::Ambiguous
-        } else if shape.clipped_run > cfg.max_plateau {
-            LineStatus::Saturated
-        } else if shape.fwhm > cfg.max_width
+        } else if shape.fwhm > width_limit
             || shape.spread > 2.0 * shape.fwhm + 1.0
             || shape.stray as f32 > shape.fwhm
             || shape.stray_peak > 1.0
@@ -979,6 +1312,16 @@ impl<const W: usize> Extractor<W> {
                     centre_sigma(shape.height, shape.fwhm, noise),
                     cfg.speckle_px,
                 );
+                // the edges, each with the noise over its flank's slope (averaged over the
+                // samples its line was fitted to)
+                for (k, e) in window.edges(&shape, cfg.edge_level).into_iter().enumerate() {
+                    if let Some(e) = e {
+                        point.edges[k] = (origin + start) as f32 + e.at;
+                        point.ramps[k] = e.height / e.slope;
+                        let sigma = noise / (e.slope * libm::sqrtf(e.samples as f32));
+                        point.edge_sigma[k] = libm::hypotf(sigma.max(CENTRE_FLOOR), cfg.speckle_px);
+                    }
+                }
             }
             _ => point.status = LineStatus::BadProfile,
         }
@@ -1212,9 +1555,9 @@ fn checked<const W: usize>(
         return Err(StripeError::NoReference);
     }
     if cfg.half_window == 0 || cfg.half_window > MAX_HALF_WINDOW {
-        return Err(StripeError::BadConfig("half_window must be 1..=48"));
+        return Err(StripeError::BadConfig("half_window must be 1..=112"));
     }
-    if !(cfg.min_width >= 0.0 && cfg.max_width >= cfg.min_width) {
+    if !(cfg.min_width >= 0.0 && cfg.max_width >= cfg.min_width) || cfg.width_spread.is_nan() {
         return Err(StripeError::BadConfig("need 0 ≤ min_width ≤ max_width"));
     }
     if !(cfg.cut_width >= 0.0 && cfg.cut_width < 1.0) {

@@ -24,6 +24,8 @@ struct File {
     board: Option<BoardFile>,
     objects: Option<Vec<ObjectEntry>>,
     laser: Option<LaserFile>,
+    /// A shadow sweep: the laser's source is the lamp (see [`crate::ShadowSpec`]).
+    shadow: Option<ShadowFile>,
     sensor: Option<SensorFile>,
     views: Option<Vec<ViewFile>>,
     /// The set-up seen from a camera tilted down by this many degrees: the objects (written
@@ -183,6 +185,15 @@ enum ObjectFile {
 
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
+struct ShadowFile {
+    lamp_radius_mm: Option<f64>,
+    power: Option<f64>,
+    rod_radius_mm: Option<f64>,
+    rod_distance_mm: Option<f64>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
 struct LaserFile {
     source: Option<[f64; 3]>,
     sweep: Option<[f64; 2]>,
@@ -325,6 +336,15 @@ impl Scene {
         }
         if let Some(l) = f.laser {
             l.apply(&mut s.laser);
+        }
+        if let Some(sh) = f.shadow {
+            let mut spec = crate::ShadowSpec::DESK;
+            set(&mut spec.lamp_radius_mm, sh.lamp_radius_mm);
+            set(&mut spec.power, sh.power);
+            set(&mut spec.rod_radius_mm, sh.rod_radius_mm);
+            set(&mut spec.rod_distance_mm, sh.rod_distance_mm);
+            spec.check()?;
+            s.shadow = Some(spec);
         }
         if let Some(views) = f.views {
             if views.len() > MAX_VIEWS {

@@ -90,6 +90,9 @@ pub struct Rig {
     pub(crate) texels: Vec<Texel>,
     /// The ambient image, blurred once.
     pub(crate) ambient: Vec<[f32; 3]>,
+    /// A shadow sweep's lamp-lit image without the rod (supersampled, before the lens blur);
+    /// empty without a shadow.
+    pub(crate) lamp: Vec<[f64; 3]>,
     /// Normalised 1-D lens-blur kernel (odd length; `[1]` without blur).
     pub(crate) kernel: Vec<f64>,
 }
@@ -150,6 +153,7 @@ impl Rig {
             ],
             normalised: vec![[f32::NAN; 2]; w * h],
             ambient: Vec::new(),
+            lamp: Vec::new(),
             kernel: gaussian_kernel(scene_blur),
         };
         for v in 0..h {
@@ -198,6 +202,10 @@ impl Rig {
             .into_iter()
             .map(|p| p.map(|v| v as f32))
             .collect();
+        if let Some(shadow) = rig.scene.shadow {
+            shadow.check()?;
+            rig.lamp = rig.lamp_image(&shadow, &[]);
+        }
         Ok(rig)
     }
 
@@ -500,6 +508,17 @@ impl Rig {
                 .facing_camera();
             return Ok((l.source, plane));
         }
+        let (source, along, aim) = self.sweep_at(t);
+        let plane = Plane::from_point_normal(&source, &along.cross(&(aim - source)))
+            .map_err(RigError::Geometry)?
+            .facing_camera();
+        Ok((source, plane))
+    }
+
+    /// The hand at time `t` (frame periods): the source's position, the (rolled) horizontal
+    /// direction the light plane holds, and the aim point on the crease line.
+    fn sweep_at(&self, t: f64) -> (Point3<f64>, Vector3<f64>, Point3<f64>) {
+        let l = &self.scene.laser;
         let t = t.clamp(0.0, (l.frames - 1) as f64);
         let shake = |k: usize| -> [f64; 4] {
             let mut rng =
@@ -520,10 +539,196 @@ impl Rig {
         // the plane holds the (rolled) horizontal direction and the aim point on the crease line
         let along = Rotation3::from_axis_angle(&Vector3::z_axis(), roll) * Vector3::x();
         let aim = Point3::new(0.0, height, self.scene.board.distance);
-        let plane = Plane::from_point_normal(&source, &along.cross(&(aim - source)))
-            .map_err(RigError::Geometry)?
-            .facing_camera();
-        Ok((source, plane))
+        (source, along, aim)
+    }
+
+    /// The rod of a shadow sweep at time `t` (frame periods): a point of its axis and the axis's
+    /// direction. It lies in the plane the laser would have at `t`, `rod_distance_mm` from the
+    /// laser's source along the plane's aim (the hand's jitter and wobble move it; the lamp
+    /// stays at the source).
+    fn rod_at(&self, shadow: &ShadowSpec, t: f64) -> Result<(Point3<f64>, Vector3<f64>), RigError> {
+        let (source, along, aim) = self.sweep_at(t);
+        let towards = aim - source;
+        if !(towards.norm() > shadow.rod_distance_mm) {
+            return Err(RigError::Scene(
+                "shadow: the rod must stand between the lamp and the board".into(),
+            ));
+        }
+        Ok((source + towards.normalize() * shadow.rod_distance_mm, along))
+    }
+
+    /// The two planes of a shadow sweep's frame `index` (at the middle of its exposure): through
+    /// the lamp's centre and tangent to the rod — where half the lamp is hidden, the edges'
+    /// truth.
+    ///
+    /// # Errors
+    /// [`RigError::NoSuchFrame`] past the sweep; [`RigError::Scene`] without a shadow.
+    pub fn shadow_planes(&self, index: usize) -> Result<[Plane<f64>; 2], RigError> {
+        let shadow = self
+            .scene
+            .shadow
+            .ok_or_else(|| RigError::Scene("the scene has no shadow sweep".into()))?;
+        self.laser(index)?;
+        // the lamp stands still; the hand's jitter and wobble move the rod
+        let lamp = self.scene.laser.source;
+        let (a, u) = self.rod_at(&shadow, index as f64)?;
+        let w = (a - lamp) - u * (a - lamp).dot(&u);
+        let d = w.norm();
+        let (wh, side) = (w / d, u.cross(&(w / d)));
+        let g = (shadow.rod_radius_mm / d).asin();
+        let plane = |sign: f64| {
+            let dir = wh * g.cos() + side * (sign * g.sin());
+            Plane::from_point_normal(&lamp, &u.cross(&dir)).map_err(RigError::Geometry)
+        };
+        Ok([plane(1.0)?, plane(-1.0)?])
+    }
+
+    /// The share of the lamp's light the rod hides from `p` (0 to 1): the lamp a disc of
+    /// `lamp_radius_mm` seen from `p`, the rod a band across it (in the plane across the rod).
+    fn occlusion(
+        &self,
+        shadow: &ShadowSpec,
+        p: &Point3<f64>,
+        lamp: &Point3<f64>,
+        (a, u): (&Point3<f64>, &Vector3<f64>),
+    ) -> f64 {
+        let across = |v: Vector3<f64>| v - u * v.dot(u);
+        let (l, r) = (across(lamp - p), across(a - p));
+        let (dl, dr) = (l.norm(), r.norm());
+        // the rod must lie between the point and the lamp
+        if !(dr > shadow.rod_radius_mm && dr < dl && l.dot(&r) > 0.0) {
+            return 0.0;
+        }
+        let e2 = u.cross(&(l / dl));
+        let delta = (r / dr).dot(&e2).asin();
+        let beta = (shadow.rod_radius_mm / dr).min(1.0).asin();
+        let alpha = (shadow.lamp_radius_mm / (lamp - p).norm()).min(1.0).asin();
+        if alpha <= 1e-9 {
+            return if delta.abs() < beta { 1.0 } else { 0.0 };
+        }
+        // the share of a unit disc left of x = s
+        let left = |s: f64| {
+            let s = s.clamp(-1.0, 1.0);
+            (std::f64::consts::FRAC_PI_2 + s.asin() + s * (1.0 - s * s).sqrt())
+                / std::f64::consts::PI
+        };
+        left((delta + beta) / alpha) - left((delta - beta) / alpha)
+    }
+
+    /// The lamp's irradiance at a surface point (per unit albedo), without the rod: in units of
+    /// the ambient light, falling with the square of the distance, nothing where an object
+    /// stands between.
+    fn lamp_light(&self, shadow: &ShadowSpec, p: &Point3<f64>, n: &Vector3<f64>) -> f64 {
+        let lamp = self.scene.laser.source;
+        let to = lamp - p;
+        let dist2 = to.norm_squared();
+        let cos = n.dot(&to) / dist2.sqrt();
+        if cos <= 0.0 || self.shadowed(p, &lamp) {
+            return 0.0;
+        }
+        shadow.power * cos * 1e6 / dist2
+    }
+
+    /// The lamp-lit image of a shadow sweep (RGB radiance before the lens blur), the rod at the
+    /// times `rods` (averaged: the exposure's motion) or absent (`rods` empty).
+    fn lamp_image(
+        &self,
+        shadow: &ShadowSpec,
+        rods: &[(Point3<f64>, Vector3<f64>)],
+    ) -> Vec<[f64; 3]> {
+        let (w, h) = (self.scene.width as usize, self.scene.height as usize);
+        let lamp = self.scene.laser.source;
+        let occ_at = |p: &Point3<f64>| {
+            rods.iter()
+                .map(|(a, u)| self.occlusion(shadow, p, &lamp, (a, u)))
+                .sum::<f64>()
+                / rods.len().max(1) as f64
+        };
+        let occ: Vec<f64> = self
+            .texels
+            .iter()
+            .map(|t| {
+                if t.surface == u16::MAX {
+                    0.0
+                } else {
+                    occ_at(&texel_point(t))
+                }
+            })
+            .collect();
+        let mut out = vec![[0.0; 3]; w * h];
+        for v in 0..h {
+            for u in 0..w {
+                let i = v * w + u;
+                let varies = (occ[i] > 1e-4 && occ[i] < 1.0 - 1e-4)
+                    || [(-1i64, 0i64), (1, 0), (0, -1), (0, 1)]
+                        .iter()
+                        .any(|(du, dv)| {
+                            let (uu, vv) = (u as i64 + du, v as i64 + dv);
+                            uu >= 0
+                                && vv >= 0
+                                && (uu as usize) < w
+                                && (vv as usize) < h
+                                && (occ[vv as usize * w + uu as usize] - occ[i]).abs() > 1e-4
+                        });
+                // without the rod, or where the rod's share is the same all over the pixel,
+                // the lamp-lit image made once (supersampled: the objects' outlines too);
+                // otherwise the rod's share per sub-sample
+                if !self.lamp.is_empty() && !varies {
+                    out[i] = self.lamp[i].map(|v| v * (1.0 - occ[i]));
+                    continue;
+                }
+                let n = SUPERSAMPLE * SUPERSAMPLE;
+                let mut sum = [0.0; 3];
+                for (su, sv) in subpixels(u, v, SUPERSAMPLE) {
+                    let Some(hit) = self.ray_fast(su, sv).and_then(|d| self.cast(&d)) else {
+                        continue;
+                    };
+                    let e = self.lamp_light(shadow, &hit.point, &hit.normal)
+                        * (1.0 - if varies { occ_at(&hit.point) } else { occ[i] });
+                    let a = self.albedo_of(hit.surface, &hit.point);
+                    for c in 0..3 {
+                        sum[c] += e * a[c] / n as f64;
+                    }
+                }
+                out[i] = sum;
+            }
+        }
+        out
+    }
+
+    /// Frame `index` of a shadow sweep, or its reference (`None`: the rod away): ambient light
+    /// and the lamp's, through the lens.
+    fn shadow_radiance(
+        &self,
+        shadow: &ShadowSpec,
+        index: Option<usize>,
+    ) -> Result<Vec<[f32; 3]>, RigError> {
+        let rods = match index {
+            None => Vec::new(),
+            Some(k) => {
+                self.laser(k)?;
+                let e = self.scene.exposure;
+                let times: Vec<f64> = if e == 0.0 {
+                    vec![k as f64]
+                } else {
+                    (0..MOTION_SAMPLES)
+                        .map(|i| k as f64 + e * ((i as f64 + 0.5) / MOTION_SAMPLES as f64 - 0.5))
+                        .collect()
+                };
+                times
+                    .iter()
+                    .map(|&t| self.rod_at(shadow, t))
+                    .collect::<Result<_, _>>()?
+            }
+        };
+        let (w, h) = (self.scene.width as usize, self.scene.height as usize);
+        let lit = blur(&self.lamp_image(shadow, &rods), w, h, &self.kernel);
+        Ok(self
+            .ambient
+            .iter()
+            .zip(lit)
+            .map(|(a, l)| core::array::from_fn(|c| a[c] + l[c] as f32))
+            .collect())
     }
 
     /// The light planes the exposure of frame `index` averages (one without motion blur).
@@ -683,6 +888,11 @@ impl Rig {
 
     /// The reference frame: ambient light only, laser off.
     pub fn reference(&self) -> Rgb8 {
+        if let Some(shadow) = &self.scene.shadow
+            && let Ok(r) = self.shadow_radiance(shadow, None)
+        {
+            return self.expose(&r, u64::MAX);
+        }
         self.expose(&self.radiance(-1.0, &[]), u64::MAX)
     }
 
@@ -691,6 +901,9 @@ impl Rig {
     /// # Errors
     /// [`RigError::NoSuchFrame`] past the sweep.
     pub fn frame(&self, index: usize) -> Result<Rgb8, RigError> {
+        if let Some(shadow) = &self.scene.shadow {
+            return Ok(self.expose(&self.shadow_radiance(shadow, Some(index))?, index as u64));
+        }
         let lasers = self.exposure_planes(index)?;
         Ok(self.expose(&self.radiance(index as f64, &lasers), index as u64))
     }

@@ -240,6 +240,62 @@ pub struct Scene {
     /// Objects that stay put in every view (indices into `objects`): the table or stand a
     /// turntable sits on, which the hand turns do not move.
     pub fixed: Vec<usize>,
+    /// A shadow sweep instead of a laser's: a lamp at the laser's source lights the scene and a
+    /// rod held in front of it casts its shadow, swept as the laser would be (its `sweep`,
+    /// `frames`, wobble and jitter); the reference frame is the scene lit without the rod.
+    pub shadow: Option<ShadowSpec>,
+}
+
+/// The lamp and the rod of a shadow sweep ([`Scene::shadow`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ShadowSpec {
+    /// Radius of the lamp's bulb, mm: a disc of light seen from each point (its penumbra).
+    pub lamp_radius_mm: f64,
+    /// The lamp's irradiance 1 m away, in units of the ambient light.
+    pub power: f64,
+    /// Radius of the rod, mm.
+    pub rod_radius_mm: f64,
+    /// Distance from the lamp to the rod's axis, mm, towards where the laser would aim.
+    pub rod_distance_mm: f64,
+}
+
+impl ShadowSpec {
+    /// A desk lamp with a 3 mm bulb of power 0.25, and a rod of 4 mm radius 250 mm in front of it.
+    pub const DESK: ShadowSpec = ShadowSpec {
+        lamp_radius_mm: 3.0,
+        power: 0.25,
+        rod_radius_mm: 4.0,
+        rod_distance_mm: 250.0,
+    };
+
+    /// Whether the values make a lamp and a rod in front of it.
+    ///
+    /// # Errors
+    /// [`RigError::Scene`] naming the value.
+    pub fn check(&self) -> Result<(), RigError> {
+        let bad = |why: String| Err(RigError::Scene(format!("shadow: {why}")));
+        if !(self.lamp_radius_mm >= 0.0 && self.lamp_radius_mm <= 100.0) {
+            return bad(format!(
+                "lamp_radius_mm {} (need 0–100)",
+                self.lamp_radius_mm
+            ));
+        }
+        if !(self.power > 0.0 && self.power.is_finite()) {
+            return bad(format!("power {} must be positive", self.power));
+        }
+        if !(self.rod_radius_mm > 0.0 && self.rod_radius_mm <= 100.0) {
+            return bad(format!("rod_radius_mm {} (need 0–100)", self.rod_radius_mm));
+        }
+        if !(self.rod_distance_mm > self.rod_radius_mm + self.lamp_radius_mm
+            && self.rod_distance_mm.is_finite())
+        {
+            return bad(format!(
+                "rod_distance_mm {} must clear the lamp and the rod",
+                self.rod_distance_mm
+            ));
+        }
+        Ok(())
+    }
 }
 
 /// The printed turntable disc ([`scanner_calib::disc`]) under the objects: a [`Shape::Disc`]
@@ -368,6 +424,7 @@ impl Scene {
             object_pose: Isometry3::identity(),
             turntable: None,
             fixed: Vec::new(),
+            shadow: None,
         }
     }
 

@@ -75,6 +75,12 @@ pub struct ScanData {
     pub camera_dropped: Option<u64>,
     /// …and its frame period, ms.
     pub camera_period_ms: Option<f64>,
+    /// A shadow sweep's bands (`--shadow`).
+    pub shadow: Option<ShadowData>,
+    /// Lines refused because their stripe was wider than the frame's limit.
+    pub beyond_width_limit: u64,
+    /// That limit, pixels (64 px or 4 % of the image width, whichever is more).
+    pub width_limit_px: f32,
     /// …and the frames it sent that did not decode (corrupt MJPEG frames, skipped).
     pub camera_undecodable: Option<u64>,
 }
@@ -177,8 +183,26 @@ impl From<&ScanReport> for ScanData {
             camera_dropped: r.pace.map(|p| p.dropped),
             camera_period_ms: r.pace.and_then(|p| p.period_ms()),
             camera_undecodable: r.pace.map(|p| p.undecodable),
+            beyond_width_limit: r.beyond_limit.0,
+            width_limit_px: r.beyond_limit.1,
+            shadow: r.shadow.map(|b| ShadowData {
+                band_lines: b.lines,
+                edged_lines: b.edged,
+                blurred: b.blurred(),
+            }),
         }
     }
+}
+
+/// What a shadow sweep's frames showed of the band.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct ShadowData {
+    /// Lines, over all frames, where the band was found.
+    pub band_lines: u64,
+    /// Of them, lines where at least one of its edges was found.
+    pub edged_lines: u64,
+    /// The band was found but its edges almost never: the edges are a blur.
+    pub blurred: bool,
 }
 
 /// One sheet of the board as fitted.

@@ -113,6 +113,16 @@ pub struct ScanArgs {
     /// FabScanPi's), milliseconds.
     #[arg(long, default_value_t = 5000, value_parser = clap::value_parser!(u64).range(1..=600_000))]
     pub motor_timeout_ms: u64,
+    /// A shadow sweep: no laser; a straight rod held in front of a small lamp casts a shadow
+    /// swept over the object and both sheets of the board; each edge of the shadow's band is a
+    /// plane of light (docs/shadow-scanner.md). Frames that can be read twice (a folder, a
+    /// recording, the rig) are: each pixel's brightest over the sweep is its value lit without
+    /// the shadow and its darkest its value in the shadow's core (Bouguet and Perona's maximum
+    /// and minimum). From a camera, or with `--reference FILE`, the reference (the first frames,
+    /// before the rod enters) is the lit scene and the shadow's core is taken for black.
+    #[arg(long, conflicts_with_all = ["fixed_laser", "lim", "laser", "colour"])]
+    pub shadow: bool,
+
     /// Send the stripe's board points too.
     #[arg(long)]
     pub keep_board: bool,
@@ -404,6 +414,7 @@ pub fn plan(a: &ScanArgs) -> Result<ScanPlan> {
         head: o.head,
         find_axis: o.find_axis,
         fixed: o.fixed,
+        shadow: a.shadow,
         disc: a.disc.map(scanner_calib::disc::Disc::new),
         header_every: 30,
         status_every: 30,
@@ -469,6 +480,11 @@ pub(super) fn open(a: &ScanArgs) -> Result<OpenedSource> {
         );
     }
     let mut source = open_source(a, format, &opts)?;
+    // a shadow sweep that can be read twice: its brightest and darkest
+    let extremes = a.shadow && a.reference.is_none() && source.frames_left().is_some();
+    if extremes {
+        source = sweep_extremes(a, format, &opts, source)?;
+    }
     if let Some(spec) = &a.motor {
         source = turning(a, spec, source)?;
     }
@@ -504,6 +520,10 @@ pub(super) fn open(a: &ScanArgs) -> Result<OpenedSource> {
         },
     };
     let mut head = head_config(a);
+    if extremes {
+        // the contrast is the share of the lamp's light hidden: half of it is the edge
+        head.stripe.edge_level = 127.5;
+    }
     if let Some(f) = &fixed {
         head = fixed_head(head, f);
         // frames beyond one turn and its closing frame would lay the object over itself
@@ -574,6 +594,96 @@ fn turning(a: &ScanArgs, spec: &str, source: Box<dyn FrameSource>) -> Result<Box
         i64::from(steps),
         frames,
     )))
+}
+
+/// `source` with each pixel's value lit without the shadow for its reference and its value in
+/// the shadow's core for [`FrameSource::darkest`], from two readings of the sweep beforehand
+/// (two more openings of the same source): the brightest and the darkest of each byte, then the
+/// mean of the values in the top quarter of that range and of those in the bottom quarter. The
+/// extremes alone stand a few noise σ beyond the values they stand for, which would widen every
+/// band by a third of a pixel on the rig; the means do not.
+fn sweep_extremes(
+    a: &ScanArgs,
+    format: PixelFormat,
+    opts: &SourceOptions,
+    source: Box<dyn FrameSource>,
+) -> Result<Box<dyn FrameSource>> {
+    let mut first = open_source(a, format, opts)?;
+    let mut both: Option<(crate::source::OwnedFrame, crate::source::OwnedFrame)> = None;
+    while let Some(frame) = first.next_frame()? {
+        match &mut both {
+            None => both = Some((frame.clone(), frame)),
+            Some((hi, lo)) => {
+                for ((h, l), v) in hi.data.iter_mut().zip(&mut lo.data).zip(&frame.data) {
+                    *h = (*h).max(*v);
+                    *l = (*l).min(*v);
+                }
+            }
+        }
+    }
+    let Some((mut hi, mut lo)) = both else {
+        bail!("--shadow: {} has no frames", a.source);
+    };
+    let n = hi.data.len();
+    let (mut sums, mut counts) = (
+        [vec![0u32; n], vec![0u32; n]],
+        [vec![0u32; n], vec![0u32; n]],
+    );
+    let mut second = open_source(a, format, opts)?;
+    while let Some(frame) = second.next_frame()? {
+        for (i, &v) in frame.data.iter().enumerate() {
+            let (h, l) = (u32::from(hi.data[i]), u32::from(lo.data[i]));
+            let quarter = (h - l) / 8;
+            let v32 = u32::from(v);
+            if v32 >= h - quarter {
+                sums[0][i] += v32;
+                counts[0][i] += 1;
+            }
+            if v32 <= l + quarter {
+                sums[1][i] += v32;
+                counts[1][i] += 1;
+            }
+        }
+    }
+    for (k, f) in [&mut hi, &mut lo].into_iter().enumerate() {
+        for (i, b) in f.data.iter_mut().enumerate() {
+            if let Some(mean) = (sums[k][i] + counts[k][i] / 2).checked_div(counts[k][i]) {
+                *b = mean as u8;
+            }
+        }
+        f.index = u64::MAX;
+        f.time_us = None;
+    }
+    let depth = shadow_depth(&hi, &lo)?;
+    if depth < MIN_SHADOW_DEPTH {
+        bail!(
+            "the shadow is too faint to scan: where it passed it took a median {:.0} % of the light (at least {:.0} % wanted) — a lamp too large, so that its edges are a blur, or too much other light: use a smaller bulb (or take the shade off the lamp), a thicker rod, hold the rod nearer the object, or darken the room (docs/shadow-scanner.md)",
+            100.0 * depth,
+            100.0 * MIN_SHADOW_DEPTH
+        );
+    }
+    Ok(Box::new(crate::source::Extremes::new(source, hi, lo)))
+}
+
+/// Least share of the light a shadow sweep's shadow must take where it passes: a sharp shadow
+/// takes the lamp's whole share (55 % on the rig's desk lamp, whose light is 1.2 times the
+/// room's; more in a dim room), a lamp wider than the rod as the object sees it is never wholly
+/// hidden (on the rig: 39 % for a 24 mm bulb 250 mm behind an 8 mm rod, 25 % for a 40 mm one)
+/// and its edges are a blur; strong other light washes any shadow out.
+pub const MIN_SHADOW_DEPTH: f64 = 0.4;
+
+/// The median share of the light the shadow takes at its deepest (`1 − darkest / brightest`,
+/// luma) over the pixels where it took more than 8 % (where it passed).
+fn shadow_depth(hi: &crate::source::OwnedFrame, lo: &crate::source::OwnedFrame) -> Result<f64> {
+    let (h, l) = (hi.view()?, lo.view()?);
+    let mut depth = vec![0u8; hi.width * hi.height];
+    scanner_core::stripe::shadow::contrast(&l, (&h, None), &mut depth, u8::MAX)?;
+    let mut passed: Vec<u8> = depth.into_iter().filter(|&d| d > 20).collect();
+    if passed.is_empty() {
+        return Ok(0.0);
+    }
+    let mid = passed.len() / 2;
+    Ok(f64::from(*passed.select_nth_unstable(mid).1) / 255.0)
 }
 
 /// The frame source: the rig with a scene file, or one opened by name.
@@ -811,6 +921,23 @@ fn head_config(a: &ScanArgs) -> HeadConfig {
     };
     head.keep_board = a.keep_board;
     head.colour = a.colour;
+    if a.shadow {
+        head = shadow_head(head);
+    }
+    head
+}
+
+/// The pipeline's settings for a shadow sweep: the light-intensity method on the contrast
+/// frames (gray), the band's rising edge first, no speckle (a lamp's light is not coherent),
+/// and a band much narrower than the frame's taken for one cut by an outline whatever its depth
+/// (one of its edges is then the outline, not the shadow's).
+fn shadow_head(mut head: HeadConfig) -> HeadConfig {
+    head.stripe.method = Method::Lim;
+    head.stripe.colour = LaserColour::White;
+    head.stripe.speckle_px = 0.0;
+    head.stripe.cut_peak = f32::INFINITY;
+    head.stripe.cut_sharp = false;
+    head.locate = scanner_core::stripe::Locate::RisingEdge;
     head
 }
 

@@ -164,10 +164,71 @@ pub trait FrameSource {
     fn give_back(&mut self, frame: OwnedFrame) {
         drop(frame);
     }
-    /// How many frames are left, where the source knows (a folder of images); `None` for a
-    /// camera or the rig.
+    /// A shadow sweep's frame with the lamp's light all hidden (each pixel's darkest over the
+    /// sweep), where the source knows it; taken once.
+    fn darkest(&mut self) -> Option<OwnedFrame> {
+        None
+    }
+    /// How many frames are left, where the source knows (a folder of images, the rig); `None`
+    /// for a camera.
     fn frames_left(&self) -> Option<usize> {
         None
+    }
+}
+
+/// A shadow sweep's source with each pixel's brightest over its frames for the reference (the
+/// scene lit without the shadow) and its darkest for [`FrameSource::darkest`] (the lamp's light
+/// all hidden); everything else is the source's own.
+pub struct Extremes {
+    source: Box<dyn FrameSource>,
+    brightest: Option<OwnedFrame>,
+    darkest: Option<OwnedFrame>,
+}
+
+impl Extremes {
+    /// `source` with the brightest and darkest of its frames (read beforehand).
+    pub fn new(source: Box<dyn FrameSource>, brightest: OwnedFrame, darkest: OwnedFrame) -> Self {
+        Self {
+            source,
+            brightest: Some(brightest),
+            darkest: Some(darkest),
+        }
+    }
+}
+
+impl FrameSource for Extremes {
+    fn describe(&self) -> String {
+        self.source.describe()
+    }
+    fn format(&self) -> PixelFormat {
+        self.source.format()
+    }
+    fn size(&self) -> (usize, usize) {
+        self.source.size()
+    }
+    fn controls(&self) -> scanner_wire::Controls {
+        self.source.controls()
+    }
+    fn reference(&mut self) -> Result<OwnedFrame, SourceError> {
+        match self.brightest.take() {
+            Some(r) => Ok(r),
+            None => self.source.reference(),
+        }
+    }
+    fn darkest(&mut self) -> Option<OwnedFrame> {
+        self.darkest.take()
+    }
+    fn next_frame(&mut self) -> Result<Option<OwnedFrame>, SourceError> {
+        self.source.next_frame()
+    }
+    fn pace(&self) -> Option<CameraPace> {
+        self.source.pace()
+    }
+    fn give_back(&mut self, frame: OwnedFrame) {
+        self.source.give_back(frame);
+    }
+    fn frames_left(&self) -> Option<usize> {
+        self.source.frames_left()
     }
 }
 

@@ -67,6 +67,10 @@ impl FrameSource for RigSource {
         Ok(self.owned(data, u64::MAX))
     }
 
+    fn frames_left(&self) -> Option<usize> {
+        Some(self.rig.scene().laser.frames.saturating_sub(self.next))
+    }
+
     fn next_frame(&mut self) -> Result<Option<OwnedFrame>, SourceError> {
         if self.next >= self.rig.scene().laser.frames {
             return Ok(None);

@@ -37,6 +37,7 @@ fn recording(dir: &std::path::Path) -> std::path::PathBuf {
         find_axis: false,
         disc: None,
         fixed: None,
+        shadow: false,
     };
     scanner_device::session::run_scan(&mut src, &cal, opts, &mut link, |_| {}, |_, _| {}).unwrap();
     let stats = link.finish().unwrap();
@@ -250,6 +251,7 @@ fn head_to_host_over_a_pseudo_terminal() {
         find_axis: false,
         disc: None,
         fixed: None,
+        shadow: false,
     };
     let report =
         scanner_device::session::run_scan(&mut source, &cal, opts, &mut link, |_| {}, |_, _| {})

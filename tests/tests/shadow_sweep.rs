@@ -1,0 +1,280 @@
+//! Lines of any width and shadow sweeps on rendered frames, through the binaries, each cloud and
+//! model against the rig's truth (the distance of every point to the nearest true surface):
+//! - the demo's sphere and cylinder (640×480), swept by a narrow laser and by a rod's shadow
+//!   from a 6 mm bulb (`scan --shadow`) — the scene the shadow's edges were developed on;
+//! - a box and a tilted plate seen closer (f = 1800 px), swept by a narrow laser, a laser line
+//!   about 40 px wide (flat-topped and saturated) and the shadow — kept out of the shadow's
+//!   development (the wide line's border check was developed on it).
+//!
+//! Figures printed with `-- --nocapture`; the bounds are the measured figures with a margin.
+
+use std::path::Path;
+
+use scanner_core::nalgebra::Point3;
+use scanner_rig::{Rig, Scene};
+use scanner_tests::{run_in, scan_rig, workspace_bin};
+use scanner_wire::{Decoder, MAX_ENCODED, Message, points};
+
+/// 640×480, 120 frames, the demo's objects.
+const DEMO: &str = "width = 640\nheight = 480\n\n[laser]\nframes = 120\n";
+
+/// A box and a tilted plate, seen closer, 120 frames.
+const FLAT: &str = "width = 640\nheight = 480\n\n[camera]\nfx = 1800.0\nfy = 1800.0\n\n\
+    [[objects]]\nshape = \"box\"\ncentre = [-40.0, 10.0, 600.0]\nsize = [50.0, 70.0, 40.0]\nyaw_deg = 35.0\n\n\
+    [[objects]]\nshape = \"plane\"\ncentre = [45.0, 0.0, 620.0]\nsize = [50.0, 80.0]\ntilt_x_deg = 25.0\ntilt_y_deg = -30.0\n\n\
+    [laser]\nframes = 120\nsweep = [-70.0, 70.0]\n";
+
+/// What a scan's cloud and model are against the truth.
+#[derive(Debug)]
+#[allow(dead_code)] // read through Debug
+struct Figures {
+    /// Points sent, and their packets (a shadow sends two per frame: one per edge).
+    points: usize,
+    packets: usize,
+    /// Packets with an odd number (a shadow's falling edge).
+    odd_packets: usize,
+    /// Median, mean and 99th percentile of the points' errors, mm.
+    median: f64,
+    mean: f64,
+    p99: f64,
+    /// The host's model (camera frame): vertices and the mean and 99th percentile of their
+    /// errors, mm.
+    vertices: usize,
+    model_mean: f64,
+    model_p99: f64,
+}
+
+/// Median, mean and 99th percentile of `errs` (sorted here).
+fn stats(errs: &mut [f64]) -> (f64, f64, f64) {
+    errs.sort_by(f64::total_cmp);
+    let n = errs.len().max(1);
+    let at = |q: usize| {
+        errs.get((n * q / 100).min(n - 1))
+            .copied()
+            .unwrap_or(f64::NAN)
+    };
+    (at(50), errs.iter().sum::<f64>() / n as f64, at(99))
+}
+
+/// Every point of a stream, its packets and its odd-numbered packets.
+fn cloud(stream: &Path) -> (Vec<Point3<f64>>, usize, usize) {
+    let bytes = std::fs::read(stream).unwrap();
+    let mut d = Box::new(Decoder::<MAX_ENCODED>::new());
+    let (mut pts, mut packets, mut odd) = (Vec::new(), 0, 0);
+    d.feed(&bytes, |m| {
+        if let Ok(Message::Points(p)) = m {
+            packets += 1;
+            odd += (p.frame % 2) as usize;
+            points::decode(p.xyz, p.count as usize, |q| {
+                pts.push(Point3::from(q.map(points::dequantise)).cast::<f64>());
+            })
+            .unwrap();
+        }
+    });
+    (pts, packets, odd)
+}
+
+/// Scans `scene` with `args` in `dir/name`, receives it and measures the cloud and the model.
+fn scan(dir: &Path, scene: &str, args: &[&str], name: &str) -> Figures {
+    let sub = dir.join(name);
+    std::fs::create_dir_all(&sub).unwrap();
+    scan_rig(&sub, scene, args, "scan.stream");
+    let rig = Rig::new(Scene::from_toml_in(scene, &sub).unwrap()).unwrap();
+    let (pts, packets, odd_packets) = cloud(&sub.join("scan.stream"));
+    let mut errs: Vec<f64> = pts.iter().map(|p| rig.surface_distance(p)).collect();
+    let (median, mean, p99) = stats(&mut errs);
+    let (ok, _, err) = run_in(
+        &workspace_bin("scanner-host"),
+        &sub,
+        &[
+            "receive",
+            "scan.stream",
+            "--frame",
+            "camera",
+            "--out",
+            "model",
+            "-q",
+        ],
+    );
+    assert!(ok, "{err}");
+    let ply = std::fs::read(sub.join("model/scan.ply")).unwrap();
+    let (vertices, _, _) = scanner_tests::read_ply(&ply);
+    let mut model: Vec<f64> = vertices
+        .iter()
+        .map(|v| rig.surface_distance(&Point3::new(v[0], v[1], v[2]).cast::<f64>()))
+        .collect();
+    let (_, model_mean, model_p99) = stats(&mut model);
+    let f = Figures {
+        points: errs.len(),
+        packets,
+        odd_packets,
+        median,
+        mean,
+        p99,
+        vertices: model.len(),
+        model_mean,
+        model_p99,
+    };
+    println!("{name}: {f:?}");
+    f
+}
+
+#[test]
+fn a_shadow_sweep_measures_the_objects_through_the_binaries() {
+    let t = tempfile::tempdir().unwrap();
+    let d = t.path();
+    let narrow = scan(d, DEMO, &[], "narrow");
+    let shadow = scan(d, &format!("{DEMO}\n[shadow]\n"), &["--shadow"], "shadow");
+    // two packets a frame, one per edge, and both edges give points
+    assert!(
+        shadow.packets > 200 && shadow.odd_packets > 100,
+        "{shadow:?}"
+    );
+    assert!(shadow.points > narrow.points, "{shadow:?} {narrow:?}");
+    assert!(shadow.vertices > narrow.vertices, "{shadow:?} {narrow:?}");
+    // measured: cloud mean 0.135 mm, p99 0.65 mm (the narrow laser's 0.075 and 0.30): 1.8× and
+    // 2.2× the narrow laser's, short of the 1.5× target; the model 0.12 and 0.80 mm
+    assert!(shadow.mean < 0.2 && shadow.p99 < 1.0, "{shadow:?}");
+    assert!(
+        shadow.model_mean < 0.2 && shadow.model_p99 < 1.2,
+        "{shadow:?}"
+    );
+    assert!(shadow.mean < 2.5 * narrow.mean, "{shadow:?} {narrow:?}");
+}
+
+#[test]
+fn a_wide_line_and_a_shadow_on_a_scene_kept_out_of_the_shadows_development() {
+    let t = tempfile::tempdir().unwrap();
+    let d = t.path();
+    let narrow = scan(d, FLAT, &[], "narrow");
+    // σ 3.5 mm at f = 1800 px, saturated: a flat-topped band about 40 px wide
+    let wide = scan(
+        d,
+        &format!("{FLAT}sigma_mm = 3.5\npower = 40.0\n"),
+        &[],
+        "wide",
+    );
+    let shadow = scan(d, &format!("{FLAT}\n[shadow]\n"), &["--shadow"], "shadow");
+    for f in [&narrow, &wide, &shadow] {
+        assert!(f.points > 5000 && f.vertices > 2000, "{f:?}");
+    }
+    // measured: the narrow laser's median 0.037 mm (mean 0.084, p99 1.33); the wide line's
+    // median 0.40 mm, mean 3.7 mm, p99 24 mm — a band 40 px wide straddles the box's edges and
+    // the plate's border over its own width, and where one of its sides is cut off the centre
+    // of what is left is not the sheet's (the 1.5× target is not met); the shadow's median
+    // 0.24 mm, mean 0.35 mm, p99 2.9 mm (4.2× the narrow laser's mean)
+    assert!(wide.median < 0.6 && wide.model_mean < 4.5, "{wide:?}");
+    assert!(
+        shadow.median < 0.35 && shadow.mean < 0.5 && shadow.p99 < 4.0,
+        "{shadow:?}"
+    );
+}
+
+/// `scanner-device scan` in `dir` with `args`: its exit and standard error.
+fn device(dir: &Path, args: &[&str]) -> (bool, String) {
+    let (ok, _, err) = run_in(&workspace_bin("scanner-device"), dir, args);
+    (ok, err)
+}
+
+#[test]
+fn a_shadow_in_the_shadow_free_frame_a_band_beyond_the_limit_and_a_blurred_shadow_are_refused() {
+    let t = tempfile::tempdir().unwrap();
+    let d = t.path();
+    let short = DEMO.replace("frames = 120", "frames = 16");
+    // a folder of a shadow sweep's frames, with one of them given as the shadow-free frame
+    let scene = format!("{short}\n[shadow]\n");
+    let rig = Rig::new(Scene::from_toml_in(&scene, d).unwrap()).unwrap();
+    rig.truth_calibration().save(&d.join("cal.toml")).unwrap();
+    std::fs::create_dir(d.join("sweep")).unwrap();
+    for k in 0..16 {
+        let name = d.join(format!("sweep/f{k:02}.png"));
+        rig.frame(k).unwrap().to_gray_image().save(name).unwrap();
+    }
+    let common = ["scan", "--calibration", "cal.toml", "--columns", "-q"];
+    let (ok, err) = device(
+        d,
+        &[
+            &common[..],
+            &[
+                "--source",
+                "dir:sweep",
+                "--shadow",
+                "--reference",
+                "sweep/f08.png",
+            ],
+            &["--out", "held.stream"],
+        ]
+        .concat(),
+    );
+    assert!(
+        !ok && err.contains("brighter than the shadow-free frame") && err.contains("--reference"),
+        "{err}"
+    );
+    // the same folder read twice (its brightest and darkest) scans
+    let (ok, err) = device(
+        d,
+        &[
+            &common[..],
+            &[
+                "--source",
+                "dir:sweep",
+                "--shadow",
+                "--out",
+                "folder.stream",
+            ],
+        ]
+        .concat(),
+    );
+    assert!(ok, "{err}");
+    // a laser line 150 px wide in a 640 px image: beyond the limit of 64 px
+    std::fs::write(
+        d.join("wide.toml"),
+        format!("{short}sigma_mm = 45.0\npower = 40.0\n"),
+    )
+    .unwrap();
+    let (ok, err) = device(
+        d,
+        &[
+            &common[..],
+            &[
+                "--source",
+                "rig",
+                "--scene",
+                "wide.toml",
+                "--out",
+                "wide.stream",
+            ],
+        ]
+        .concat(),
+    );
+    assert!(
+        !ok && err.contains("wider than the limit of 64 px"),
+        "{err}"
+    );
+    // a bulb 80 mm across, 250 mm behind an 8 mm rod: the rod never hides all of it
+    std::fs::write(
+        d.join("blur.toml"),
+        format!("{short}\n[shadow]\nlamp_radius_mm = 40.0\n"),
+    )
+    .unwrap();
+    let (ok, err) = device(
+        d,
+        &[
+            &common[..],
+            &[
+                "--source",
+                "rig",
+                "--scene",
+                "blur.toml",
+                "--shadow",
+                "--out",
+                "blur.stream",
+            ],
+        ]
+        .concat(),
+    );
+    assert!(
+        !ok && err.contains("too faint") && err.contains("smaller bulb"),
+        "{err}"
+    );
+}
