@@ -226,53 +226,27 @@ fn a_shadow_in_the_shadow_free_frame_a_band_beyond_the_limit_and_a_blurred_shado
         .concat(),
     );
     assert!(ok, "{err}");
+    // a scene of the rig written to `name.toml` and scanned with `extra`
+    let rig_scan = |name: &str, scene: String, extra: &[&str]| {
+        let file = format!("{name}.toml");
+        let out = format!("{name}.stream");
+        std::fs::write(d.join(&file), scene).unwrap();
+        let args = ["--source", "rig", "--scene", &file, "--out", &out];
+        device(d, &[&common[..], &args, extra].concat())
+    };
     // a laser line 150 px wide in a 640 px image: beyond the limit of 64 px
-    std::fs::write(
-        d.join("wide.toml"),
+    let (ok, err) = rig_scan(
+        "wide",
         format!("{short}sigma_mm = 45.0\npower = 40.0\n"),
-    )
-    .unwrap();
-    let (ok, err) = device(
-        d,
-        &[
-            &common[..],
-            &[
-                "--source",
-                "rig",
-                "--scene",
-                "wide.toml",
-                "--out",
-                "wide.stream",
-            ],
-        ]
-        .concat(),
+        &[],
     );
     assert!(
         !ok && err.contains("wider than the limit of 64 px"),
         "{err}"
     );
     // a bulb 80 mm across, 250 mm behind an 8 mm rod: the rod never hides all of it
-    std::fs::write(
-        d.join("blur.toml"),
-        format!("{short}\n[shadow]\nlamp_radius_mm = 40.0\n"),
-    )
-    .unwrap();
-    let (ok, err) = device(
-        d,
-        &[
-            &common[..],
-            &[
-                "--source",
-                "rig",
-                "--scene",
-                "blur.toml",
-                "--shadow",
-                "--out",
-                "blur.stream",
-            ],
-        ]
-        .concat(),
-    );
+    let scene = format!("{short}\n[shadow]\nlamp_radius_mm = 40.0\n");
+    let (ok, err) = rig_scan("blur", scene, &["--shadow"]);
     assert!(
         !ok && err.contains("too faint") && err.contains("smaller bulb"),
         "{err}"
