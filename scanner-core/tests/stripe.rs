@@ -738,7 +738,10 @@ fn band(edges: impl Fn(usize) -> (f64, f64), blur: f64, height: f64) -> (Vec<u8>
 }
 
 fn rows_cfg() -> StripeConfig {
-    StripeConfig::new(Method::Dim, Axis::Rows)
+    StripeConfig {
+        edges: true,
+        ..StripeConfig::new(Method::Dim, Axis::Rows)
+    }
 }
 
 #[test]

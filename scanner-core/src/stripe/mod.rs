@@ -113,6 +113,16 @@ fn mark_too_wide(points: &mut [StripePoint], spread: f32, max_plateau: usize) {
     if !(spread > 0.0) || points.is_empty() {
         return;
     }
+    // no line can be too wide when the widest is within `spread` of the narrowest
+    let (lo, hi) = points
+        .iter()
+        .filter(|p| p.status == LineStatus::Valid)
+        .fold((f32::INFINITY, 0f32), |(lo, hi), p| {
+            (lo.min(p.width), hi.max(p.width))
+        });
+    if hi <= spread * lo {
+        return;
+    }
     let median = |points: &[StripePoint]| {
         let mut widths = [0u32; CUT_BINS];
         let mut n = 0u32;
@@ -259,6 +269,12 @@ fn drop_still_edges(points: &mut [StripePoint], last: &mut [[f32; 2]], fraction:
 /// keeps the narrow-and-weak check alone (its flanks hardly softer than the lens makes an
 /// outline; on the rig's plate at 280 mm the sharp check as well cost 2.4 % of the points).
 const MIN_SOFT_RAMP: f32 = 10.0;
+
+/// Narrowest line whose edges [`Extractor::extract`] finds unless asked for every line's
+/// ([`StripeConfig::edges`]), pixels: a Gaussian profile's ramp is 0.72 of its width, so
+/// narrower lines never reach [`MIN_SOFT_RAMP`] (and their edges cost a quarter of the
+/// extraction's time).
+const MIN_EDGE_WIDTH: f32 = 12.0;
 
 /// Drops (NaN) each edge of the valid lines that rises in less than `fraction` of the median
 /// ramp of that edge over the frame's valid lines ([`StripePoint::ramps`]): the band cut by an
@@ -428,6 +444,9 @@ pub struct StripeConfig {
     /// and weaker than [`Self::cut_peak`] of their median peak, is [`LineStatus::Cut`] (0 keeps
     /// every line).
     pub cut_width: f32,
+    /// Find the edges ([`StripePoint::edges`]) of every line (a shadow's); otherwise only of
+    /// lines at least 12 px wide, for the check of a wide line cut by a border.
+    pub edges: bool,
     /// The signal the edges ([`StripePoint::edges`]) cross: positive for a band whose full
     /// depth is known (a shadow's contrast scaled by the lamp's full share: 127.5 is half the
     /// lamp hidden); 0 for half of each band's own height.
@@ -485,6 +504,7 @@ impl StripeConfig {
             width_spread: 3.0,
             cut_width: 0.5,
             cut_peak: 0.5,
+            edges: false,
             edge_level: 0.0,
             edge_ramp: 0.5,
             cut_sharp: true,
@@ -555,8 +575,9 @@ impl fmt::Display for LineStatus {
     }
 }
 
-/// The stripe in one line.
-#[derive(Debug, Clone, Copy, PartialEq)]
+/// The stripe in one line. Two points are equal when every field is, a missing edge (NaN)
+/// equal to a missing edge.
+#[derive(Debug, Clone, Copy)]
 pub struct StripePoint {
     /// Subpixel centre along the line in image coordinates (a row in column mode, a column in row
     /// mode); 0 unless `status` is [`LineStatus::Valid`].
@@ -574,8 +595,8 @@ pub struct StripePoint {
     pub plateau: u16,
     /// The profile's half-maximum crossings, image coordinates along the line: where the signal
     /// rises through half its height and where it falls through it again (the two edges of a
-    /// shadow's band, [`Self::edge`]); NaN where the crossing is not inside the window read, and
-    /// both NaN unless `status` is valid.
+    /// shadow's band, [`Self::edge`]); NaN where the crossing is not inside the window read,
+    /// where they were not looked for ([`StripeConfig::edges`]), and unless `status` is valid.
     pub edges: [f32; 2],
     /// Standard uncertainty of each edge, pixels: the noise over the profile's slope at the
     /// crossing, and the speckle's share, in quadrature; 0 where the edge is NaN.
@@ -584,6 +605,25 @@ pub struct StripePoint {
     /// flank's slope): a shadow's penumbra, the same all along its edge, or an outline's or an
     /// ink's edge, as sharp as the lens makes it.
     pub ramps: [f32; 2],
+}
+
+impl PartialEq for StripePoint {
+    fn eq(&self, o: &Self) -> bool {
+        let same = |a: [f32; 2], b: [f32; 2]| {
+            a.iter()
+                .zip(&b)
+                .all(|(x, y)| x == y || (x.is_nan() && y.is_nan()))
+        };
+        self.centre == o.centre
+            && self.peak == o.peak
+            && self.width == o.width
+            && self.sigma == o.sigma
+            && self.status == o.status
+            && self.plateau == o.plateau
+            && same(self.edges, o.edges)
+            && same(self.edge_sigma, o.edge_sigma)
+            && same(self.ramps, o.ramps)
+    }
 }
 
 impl StripePoint {
@@ -765,6 +805,8 @@ pub struct Extractor<const W: usize> {
     typical_width: f32,
     /// Each line's edges in the last frame, as found (NaN where none).
     last_edges: [[f32; 2]; W],
+    /// Whether the last frame had any edge (else `last_edges` is all NaN).
+    edges_last: bool,
     /// The last extraction's lines, first line, threshold, noise and width limit.
     last: (usize, usize, u16, f32, f32),
 }
@@ -868,6 +910,7 @@ impl<const W: usize> Extractor<W> {
             run: [0; W],
             typical_width: 0.0,
             last_edges: [[f32::NAN; 2]; W],
+            edges_last: false,
             last: (0, 0, 0, 0.0, 0.0),
         }
     }
@@ -993,12 +1036,16 @@ impl<const W: usize> Extractor<W> {
         }
         mark_too_wide(&mut self.out[..lines], cfg.width_spread, cfg.max_plateau);
         mark_cut(&mut self.out[..lines], cfg.cut_width, cfg.cut_peak);
-        drop_still_edges(
-            &mut self.out[..lines],
-            &mut self.last_edges[..lines],
-            cfg.edge_motion,
-        );
-        drop_sharp_edges(&mut self.out[..lines], cfg.edge_ramp, cfg.cut_sharp);
+        // the edge checks, where any line has edges (a narrow laser's have none)
+        let out = &mut self.out[..lines];
+        if out.iter().any(|p| p.edges.iter().any(|e| e.is_finite())) {
+            drop_still_edges(out, &mut self.last_edges[..lines], cfg.edge_motion);
+            drop_sharp_edges(out, cfg.edge_ramp, cfg.cut_sharp);
+            self.edges_last = true;
+        } else if self.edges_last {
+            self.last_edges[..lines].fill([f32::NAN; 2]);
+            self.edges_last = false;
+        }
         let mut widths = [0u32; CUT_BINS];
         let mut n = 0;
         for p in self.out[..lines]
@@ -1314,7 +1361,14 @@ impl<const W: usize> Extractor<W> {
                 );
                 // the edges, each with the noise over its flank's slope (averaged over the
                 // samples its line was fitted to)
-                for (k, e) in window.edges(&shape, cfg.edge_level).into_iter().enumerate() {
+                // the edges, where wanted: every line's for a shadow, a wide line's for the
+                // border check (a narrow line's flanks tell nothing: see MIN_SOFT_RAMP)
+                let edges = if cfg.edges || shape.fwhm >= MIN_EDGE_WIDTH {
+                    window.edges(&shape, cfg.edge_level)
+                } else {
+                    [None, None]
+                };
+                for (k, e) in edges.into_iter().enumerate() {
                     if let Some(e) = e {
                         point.edges[k] = (origin + start) as f32 + e.at;
                         point.ramps[k] = e.height / e.slope;

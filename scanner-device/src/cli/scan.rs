@@ -937,6 +937,7 @@ fn shadow_head(mut head: HeadConfig) -> HeadConfig {
     head.stripe.speckle_px = 0.0;
     head.stripe.cut_peak = f32::INFINITY;
     head.stripe.cut_sharp = false;
+    head.stripe.edges = true;
     head.locate = scanner_core::stripe::Locate::RisingEdge;
     head
 }
