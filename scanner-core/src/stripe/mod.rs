@@ -1308,14 +1308,16 @@ impl<const W: usize> Extractor<W> {
         // a second peak inside the same band (the signal between the two never below half of
         // the second's) is the band's own top, not a rival
         let second_at = usize::from(self.second_at[line]);
-        let same_band = second_at >= start && second_at < end && {
-            let (a, b) = (rough.min(second_at) - start, rough.max(second_at) - start);
-            let valley = sig[a..=b].iter().copied().min().unwrap_or(0);
-            3 * u32::from(valley) >= u32::from(self.second[line]) / 2
+        let same_band = || {
+            second_at >= start && second_at < end && {
+                let (a, b) = (rough.min(second_at) - start, rough.max(second_at) - start);
+                let valley = sig[a..=b].iter().copied().min().unwrap_or(0);
+                3 * u32::from(valley) >= u32::from(self.second[line]) / 2
+            }
         };
-        let strong_second = !same_band
-            && u32::from(self.second[line]) > t3
-            && f32::from(self.second[line]) > cfg.ambiguity * f32::from(self.best[line]);
+        let strong_second = u32::from(self.second[line]) > t3
+            && f32::from(self.second[line]) > cfg.ambiguity * f32::from(self.best[line])
+            && !same_band();
         point.status = if point.peak < threshold {
             LineStatus::NoStripe
         } else if strong_second {
