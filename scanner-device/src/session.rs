@@ -611,9 +611,7 @@ impl Session {
             .unwrap_or_else(|| self.started.elapsed().as_micros() as u64);
         self.last_us = time_us;
         let ready = match &mut self.shadow {
-            Some((lit, dark, buf)) => {
-                shadow_contrast(frame, (lit, dark.as_ref()), buf, number)?.is_some()
-            }
+            Some((lit, dark, buf)) => shadow_contrast(frame, (lit, dark.as_ref()), buf, number)?,
             None => true,
         };
         let shadow = self.shadow.is_some();
@@ -958,25 +956,24 @@ fn contrast_frames(
 
 /// Frame `number` of a shadow sweep as the share of light the shadow takes, into `buf`;
 /// [`SessionError::ShadowInReference`] when the shadow-free frame `lit` is darker than it over
-/// more than [`MAX_BRIGHTER_SHARE`] of the picture. A frame of another shape gives `None` (a
+/// more than [`MAX_BRIGHTER_SHARE`] of the picture. A frame of another shape gives `false` (a
 /// broken source: the frame is skipped).
 fn shadow_contrast(
     frame: &OwnedFrame,
     (lit, dark): (&OwnedFrame, Option<&OwnedFrame>),
     buf: &mut [u8],
     number: u32,
-) -> Result<Option<()>> {
+) -> Result<bool> {
     let (Ok(f), Ok(l)) = (frame.view(), lit.view()) else {
-        return Ok(None);
+        return Ok(false);
     };
-    let d = dark.map(OwnedFrame::view).transpose();
-    let Ok(d) = d else {
-        return Ok(None);
+    let Ok(d) = dark.map(OwnedFrame::view).transpose() else {
+        return Ok(false);
     };
     let Ok(brighter) =
         scanner_core::stripe::shadow::contrast(&f, (&l, d.as_ref()), buf, BRIGHTER_DN)
     else {
-        return Ok(None);
+        return Ok(false);
     };
     let share = brighter as f64 / (frame.width * frame.height).max(1) as f64;
     if share > MAX_BRIGHTER_SHARE {
@@ -985,7 +982,7 @@ fn shadow_contrast(
             permille: (share * 1000.0).round() as u32,
         });
     }
-    Ok(Some(()))
+    Ok(true)
 }
 
 /// The mean of `total` over `frames`, ms.

@@ -513,3 +513,20 @@ fn turntable_scene_errors_name_the_key() {
     assert!(Rig::new(s.view(0).unwrap()).unwrap().disc_pose().is_some());
     assert!(Rig::new(s.view(1).unwrap()).unwrap().disc_pose().is_none());
 }
+
+#[test]
+fn shadow_scene_errors_name_the_key() {
+    for (text, named) in [
+        ("[shadow]\nlamp_radius_mm = nan\n", "lamp_radius_mm"),
+        ("[shadow]\nlamp_radius_mm = -1.0\n", "lamp_radius_mm"),
+        ("[shadow]\npower = 0.0\n", "power"),
+        ("[shadow]\nrod_radius_mm = inf\n", "rod_radius_mm"),
+        ("[shadow]\nrod_distance_mm = 2.0\n", "rod_distance_mm"),
+        ("[shadow]\nbulb = 3.0\n", "bulb"),
+    ] {
+        let err = Scene::from_toml(text).unwrap_err().to_string();
+        assert!(err.contains(named), "{text}: {err}");
+    }
+    let s = Scene::from_toml("[shadow]\nlamp_radius_mm = 1.5\n").unwrap();
+    assert_eq!(s.shadow.map(|sh| sh.lamp_radius_mm), Some(1.5));
+}

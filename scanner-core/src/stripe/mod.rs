@@ -595,7 +595,7 @@ pub struct StripePoint {
     pub plateau: u16,
     /// The profile's half-maximum crossings, image coordinates along the line: where the signal
     /// rises through half its height and where it falls through it again (the two edges of a
-    /// shadow's band, [`Self::edge`]); NaN where the crossing is not inside the window read,
+    /// shadow's band, [`Self::located`]); NaN where the crossing is not inside the window read,
     /// where they were not looked for ([`StripeConfig::edges`]), and unless `status` is valid.
     pub edges: [f32; 2],
     /// Standard uncertainty of each edge, pixels: the noise over the profile's slope at the
@@ -663,11 +663,6 @@ impl StripePoint {
             Locate::FallingEdge => (self.edges[1], self.edge_sigma[1]),
         };
         at.is_finite().then_some((at, sigma))
-    }
-
-    /// Edge `k` (0 rising, 1 falling), NaN where there is none.
-    pub fn edge(&self, k: usize) -> f32 {
-        self.edges.get(k).copied().unwrap_or(f32::NAN)
     }
 }
 
