@@ -55,9 +55,19 @@ fn head_on(name: &str, format: Option<PixelFormat>) -> (usize, f64) {
 
 /// [`head_on`] for frames already read.
 fn head_on_frames(name: &str, frame: &OwnedFrame, reference: &OwnedFrame) -> (usize, f64) {
+    head_with(name, frame, reference, &pair(name).join("calibration.toml"))
+}
+
+/// [`head_on_frames`] with the calibration file `calibration`.
+fn head_with(
+    name: &str,
+    frame: &OwnedFrame,
+    reference: &OwnedFrame,
+    calibration: &Path,
+) -> (usize, f64) {
     let dir = pair(name);
     let format = frame.format;
-    let file = scanner_calib::file::CalibrationFile::load(&dir.join("calibration.toml")).unwrap();
+    let file = scanner_calib::file::CalibrationFile::load(calibration).unwrap();
     let camera = file.camera().unwrap().cast::<f32>();
     let board = file.board().unwrap().unwrap().cast::<f32>();
     let mut cfg = HeadConfig::new(StripeConfig::new(Method::Dim, Axis::Columns));
@@ -319,5 +329,92 @@ fn the_preview_of_a_real_frame_finds_the_dots_the_line_and_takes_it() {
         );
         assert!((50..=255).contains(&dn), "{name}: +{dn} DN");
         assert_eq!(state, PreviewState::Points, "{name}");
+    }
+}
+
+/// The project's own board calibration on the photographs: `calibrate board` with the board file
+/// of the two ChArUco boards (`board.toml`) on each pair's laser-off frame finds all 24 corners
+/// of each board, within 0.15 px RMS of OpenCV's, and gives planes within 0.05° of OpenCV's
+/// (`calibration.toml`); with those planes the head finds the laser plane within 0.1° of the
+/// reference and sends no false point.
+#[test]
+fn calibrate_board_on_the_charuco_photo_gives_opencvs_planes_and_the_laser_plane() {
+    let board = pair("board.toml");
+    for name in PAIRS {
+        let dir = pair(name);
+        let t = tempfile::tempdir().unwrap();
+        let out = t.path().join("calibration.toml");
+        let run = std::process::Command::new(env!("CARGO_BIN_EXE_scanner-device"))
+            .args(["calibrate", "board", "--board"])
+            .arg(&board)
+            .arg("--camera")
+            .arg(dir.join("calibration.toml"))
+            .arg("--out")
+            .arg(&out)
+            .arg("--overlay")
+            .arg(t.path().join("overlay.png"))
+            .arg(dir.join("laser-off.png"))
+            .output()
+            .unwrap();
+        assert!(
+            run.status.success(),
+            "{name}: {}",
+            String::from_utf8_lossy(&run.stderr)
+        );
+        let ours = scanner_calib::file::CalibrationFile::load(&out).unwrap();
+        let theirs =
+            scanner_calib::file::CalibrationFile::load(&dir.join("calibration.toml")).unwrap();
+        let (ours, theirs) = (ours.board.unwrap(), theirs.board.unwrap());
+        for (side, a, b) in [
+            ("left", &ours.left, &theirs.left),
+            ("right", &ours.right, &theirs.right),
+        ] {
+            let angle = angle_deg(a.normal, b.normal);
+            let used = a.markers.iter().filter(|m| m.status == "used").count();
+            println!(
+                "{name} {side}: {used} corners, rms {:.3} px, plane {angle:.4}° and {:.3} mm off OpenCV's",
+                a.rms_px,
+                a.offset - b.offset
+            );
+            assert_eq!(used, 24, "{name} {side}: corners used");
+            assert!(angle < 0.05, "{name} {side}: {angle}° off OpenCV's plane");
+            assert!((a.offset - b.offset).abs() < 0.5, "{name} {side}: offsets");
+            // The corners against OpenCV's.
+            let csv = std::fs::read_to_string(dir.join("opencv-charuco-corners.csv")).unwrap();
+            let dict = if side == "left" {
+                "DICT_4X4_50"
+            } else {
+                "DICT_5X5_50"
+            };
+            let mut sq = Vec::new();
+            for line in csv.lines().skip(1).filter(|l| l.starts_with(dict)) {
+                let f: Vec<&str> = line.split(',').collect();
+                let k: usize = f[1].parse().unwrap();
+                let (x, y): (f64, f64) = (f[2].parse().unwrap(), f[3].parse().unwrap());
+                let m = a.markers.iter().find(|m| m.index == k).unwrap();
+                let p = m.pixel.unwrap();
+                sq.push((p[0] - x).powi(2) + (p[1] - y).powi(2));
+            }
+            let rms = (sq.iter().sum::<f64>() / sq.len() as f64).sqrt();
+            println!("{name} {side}: corners {rms:.3} px RMS from OpenCV's");
+            assert_eq!(sq.len(), 24);
+            assert!(
+                rms < 0.15,
+                "{name} {side}: corners {rms} px RMS from OpenCV's"
+            );
+        }
+        let on = dir.join("laser-on.png");
+        let format = image_format(&on).unwrap();
+        let frame = load_frame(&on, format, 0).unwrap();
+        let reference = load_frame(&dir.join("laser-off.png"), format, u64::MAX).unwrap();
+        let (objects, angle) = head_with(name, &frame, &reference, &out);
+        println!(
+            "{name}: with our planes, {objects} object points, laser plane {angle:.4}° off the reference"
+        );
+        assert_eq!(objects, 0, "{name}: object points where there is no object");
+        assert!(
+            angle < 0.1,
+            "{name}: laser plane {angle}° off the reference"
+        );
     }
 }

@@ -80,6 +80,7 @@ pub fn paper_board(s: f64) -> BoardFile {
         markers: None,
         grid: Some(grid),
         chessboard: None,
+        charuco: None,
     };
     BoardFile {
         marker_diameter: 0.25 * s,

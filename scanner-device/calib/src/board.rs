@@ -17,6 +17,9 @@
 //!            [66.0, 110.0], [176.0, 110.0], [286.0, 110.0]]
 //! # or, instead of discs, a chessboard whose inner corners are the markers:
 //! # chessboard = { cols = 8, rows = 6, square = 30.0, u0 = 60.0, v0 = -60.0 }
+//! # or a ChArUco board (OpenCV's layout), its inner corners named by its markers' IDs:
+//! # charuco = { cols = 7, rows = 5, square = 25.0, marker = 19.0, dictionary = "DICT_4X4_50",
+//! #             first_id = 0, u0 = 33.0, v0 = -62.5, x = "+v", y = "+u" }
 //! [cross]                          # the image-distance pattern (paper Fig. 5)
 //! arm = 200.0                      # |AE| = |BD|
 //! dot = 12.0
@@ -30,6 +33,7 @@ use std::path::Path;
 use scanner_core::config::MAX_MARKERS;
 use scanner_core::nalgebra::Point2;
 
+use crate::aruco::{CharucoBoard, Dictionary};
 use crate::short;
 
 /// The largest sheet side, mm: any board a room holds (the paper's set-up at 3.2 m has sheets
@@ -90,7 +94,113 @@ pub struct Chessboard {
     pub v0: f64,
 }
 
-/// One sheet's markers: listed discs, a grid of discs, or a chessboard.
+/// A direction on a sheet: along `u` or `v`, either way.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub enum SheetAxis {
+    /// Along `+u` (away from the crease).
+    #[serde(rename = "+u")]
+    PlusU,
+    /// Along `−u`.
+    #[serde(rename = "-u")]
+    MinusU,
+    /// Along `+v`.
+    #[serde(rename = "+v")]
+    PlusV,
+    /// Along `−v`.
+    #[serde(rename = "-v")]
+    MinusV,
+}
+
+impl SheetAxis {
+    /// The unit vector `(u, v)`.
+    pub fn unit(self) -> [f64; 2] {
+        match self {
+            SheetAxis::PlusU => [1.0, 0.0],
+            SheetAxis::MinusU => [-1.0, 0.0],
+            SheetAxis::PlusV => [0.0, 1.0],
+            SheetAxis::MinusV => [0.0, -1.0],
+        }
+    }
+}
+
+fn axis_u() -> SheetAxis {
+    SheetAxis::PlusU
+}
+
+fn axis_v() -> SheetAxis {
+    SheetAxis::PlusV
+}
+
+/// A ChArUco board on a sheet, as OpenCV lays it out ([`CharucoBoard`]): its inner corners are
+/// the sheet's markers, in OpenCV's order; its first inner corner lies at `(u0, v0)`, and the
+/// board's `x` (along its first row, as printed) and `y` (down its first column) run along the
+/// sheet's directions `x` and `y`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Charuco {
+    /// Squares along the board's `x`.
+    pub cols: usize,
+    /// Squares along its `y`.
+    pub rows: usize,
+    /// Square side, mm.
+    pub square: f64,
+    /// Marker side, mm.
+    pub marker: f64,
+    /// OpenCV's name of the markers' dictionary, e.g. `DICT_4X4_50`.
+    pub dictionary: String,
+    /// The first marker's ID.
+    #[serde(default)]
+    pub first_id: usize,
+    /// The first inner corner's `u`, mm.
+    pub u0: f64,
+    /// Its `v`, mm.
+    pub v0: f64,
+    /// The sheet direction of the board's `x`.
+    #[serde(default = "axis_u")]
+    pub x: SheetAxis,
+    /// The sheet direction of the board's `y`.
+    #[serde(default = "axis_v")]
+    pub y: SheetAxis,
+}
+
+impl Charuco {
+    /// The board as detection sees it (`None` for an unknown dictionary).
+    pub fn board(&self) -> Option<CharucoBoard> {
+        Some(CharucoBoard {
+            cols: self.cols,
+            rows: self.rows,
+            square: self.square,
+            marker: self.marker,
+            dictionary: Dictionary::named(&self.dictionary)?,
+            first_id: self.first_id,
+        })
+    }
+
+    /// A point of the board (board mm) on the sheet.
+    pub fn on_sheet(&self, p: Point2<f64>) -> Point2<f64> {
+        let (ax, ay) = (self.x.unit(), self.y.unit());
+        let (bx, by) = (p.x - self.square, p.y - self.square);
+        Point2::new(
+            self.u0 + bx * ax[0] + by * ay[0],
+            self.v0 + bx * ax[1] + by * ay[1],
+        )
+    }
+
+    /// Inner corners on the sheet, in OpenCV's order (row by row along the board's `x`).
+    pub fn corners(&self) -> Vec<Point2<f64>> {
+        let per = self.cols.saturating_sub(1);
+        (0..per * self.rows.saturating_sub(1))
+            .map(|k| {
+                self.on_sheet(Point2::new(
+                    (k % per + 1) as f64 * self.square,
+                    (k / per + 1) as f64 * self.square,
+                ))
+            })
+            .collect()
+    }
+}
+
+/// One sheet's markers: listed discs, a grid of discs, a chessboard or a ChArUco board.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct SheetLayout {
@@ -103,6 +213,9 @@ pub struct SheetLayout {
     /// Or a chessboard instead of discs.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub chessboard: Option<Chessboard>,
+    /// Or a ChArUco board.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub charuco: Option<Charuco>,
 }
 
 /// Paper size of a sheet, mm.
@@ -193,11 +306,13 @@ impl Default for BoardFile {
                 markers: None,
                 grid: Some(grid),
                 chessboard: None,
+                charuco: None,
             },
             right: SheetLayout {
                 markers: None,
                 grid: Some(grid),
                 chessboard: None,
+                charuco: None,
             },
             cross: Cross {
                 arm: 200.0,
@@ -211,6 +326,12 @@ impl SheetLayout {
     /// How many markers (or inner corners) the sheet has, from the counts alone (nothing is
     /// allocated); `None` when it has none of the three kinds or the count overflows.
     pub fn count(&self) -> Option<usize> {
+        if let Some(c) = &self.charuco {
+            return c
+                .cols
+                .saturating_sub(1)
+                .checked_mul(c.rows.saturating_sub(1));
+        }
         if let Some(c) = self.chessboard {
             return c
                 .cols
@@ -225,6 +346,9 @@ impl SheetLayout {
 
     /// Marker centres in order: listed ones as listed, a grid row by row (along `u` first).
     pub fn points(&self) -> Vec<Point2<f64>> {
+        if let Some(c) = &self.charuco {
+            return c.corners();
+        }
         if let Some(c) = self.chessboard {
             return c.corners();
         }
@@ -257,7 +381,7 @@ impl SheetLayout {
     /// Radius of this sheet's markers as the calibration models them: the discs' radius, or 0
     /// for chessboard corners.
     pub fn marker_radius(&self, diameter: f64) -> f64 {
-        if self.chessboard.is_some() {
+        if self.chessboard.is_some() || self.charuco.is_some() {
             0.0
         } else {
             diameter / 2.0
@@ -351,10 +475,11 @@ impl BoardFile {
                 s.markers.is_some(),
                 s.grid.is_some(),
                 s.chessboard.is_some(),
+                s.charuco.is_some(),
             ];
             if kinds.iter().filter(|&&k| k).count() != 1 {
                 return bad(format!(
-                    "[{name}]: give exactly one of `markers`, `grid` or `chessboard`"
+                    "[{name}]: give exactly one of `markers`, `grid`, `chessboard` or `charuco`"
                 ));
             }
             if s.count().is_none_or(|n| n > MAX_MARKERS) {
@@ -363,6 +488,10 @@ impl BoardFile {
                     s.count()
                         .map_or_else(|| "too many".to_string(), |n| n.to_string())
                 ));
+            }
+            if let Some(c) = &s.charuco {
+                self.check_charuco(name, c)?;
+                continue;
             }
             if let Some(c) = s.chessboard {
                 if !(c.cols >= 3 && c.rows >= 3 && c.square > 0.0) {
@@ -418,6 +547,80 @@ impl BoardFile {
                     }
                 }
             }
+        }
+        if let (Some(l), Some(r)) = (&self.left.charuco, &self.right.charuco)
+            && let (Some(a), Some(b)) = (l.board(), r.board())
+            && a.dictionary == b.dictionary
+            && a.ids().start < b.ids().end
+            && b.ids().start < a.ids().end
+        {
+            return bad(format!(
+                "[left] and [right] are both ChArUco boards of {} with marker IDs {}–{} and {}–{}: \
+                 the two sheets must not share IDs (print one with another dictionary or \
+                 `first_id`)",
+                l.dictionary,
+                a.ids().start,
+                a.ids().end - 1,
+                b.ids().start,
+                b.ids().end - 1
+            ));
+        }
+        Ok(())
+    }
+
+    /// A ChArUco sheet's numbers: a known dictionary holding its IDs, markers smaller than
+    /// the squares, the board on the sheet.
+    fn check_charuco(&self, name: &str, c: &Charuco) -> Result<(), BoardError> {
+        let bad = |s: String| Err(BoardError::Invalid(s));
+        let Some(b) = c.board() else {
+            return bad(format!(
+                "[{name}].charuco: unknown dictionary {:?}; OpenCV's predefined ones are {}",
+                c.dictionary,
+                crate::aruco::DICTIONARIES.join(", ")
+            ));
+        };
+        if !(c.cols >= 3 && c.rows >= 3) {
+            return bad(format!(
+                "[{name}].charuco: needs at least 3×3 squares, found {}×{}",
+                c.cols, c.rows
+            ));
+        }
+        if !(c.square > 0.0 && c.marker > 0.0 && c.marker < c.square && c.square.is_finite()) {
+            return bad(format!(
+                "[{name}].charuco: the marker side ({} mm) must be positive and smaller than the square's ({} mm)",
+                short(c.marker),
+                short(c.square)
+            ));
+        }
+        if b.ids().end > b.dictionary.count {
+            return bad(format!(
+                "[{name}].charuco: {} markers from ID {} run past the {} codes of {}",
+                b.marker_count(),
+                c.first_id,
+                b.dictionary.count,
+                c.dictionary
+            ));
+        }
+        let (ax, ay) = (c.x.unit(), c.y.unit());
+        if ax[0] * ay[0] + ax[1] * ay[1] != 0.0 {
+            return bad(format!(
+                "[{name}].charuco: x and y must run along different sheet directions (u and v)"
+            ));
+        }
+        let (w, h) = (c.cols as f64 * c.square, c.rows as f64 * c.square);
+        let outline =
+            [(0.0, 0.0), (w, 0.0), (w, h), (0.0, h)].map(|(x, y)| c.on_sheet(Point2::new(x, y)));
+        if !(c.u0.is_finite() && c.v0.is_finite())
+            || outline.iter().any(|p| {
+                p.x < -1e-9
+                    || p.x > self.sheet.width + 1e-9
+                    || p.y.abs() > self.sheet.height / 2.0 + 1e-9
+            })
+        {
+            return bad(format!(
+                "[{name}].charuco: runs off the {}×{} mm sheet",
+                self.sheet.width, self.sheet.height
+            ));
         }
         Ok(())
     }

@@ -201,7 +201,7 @@ pub fn find_corners(img: &GrayImage, cfg: &CornerConfig) -> Vec<Blob> {
 
 /// Gradient-orthogonality refinement (as OpenCV's `cornerSubPix`), on the raw image's central
 /// differences with Gaussian weights.
-fn refine(img: &GrayImage, start: Point2<f64>, win: i64) -> Option<Point2<f64>> {
+pub(crate) fn refine(img: &GrayImage, start: Point2<f64>, win: i64) -> Option<Point2<f64>> {
     let (w, h) = (i64::from(img.width()), i64::from(img.height()));
     let px = |x: i64, y: i64| f64::from(img.get_pixel(x as u32, y as u32)[0]);
     let mut q = start;

@@ -43,6 +43,9 @@ pub enum CalibError {
         /// Needed.
         needed: usize,
     },
+    /// A ChArUco board not found as printed (the text says what the picture shows instead).
+    #[error("ChArUco board: {0}")]
+    Charuco(String),
     /// A result that no real board or target gives (the text says why and what to check).
     #[error("implausible result: {0}")]
     Implausible(String),

@@ -40,9 +40,11 @@ pub fn short(x: f64) -> String {
     }
 }
 
+pub mod aruco;
 pub mod blur;
 pub mod board;
 pub mod canvas;
+pub mod charuco;
 pub mod corners;
 pub mod detect;
 pub mod disc;

@@ -210,12 +210,7 @@ impl Pen {
     /// After a failed fit: the identifications found (`L3?`) and every marker detected.
     fn unfitted(&mut self, outcome: &BoardOutcome, board: &BoardFile) {
         for (k, a) in outcome.assignments.iter().enumerate() {
-            let sheet = [&board.left, &board.right][k];
-            let features = if sheet.chessboard.is_some() {
-                &outcome.corners
-            } else {
-                &outcome.detections.blobs
-            };
+            let features = outcome.features(board, k);
             let Some(a) = a else { continue };
             for (i, b) in a.blob_of.iter().enumerate() {
                 if let Some(p) = b.and_then(|b| features.get(b)).map(|f| f.centre) {
