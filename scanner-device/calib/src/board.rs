@@ -112,6 +112,16 @@ pub enum SheetAxis {
 }
 
 impl SheetAxis {
+    /// As the board file writes it.
+    pub fn name(self) -> &'static str {
+        match self {
+            SheetAxis::PlusU => "+u",
+            SheetAxis::MinusU => "-u",
+            SheetAxis::PlusV => "+v",
+            SheetAxis::MinusV => "-v",
+        }
+    }
+
     /// The unit vector `(u, v)`.
     pub fn unit(self) -> [f64; 2] {
         match self {
@@ -318,6 +328,42 @@ impl Default for BoardFile {
                 arm: 200.0,
                 dot: 12.0,
             },
+        }
+    }
+}
+
+impl BoardFile {
+    /// A two-plane board of ChArUco sheets (`scanner-device board --charuco`): on each A3 sheet
+    /// 10×7 squares of 30 mm with markers of 22 mm from `DICT_5X5_100` (the left sheet IDs 0–34,
+    /// the right one 35–69), 60 mm from the crease (clear of its label), centred along it.
+    pub fn charuco_default() -> BoardFile {
+        let sheet = |first_id: usize, left: bool| SheetLayout {
+            markers: None,
+            grid: None,
+            chessboard: None,
+            charuco: Some(Charuco {
+                cols: 10,
+                rows: 7,
+                square: 30.0,
+                marker: 22.0,
+                dictionary: "DICT_5X5_100".into(),
+                first_id,
+                // The board's x runs away from the crease on the right sheet, towards it on the
+                // left one (whose u runs to the left): both print upright.
+                u0: if left { 330.0 } else { 90.0 },
+                v0: -75.0,
+                x: if left {
+                    SheetAxis::MinusU
+                } else {
+                    SheetAxis::PlusU
+                },
+                y: SheetAxis::PlusV,
+            }),
+        };
+        BoardFile {
+            left: sheet(0, true),
+            right: sheet(35, false),
+            ..BoardFile::default()
         }
     }
 }
@@ -605,6 +651,17 @@ impl BoardFile {
         if ax[0] * ay[0] + ax[1] * ay[1] != 0.0 {
             return bad(format!(
                 "[{name}].charuco: x and y must run along different sheet directions (u and v)"
+            ));
+        }
+        // Seen from the front, the right sheet's (u, v) turn as the board's (x, y) do, the
+        // left sheet's (its u runs to the left) the other way: else the board is mirrored.
+        let turn = ax[0] * ay[1] - ax[1] * ay[0];
+        if (turn > 0.0) != (name == "right") {
+            return bad(format!(
+                "[{name}].charuco: x = \"{}\" and y = \"{}\" lay the board mirrored (its markers \
+                 would not read): change the sign of one",
+                c.x.name(),
+                c.y.name()
             ));
         }
         let (w, h) = (c.cols as f64 * c.square, c.rows as f64 * c.square);

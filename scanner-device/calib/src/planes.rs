@@ -210,9 +210,14 @@ pub fn board_planes(img: &GrayImage, board: &BoardFile, camera: &Camera<f64>) ->
             },
         ),
         None => {
+            let sizes: Vec<usize> = sheets
+                .iter()
+                .filter_map(|s| Dictionary::named(&s.charuco.as_ref()?.dictionary))
+                .map(|d| d.n)
+                .collect();
             let charuco_err = (0..2).find_map(|k| {
                 let c = sheets[k].charuco.as_ref()?;
-                charuco_failure(SHEET_NAMES[k], c, charuco[k].as_ref()?, &quads, img)
+                charuco_failure(SHEET_NAMES[k], c, charuco[k].as_ref()?, &quads, img, &sizes)
             });
             let err = if let Some(e) = charuco_err {
                 e
@@ -293,14 +298,16 @@ pub const MAX_NAMED_SHEET_RMS_PX: f64 = 1.0;
 /// The smallest side of a dark quad looked at for ArUco markers, pixels.
 const MIN_QUAD_SIDE_PX: f64 = 6.0;
 
-/// Why a ChArUco sheet gave too few corners, when the picture says more than a count: its
-/// markers too small to read, repeated IDs, or markers of another dictionary.
+/// Why a ChArUco sheet gave too few corners, when the picture says more than a count: repeated
+/// IDs, markers of a size (`n × n` cells) that none of the board file's `sizes` is, or its
+/// markers too small to read.
 fn charuco_failure(
     what: &str,
     sheet: &Charuco,
     found: &CharucoCorners,
     quads: &[Quad],
     img: &GrayImage,
+    sizes: &[usize],
 ) -> Option<CalibError> {
     if found.corners.len() >= 4 {
         return None;
@@ -312,13 +319,13 @@ fn charuco_failure(
             found.markers.repeated, sheet.dictionary
         )));
     }
+    // Markers of a size no sheet of the board file has, more than of the one named.
+    let named = found.markers.markers.len();
     let others: Vec<String> = Dictionary::all()
-        .filter(|d| {
-            d.count == 1000 && Some(d.n) != Dictionary::named(&sheet.dictionary).map(|s| s.n)
-        })
+        .filter(|d| d.count == 1000 && !sizes.contains(&d.n))
         .filter_map(|d| {
             let n = aruco::find_aruco(img, quads, &d).markers.len();
-            (n >= 2).then(|| format!("{n} markers of DICT_{0}X{0}", d.n))
+            (n >= 2 && n > named).then(|| format!("{n} markers of DICT_{0}X{0}", d.n))
         })
         .collect();
     if !others.is_empty() {

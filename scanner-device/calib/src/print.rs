@@ -5,7 +5,9 @@
 
 use image::Rgb;
 
-use super::board::{BoardFile, Cross};
+use scanner_core::nalgebra::Point2;
+
+use super::board::{BoardFile, Charuco, Cross};
 use crate::canvas::Canvas;
 
 /// One printable sheet: circles and strokes in mm.
@@ -31,6 +33,55 @@ pub struct Sheet {
 
 const RULER: (f64, f64) = (15.0, 12.0); // left end and distance from the bottom, mm
 
+/// A ChArUco board's ink as squares on the paper (`paper` maps the sheet's `(u, v)` to the
+/// paper's `(x, y)`): its dark squares, and each marker's dark cells (its border and the code's
+/// dark cells).
+fn charuco_squares(c: &Charuco, paper: impl Fn(f64, f64) -> (f64, f64)) -> Vec<(f64, f64, f64)> {
+    let Some(b) = c.board() else {
+        return Vec::new();
+    };
+    // A square of side `s` with its board corner at (x, y): on the paper, the least of its
+    // corners' coordinates (the board is turned by a quarter turn at most).
+    let place = |x: f64, y: f64, s: f64| {
+        let corners = [(x, y), (x + s, y), (x, y + s), (x + s, y + s)].map(|(bx, by)| {
+            let p = c.on_sheet(Point2::new(bx, by));
+            paper(p.x, p.y)
+        });
+        let min = |f: fn(&(f64, f64)) -> f64| corners.iter().map(f).fold(f64::INFINITY, f64::min);
+        (min(|p| p.0), min(|p| p.1), s)
+    };
+    let mut out = Vec::new();
+    let n = b.dictionary.n;
+    let cell = c.marker / (n + 2) as f64;
+    for y in 0..c.rows {
+        for x in 0..c.cols {
+            let (x0, y0) = (x as f64 * c.square, y as f64 * c.square);
+            let Some(id) = b.marker_in(x, y) else {
+                out.push(place(x0, y0, c.square));
+                continue;
+            };
+            let Some(code) = b.dictionary.code(id) else {
+                continue;
+            };
+            let m = (c.square - c.marker) / 2.0;
+            for r in 0..n + 2 {
+                for q in 0..n + 2 {
+                    let border = r == 0 || q == 0 || r == n + 1 || q == n + 1;
+                    let light = !border && (code >> (n * n - 1 - ((r - 1) * n + q - 1))) & 1 == 1;
+                    if !light {
+                        out.push(place(
+                            x0 + m + q as f64 * cell,
+                            y0 + m + r as f64 * cell,
+                            cell,
+                        ));
+                    }
+                }
+            }
+        }
+    }
+    out
+}
+
 impl Sheet {
     /// The board's left (`k = 0`) or right sheet. Seen from the front, the left sheet's crease
     /// edge is its right edge (`u` runs to the left), the right sheet's its left edge.
@@ -38,7 +89,12 @@ impl Sheet {
         let (w, h) = (board.sheet.width, board.sheet.height);
         let layout = if k == 0 { &board.left } else { &board.right };
         let mut squares = Vec::new();
-        let dots = if let Some(c) = layout.chessboard {
+        // Sheet (u, v) to the paper's (x, y) from its top left, seen from the front.
+        let paper = |u: f64, v: f64| (if k == 0 { w - u } else { u }, h / 2.0 + v);
+        let dots = if let Some(c) = &layout.charuco {
+            squares = charuco_squares(c, paper);
+            Vec::new()
+        } else if let Some(c) = layout.chessboard {
             for a in 0..c.cols {
                 for b in 0..c.rows {
                     if (a + b) % 2 == 0 {
@@ -60,7 +116,18 @@ impl Sheet {
                 })
                 .collect()
         };
-        let what = if layout.chessboard.is_some() {
+        let what = if let Some(c) = &layout.charuco {
+            format!(
+                "ChArUco {}x{}, {} mm, markers {} mm, {} {}-{}",
+                c.cols,
+                c.rows,
+                c.square,
+                c.marker,
+                c.dictionary,
+                c.first_id,
+                c.first_id + (c.cols * c.rows / 2).max(1) - 1
+            )
+        } else if layout.chessboard.is_some() {
             format!("a chessboard with {} inner corners", layout.points().len())
         } else {
             format!(
@@ -126,6 +193,38 @@ impl Sheet {
         }
     }
 
+    /// The top of the crease edge's label, mm: above the middle of the sheet, or where it hides
+    /// no ink (a pattern near the crease) higher or lower.
+    fn crease_label_y(&self) -> f64 {
+        let Some(x) = self.crease_x else {
+            return 0.0;
+        };
+        let (x0, x1) = if x > 0.0 {
+            (x - 35.0, x)
+        } else {
+            (x, x + 35.0)
+        };
+        let clear = |y: f64| {
+            let (y0, y1) = (y - 1.0, y + 7.0);
+            let apart = |ax0: f64, ay0: f64, ax1: f64, ay1: f64| {
+                ax1 < x0 || ax0 > x1 || ay1 < y0 || ay0 > y1
+            };
+            self.squares
+                .iter()
+                .all(|&(sx, sy, side)| apart(sx, sy, sx + side, sy + side))
+                && self.dots.iter().all(|&(cx, cy, d)| {
+                    apart(cx - d / 2.0, cy - d / 2.0, cx + d / 2.0, cy + d / 2.0)
+                })
+        };
+        let middle = self.height / 2.0 - 24.0;
+        (0..)
+            .map(|i| f64::from(i) * 2.0)
+            .take_while(|&dy| dy < self.height)
+            .flat_map(|dy| [middle - dy, middle + dy])
+            .find(|&y| y >= 14.0 && y <= self.height - 24.0 && clear(y))
+            .unwrap_or(middle)
+    }
+
     /// The sheet as SVG, sized in mm.
     pub fn svg(&self) -> String {
         let mut s = format!(
@@ -166,7 +265,7 @@ impl Sheet {
                  <text x=\"{tx}\" y=\"{ty}\" font-family=\"sans-serif\" font-size=\"4\" text-anchor=\"{anchor}\">crease edge</text>\n",
                 h = self.height,
                 tx = if x > 0.0 { x - 3.0 } else { x + 3.0 },
-                ty = self.height / 2.0 - 20.0,
+                ty = self.crease_label_y() + 4.0,
                 anchor = if x > 0.0 { "end" } else { "start" }
             );
         }
@@ -299,13 +398,7 @@ impl Sheet {
             } else {
                 xp + 3.0 * px_per_mm
             };
-            cv.text(
-                tx,
-                (self.height / 2.0 - 24.0) * px_per_mm,
-                label,
-                scale,
-                black,
-            );
+            cv.text(tx, self.crease_label_y() * px_per_mm, label, scale, black);
         }
         let (x0, y) = (RULER.0 * px_per_mm, (self.height - RULER.1) * px_per_mm);
         cv.rect(x0, y, x0 + 100.0 * px_per_mm, y + 0.6 * px_per_mm, black);

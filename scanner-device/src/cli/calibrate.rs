@@ -228,14 +228,13 @@ fn save_png(img: &image::RgbImage, path: &Path) -> Result<()> {
 /// # Errors
 /// Unreadable board file, unwritable output.
 pub fn board_command(
-    board: Option<&Path>,
+    b: &BoardFile,
     out: &Path,
     dpi: f64,
     a4: bool,
     turntable: Option<Paper>,
 ) -> Result<()> {
-    let b = load_board(board)?;
-    let mut sheets = print::sheets(&b).to_vec();
+    let mut sheets = print::sheets(b).to_vec();
     let disc_stem = turntable.map(|p| format!("turntable-{}", p.name()));
     if let (Some(p), Some(stem)) = (turntable, &disc_stem) {
         sheets.push((stem.as_str(), Disc::new(p).sheet()));

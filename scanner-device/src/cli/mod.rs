@@ -75,6 +75,11 @@ pub enum Command {
         /// Board file to print; the default board without one.
         #[arg(long)]
         board: Option<PathBuf>,
+        /// Print a board of ChArUco sheets instead of the default board (OpenCV's layout, A3:
+        /// 10×7 squares of 30 mm, markers of 22 mm, DICT_5X5_100, IDs 0–34 left and 35–69
+        /// right): its corners are named by the markers, so a partly hidden sheet still counts.
+        #[arg(long, conflicts_with = "board")]
+        charuco: bool,
         /// Output folder.
         #[arg(long, default_value = "board")]
         out: PathBuf,
@@ -172,6 +177,7 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
         }
         Some(Command::Board {
             board,
+            charuco,
             out,
             dpi,
             a4,
@@ -180,7 +186,12 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
             if !(*dpi >= 25.0 && *dpi <= 1200.0) {
                 anyhow::bail!("--dpi must be between 25 and 1200, found {dpi}");
             }
-            calibrate::board_command(board.as_deref(), out, *dpi, *a4, *turntable)?;
+            let b = if *charuco {
+                scanner_calib::board::BoardFile::charuco_default()
+            } else {
+                calibrate::load_board(board.as_deref())?
+            };
+            calibrate::board_command(&b, out, *dpi, *a4, *turntable)?;
         }
         Some(Command::Calibrate(c)) => calibrate::calibrate(c)?,
         Some(Command::Scan(a)) => {

@@ -1,0 +1,258 @@
+//! ChArUco boards on the real photographs of `tests/data/real-two-plane` (two boards of OpenCV's
+//! layout, 7×5 squares of 25 mm, markers of 19 mm, `DICT_4X4_50` above and `DICT_5X5_50`
+//! below) and the bad input a user can give: a board file naming the wrong dictionary, two
+//! boards sharing IDs (in the file, or in the picture), a board too small in the picture.
+
+use std::path::{Path, PathBuf};
+
+use image::GrayImage;
+use scanner_calib::aruco::{CharucoBoard, Dictionary, quads};
+use scanner_calib::board::{BoardError, BoardFile};
+use scanner_calib::charuco::find_charuco;
+use scanner_calib::file::CalibrationFile;
+use scanner_calib::{CalibError, board_planes};
+use scanner_core::Camera;
+
+fn data() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../tests/data/real-two-plane")
+}
+
+fn photo() -> GrayImage {
+    image::open(data().join("20220331_faa7cdf/laser-off.png"))
+        .unwrap()
+        .to_luma8()
+}
+
+fn camera() -> Camera<f64> {
+    CalibrationFile::load(&data().join("20220331_faa7cdf/calibration.toml"))
+        .unwrap()
+        .camera()
+        .unwrap()
+}
+
+fn board_text() -> String {
+    std::fs::read_to_string(data().join("board.toml")).unwrap()
+}
+
+fn board(text: &str) -> Result<BoardFile, BoardError> {
+    BoardFile::parse(text, "board.toml")
+}
+
+fn charuco(dict: &str) -> CharucoBoard {
+    CharucoBoard {
+        cols: 7,
+        rows: 5,
+        square: 25.0,
+        marker: 19.0,
+        dictionary: Dictionary::named(dict).unwrap(),
+        first_id: 0,
+    }
+}
+
+/// Every marker of both boards is read with its ID (no other ID of the dictionary is), and every
+/// inner corner of each board is named, by our own decoder.
+#[test]
+fn every_marker_and_corner_of_both_real_boards_is_found() {
+    for pair in ["20220331_faa7cdf", "20220405_9eb8eaa"] {
+        let img = image::open(data().join(pair).join("laser-off.png"))
+            .unwrap()
+            .to_luma8();
+        let q = quads(&img, 6.0);
+        for dict in ["DICT_4X4_50", "DICT_5X5_50"] {
+            let found = find_charuco(&img, &q, &charuco(dict));
+            let ids: Vec<usize> = found.markers.markers.iter().map(|m| m.id).collect();
+            println!(
+                "{pair} {dict}: {} markers, {} corners, {} quads unread",
+                ids.len(),
+                found.corners.len(),
+                found.markers.unread
+            );
+            assert_eq!(ids, (0..17).collect::<Vec<_>>(), "{pair} {dict}");
+            assert!(found.markers.repeated.is_empty() && found.misplaced.is_empty());
+            let corners: Vec<usize> = found.corners.iter().map(|c| c.0).collect();
+            assert_eq!(corners, (0..24).collect::<Vec<_>>(), "{pair} {dict}");
+        }
+        // A dictionary of the same cell count but more codes still reads the same IDs; one of
+        // another size reads none.
+        let all = scanner_calib::aruco::find_aruco(
+            &img,
+            &q,
+            &Dictionary::named("DICT_4X4_1000").unwrap(),
+        );
+        assert_eq!(all.markers.len(), 17, "{pair}: DICT_4X4_1000");
+        let none =
+            scanner_calib::aruco::find_aruco(&img, &q, &Dictionary::named("DICT_6X6_250").unwrap());
+        assert!(
+            none.markers.is_empty(),
+            "{pair}: DICT_6X6_250 {:?}",
+            none.markers
+        );
+    }
+}
+
+/// A board file naming a dictionary that is not printed: refused with what the picture shows.
+#[test]
+fn a_board_of_the_wrong_dictionary_is_refused_with_the_one_seen() {
+    let text = board_text().replace(
+        "dictionary = \"DICT_4X4_50\"",
+        "dictionary = \"DICT_6X6_50\"",
+    );
+    let b = board(&text).unwrap();
+    let out = board_planes(&photo(), &b, &camera());
+    match out.result {
+        Err(CalibError::Charuco(msg)) => {
+            println!("{msg}");
+            assert!(
+                msg.contains("DICT_6X6_50") && msg.contains("DICT_4X4"),
+                "{msg}"
+            );
+        }
+        other => panic!("expected a ChArUco error, got {other:?}"),
+    }
+    // An unknown dictionary name is refused when the file is read.
+    let text = board_text().replace("DICT_5X5_50", "DICT_5X5_60");
+    assert!(matches!(board(&text), Err(BoardError::Invalid(m)) if m.contains("DICT_5X5_60")));
+}
+
+/// Two sheets of one dictionary whose IDs overlap: refused when the board file is read; and two
+/// boards sharing IDs in the picture (the upper board pasted over the lower one): refused, the
+/// repeated IDs named.
+#[test]
+fn two_boards_that_share_ids_are_refused() {
+    let text = board_text().replace("DICT_5X5_50", "DICT_4X4_50");
+    match board(&text) {
+        Err(BoardError::Invalid(m)) => {
+            println!("{m}");
+            assert!(m.contains("DICT_4X4_50") && m.contains("0–16"), "{m}");
+        }
+        other => panic!("expected a refusal, got {other:?}"),
+    }
+    // IDs 17–33 on the right sheet: accepted.
+    let text = board_text().replace(
+        "dictionary = \"DICT_5X5_50\"",
+        "dictionary = \"DICT_4X4_50\", first_id = 17",
+    );
+    board(&text).unwrap();
+
+    // The upper board (rows 90–580) pasted below it (at rows 600–1090), over the lower board.
+    let mut img = photo();
+    let copy = img.clone();
+    for y in 90..580 {
+        for x in 600..1500 {
+            img.put_pixel(x, y + 510, *copy.get_pixel(x, y));
+        }
+    }
+    let b = board(&board_text()).unwrap();
+    let out = board_planes(&img, &b, &camera());
+    match out.result {
+        Err(CalibError::Charuco(msg)) => {
+            println!("{msg}");
+            assert!(msg.contains("two places"), "{msg}");
+        }
+        other => panic!("expected a ChArUco error, got {other:?}"),
+    }
+    let left = out.charuco[0].as_ref().unwrap();
+    assert!(left.markers.repeated.len() >= 10, "{:?}", left.markers);
+}
+
+/// The photograph shrunk until the markers' cells are under 2.5 px: refused as too small, with
+/// the size needed.
+#[test]
+fn a_board_too_small_in_the_picture_is_refused_with_the_size_needed() {
+    let img = photo();
+    let k = 10u32;
+    let small = image::imageops::resize(
+        &img,
+        1920 / k,
+        1200 / k,
+        image::imageops::FilterType::Triangle,
+    );
+    let c = camera();
+    let s = 1.0 / f64::from(k);
+    let pp = c.principal_point();
+    let small_cam = Camera::new(
+        c.fx() * s,
+        c.fy() * s,
+        (pp.x + 0.5) * s - 0.5,
+        (pp.y + 0.5) * s - 0.5,
+        scanner_core::camera::Distortion::none(),
+    )
+    .unwrap();
+    let b = board(&board_text()).unwrap();
+    let out = board_planes(&small, &b, &small_cam);
+    match out.result {
+        Err(CalibError::Charuco(msg)) => {
+            println!("{msg}");
+            assert!(msg.contains("too small"), "{msg}");
+        }
+        other => panic!("expected a ChArUco error, got {other:?}"),
+    }
+}
+
+/// `board --charuco`'s sheets, printed to pictures, are read back by our decoder: every corner
+/// of each sheet, each where the board file lays it on the paper (upright, not mirrored: a
+/// mirrored print would not read), and every marker with the sheet's own IDs. The real
+/// recording's board file prints readable sheets too.
+#[test]
+fn printed_charuco_sheets_read_back_where_the_board_file_lays_them() {
+    for (name, b) in [
+        ("charuco_default", BoardFile::charuco_default()),
+        ("real-two-plane", board(&board_text()).unwrap()),
+    ] {
+        b.check().unwrap();
+        for k in 0..2 {
+            let sheet_layout = [&b.left, &b.right][k];
+            let c = sheet_layout.charuco.as_ref().unwrap();
+            // 10 px/mm: every square's edge on a pixel's edge (the picture's squares are not
+            // smoothed), and the pixel centres half a pixel in.
+            let px_per_mm = 10.0;
+            let img = image::DynamicImage::ImageRgb8(
+                scanner_calib::print::Sheet::board(&b, k)
+                    .png(px_per_mm)
+                    .unwrap(),
+            )
+            .to_luma8();
+            let q = quads(&img, 6.0);
+            let found = find_charuco(&img, &q, &c.board().unwrap());
+            let layout = sheet_layout.points();
+            assert_eq!(found.corners.len(), layout.len(), "{name} sheet {k}");
+            let ids: Vec<usize> = found.markers.markers.iter().map(|m| m.id).collect();
+            assert_eq!(ids, c.board().unwrap().ids().collect::<Vec<_>>());
+            // Paper position of each corner, in pixels (up to the pixel convention's offset).
+            let (w, h) = (b.sheet.width, b.sheet.height);
+            let diffs: Vec<(f64, f64)> = found
+                .corners
+                .iter()
+                .map(|&(i, p)| {
+                    let x = if k == 0 { w - layout[i].x } else { layout[i].x };
+                    let y = h / 2.0 + layout[i].y;
+                    (p.x + 0.5 - x * px_per_mm, p.y + 0.5 - y * px_per_mm)
+                })
+                .collect();
+            let n = diffs.len() as f64;
+            let mean = (
+                diffs.iter().map(|d| d.0).sum::<f64>() / n,
+                diffs.iter().map(|d| d.1).sum::<f64>() / n,
+            );
+            let rms = (diffs
+                .iter()
+                .map(|d| (d.0 - mean.0).powi(2) + (d.1 - mean.1).powi(2))
+                .sum::<f64>()
+                / n)
+                .sqrt();
+            println!(
+                "{name} sheet {k}: {} corners, {rms:.3} px RMS about an offset of ({:.2}, {:.2}) px",
+                found.corners.len(),
+                mean.0,
+                mean.1
+            );
+            assert!(
+                rms < 0.1 && mean.0.abs() < 1.0 && mean.1.abs() < 1.0,
+                "{name} sheet {k}"
+            );
+        }
+    }
+    // Laid mirrored, a sheet is refused when the board file is read.
+    let text = board_text().replace("x = \"+v\", y = \"+u\"", "x = \"-v\", y = \"+u\"");
+    assert!(matches!(board(&text), Err(BoardError::Invalid(m)) if m.contains("mirrored")));
+}
