@@ -117,6 +117,9 @@ fn x_junction(
     Some(sy.atan2(sx).rem_euclid(std::f64::consts::TAU) / 2.0)
 }
 
+/// The refinement's Gaussian σ as a share of its window's half side, for chessboard corners.
+const CHESSBOARD_SPREAD: f64 = 0.5;
+
 /// Finds chessboard inner corners. Returned as [`Blob`]s (area 1, no axes) so that the same
 /// identification serves dots and corners.
 pub fn find_corners(img: &GrayImage, cfg: &CornerConfig) -> Vec<Blob> {
@@ -185,7 +188,7 @@ pub fn find_corners(img: &GrayImage, cfg: &CornerConfig) -> Vec<Blob> {
             .map(|(_, (q, _))| (q - p).norm())
             .fold(f64::INFINITY, f64::min);
         let win = ((0.35 * nn).floor() as i64).clamp(3, cfg.window.max(3));
-        if let Some(c) = refine(img, *p, win) {
+        if let Some(c) = refine(img, *p, (win, CHESSBOARD_SPREAD), |_| true) {
             out.push(Blob {
                 centre: c,
                 area: 1.0,
@@ -200,8 +203,15 @@ pub fn find_corners(img: &GrayImage, cfg: &CornerConfig) -> Vec<Blob> {
 }
 
 /// Gradient-orthogonality refinement (as OpenCV's `cornerSubPix`), on the raw image's central
-/// differences with Gaussian weights.
-pub(crate) fn refine(img: &GrayImage, start: Point2<f64>, win: i64) -> Option<Point2<f64>> {
+/// differences with Gaussian weights of σ = `spread` × the half side `win`, over the pixels of
+/// the window that `keep` keeps (the edges of something else beside the corner, such as a
+/// ChArUco marker, would pull it).
+pub(crate) fn refine(
+    img: &GrayImage,
+    start: Point2<f64>,
+    (win, spread): (i64, f64),
+    keep: impl Fn(Point2<f64>) -> bool,
+) -> Option<Point2<f64>> {
     let (w, h) = (i64::from(img.width()), i64::from(img.height()));
     let px = |x: i64, y: i64| f64::from(img.get_pixel(x as u32, y as u32)[0]);
     let mut q = start;
@@ -212,9 +222,12 @@ pub(crate) fn refine(img: &GrayImage, start: Point2<f64>, win: i64) -> Option<Po
         }
         let mut a = Matrix2::zeros();
         let mut b = Vector2::zeros();
-        let sw = win as f64 / 2.0;
+        let sw = win as f64 * spread;
         for y in cy - win..=cy + win {
             for x in cx - win..=cx + win {
+                if !keep(Point2::new(x as f64, y as f64)) {
+                    continue;
+                }
                 let g = Vector2::new(
                     (px(x + 1, y) - px(x - 1, y)) / 2.0,
                     (px(x, y + 1) - px(x, y - 1)) / 2.0,

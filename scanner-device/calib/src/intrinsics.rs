@@ -19,6 +19,8 @@ use scanner_core::calib::{Free, TargetImage};
 use scanner_core::geometry::Pose;
 use scanner_core::nalgebra::{Point2, Vector2};
 
+use super::aruco::CharucoBoard;
+use super::charuco::find_charuco;
 use super::corners::{CornerConfig, find_corners};
 use super::detect::{Blob, DetectConfig, find_markers};
 use super::lattice::{MAX_FEATURES, lattices};
@@ -63,12 +65,17 @@ pub struct FoundGrid {
 /// [`CalibError::NoGrid`], [`CalibError::CountMismatch`] (a grid larger than the target
 /// described), [`CalibError::TooFewMarkers`] (less than half the target).
 pub fn find_grid(img: &GrayImage, target: &Target) -> Result<FoundGrid, CalibError> {
+    if let Target::Charuco(b) = target {
+        return find_charuco_grid(img, b);
+    }
     let (features, rejected) = match target {
         Target::Dots(_) => {
             let det = find_markers(img, &DetectConfig::default());
             (det.blobs, det.rejected.len())
         }
-        Target::Chessboard { .. } => (find_corners(img, &CornerConfig::default()), 0),
+        Target::Chessboard { .. } | Target::Charuco(_) => {
+            (find_corners(img, &CornerConfig::default()), 0)
+        }
     };
     if features.len() < 4 {
         return Err(CalibError::NoMarkers {
@@ -129,6 +136,66 @@ pub fn find_grid(img: &GrayImage, target: &Target) -> Result<FoundGrid, CalibErr
         found,
         extent: placed.extent,
         complete: placed.complete,
+    })
+}
+
+/// The fewest corners of a ChArUco board that make a view for the intrinsics (a partial view
+/// counts, but a corner or two cannot pose the board).
+pub const MIN_CHARUCO_CORNERS: usize = 6;
+
+/// [`find_grid`] for a ChArUco board: its corners named by their markers, however few of the
+/// board are in view (at least a quarter, and [`MIN_CHARUCO_CORNERS`]).
+fn find_charuco_grid(img: &GrayImage, board: &CharucoBoard) -> Result<FoundGrid, CalibError> {
+    let quads = crate::aruco::quads(img, 6.0);
+    let seen = find_charuco(img, &quads, board);
+    if !seen.markers.repeated.is_empty() {
+        return Err(CalibError::Charuco(format!(
+            "marker IDs {:?} of {} are seen at two places or more: two boards that share IDs in view",
+            seen.markers.repeated,
+            board.dictionary.name()
+        )));
+    }
+    let layout_len = board.corner_count();
+    let needed = (layout_len / 4).max(MIN_CHARUCO_CORNERS);
+    let found: Found = seen.corners.clone();
+    if found.len() < needed {
+        if seen.markers.markers.is_empty() && seen.corners.is_empty() {
+            return Err(CalibError::NoMarkers {
+                found: seen.markers.unread,
+                hint: "is the ChArUco board in view, lit, and of the dictionary given?",
+            });
+        }
+        return Err(CalibError::TooFewMarkers {
+            what: "ChArUco board".into(),
+            found: found.len(),
+            expected: layout_len,
+            needed,
+            missing: (0..layout_len)
+                .filter(|i| !found.iter().any(|(k, _)| k == i))
+                .collect(),
+        });
+    }
+    let per = board.corners_per_row().max(1);
+    let span = |f: fn(usize, usize) -> usize| {
+        let v: Vec<usize> = found.iter().map(|&(k, _)| f(k, per)).collect();
+        v.iter().max().unwrap_or(&0) - v.iter().min().unwrap_or(&0) + 1
+    };
+    let extent = (span(|k, per| k % per), span(|k, per| k / per));
+    Ok(FoundGrid {
+        features: found
+            .iter()
+            .map(|&(_, centre)| Blob {
+                centre,
+                area: 1.0,
+                axes: (0.0, 0.0),
+                angle: 0.0,
+                contrast: 0.0,
+                dark_axis: None,
+            })
+            .collect(),
+        complete: found.len() == extent.0 * extent.1,
+        found,
+        extent,
     })
 }
 
@@ -433,8 +500,12 @@ fn solve_outcome(
 /// Most images (three in four) show the same complete grid, smaller than the target given, and
 /// none a larger complete one: the count is wrong (a chessboard's squares given as its corners,
 /// say), not the images. (A stray feature may join a grid when the target given leaves room for
-/// it: such an image is not complete and does not count against.)
+/// it: such an image is not complete and does not count against.) Not asked of a ChArUco
+/// board, whose corners are named by their markers and may be seen in part.
 fn count_too_large(reports: &[ImageReport], target: &Target) -> Option<CalibError> {
+    if let Target::Charuco(_) = target {
+        return None;
+    }
     let grids: Vec<&FoundGrid> = reports.iter().filter_map(|r| r.grid.as_ref()).collect();
     let given = target.grid();
     let key = |e: (usize, usize)| (e.0.min(e.1), e.0.max(e.1));
@@ -460,7 +531,7 @@ fn count_too_large(reports: &[ImageReport], target: &Target) -> Option<CalibErro
             seen.0,
             seen.1
         ),
-        Target::Dots(_) => String::new(),
+        Target::Dots(_) | Target::Charuco(_) => String::new(),
     };
     Some(CalibError::CountTooLarge {
         seen,

@@ -2,6 +2,8 @@
 
 use scanner_core::nalgebra::Point2;
 
+use crate::aruco::CharucoBoard;
+
 /// A dot-grid calibration target: `cols × rows` dots, `pitch` apart, centred, `x` right and `y`
 /// down as printed.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -55,6 +57,9 @@ pub enum Target {
         /// Square side, mm.
         square: f64,
     },
+    /// A ChArUco board: its inner corners, named by the markers around them, are the features
+    /// (OpenCV's order and coordinates, from the board's top left), so partial views count.
+    Charuco(CharucoBoard),
 }
 
 impl Target {
@@ -72,6 +77,7 @@ impl Target {
                     })
                 })
                 .collect(),
+            Target::Charuco(b) => (0..b.corner_count()).map(|k| b.corner(k)).collect(),
         }
     }
 
@@ -79,7 +85,7 @@ impl Target {
     pub fn radius(&self) -> f64 {
         match *self {
             Target::Dots(g) => g.dot / 2.0,
-            Target::Chessboard { .. } => 0.0,
+            Target::Chessboard { .. } | Target::Charuco(_) => 0.0,
         }
     }
 
@@ -87,6 +93,7 @@ impl Target {
         match self {
             Target::Dots(_) => "dot grid",
             Target::Chessboard { .. } => "chessboard",
+            Target::Charuco(_) => "ChArUco board",
         }
     }
 
@@ -97,6 +104,7 @@ impl Target {
             Target::Chessboard { cols, rows, .. } => {
                 (cols.saturating_sub(1), rows.saturating_sub(1))
             }
+            Target::Charuco(b) => (b.corners_per_row(), b.rows.saturating_sub(1)),
         }
     }
 
@@ -104,7 +112,7 @@ impl Target {
     /// is even (the first square is dark); `None` for dots.
     pub(crate) fn dark_even(&self) -> Option<bool> {
         match self {
-            Target::Dots(_) => None,
+            Target::Dots(_) | Target::Charuco(_) => None,
             Target::Chessboard { .. } => Some(true),
         }
     }
@@ -113,7 +121,7 @@ impl Target {
     pub(crate) fn unit(&self) -> &'static str {
         match self {
             Target::Dots(_) => "dots",
-            Target::Chessboard { .. } => "inner corners",
+            Target::Chessboard { .. } | Target::Charuco(_) => "inner corners",
         }
     }
 }

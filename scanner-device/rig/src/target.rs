@@ -6,6 +6,8 @@
 
 use scanner_core::nalgebra::{Point2, Point3, Rotation3, Vector3};
 
+use scanner_calib::aruco::CharucoBoard;
+
 use super::{Rgb8, Rig};
 
 /// Albedo of the white target sheet and of its ink.
@@ -48,6 +50,9 @@ pub enum Pattern {
         /// Square side, mm.
         square: f64,
     },
+    /// A ChArUco board (OpenCV's layout), centred; its inner corners are the features, in
+    /// OpenCV's order.
+    Charuco(CharucoBoard),
 }
 
 impl From<&scanner_calib::DotGrid> for Pattern {
@@ -82,7 +87,7 @@ impl Pattern {
                     })
                 })
                 .collect(),
-            Pattern::Chessboard { .. } => Vec::new(),
+            Pattern::Chessboard { .. } | Pattern::Charuco(_) => Vec::new(),
         }
     }
 
@@ -99,6 +104,15 @@ impl Pattern {
                     })
                 })
                 .collect(),
+            Pattern::Charuco(b) => {
+                let (hx, hy) = self.half_extent();
+                (0..b.corner_count())
+                    .map(|k| {
+                        let c = b.corner(k);
+                        [c.x - hx, c.y - hy]
+                    })
+                    .collect()
+            }
             _ => Vec::new(),
         }
     }
@@ -144,6 +158,10 @@ impl Pattern {
                     PAPER
                 }
             }
+            Pattern::Charuco(b) => {
+                let (hx, hy) = self.half_extent();
+                ink(charuco_ink(&b, x + hx, y + hy))
+            }
         }
     }
 
@@ -163,15 +181,45 @@ impl Pattern {
             Pattern::Chessboard { cols, rows, square } => {
                 (cols as f64 * square / 2.0, rows as f64 * square / 2.0)
             }
+            Pattern::Charuco(b) => (
+                b.cols as f64 * b.square / 2.0,
+                b.rows as f64 * b.square / 2.0,
+            ),
         }
     }
 
     fn dot_diameter(&self) -> f64 {
         match *self {
             Pattern::Cross { dot, .. } | Pattern::DotGrid { dot, .. } => dot,
-            Pattern::Chessboard { .. } => 0.0,
+            Pattern::Chessboard { .. } | Pattern::Charuco(_) => 0.0,
         }
     }
+}
+
+/// Whether a ChArUco board has ink at board point `(x, y)` (mm from its top left): a dark
+/// square, or a dark cell of a marker (its border, or a dark cell of its code).
+fn charuco_ink(b: &CharucoBoard, x: f64, y: f64) -> bool {
+    let (u, v) = (x / b.square, y / b.square);
+    if u < 0.0 || v < 0.0 || u >= b.cols as f64 || v >= b.rows as f64 {
+        return false;
+    }
+    let (sx, sy) = (u.floor() as usize, v.floor() as usize);
+    let Some(id) = b.marker_in(sx, sy) else {
+        return true;
+    };
+    let m = (b.square - b.marker) / 2.0;
+    let (mx, my) = (x - sx as f64 * b.square - m, y - sy as f64 * b.square - m);
+    if mx < 0.0 || my < 0.0 || mx >= b.marker || my >= b.marker {
+        return false;
+    }
+    let n = b.dictionary.n;
+    let cell = b.marker / (n + 2) as f64;
+    let (c, r) = ((mx / cell) as usize, (my / cell) as usize);
+    if r == 0 || c == 0 || r > n || c > n {
+        return true;
+    }
+    let code = b.dictionary.code(id).unwrap_or(0);
+    (code >> (n * n - 1 - ((r - 1) * n + c - 1))) & 1 == 0
 }
 
 /// Where the target sheet is: the pattern's centre in camera coordinates and the sheet's turn
@@ -515,6 +563,7 @@ impl<'a> ShotView<'a> {
         });
         let pitch = match *pattern {
             Pattern::Chessboard { square, .. } => square,
+            Pattern::Charuco(b) => b.square,
             Pattern::DotGrid { pitch, .. } => pitch,
             Pattern::Cross { arm, .. } => arm / 2.0,
         };
@@ -628,6 +677,7 @@ impl<'a> ShotView<'a> {
         let clear = match *self.pattern {
             // The corner refinement's window reaches about 0.35 of a square.
             Pattern::Chessboard { square, .. } => square / 2.0,
+            Pattern::Charuco(b) => b.square / 2.0,
             _ => r,
         };
         let mut features = Vec::new();

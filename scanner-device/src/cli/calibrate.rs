@@ -35,7 +35,20 @@ pub struct TargetArgs {
     /// Refused: it did not say whether it counts squares or inner corners.
     #[arg(long, hide = true)]
     pub chessboard: Option<String>,
-    /// Chessboard square side, mm.
+    /// A ChArUco board of COLSxROWS squares (OpenCV's layout and count: 7x5 for 6x4 inner
+    /// corners) instead of the dot grid; give --square, --marker and --dictionary.
+    #[arg(long, value_parser = parse_grid, conflicts_with_all = ["dots", "pitch", "dot", "chessboard_squares", "chessboard_corners"])]
+    pub charuco: Option<(usize, usize)>,
+    /// The ChArUco board's marker side, mm.
+    #[arg(long, requires = "charuco")]
+    pub marker: Option<f64>,
+    /// The ChArUco board's dictionary, as OpenCV names it (DICT_4X4_50 … DICT_7X7_1000).
+    #[arg(long, requires = "charuco", default_value = "DICT_4X4_50")]
+    pub dictionary: String,
+    /// The ChArUco board's first marker ID.
+    #[arg(long, requires = "charuco", default_value_t = 0)]
+    pub first_id: usize,
+    /// Chessboard or ChArUco square side, mm.
     #[arg(long, default_value_t = 25.0)]
     pub square: f64,
     /// The grid: dots per row × rows.
@@ -58,6 +71,15 @@ impl TargetArgs {
         if let Some(v) = &self.chessboard {
             bail!(
                 "--chessboard {v} is ambiguous: say what it counts, --chessboard-squares {v} (squares along each side) or --chessboard-corners {v} (inner corners, OpenCV's convention; a board of 10x7 squares has 9x6)"
+            );
+        }
+        if let Some(squares) = self.charuco {
+            return charuco_target(
+                squares,
+                self.square,
+                self.marker,
+                &self.dictionary,
+                self.first_id,
             );
         }
         let squares = self
@@ -523,6 +545,49 @@ fn chessboard_target((cols, rows): (usize, usize), square: f64) -> Result<Target
     Ok(Target::Chessboard { cols, rows, square })
 }
 
+fn charuco_target(
+    (cols, rows): (usize, usize),
+    square: f64,
+    marker: Option<f64>,
+    dictionary: &str,
+    first_id: usize,
+) -> Result<Target> {
+    // The squares are checked as a chessboard's.
+    chessboard_target((cols, rows), square)?;
+    let Some(marker) = marker else {
+        bail!("--charuco needs --marker: the markers' side, mm (OpenCV's markerLength)");
+    };
+    if !(marker > 0.0 && marker < square) {
+        bail!(
+            "--marker {} mm: a ChArUco marker is smaller than its square ({} mm)",
+            short(marker),
+            short(square)
+        );
+    }
+    let Some(dict) = scanner_calib::aruco::Dictionary::named(dictionary) else {
+        bail!(
+            "--dictionary {dictionary}: not one of OpenCV's predefined dictionaries ({})",
+            scanner_calib::aruco::DICTIONARIES.join(", ")
+        );
+    };
+    let board = scanner_calib::aruco::CharucoBoard {
+        cols,
+        rows,
+        square,
+        marker,
+        dictionary: dict,
+        first_id,
+    };
+    if board.ids().end > dict.count {
+        bail!(
+            "a ChArUco board of {cols}x{rows} squares has {} markers: from ID {first_id} they run past the {} codes of {dictionary}",
+            board.marker_count(),
+            dict.count
+        );
+    }
+    Ok(Target::Charuco(board))
+}
+
 fn dot_target((cols, rows): (usize, usize), pitch: f64, dot: f64) -> Result<Target> {
     if !(pitch > dot && dot > 0.0 && pitch <= 1000.0) {
         bail!(
@@ -904,6 +969,15 @@ fn source_note(target: &Target, used: usize) -> String {
             "intrinsics from {used} chessboard images ({cols}x{rows} squares of {square} mm, {}x{} inner corners)",
             cols - 1,
             rows - 1
+        ),
+        Target::Charuco(b) => format!(
+            "intrinsics from {used} ChArUco images ({}x{} squares of {} mm, markers {} mm, {} from ID {})",
+            b.cols,
+            b.rows,
+            b.square,
+            b.marker,
+            b.dictionary.name(),
+            b.first_id
         ),
     }
 }
