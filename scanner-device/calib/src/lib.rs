@@ -5,7 +5,8 @@
 //! planes, eq. 1–9); this crate is the image side (std + `image`).
 //!
 //! Calibration from images: the printable board ([`board`], [`print`](mod@print)), marker detection
-//! ([`detect`]) and identification ([`identify`](mod@identify)), and the three procedures —
+//! ([`detect`]) and identification ([`identify`](mod@identify)), ArUco markers and ChArUco
+//! corners ([`aruco`], [`charuco`]), and the three procedures —
 //! - [`image_distance`]: the paper's two-position procedure on two images of the cross pattern;
 //! - [`intrinsics()`]: full intrinsics from several images of a dot grid (Zhang's method, refined);
 //! - [`board_planes`]: both board planes from an image of the board without laser, by the layout
@@ -23,9 +24,9 @@
 //! selfcheck
 //! intrinsics  file  spread
 //! fit  target
-//! identify
+//! identify  charuco
 //! corners  lattice  board  canvas
-//! detect  blur  speckle
+//! detect  blur  speckle  aruco
 //! error
 //! ```
 #![deny(missing_docs)]
