@@ -410,6 +410,26 @@ pub fn intrinsics_outcome(images: &[GrayImage], target: &Target, free: Free) -> 
     solve_outcome(size, reports, target, free)
 }
 
+/// The intrinsics from grids already found (another detector's corners, say: each image's
+/// `FoundGrid` with its identified features), by the same solver as [`intrinsics_outcome`], so
+/// that corner finders can be compared on one fit. `size` is the images' size.
+pub fn intrinsics_from_grids(
+    size: (u32, u32),
+    grids: Vec<FoundGrid>,
+    target: &Target,
+    free: Free,
+) -> IntrinsicsOutcome {
+    let reports = grids
+        .into_iter()
+        .map(|g| ImageReport {
+            grid: Some(g),
+            status: pending(),
+            cropped_from: None,
+        })
+        .collect();
+    solve_outcome(size, reports, target, free)
+}
+
 /// As [`intrinsics_outcome`] with every parameter free, unless no feature used lies on the
 /// image's border ([`Coverage::border`]): then `k3` is fixed at 0 and the fit repeated. `k3`
 /// weighs the sixth power of the distance from the centre, so only features near the border

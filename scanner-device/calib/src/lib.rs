@@ -72,7 +72,7 @@ pub use fit::{
 };
 pub use intrinsics::{
     Coverage, Found, FoundGrid, ImageFit, ImageReport, IntrinsicsFit, IntrinsicsOutcome, find_grid,
-    intrinsics, intrinsics_auto, intrinsics_outcome,
+    intrinsics, intrinsics_auto, intrinsics_from_grids, intrinsics_outcome,
 };
 pub use planes::{BoardOutcome, TurntableSeen, board_planes, check_size};
 pub use target::{DotGrid, Target};
