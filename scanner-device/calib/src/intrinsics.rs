@@ -23,7 +23,7 @@ use super::aruco::CharucoBoard;
 use super::charuco::find_charuco;
 use super::corners::{CornerConfig, find_corners};
 use super::detect::{Blob, DetectConfig, find_markers};
-use super::lattice::{MAX_FEATURES, lattices};
+use super::lattice::{MAX_FEATURES, Placement, lattices};
 use super::{CalibError, Target};
 use crate::error::geom;
 
@@ -98,12 +98,18 @@ pub fn find_grid(img: &GrayImage, target: &Target) -> Result<FoundGrid, CalibErr
             features: features.len(),
         });
     };
-    // The largest lattice that fits the target; else the largest with a line of clutter beside
-    // it left out ([`Lattice::place_in`]).
+    // Of the lattices that fit the target, the one placing the most features (a complete one
+    // first): clutter beside the target can make a larger lattice that fits too (a checked
+    // cloth askew, partly out of the picture), but not one with more of the target's corners.
+    // Else the largest with a line of clutter beside it left out ([`Lattice::place_in`]).
     let dark_even = target.dark_even();
     let placed = found_lattices
         .iter()
-        .find_map(|l| l.place(&features, cols, rows, dark_even).ok())
+        .filter_map(|l| l.place(&features, cols, rows, dark_even).ok())
+        .fold(None, |best: Option<Placement>, p| match best {
+            Some(b) if (b.complete, b.found.len()) >= (p.complete, p.found.len()) => Some(b),
+            _ => Some(p),
+        })
         .map_or_else(
             || largest.place_in(&features, (cols, rows), dark_even, true),
             Ok,

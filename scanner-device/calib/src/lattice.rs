@@ -197,6 +197,15 @@ fn predict(nodes: &HashMap<Cell, usize>, feats: &[Blob], t: Cell) -> Option<(Poi
     (n > 0.0).then(|| (Point2::from(sum / n), step))
 }
 
+/// Whether two lattices hold the same features.
+fn same_features(a: &Lattice, b: &Lattice) -> bool {
+    let mut x: Vec<usize> = a.nodes.values().copied().collect();
+    let mut y: Vec<usize> = b.nodes.values().copied().collect();
+    x.sort_unstable();
+    y.sort_unstable();
+    x == y
+}
+
 /// Grows a lattice from a seed until no neighbour can be added.
 fn grow(feats: &[Blob], near: &[Vec<usize>], used: &mut [bool], s: [usize; 5]) -> Lattice {
     let mut nodes = HashMap::new();
@@ -543,16 +552,37 @@ pub fn lattices(feats: &[Blob], (cols, rows): (usize, usize)) -> Vec<Lattice> {
         let Some(s) = seed(feats, &near, &used, p) else {
             continue;
         };
-        let mut trial = used.clone();
+        // Each lattice grows through every feature, those of lattices found before too: a
+        // lattice of clutter beside the target (a checked cloth of another step or angle) may
+        // have taken the target's outer corners where the two meet, and the target's own
+        // lattice must still reach them.
+        let mut trial = vec![false; feats.len()];
         let l = grow(feats, &near, &mut trial, s);
-        // A seed of clutter gives a lattice of a few nodes; keep its features free for the
-        // target's lattice but never seed from them again.
+        // A seed of clutter gives a lattice of a few nodes; never seed from it again.
         if l.len() >= 9 {
-            used = trial;
             let (w, h) = l.extent();
             let fits = (w <= cols && h <= rows) || (w <= rows && h <= cols);
             let done = l.len() >= cols * rows && fits;
-            out.push(l);
+            let again = out
+                .iter()
+                .any(|o| o.nodes.len() == l.nodes.len() && same_features(o, &l));
+            // A lattice that fits the target, or one grown a second time (whichever of its
+            // features seeds it, it is the same), claims its features: they seed no other. One
+            // larger than the target, grown once, claims only its seed: it may be clutter joined
+            // to the target where the two meet, and the target's own corners must still seed
+            // the target's lattice.
+            if fits || again {
+                for (u, t) in used.iter_mut().zip(&trial) {
+                    *u |= *t;
+                }
+            } else {
+                for &f in &s {
+                    used[f] = true;
+                }
+            }
+            if !again {
+                out.push(l);
+            }
             if done {
                 break;
             }

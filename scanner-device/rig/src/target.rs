@@ -287,6 +287,12 @@ pub enum BesideKind {
     /// A second chessboard of the same squares, its rows continuing the pattern's (six squares
     /// wide, as high as the pattern).
     Checker,
+    /// A chessboard of squares 0.7 of the pattern's, turned by 30° (a checked cloth, another
+    /// board lying askew): corners of the right kind on a lattice of another step and angle.
+    Turned,
+    /// A chessboard of half the pattern's squares, lined up with its rows: every other corner
+    /// on the pattern's own lattice.
+    Fine,
 }
 
 /// A mid-gray wall behind the target with dark things on it: discs the size of markers, bars,
@@ -621,6 +627,14 @@ impl<'a> ShotView<'a> {
                             && (v.rem_euclid(1.0) - 0.5).abs() < 0.35
                     }
                     BesideKind::Checker => (u.floor() + v.floor()).rem_euclid(2.0) == 0.0,
+                    BesideKind::Turned => {
+                        let (c, s) = (30f64.to_radians().cos(), 30f64.to_radians().sin());
+                        let (a, b) = ((u * c - v * s) / 0.7, (u * s + v * c) / 0.7);
+                        (a.floor() + b.floor()).rem_euclid(2.0) == 0.0
+                    }
+                    BesideKind::Fine => {
+                        ((2.0 * u).floor() + (2.0 * v).floor()).rem_euclid(2.0) == 0.0
+                    }
                 };
                 return if dark { DARK } else { PAPER };
             }
