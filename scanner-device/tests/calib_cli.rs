@@ -465,3 +465,80 @@ fn the_papers_large_set_up_is_a_board_like_any_other() {
         );
     }
 }
+
+/// `calibrate intrinsics --charuco` from the outside: eight rendered shots of a ChArUco board
+/// (640×480) give a camera close to the rig's, every shot used; the ChArUco options without a
+/// marker side, with a marker as large as the square, or with a dictionary OpenCV does not have
+/// are refused with what to give.
+#[test]
+fn calibrate_intrinsics_from_charuco_shots() {
+    use scanner_calib::aruco::{CharucoBoard, Dictionary};
+    use scanner_rig::target::{Pattern, TargetPose};
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let mut scene = scanner_rig::Scene::demo(640, 480);
+    scene.sensor.read_noise = 2.0;
+    let rig = scanner_rig::Rig::new(scene).unwrap();
+    let board = CharucoBoard {
+        cols: 9,
+        rows: 7,
+        square: 30.0,
+        marker: 22.0,
+        dictionary: Dictionary::named("DICT_5X5_100").unwrap(),
+        first_id: 0,
+    };
+    let mut shots = Vec::new();
+    for i in 0..8 {
+        let mut pose = TargetPose::sweep(i, 8);
+        pose.centre.z *= 0.7;
+        let name = p(d, &format!("charuco-{i}.png"));
+        rig.shot(&Pattern::Charuco(board), &pose, i as u64)
+            .image
+            .to_gray_image()
+            .save(&name)
+            .unwrap();
+        shots.push(name);
+    }
+    let out = p(d, "camera.toml");
+    let base = [
+        "calibrate",
+        "intrinsics",
+        "--charuco",
+        "9x7",
+        "--square",
+        "30",
+        "--out",
+        out.as_str(),
+    ];
+    let with = |extra: &[&str]| {
+        let mut args: Vec<&str> = base.to_vec();
+        args.extend_from_slice(extra);
+        args.extend(shots.iter().map(String::as_str));
+        run(&args)
+    };
+    let (ok, _, err) = with(&["--marker", "22", "--dictionary", "DICT_5X5_100"]);
+    assert!(ok, "{err}");
+    let report = json(&d.join("camera-report.json"));
+    assert_eq!(report["used"], 8, "{report}");
+    let fx = report["camera"]["fx"].as_f64().unwrap();
+    let truth = rig.scene().camera.fx();
+    println!(
+        "ChArUco through the command line: fx {fx:.2} (rig {truth:.2}), rms {}",
+        report["rms_px"]
+    );
+    assert!((fx / truth - 1.0).abs() < 0.005, "fx {fx} against {truth}");
+    for (extra, says) in [
+        (&["--dictionary", "DICT_5X5_100"][..], "--marker"),
+        (
+            &["--marker", "30", "--dictionary", "DICT_5X5_100"][..],
+            "smaller than its square",
+        ),
+        (
+            &["--marker", "22", "--dictionary", "DICT_9X9_50"][..],
+            "predefined",
+        ),
+    ] {
+        let (ok, _, err) = with(extra);
+        assert!(!ok && err.contains(says), "{extra:?}: {err}");
+    }
+}

@@ -70,6 +70,21 @@ pub struct Blob {
     pub dark_axis: Option<f64>,
 }
 
+impl Blob {
+    /// A feature that is only a point (a corner named by other means, such as a ChArUco
+    /// board's): no area, axes or contrast.
+    pub fn point(centre: Point2<f64>) -> Blob {
+        Blob {
+            centre,
+            area: 1.0,
+            axes: (0.0, 0.0),
+            angle: 0.0,
+            contrast: 0.0,
+            dark_axis: None,
+        }
+    }
+}
+
 /// A rejected dark region (for the overlay and error messages).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Rejected {

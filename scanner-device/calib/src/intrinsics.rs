@@ -127,15 +127,7 @@ pub fn find_grid(img: &GrayImage, target: &Target) -> Result<FoundGrid, CalibErr
         .collect();
     let needed = (layout_len / 2).max(4);
     if found.len() < needed {
-        return Err(CalibError::TooFewMarkers {
-            what: target.name().into(),
-            found: found.len(),
-            expected: layout_len,
-            needed,
-            missing: (0..layout_len)
-                .filter(|i| !found.iter().any(|(k, _)| k == i))
-                .collect(),
-        });
+        return Err(too_few(target.name(), &found, layout_len, needed));
     }
     Ok(FoundGrid {
         features,
@@ -143,6 +135,19 @@ pub fn find_grid(img: &GrayImage, target: &Target) -> Result<FoundGrid, CalibErr
         extent: placed.extent,
         complete: placed.complete,
     })
+}
+
+/// Fewer of a target's `layout_len` features found than `needed`: the error, with the missing.
+fn too_few(what: &str, found: &Found, layout_len: usize, needed: usize) -> CalibError {
+    CalibError::TooFewMarkers {
+        what: what.into(),
+        found: found.len(),
+        expected: layout_len,
+        needed,
+        missing: (0..layout_len)
+            .filter(|i| !found.iter().any(|(k, _)| k == i))
+            .collect(),
+    }
 }
 
 /// The fewest corners of a ChArUco board that make a view for the intrinsics (a partial view
@@ -171,15 +176,7 @@ fn find_charuco_grid(img: &GrayImage, board: &CharucoBoard) -> Result<FoundGrid,
                 hint: "is the ChArUco board in view, lit, and of the dictionary given?",
             });
         }
-        return Err(CalibError::TooFewMarkers {
-            what: "ChArUco board".into(),
-            found: found.len(),
-            expected: layout_len,
-            needed,
-            missing: (0..layout_len)
-                .filter(|i| !found.iter().any(|(k, _)| k == i))
-                .collect(),
-        });
+        return Err(too_few("ChArUco board", &found, layout_len, needed));
     }
     let per = board.corners_per_row().max(1);
     let span = |f: fn(usize, usize) -> usize| {
@@ -190,14 +187,7 @@ fn find_charuco_grid(img: &GrayImage, board: &CharucoBoard) -> Result<FoundGrid,
     Ok(FoundGrid {
         features: found
             .iter()
-            .map(|&(_, centre)| Blob {
-                centre,
-                area: 1.0,
-                axes: (0.0, 0.0),
-                angle: 0.0,
-                contrast: 0.0,
-                dark_axis: None,
-            })
+            .map(|&(_, centre)| Blob::point(centre))
             .collect(),
         complete: found.len() == extent.0 * extent.1,
         found,

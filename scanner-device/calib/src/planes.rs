@@ -63,14 +63,7 @@ fn charuco_identified(found: &CharucoCorners, layout_len: usize) -> (Vec<Blob>, 
     let features = found
         .corners
         .iter()
-        .map(|&(_, centre)| Blob {
-            centre,
-            area: 1.0,
-            axes: (0.0, 0.0),
-            angle: 0.0,
-            contrast: 0.0,
-            dark_axis: None,
-        })
+        .map(|&(_, centre)| Blob::point(centre))
         .collect();
     let mut blob_of = vec![None; layout_len];
     for (b, &(k, _)) in found.corners.iter().enumerate() {
@@ -611,18 +604,7 @@ mod tests {
         let layout = target.points();
         for (p, img) in names.iter().zip(&images) {
             let grid = find_grid(img, &target).unwrap();
-            let blobs: Vec<Blob> = grid
-                .found
-                .iter()
-                .map(|&(_, px)| Blob {
-                    centre: px,
-                    area: 0.0,
-                    axes: (0.0, 0.0),
-                    angle: 0.0,
-                    contrast: 0.0,
-                    dark_axis: None,
-                })
-                .collect();
+            let blobs: Vec<Blob> = grid.found.iter().map(|&(_, px)| Blob::point(px)).collect();
             let mut blob_of = vec![None; layout.len()];
             for (k, &(i, _)) in grid.found.iter().enumerate() {
                 blob_of[i] = Some(k);

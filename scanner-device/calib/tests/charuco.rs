@@ -109,6 +109,14 @@ fn a_board_of_the_wrong_dictionary_is_refused_with_the_one_seen() {
         }
         other => panic!("expected a ChArUco error, got {other:?}"),
     }
+    // IDs past the dictionary, however far, are refused when the file is read.
+    for first in ["40", "18446744073709551615"] {
+        let text = board_text().replace(
+            "dictionary = \"DICT_5X5_50\"",
+            &format!("dictionary = \"DICT_5X5_50\", first_id = {first}"),
+        );
+        assert!(matches!(board(&text), Err(BoardError::Invalid(m)) if m.contains("run past")));
+    }
     // An unknown dictionary name is refused when the file is read.
     let text = board_text().replace("DICT_5X5_50", "DICT_5X5_60");
     assert!(matches!(board(&text), Err(BoardError::Invalid(m)) if m.contains("DICT_5X5_60")));

@@ -590,7 +590,7 @@ impl CharucoBoard {
             return None;
         }
         let before = self.light_squares().position(|s| s == (x, y))?;
-        Some(self.first_id + before)
+        self.first_id.checked_add(before)
     }
 
     /// The square of marker `id`, if the board carries it.
@@ -634,6 +634,6 @@ impl CharucoBoard {
 
     /// The IDs the board's markers take.
     pub fn ids(&self) -> std::ops::Range<usize> {
-        self.first_id..self.first_id + self.marker_count()
+        self.first_id..self.first_id.saturating_add(self.marker_count())
     }
 }
