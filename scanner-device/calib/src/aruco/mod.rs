@@ -637,3 +637,78 @@ impl CharucoBoard {
         self.first_id..self.first_id.saturating_add(self.marker_count())
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Any picture, of any size, noise or flat or tiny: the search answers, without a panic.
+    #[test]
+    fn any_picture_is_searched_without_a_panic() {
+        let board = CharucoBoard {
+            cols: 5,
+            rows: 4,
+            square: 20.0,
+            marker: 15.0,
+            dictionary: Dictionary::named("DICT_4X4_50").unwrap(),
+            first_id: 0,
+        };
+        let mut state = 0x2545_f491_4f6c_dd1du64;
+        let mut next = move || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            state
+        };
+        for (w, h) in [(1, 1), (7, 7), (8, 8), (9, 200), (300, 3), (120, 90)] {
+            for fill in 0..3 {
+                let img = GrayImage::from_fn(w, h, |x, y| {
+                    image::Luma([match fill {
+                        0 => (next() & 0xff) as u8,
+                        1 => 128,
+                        _ => {
+                            if (x / 6 + y / 6) % 2 == 0 {
+                                0
+                            } else {
+                                255
+                            }
+                        }
+                    }])
+                });
+                for min_side in [0.0, 6.0] {
+                    let q = quads(&img, min_side);
+                    let found = find_aruco(&img, &q, &board.dictionary);
+                    assert!(found.markers.len() <= board.dictionary.count);
+                    let c = crate::charuco::find_charuco(&img, &q, &board);
+                    assert!(c.corners.len() <= board.corner_count());
+                }
+            }
+        }
+    }
+
+    /// The board's numbering, as OpenCV's: light squares row by row, corner `k` row by row.
+    #[test]
+    fn the_board_numbers_markers_and_corners_as_opencv_does() {
+        for (cols, rows, first) in [
+            (7, 5, [(1, 0), (3, 0), (5, 0), (0, 1)]),
+            (8, 6, [(1, 0), (3, 0), (5, 0), (7, 0)]),
+        ] {
+            let b = CharucoBoard {
+                cols,
+                rows,
+                square: 25.0,
+                marker: 19.0,
+                dictionary: Dictionary::named("DICT_4X4_50").unwrap(),
+                first_id: 3,
+            };
+            for (k, sq) in first.iter().enumerate() {
+                assert_eq!(b.square_of(3 + k), Some(*sq));
+                assert_eq!(b.marker_in(sq.0, sq.1), Some(3 + k));
+            }
+            assert_eq!(b.marker_count(), cols * rows / 2);
+            assert_eq!(b.corner(0), Point2::new(25.0, 25.0));
+            assert_eq!(b.corner(cols - 1), Point2::new(25.0, 50.0));
+            assert_eq!(b.marker_corners(3).unwrap()[0], Point2::new(28.0, 3.0));
+        }
+    }
+}
