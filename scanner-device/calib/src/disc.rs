@@ -333,6 +333,7 @@ pub fn find_disc(img: &GrayImage, disc: &Disc, camera: &Camera<f64>) -> Result<D
         disc.dot() / 2.0,
         Prune::Predicted,
         None,
+        crate::fit::MAX_FIT_RMS_PX,
     )
     .map_err(DiscMiss::PoorFit)?;
     let found = DiscFit {

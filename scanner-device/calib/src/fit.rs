@@ -101,7 +101,7 @@ impl SheetFit {
 
 /// Pose of a planar layout from identified markers, with a camera known, from the markers an
 /// earlier fit kept (`start`) or all found; markers that pull the fit are dropped by the rule of
-/// `prune` (up to a quarter of them) and the pose refitted.
+/// `prune` (up to a quarter of them) and the pose refitted; refused above `max_rms` px RMS.
 pub(crate) fn fit_sheet(
     what: &str,
     camera: &Camera<f64>,
@@ -111,6 +111,7 @@ pub(crate) fn fit_sheet(
     radius: f64,
     prune: Prune,
     start: Option<&[usize]>,
+    max_rms: f64,
 ) -> Result<SheetFit, CalibError> {
     let found: Vec<usize> = (0..layout.len())
         .filter(|&i| a.blob_of[i].is_some())
@@ -201,11 +202,11 @@ pub(crate) fn fit_sheet(
         used.remove(k);
         (pose, rms, res) = fit;
     }
-    if rms > MAX_FIT_RMS_PX {
+    if rms > max_rms {
         return Err(CalibError::PoorFit {
             what: what.to_string(),
             rms_px: rms,
-            limit_px: MAX_FIT_RMS_PX,
+            limit_px: max_rms,
         });
     }
     let markers = (0..layout.len())

@@ -713,6 +713,14 @@ fn board_planes_command(p: &BoardPaths, method: BoardMethod) -> Result<()> {
     file.save(p.out)?;
     for (k, s) in fit.sheets.iter().enumerate() {
         outln!("{}", s.summary(["left", "right"][k]));
+        if s.rms_px > scanner_calib::MAX_SHEET_RMS_PX {
+            crate::errln!(
+                "warning: the {} sheet fits its layout with {:.2} px RMS, a flat print within {} px: is it flat? A bent sheet tilts its plane, by a tenth of a degree or so where the object hides part of it",
+                ["left", "right"][k],
+                s.rms_px,
+                scanner_calib::MAX_SHEET_RMS_PX
+            );
+        }
     }
     outln!(
         "planes by {}; angle between them {angle:.3}°; -> {} (picture: {})",
