@@ -408,3 +408,36 @@ fn an_object_hiding_part_of_a_charuco_sheet_leaves_the_rest_named() {
         fit.sheets[1].used()
     );
 }
+
+/// Any picture, of any size, noise or flat or tiny or a plain chessboard: the ChArUco search
+/// answers without a panic, and finds no corner where there is no marker.
+#[test]
+fn any_picture_is_searched_for_charuco_corners_without_a_panic() {
+    let board = charuco("DICT_4X4_50");
+    let mut state = 0x2545_f491_4f6c_dd1du64;
+    let mut next = move || {
+        state ^= state << 13;
+        state ^= state >> 7;
+        state ^= state << 17;
+        state
+    };
+    for (w, h) in [(1, 1), (7, 7), (8, 8), (9, 200), (300, 3), (120, 90)] {
+        for fill in 0..3 {
+            let img = GrayImage::from_fn(w, h, |x, y| {
+                image::Luma([match fill {
+                    0 => (next() & 0xff) as u8,
+                    1 => 128,
+                    _ => {
+                        if (x / 6 + y / 6) % 2 == 0 {
+                            0
+                        } else {
+                            255
+                        }
+                    }
+                }])
+            });
+            let found = find_charuco(&img, &quads(&img, 0.0), &board);
+            assert!(found.corners.is_empty(), "{w}×{h} fill {fill}");
+        }
+    }
+}
