@@ -157,7 +157,7 @@ pub const MIN_CHARUCO_CORNERS: usize = 6;
 /// [`find_grid`] for a ChArUco board: its corners named by their markers, however few of the
 /// board are in view (at least a quarter, and [`MIN_CHARUCO_CORNERS`]).
 fn find_charuco_grid(img: &GrayImage, board: &CharucoBoard) -> Result<FoundGrid, CalibError> {
-    let quads = crate::aruco::quads(img, 6.0);
+    let quads = crate::aruco::quads(img, crate::aruco::MIN_QUAD_SIDE_PX);
     let seen = find_charuco(img, &quads, board);
     if !seen.markers.repeated.is_empty() {
         return Err(CalibError::Charuco(format!(

@@ -113,7 +113,7 @@ pub fn board_planes(img: &GrayImage, board: &BoardFile, camera: &Camera<f64>) ->
         Vec::new()
     };
     let quads = if sheets.iter().any(|s| s.charuco.is_some()) {
-        aruco::quads(img, MIN_QUAD_SIDE_PX)
+        aruco::quads(img, aruco::MIN_QUAD_SIDE_PX)
     } else {
         Vec::new()
     };
@@ -301,9 +301,6 @@ fn max_rms(sheet: &crate::board::SheetLayout) -> f64 {
         MAX_FIT_RMS_PX
     }
 }
-
-/// The smallest side of a dark quad looked at for ArUco markers, pixels.
-const MIN_QUAD_SIDE_PX: f64 = 6.0;
 
 /// Why a ChArUco sheet gave too few corners, when the picture says more than a count: repeated
 /// IDs, markers of a size (`n × n` cells) that none of the board file's `sizes` is, or its

@@ -57,7 +57,7 @@ fn every_marker_and_corner_of_both_real_boards_is_found() {
         let img = image::open(data().join(pair).join("laser-off.png"))
             .unwrap()
             .to_luma8();
-        let q = quads(&img, 6.0);
+        let q = quads(&img, scanner_calib::aruco::MIN_QUAD_SIDE_PX);
         for dict in ["DICT_4X4_50", "DICT_5X5_50"] {
             let found = find_charuco(&img, &q, &charuco(dict));
             let ids: Vec<usize> = found.markers.markers.iter().map(|m| m.id).collect();
@@ -220,7 +220,7 @@ fn printed_charuco_sheets_read_back_where_the_board_file_lays_them() {
                     .unwrap(),
             )
             .to_luma8();
-            let q = quads(&img, 6.0);
+            let q = quads(&img, scanner_calib::aruco::MIN_QUAD_SIDE_PX);
             let found = find_charuco(&img, &q, &c.board().unwrap());
             let layout = sheet_layout.points();
             assert_eq!(found.corners.len(), layout.len(), "{name} sheet {k}");
@@ -410,7 +410,8 @@ fn an_object_hiding_part_of_a_charuco_sheet_leaves_the_rest_named() {
 }
 
 /// Any picture, of any size, noise or flat or tiny or a plain chessboard: the ChArUco search
-/// answers without a panic, and finds no corner where there is no marker.
+/// answers without a panic (the quads at any size, the markers, the corners), and finds no
+/// corner where there is no marker.
 #[test]
 fn any_picture_is_searched_for_charuco_corners_without_a_panic() {
     let board = charuco("DICT_4X4_50");

@@ -27,6 +27,9 @@ use scanner_core::nalgebra::{Matrix3, Point2, Vector2, Vector3};
 const WINDOWS: [u32; 3] = [3, 13, 23];
 /// A pixel is dark when below its window's mean by this much, DN (OpenCV's 7).
 const DARK_BELOW_MEAN: i32 = 7;
+/// The smallest side of a dark quad worth reading as a marker, pixels (below, it is reported as
+/// too small when nothing larger reads).
+pub const MIN_QUAD_SIDE_PX: f64 = 6.0;
 /// The smallest side of a marker's cell in the picture that is read, pixels: below, cells blur
 /// into each other. A marker of `n` cells plus its border is at least `(n + 2)` times this.
 pub const MIN_CELL_PX: f64 = 2.5;
@@ -641,48 +644,6 @@ impl CharucoBoard {
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    /// Any picture, of any size, noise or flat or tiny: the search answers, without a panic.
-    #[test]
-    fn any_picture_is_searched_without_a_panic() {
-        let board = CharucoBoard {
-            cols: 5,
-            rows: 4,
-            square: 20.0,
-            marker: 15.0,
-            dictionary: Dictionary::named("DICT_4X4_50").unwrap(),
-            first_id: 0,
-        };
-        let mut state = 0x2545_f491_4f6c_dd1du64;
-        let mut next = move || {
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
-            state
-        };
-        for (w, h) in [(1, 1), (7, 7), (8, 8), (9, 200), (300, 3), (120, 90)] {
-            for fill in 0..3 {
-                let img = GrayImage::from_fn(w, h, |x, y| {
-                    image::Luma([match fill {
-                        0 => (next() & 0xff) as u8,
-                        1 => 128,
-                        _ => {
-                            if (x / 6 + y / 6) % 2 == 0 {
-                                0
-                            } else {
-                                255
-                            }
-                        }
-                    }])
-                });
-                for min_side in [0.0, 6.0] {
-                    let q = quads(&img, min_side);
-                    let found = find_aruco(&img, &q, &board.dictionary);
-                    assert!(found.markers.len() <= board.dictionary.count);
-                }
-            }
-        }
-    }
 
     /// The board's numbering, as OpenCV's: light squares row by row, corner `k` row by row.
     #[test]
