@@ -56,6 +56,9 @@ fn decode(bytes: &[u8]) -> Decoded {
             | Message::Notice(_)
             | Message::Preview(_)
             | Message::FixedLaser(_) => {}
+            m @ (Message::Reply(_) | Message::Shot(_) | Message::Calibrated(_)) => {
+                panic!("a scan answers no command: {m:?}")
+            }
         });
     }
     (frames, headers, last, d.stats())

@@ -438,6 +438,8 @@ impl State {
                     self.fresh_notices.push(*n);
                 }
             }
+            // the answers to commands: the studio reads them; a scan's grid has no use for them
+            Message::Reply(_) | Message::Shot(_) | Message::Calibrated(_) => {}
             Message::Preview(p) => {
                 self.counts.previews += 1;
                 self.preview = Some(PreviewImage {

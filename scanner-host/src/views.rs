@@ -115,7 +115,8 @@ pub fn split_scans(journal: &Path, dir: &Path) -> Result<Vec<PathBuf>, ViewsErro
             if failed.is_some() {
                 return;
             }
-            let id = msg.scan_id();
+            // the answers to commands belong to no view
+            let Some(id) = msg.scan_id() else { return };
             let k = match views.iter().position(|(s, _, _)| *s == id) {
                 Some(k) => k,
                 None if views.len() >= MAX_VIEWS => {

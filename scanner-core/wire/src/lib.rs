@@ -24,6 +24,12 @@
 //! | [`Status`] | [`status`] | periodically and at the end: counters, skip reasons, why it ended |
 //! | [`Notice`] | [`notice`] | as it happens: prompts and events for the operator |
 //! | [`Preview`] | [`preview`] | about once a second while previewing: a thumbnail |
+//! | [`Reply`] | [`command`] | to every command of the host: accepted, or refused and why |
+//! | [`ShotTaken`] | [`calibration`] | after a shot command: what the detector found |
+//! | [`Calibrated`] | [`calibration`] | after a calibrate command: the calibration's figures |
+//!
+//! The host sends [`Command`]s the other way, framed alike ([`encode_command`],
+//! [`CommandDecoder`]), each numbered so that its [`Reply`] names it.
 //!
 //! The words people read (prompts, control summaries, skip reasons) belong to the ends that
 //! show them; the wire carries what happened, as numbers.
@@ -33,7 +39,7 @@
 //! framing
 //! message
 //! preview
-//! header  points  status  controls  planes  disc_pose  fixed_laser  notice
+//! header  points  status  controls  planes  disc_pose  fixed_laser  notice  command  calibration
 //! error
 //! ```
 #![no_std]
@@ -71,6 +77,8 @@ macro_rules! wire_enum {
     };
 }
 
+pub mod calibration;
+pub mod command;
 pub mod controls;
 pub mod disc_pose;
 mod error;
@@ -84,11 +92,19 @@ pub mod points;
 pub mod preview;
 pub mod status;
 
+pub use calibration::{Calibrated, ShotTaken};
+pub use command::{
+    CameraControl, Command, CommandError, CommandFrame, HeadState, MAX_COMMAND,
+    MAX_COMMAND_ENCODED, Outcome, PreviewRequest, Reply, SweepRequest,
+};
 pub use controls::{Control, Controls};
 pub use disc_pose::{DiscFound, DiscPose};
 pub use error::WireError;
 pub use fixed_laser::FixedLaser;
-pub use framing::{DecodeStats, Decoder, decode, encode};
+pub use framing::{
+    CommandDecoder, CommandFrameError, DecodeStats, Decoder, decode, decode_command, encode,
+    encode_command,
+};
 pub use header::{CameraBlock, Header, PlaneBlock, PlaneMethod};
 pub use message::Message;
 pub use notice::{Notice, NoticeKind};

@@ -2,7 +2,10 @@
 
 use serde::{Deserialize, Serialize};
 
-use crate::{Controls, DiscPose, FixedLaser, Header, Notice, Planes, Points, Preview, Status};
+use crate::{
+    Calibrated, Controls, DiscPose, FixedLaser, Header, Notice, Planes, Points, Preview, Reply,
+    ShotTaken, Status,
+};
 
 /// A message.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -27,12 +30,19 @@ pub enum Message<'a> {
     Preview(Preview<'a>),
     /// The turning platform of a fixed-laser scan (after each header of one).
     FixedLaser(FixedLaser),
+    /// The answer to a host's command.
+    Reply(Reply),
+    /// A calibration shot, as the detector judged it.
+    Shot(ShotTaken),
+    /// A calibration from the shots taken.
+    Calibrated(Calibrated),
 }
 
 impl Message<'_> {
-    /// The scan the message belongs to.
-    pub fn scan_id(&self) -> u32 {
-        match self {
+    /// The scan (or preview session) the message belongs to; `None` for the answers to
+    /// commands, which belong to none.
+    pub fn scan_id(&self) -> Option<u32> {
+        Some(match self {
             Message::Header(h) => h.scan_id,
             Message::Points(p) => p.scan_id,
             Message::Status(s) => s.scan_id,
@@ -42,6 +52,7 @@ impl Message<'_> {
             Message::Notice(n) => n.scan_id,
             Message::Preview(p) => p.scan_id,
             Message::FixedLaser(f) => f.scan_id,
-        }
+            Message::Reply(_) | Message::Shot(_) | Message::Calibrated(_) => return None,
+        })
     }
 }

@@ -1,0 +1,342 @@
+//! What the host asks of the head ([`Command`], host → head) and the head's answer to each
+//! ([`Reply`], head → host). Commands travel in frames like the head's messages (version byte,
+//! postcard, CRC, COBS), each as a [`CommandFrame`] that numbers it, so that every answer names
+//! the command it answers and a command sent again after a link fault is recognised.
+//!
+//! The wire carries numbers; the words (why a command was refused, what to do) are the ends'.
+
+use serde::{Deserialize, Serialize};
+
+/// Largest command frame before COBS, bytes (version, body and CRC): a command is a handful
+/// of numbers, so anything longer is refused unread.
+pub const MAX_COMMAND: usize = 64;
+/// Largest encoded command frame, COBS overhead and both delimiters included.
+pub const MAX_COMMAND_ENCODED: usize = cobs::max_encoding_length(MAX_COMMAND) + 2;
+
+/// A command with its number.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub struct CommandFrame {
+    /// The command's number, chosen by the host: its reply carries it. A command received
+    /// again with the number of the last one is not done twice; its reply is sent again.
+    pub seq: u32,
+    /// What to do.
+    pub command: Command,
+}
+
+/// What the host asks of the head.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub enum Command {
+    /// Nothing: the reply tells what the head is doing (and that it hears).
+    Hello,
+    /// The camera's picture with what the head finds in it, about once a second.
+    Preview(PreviewRequest),
+    /// Take a calibration shot: the intrinsics target, or the board with the laser off.
+    Shot {
+        /// The board (laser off) rather than the intrinsics target.
+        board: bool,
+    },
+    /// Calibrate from the shots taken: the intrinsics, then the board's planes.
+    Calibrate,
+    /// Take a sweep with these options.
+    Sweep(SweepRequest),
+    /// Stop what runs (a sweep or the preview), with its final message.
+    Stop,
+    /// Set a camera control.
+    Camera {
+        /// Which: [`CameraControl`] as its number.
+        control: u8,
+        /// Its value (the V4L2 value).
+        value: i32,
+    },
+    /// Switch the laser on or off, where the head switches it.
+    Laser {
+        /// On.
+        on: bool,
+    },
+    /// Turn the turntable by this many of its steps (negative: the other way), where the head
+    /// has one.
+    Turn {
+        /// Steps.
+        steps: i32,
+    },
+}
+
+/// Commands this version knows: a frame whose variant is beyond is [`Outcome::Unknown`].
+pub const COMMANDS: u32 = 9;
+
+/// The preview's settings.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub struct PreviewRequest {
+    /// On, or off.
+    pub on: bool,
+    /// A picture every this many frames, 1 to [`PREVIEW_MAX_EVERY`].
+    pub every: u16,
+    /// Camera pixels per picture pixel, 1 to [`PREVIEW_MAX_SCALE`]; 0: the smallest that
+    /// keeps the picture within the preview's limits.
+    pub scale: u8,
+}
+
+/// Most frames between two preview pictures.
+pub const PREVIEW_MAX_EVERY: u16 = 1000;
+/// Largest preview scale.
+pub const PREVIEW_MAX_SCALE: u8 = 64;
+
+/// A sweep's options.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub struct SweepRequest {
+    /// Look for the turntable disc: 0 no, 1 on A4 paper, 2 on A3.
+    pub disc: u8,
+    /// Which way the stripe runs: 0 find it, 1 rows (a vertical stripe), 2 columns.
+    pub axis: u8,
+    /// Colour each point from the reference.
+    pub colour: bool,
+    /// Send the board's stripe points too.
+    pub keep_board: bool,
+    /// Stop after this many frames; 0: at the source's end or a stop.
+    pub frames: u32,
+}
+
+/// A camera control a [`Command::Camera`] sets.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[repr(u8)]
+pub enum CameraControl {
+    /// Exposure time (V4L2 `exposure_absolute`, units of 100 µs).
+    Exposure = 0,
+    /// Gain.
+    Gain = 1,
+    /// Focus (V4L2 `focus_absolute`).
+    Focus = 2,
+}
+
+impl CameraControl {
+    /// The control numbered `n`.
+    pub fn from_u8(n: u8) -> Option<CameraControl> {
+        match n {
+            0 => Some(CameraControl::Exposure),
+            1 => Some(CameraControl::Gain),
+            2 => Some(CameraControl::Focus),
+            _ => None,
+        }
+    }
+}
+
+/// Largest value of a camera control on the wire (a camera's own range is narrower).
+pub const MAX_CONTROL_VALUE: i32 = 1_000_000;
+/// Most turntable steps one command turns, either way.
+pub const MAX_TURN_STEPS: i32 = 1_000_000;
+
+/// Which field of a command is out of range (the reply's `field`), numbered from 1 in the
+/// command's order of fields.
+pub type Field = u8;
+
+impl Command {
+    /// Whether every field is within the wire's ranges; the first that is not. The head checks
+    /// what only it knows (its camera's ranges, the picture's size) after this.
+    ///
+    /// # Errors
+    /// The field out of range and its limit.
+    pub fn check(&self) -> Result<(), (Field, i32)> {
+        match *self {
+            Command::Preview(p) => {
+                if p.on && !(1..=PREVIEW_MAX_EVERY).contains(&p.every) {
+                    return Err((2, i32::from(PREVIEW_MAX_EVERY)));
+                }
+                if p.scale > PREVIEW_MAX_SCALE {
+                    return Err((3, i32::from(PREVIEW_MAX_SCALE)));
+                }
+            }
+            Command::Sweep(s) => {
+                if s.disc > 2 {
+                    return Err((1, 2));
+                }
+                if s.axis > 2 {
+                    return Err((2, 2));
+                }
+            }
+            Command::Camera { control, value } => {
+                if CameraControl::from_u8(control).is_none() {
+                    return Err((1, 2));
+                }
+                if !(0..=MAX_CONTROL_VALUE).contains(&value) {
+                    return Err((2, MAX_CONTROL_VALUE));
+                }
+            }
+            Command::Turn { steps } => {
+                if steps == 0 || !(-MAX_TURN_STEPS..=MAX_TURN_STEPS).contains(&steps) {
+                    return Err((1, MAX_TURN_STEPS));
+                }
+            }
+            Command::Hello
+            | Command::Shot { .. }
+            | Command::Calibrate
+            | Command::Stop
+            | Command::Laser { .. } => {}
+        }
+        Ok(())
+    }
+
+    /// Its name in reports: `hello`, `preview`, `shot`, `calibrate`, `sweep`, `stop`,
+    /// `camera`, `laser`, `turn`.
+    pub fn name(&self) -> &'static str {
+        match self {
+            Command::Hello => "hello",
+            Command::Preview(_) => "preview",
+            Command::Shot { .. } => "shot",
+            Command::Calibrate => "calibrate",
+            Command::Sweep(_) => "sweep",
+            Command::Stop => "stop",
+            Command::Camera { .. } => "camera",
+            Command::Laser { .. } => "laser",
+            Command::Turn { .. } => "turn",
+        }
+    }
+}
+
+/// What the head is doing (in every [`Reply`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(into = "u8", try_from = "u8")]
+#[repr(u8)]
+pub enum HeadState {
+    /// Waiting for a command.
+    Idle = 0,
+    /// Sending preview pictures.
+    Previewing = 1,
+    /// Sweeping.
+    Sweeping = 2,
+    /// Taking a shot or calibrating.
+    Calibrating = 3,
+}
+wire_enum!(
+    HeadState,
+    Idle = 0,
+    Previewing = 1,
+    Sweeping = 2,
+    Calibrating = 3
+);
+
+/// What became of a command.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(into = "u8", try_from = "u8")]
+#[repr(u8)]
+pub enum Outcome {
+    /// Accepted: done, or started (a sweep, the preview, a shot: their own messages follow).
+    Accepted = 0,
+    /// A command this head does not know (a newer host): `detail` is its variant.
+    Unknown = 1,
+    /// A field out of range: `field` names it (from 1), `detail` is its limit.
+    OutOfRange = 2,
+    /// Something else runs (the reply's `state`): stop it first.
+    Busy = 3,
+    /// A sweep needs a calibration: calibrate first.
+    NotCalibrated = 4,
+    /// Too few shots to calibrate: `field` 1 the target's, 2 the board's; `detail` how many
+    /// are needed.
+    TooFewShots = 5,
+    /// Nothing runs to stop.
+    NothingToStop = 6,
+    /// This head has no such thing (a camera control, a laser switch, a turntable).
+    NotHere = 7,
+    /// A frame longer than [`MAX_COMMAND`]: not read (`seq` 0).
+    Oversized = 8,
+    /// A known command whose fields do not decode.
+    Malformed = 9,
+    /// A version of the wire this head does not read: `detail` is it.
+    Version = 10,
+    /// Accepted, tried, and failed: the camera refused the value, the calibration failed its
+    /// checks, the source ended (the head's own message or log says more).
+    Failed = 11,
+}
+wire_enum!(
+    Outcome,
+    Accepted = 0,
+    Unknown = 1,
+    OutOfRange = 2,
+    Busy = 3,
+    NotCalibrated = 4,
+    TooFewShots = 5,
+    NothingToStop = 6,
+    NotHere = 7,
+    Oversized = 8,
+    Malformed = 9,
+    Version = 10,
+    Failed = 11
+);
+
+impl Outcome {
+    /// Its name in reports: `accepted`, `unknown`, `out_of_range`, `busy`, `not_calibrated`,
+    /// `too_few_shots`, `nothing_to_stop`, `not_here`, `oversized`, `malformed`, `version`,
+    /// `failed`.
+    pub fn name(self) -> &'static str {
+        match self {
+            Outcome::Accepted => "accepted",
+            Outcome::Unknown => "unknown",
+            Outcome::OutOfRange => "out_of_range",
+            Outcome::Busy => "busy",
+            Outcome::NotCalibrated => "not_calibrated",
+            Outcome::TooFewShots => "too_few_shots",
+            Outcome::NothingToStop => "nothing_to_stop",
+            Outcome::NotHere => "not_here",
+            Outcome::Oversized => "oversized",
+            Outcome::Malformed => "malformed",
+            Outcome::Version => "version",
+            Outcome::Failed => "failed",
+        }
+    }
+}
+
+/// The head's answer to one command (head → host).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub struct Reply {
+    /// The command's number (0 when it could not be read).
+    pub seq: u32,
+    /// What became of it.
+    pub outcome: Outcome,
+    /// What the head is doing now.
+    pub state: HeadState,
+    /// With [`Outcome::OutOfRange`] and [`Outcome::TooFewShots`]: which field or shots; 0
+    /// otherwise.
+    pub field: u8,
+    /// A number the outcome explains (a limit, a count, a version); 0 otherwise.
+    pub detail: i32,
+}
+
+/// Why a command frame was not read as a command (after its COBS, CRC and version passed).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum CommandError {
+    /// A command this version does not know: its number and its variant.
+    Unknown(u32, u32),
+    /// Its number could be read, its fields not.
+    Malformed(u32),
+    /// Not even its number could be read.
+    Unreadable,
+}
+
+impl core::fmt::Display for CommandError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match self {
+            Self::Unknown(seq, v) => write!(f, "command {seq}: unknown command {v}"),
+            Self::Malformed(seq) => write!(f, "command {seq}: its fields do not decode"),
+            Self::Unreadable => f.write_str("a frame that is not a command"),
+        }
+    }
+}
+
+impl core::error::Error for CommandError {}
+
+/// Reads a command frame's body (postcard, after the version byte).
+///
+/// # Errors
+/// [`CommandError`]: unknown, malformed, unreadable.
+pub fn parse(body: &[u8]) -> Result<CommandFrame, CommandError> {
+    let (seq, rest): (u32, _) =
+        postcard::take_from_bytes(body).map_err(|_| CommandError::Unreadable)?;
+    let (variant, _): (u32, _) =
+        postcard::take_from_bytes(rest).map_err(|_| CommandError::Malformed(seq))?;
+    if variant >= COMMANDS {
+        return Err(CommandError::Unknown(seq, variant));
+    }
+    match postcard::take_from_bytes::<CommandFrame>(body) {
+        Ok((frame, [])) => Ok(frame),
+        _ => Err(CommandError::Malformed(seq)),
+    }
+}
