@@ -31,6 +31,9 @@ pub struct PreviewOptions {
     pub head: HeadConfig,
     /// Find which way the line runs in each picture (else `head.stripe.axis`).
     pub find_axis: bool,
+    /// Camera pixels per thumbnail pixel; 0, or less than [`thumbnail_scale`] allows: the
+    /// smallest within the preview's limits.
+    pub scale: usize,
 }
 
 /// What one preview found, for the head's own terminal.
@@ -231,7 +234,7 @@ impl<'c> Work<'c> {
             return Ok(None);
         };
         let (w, h) = (frame.width, frame.height);
-        let scale = thumbnail_scale(w, h);
+        let scale = thumbnail_scale(w, h).max(self.opts.scale);
         let (tw, th) = (w / scale, h / scale);
         let pixels = thumbnail(luma.as_raw(), w, scale, (tw, th));
         let clipped = luma.as_raw().iter().filter(|&&v| v >= 250).count();

@@ -22,7 +22,7 @@ pub struct ShotTaken {
     pub kept: u16,
     /// Points the detector placed.
     pub points: u16,
-    /// Where on the picture they lie: bit `row · 8 + col` of an 8 × 8 grid of cells.
+    /// Where on the picture the points lie: bit `row · 8 + col` of an 8 × 8 grid of cells.
     pub cover: u64,
     /// The target's tilt about the picture's horizontal and vertical axes, degrees (from the
     /// shot's homography with a focal length of the picture's larger side when none is known
@@ -42,9 +42,9 @@ pub struct Calibrated {
     pub shots: u16,
     /// The intrinsics' RMS reprojection error, pixels.
     pub rms_px: f32,
-    /// The intrinsics' self-check: the larger of the two halves' focal lengths' difference
-    /// from the whole's, per cent.
-    pub halves_pct: f32,
+    /// The intrinsics' self-check: the shots split in two halves, each calibrated alone, their
+    /// projections' RMS difference over the picture, pixels (NaN: too few shots to split).
+    pub halves_px: f32,
     /// The board's fit, RMS pixels.
     pub board_rms_px: f32,
     /// The angle between the board's two sheets, degrees.

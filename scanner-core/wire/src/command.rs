@@ -43,7 +43,7 @@ pub enum Command {
     Stop,
     /// Set a camera control.
     Camera {
-        /// Which: [`CameraControl`] as its number.
+        /// Which: [`Adjustable`] as its number.
         control: u8,
         /// Its value (the V4L2 value).
         value: i32,
@@ -99,7 +99,7 @@ pub struct SweepRequest {
 /// A camera control a [`Command::Camera`] sets.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 #[repr(u8)]
-pub enum CameraControl {
+pub enum Adjustable {
     /// Exposure time (V4L2 `exposure_absolute`, units of 100 µs).
     Exposure = 0,
     /// Gain.
@@ -108,13 +108,13 @@ pub enum CameraControl {
     Focus = 2,
 }
 
-impl CameraControl {
+impl Adjustable {
     /// The control numbered `n`.
-    pub fn from_u8(n: u8) -> Option<CameraControl> {
+    pub fn from_u8(n: u8) -> Option<Adjustable> {
         match n {
-            0 => Some(CameraControl::Exposure),
-            1 => Some(CameraControl::Gain),
-            2 => Some(CameraControl::Focus),
+            0 => Some(Adjustable::Exposure),
+            1 => Some(Adjustable::Gain),
+            2 => Some(Adjustable::Focus),
             _ => None,
         }
     }
@@ -154,7 +154,7 @@ impl Command {
                 }
             }
             Command::Camera { control, value } => {
-                if CameraControl::from_u8(control).is_none() {
+                if Adjustable::from_u8(control).is_none() {
                     return Err((1, 2));
                 }
                 if !(0..=MAX_CONTROL_VALUE).contains(&value) {

@@ -141,7 +141,9 @@ impl core::error::Error for CommandFrameError {}
 pub fn decode_command(frame: &mut [u8]) -> Result<CommandFrame, CommandFrameError> {
     let n = checked(frame).map_err(CommandFrameError::Frame)?;
     if frame[0] != VERSION {
-        return Err(CommandFrameError::Frame(WireError::UnknownVersion(frame[0])));
+        return Err(CommandFrameError::Frame(WireError::UnknownVersion(
+            frame[0],
+        )));
     }
     command::parse(&frame[1..n]).map_err(CommandFrameError::Command)
 }

@@ -94,8 +94,8 @@ pub mod status;
 
 pub use calibration::{Calibrated, ShotTaken};
 pub use command::{
-    CameraControl, Command, CommandError, CommandFrame, HeadState, MAX_COMMAND,
-    MAX_COMMAND_ENCODED, Outcome, PreviewRequest, Reply, SweepRequest,
+    Adjustable, Command, CommandError, CommandFrame, HeadState, MAX_COMMAND, MAX_COMMAND_ENCODED,
+    Outcome, PreviewRequest, Reply, SweepRequest,
 };
 pub use controls::{Control, Controls};
 pub use disc_pose::{DiscFound, DiscPose};

@@ -5,8 +5,8 @@ use proptest::prelude::*;
 use scanner_wire::command::{COMMANDS, MAX_CONTROL_VALUE, PREVIEW_MAX_EVERY};
 use scanner_wire::{
     Command, CommandDecoder, CommandError, CommandFrame, CommandFrameError, HeadState,
-    MAX_COMMAND_ENCODED, Message, Outcome, PreviewRequest, Reply, SweepRequest, VERSION,
-    WireError, encode, encode_command,
+    MAX_COMMAND_ENCODED, Message, Outcome, PreviewRequest, Reply, SweepRequest, VERSION, WireError,
+    encode, encode_command,
 };
 
 const CRC: crc::Crc<u32> = crc::Crc::<u32>::new(&crc::CRC_32_ISO_HDLC);

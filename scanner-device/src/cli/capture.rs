@@ -204,12 +204,12 @@ pub fn capture(a: &CaptureArgs) -> Result<()> {
 }
 
 /// An RGB frame as an image.
-fn to_image(f: &OwnedFrame) -> Result<image::RgbImage> {
+pub(super) fn to_image(f: &OwnedFrame) -> Result<image::RgbImage> {
     image::RgbImage::from_raw(f.width as u32, f.height as u32, f.data.clone())
         .context("a frame of the wrong size for its format")
 }
 
-fn png_bytes(img: &image::RgbImage) -> Result<Vec<u8>> {
+pub(super) fn png_bytes(img: &image::RgbImage) -> Result<Vec<u8>> {
     let mut v = Vec::new();
     img.write_to(&mut std::io::Cursor::new(&mut v), image::ImageFormat::Png)
         .context("encoding a PNG")?;

@@ -7,6 +7,7 @@ pub mod preview;
 pub mod render;
 pub mod report;
 pub mod scan;
+pub mod serve;
 
 use std::path::PathBuf;
 
@@ -109,6 +110,11 @@ pub enum Command {
     /// what a scan would skip and why), on the link for the host's page: aim, focus and set the
     /// exposure before a scan.
     Preview(preview::PreviewArgs),
+    /// The head as a service on a two-way link (`--out serial:PATH[@BAUD]` or `-`): it waits
+    /// for the host's commands (preview, calibration shots, calibrate, sweep, stop, laser,
+    /// turntable) and answers each; the studio (`scanner-host studio`) drives it. A Pi's unit
+    /// starts it once.
+    Serve(Box<serve::ServeArgs>),
     /// List the V4L2 cameras with their formats and sizes.
     Devices,
     /// Import a FabScanPi config (`*.config.json`): its camera, laser planes and platform into
@@ -221,6 +227,7 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
             preview::preview(a)?;
         }
         Some(Command::Capture(a)) => capture::capture(a)?,
+        Some(Command::Serve(a)) => serve::serve(a)?,
         Some(Command::Devices) => scan::devices(),
         Some(Command::ImportFabscan { config, out }) => {
             let imported = scanner_calib::fixed::import_fabscan(config)?;

@@ -39,6 +39,7 @@ pub fn preview(a: &PreviewArgs) -> Result<PreviewReport> {
         every: a.every,
         head: o.head,
         find_axis: o.find_axis,
+        scale: 0,
     };
     let report = run_preview(
         o.source.as_mut(),

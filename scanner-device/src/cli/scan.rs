@@ -26,7 +26,7 @@ pub enum FirmwareArg {
 }
 
 /// Options of `scan`.
-#[derive(Debug, Args)]
+#[derive(Debug, Clone, Args)]
 pub struct ScanArgs {
     /// Frame source: `rig`, `rig:WIDTHxHEIGHT`, `dir:FOLDER` (or a folder), `/dev/videoN`, or
     /// `record:FOLDER` (a recording made with `--record`, reprocessed).
@@ -258,8 +258,8 @@ pub struct ScanPlan {
     calibration: Calibration,
     options: ScanOptions,
     link: Link,
-    stop: StopWhen,
-    quiet: bool,
+    pub(super) stop: StopWhen,
+    pub(super) quiet: bool,
 }
 
 /// Link speeds for the README's table, bytes per second.
@@ -398,6 +398,18 @@ pub fn scan(a: &ScanArgs) -> Result<ScanReport> {
 /// # Errors
 /// A bad option, an unreadable or unsuitable calibration, a source or link that cannot open.
 pub fn plan(a: &ScanArgs) -> Result<ScanPlan> {
+    plan_with(a, None)
+}
+
+/// [`plan`] onto a link already open (the service's).
+///
+/// # Errors
+/// As [`plan`].
+pub(super) fn plan_on(a: &ScanArgs, link: Link) -> Result<ScanPlan> {
+    plan_with(a, Some(link))
+}
+
+fn plan_with(a: &ScanArgs, link: Option<Link>) -> Result<ScanPlan> {
     if a.calibration.is_none() {
         if let Some(f) = &a.camera.fourcc {
             CameraFormat::parse(f)?;
@@ -406,7 +418,7 @@ pub fn plan(a: &ScanArgs) -> Result<ScanPlan> {
             "no calibration: give --calibration FILE (from `scanner-device calibrate board`; for the virtual rig, `render-calibration` writes truth-calibration.toml)"
         );
     }
-    let o = open(a)?;
+    let o = open_on(a, link)?;
     let Some(calibration) = o.calibration else {
         unreachable!("a calibration was given and read");
     };
@@ -456,6 +468,14 @@ pub(super) struct OpenedSource {
 /// # Errors
 /// As [`plan`].
 pub(super) fn open(a: &ScanArgs) -> Result<OpenedSource> {
+    open_on(a, None)
+}
+
+/// [`open`] onto a link already open (the service's), or the one `--out` names.
+///
+/// # Errors
+/// As [`plan`].
+pub(super) fn open_on(a: &ScanArgs, link: Option<Link>) -> Result<OpenedSource> {
     if let Some(f) = &a.camera.fourcc {
         CameraFormat::parse(f)?;
     }
@@ -464,15 +484,7 @@ pub(super) fn open(a: &ScanArgs) -> Result<OpenedSource> {
         reference_frames: a.reference_frames,
         ..a.camera.options()?
     };
-    let format = match a.format {
-        Some(f) => PixelFormat::from(f),
-        None if a.scene.is_some() || a.source.starts_with("rig") => PixelFormat::Gray8,
-        // a fixed laser's dark frames: the laser's colour is wanted, and YUYV keeps it at half
-        // RGB's bytes (a folder of JPEGs then decodes straight into it)
-        None if a.fixed_laser.is_some() => PixelFormat::Yuyv,
-        None => crate::source::native_format(&a.source, &opts)
-            .with_context(|| format!("opening the frame source {:?}", a.source))?,
-    };
+    let format = source_format(a, &opts)?;
     if a.laser.is_some() && format == PixelFormat::Gray8 {
         crate::errln!(
             "note: --laser {} has no effect on gray frames: a gray camera sees no colour",
@@ -505,8 +517,13 @@ pub(super) fn open(a: &ScanArgs) -> Result<OpenedSource> {
         .as_ref()
         .map(|p| read_calibration(p, source.as_ref(), &a.source, fixed.as_ref()))
         .transpose()?;
-    let target: Destination = a.out.parse().context("--out")?;
-    let link = Link::spawn(target.open()?, a.link_depth, scanner_wire::MAX_ENCODED);
+    let link = match link {
+        Some(l) => l,
+        None => {
+            let target: Destination = a.out.parse().context("--out")?;
+            Link::spawn(target.open()?, a.link_depth, scanner_wire::MAX_ENCODED)
+        }
+    };
     let live = a.source.starts_with("/dev/") || a.source.starts_with("v4l:");
     let stop = StopWhen {
         frames: a.frames,
@@ -548,6 +565,22 @@ pub(super) fn open(a: &ScanArgs) -> Result<OpenedSource> {
         scan_id: a.scan_id.unwrap_or_else(rand::random),
         link,
         stop,
+    })
+}
+
+/// The pixel format the pipeline reads: `--format`, else the source's own.
+///
+/// # Errors
+/// The source cannot be opened to see its format.
+pub(super) fn source_format(a: &ScanArgs, opts: &SourceOptions) -> Result<PixelFormat> {
+    Ok(match a.format {
+        Some(f) => PixelFormat::from(f),
+        None if a.scene.is_some() || a.source.starts_with("rig") => PixelFormat::Gray8,
+        // a fixed laser's dark frames: the laser's colour is wanted, and YUYV keeps it at half
+        // RGB's bytes (a folder of JPEGs then decodes straight into it)
+        None if a.fixed_laser.is_some() => PixelFormat::Yuyv,
+        None => crate::source::native_format(&a.source, opts)
+            .with_context(|| format!("opening the frame source {:?}", a.source))?,
     })
 }
 
@@ -687,7 +720,7 @@ fn shadow_depth(hi: &crate::source::OwnedFrame, lo: &crate::source::OwnedFrame) 
 }
 
 /// The frame source: the rig with a scene file, or one opened by name.
-fn open_source(
+pub(super) fn open_source(
     a: &ScanArgs,
     format: PixelFormat,
     opts: &SourceOptions,
