@@ -18,12 +18,13 @@
 //!   closed model;
 //! - [`views`]: scans read as views for the 360° merge, and the merge of view folders;
 //! - [`check`]: the acceptance check on a known artefact (spheres, a plane);
-//! - [`live`]: the live view in a web browser (`receive --view`).
+//! - [`live`]: the live view in a web browser (`receive --view`);
+//! - [`studio`]: the whole job from one browser page, the head driven by commands.
 //!
 //! # Layers
 //! Each module uses only modules on its own line or below (`tests/tests/layers.rs` checks it):
 //! ```text
-//! views  live  check
+//! studio  views  live  check
 //! outputs
 //! platform
 //! collect  export
@@ -44,6 +45,7 @@ pub mod live;
 pub mod mesh;
 pub mod outputs;
 pub mod platform;
+pub mod studio;
 pub mod thickness;
 pub mod views;
 

@@ -141,6 +141,15 @@ impl Browser {
         r["result"]["value"].clone()
     }
 
+    /// The value a JavaScript expression's promise resolves to.
+    pub fn eval_await(&mut self, expr: &str) -> Value {
+        let r = self.call(
+            "Runtime.evaluate",
+            json!({"expression": expr, "returnByValue": true, "awaitPromise": true}),
+        );
+        r["result"]["value"].clone()
+    }
+
     /// Polls `expr` until it is true (`true`), or `timeout` passes (`false`).
     pub fn wait_for(&mut self, expr: &str, timeout: Duration) -> bool {
         let t0 = Instant::now();

@@ -38,6 +38,9 @@ pub const MIN_TARGET_SHOTS: u16 = 3;
 pub const MAX_SHOTS: u16 = 64;
 /// Smallest preview picture side the service sends, pixels.
 const MIN_PREVIEW_SIDE: usize = 8;
+/// The worker's stack: a scan's pipeline keeps its fixed buffers on the stack, as on the
+/// command line's main thread (whose stack is 8 MiB).
+const WORKER_STACK: usize = 64 << 20;
 /// How long a read of the link waits before looking again (a serial port's timeout).
 const READ_POLL: Duration = Duration::from_millis(100);
 
@@ -168,6 +171,19 @@ pub fn serve(a: &ServeArgs) -> Result<()> {
     let frame_size = probe.size();
     let describe = probe.describe();
     drop(probe);
+    // a service started again on its work folder goes on where it stopped: its shots and the
+    // calibration made from them
+    let count = |board: bool| {
+        (0..MAX_SHOTS)
+            .take_while(|&k| a.work.join("shots").join(shot_name(board, k)).exists())
+            .count() as u16
+    };
+    let made = a.work.join("calibration.toml");
+    let calibration = a
+        .scan
+        .calibration
+        .clone()
+        .or_else(|| made.exists().then_some(made));
     let mut s = Service {
         rig_views: rig_views(&a.scan)?,
         args: a.clone(),
@@ -175,9 +191,9 @@ pub fn serve(a: &ServeArgs) -> Result<()> {
         events: tx,
         running: None,
         last: None,
-        calibration: a.scan.calibration.clone(),
-        target_shots: 0,
-        board_shots: 0,
+        calibration,
+        target_shots: count(false),
+        board_shots: count(true),
         view: a.scan.view.unwrap_or(0),
         laser: Arc::new(AtomicBool::new(true)),
         frame_size,
@@ -382,6 +398,30 @@ impl Service {
                 }
                 _ => (self.reply(seq, Outcome::NothingToStop, 0, 0), None),
             },
+            // the camera, the laser and the turntable may change while the preview runs
+            Command::Camera { .. } => {
+                // the rig and image folders have no camera; a camera's controls are set as
+                // the scan fixes them (`--exposure` and the like) until this sets them live
+                (self.reply(seq, Outcome::NotHere, 0, 0), None)
+            }
+            Command::Laser { on } => {
+                if self.rig_views.is_none() {
+                    return (self.reply(seq, Outcome::NotHere, 0, 0), None);
+                }
+                self.laser.store(on, Ordering::SeqCst);
+                (ok(self), None)
+            }
+            Command::Turn { .. } if self.state() == HeadState::Sweeping => {
+                (self.reply(seq, Outcome::Busy, 0, 0), None)
+            }
+            Command::Turn { steps } => match self.rig_views {
+                Some(views) if views > 1 => {
+                    let n = views as i64;
+                    self.view = (self.view as i64 + i64::from(steps)).rem_euclid(n) as usize;
+                    (ok(self), None)
+                }
+                _ => (self.reply(seq, Outcome::NotHere, 0, 0), None),
+            },
             _ if busy => (self.reply(seq, Outcome::Busy, 0, 0), None),
             Command::Preview(p) => {
                 let (w, h) = self.frame_size;
@@ -426,26 +466,6 @@ impl Service {
                 }
                 (ok(self), Some(Job::Sweep(s)))
             }
-            Command::Camera { .. } => {
-                // the rig and image folders have no camera; a camera's controls are set as
-                // the scan fixes them (`--exposure` and the like) until this sets them live
-                (self.reply(seq, Outcome::NotHere, 0, 0), None)
-            }
-            Command::Laser { on } => {
-                if self.rig_views.is_none() {
-                    return (self.reply(seq, Outcome::NotHere, 0, 0), None);
-                }
-                self.laser.store(on, Ordering::SeqCst);
-                (ok(self), None)
-            }
-            Command::Turn { steps } => match self.rig_views {
-                Some(views) if views > 1 => {
-                    let n = views as i64;
-                    self.view = (self.view as i64 + i64::from(steps)).rem_euclid(n) as usize;
-                    (ok(self), None)
-                }
-                _ => (self.reply(seq, Outcome::NotHere, 0, 0), None),
-            },
         }
     }
 
@@ -472,6 +492,7 @@ impl Service {
         let tx = self.events.clone();
         let spawned = std::thread::Builder::new()
             .name("worker".into())
+            .stack_size(WORKER_STACK)
             .spawn(move || {
                 let ended = w.run(job, shots);
                 let _ = tx.send(Event::Ended(ended));
@@ -719,10 +740,16 @@ impl Worker {
         #[cfg(feature = "rig")]
         if self.scan.source.starts_with("rig") {
             use scanner_rig::target::{Pattern, TargetPose};
-            let scene = super::render::view_of(
+            let mut scene = super::render::view_of(
                 super::render::load_scene(self.scan.scene.as_deref())?,
                 self.scan.view,
             )?;
+            if board {
+                // the board's shot is taken before the object and the disc go in front of it
+                scene.objects.clear();
+                scene.fixed.clear();
+                scene.turntable = None;
+            }
             let rig = scanner_rig::Rig::new(scene)
                 .map_err(|e| anyhow::anyhow!("building the virtual rig: {e}"))?;
             if board {

@@ -223,6 +223,10 @@ pub enum Command {
     },
     /// List the serial ports.
     Ports,
+    /// The whole job from one browser page: set-up, calibration, sweeps, the merge and the
+    /// model's files, the head driven by commands; the job is kept in a project folder (open
+    /// the same folder again to go on). Prints the page's address.
+    Studio(StudioArgs),
 }
 
 /// `--frame`: which frame the meshes are written in.
@@ -241,4 +245,33 @@ impl From<FrameArg> for scanner_host::FrameChoice {
             FrameArg::Camera => scanner_host::FrameChoice::Camera,
         }
     }
+}
+
+/// `studio`'s options.
+#[derive(Debug, Clone, clap::Args)]
+pub struct StudioArgs {
+    /// The head: `child` (this PC's camera or the virtual rig: the studio starts `scanner-device
+    /// serve` beside it, with `--head-args`), or `serial:PATH[@BAUD]` (a Pi at the end of its
+    /// cable, its service running).
+    #[arg(long, default_value = "child")]
+    pub head: String,
+    /// With `--head child`: the head's source and settings, as `scanner-device serve` takes
+    /// them (e.g. `--source /dev/video0 --size 1280x960`).
+    #[arg(long, default_value = "--source rig", allow_hyphen_values = true)]
+    pub head_args: String,
+    /// With `--head child`: talk to it over a pseudo-terminal (as over a Pi's cable) instead of
+    /// pipes.
+    #[arg(long)]
+    pub pty: bool,
+    /// The project folder: the job, each view's journal, the head's shots and calibration,
+    /// the model.
+    #[arg(long, default_value = "scan-project")]
+    pub project: PathBuf,
+    /// Where the page is served (a loopback address needs no token; any other gets one,
+    /// printed with the address).
+    #[arg(long, default_value = "127.0.0.1:8090")]
+    pub listen: SocketAddr,
+    /// Stop after this many seconds (default: at Ctrl-C).
+    #[arg(long, value_name = "SECS")]
+    pub for_secs: Option<f64>,
 }

@@ -5,6 +5,7 @@
 //! # Layers
 //! Each module uses only modules on its own line or below (`tests/tests/layers.rs` checks it):
 //! ```text
+//! studio
 //! merge  check
 //! receive
 //! args  show
@@ -15,6 +16,7 @@ mod check;
 mod merge;
 mod receive;
 mod show;
+mod studio;
 
 use std::process::ExitCode;
 
@@ -53,6 +55,7 @@ fn run(args: &Args) -> Result<()> {
             Ok(())
         }
         Some(Command::Ports) => receive::ports(),
+        Some(Command::Studio(a)) => studio::studio(a),
         Some(Command::Receive {
             input,
             until_done,

@@ -1,0 +1,441 @@
+//! The job the studio's page shows and keeps: what the head said (its replies, the preview, the
+//! shots, the calibration, each sweep as a view with its own journal), the merge's outcome, in
+//! a project folder. `job.json` is rewritten (atomically) at every step that matters, so that a
+//! reload, a closed tab or a crash of the studio loses nothing, and a job can be opened again.
+
+use std::path::{Path, PathBuf};
+
+use scanner_wire::{DiscFound, Message, NoticeKind, PreviewState, Reply};
+use serde::{Deserialize, Serialize};
+
+use crate::journal::Journal;
+
+/// Most lines the page's log keeps.
+const LOG_LINES: usize = 40;
+/// Most views one job takes (as the merge).
+pub const MAX_VIEWS: usize = 32;
+/// Most shots the job lists.
+const MAX_SHOTS: usize = 256;
+
+/// The job, as the page reads it (`/api/state`) and `job.json` keeps it.
+#[derive(Debug, Clone, Default, Serialize, Deserialize)]
+pub struct Job {
+    /// The head's last answer.
+    pub head: HeadView,
+    /// The last preview picture's facts.
+    pub preview: Option<SetupCheck>,
+    /// Every calibration shot, in order.
+    pub shots: Vec<ShotRecord>,
+    /// The calibration, once made.
+    pub calibration: Option<CalibrationResult>,
+    /// The sweeps, each a view.
+    pub views: Vec<SweepRecord>,
+    /// A sweep asked for whose header has not come yet.
+    #[serde(skip)]
+    pub awaiting_sweep: bool,
+    /// The merge, once asked for.
+    pub merge: Option<Merge>,
+    /// What happened, newest last.
+    pub log: Vec<String>,
+    /// Picture of the last preview (thumbnail luma and its size), not kept on disk.
+    #[serde(skip)]
+    pub picture: Option<(u16, u16, Vec<u8>)>,
+}
+
+/// What the head last said of itself.
+#[derive(Debug, Clone, Default, Serialize, Deserialize)]
+pub struct HeadView {
+    /// Whether it has answered at all.
+    pub heard: bool,
+    /// What it is doing: `idle`, `previewing`, `sweeping`, `calibrating`.
+    pub state: String,
+}
+
+/// A preview picture's facts, for the set-up's verdict.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct SetupCheck {
+    /// Its number in the preview session.
+    pub frame: u32,
+    /// Thumbnail size.
+    pub width: u16,
+    /// …
+    pub height: u16,
+    /// Camera pixels per thumbnail pixel.
+    pub scale: u16,
+    /// Clipped pixels, per mille.
+    pub clipped_permille: u16,
+    /// Dark dots found (the board's, the disc's).
+    pub markers: usize,
+    /// Share of the lines where the laser line was found, per cent.
+    pub laser_lines_pct: f64,
+    /// The light the laser adds, DN.
+    pub laser_dn: u16,
+    /// What a scan would do with the frame: `points`, `skipped`, `no_calibration`,
+    /// `laser_in_reference`.
+    pub state: String,
+    /// The verdict: `good`, or what to fix first.
+    pub verdict: String,
+}
+
+/// A calibration shot.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct ShotRecord {
+    /// A board shot (else the intrinsics target).
+    pub board: bool,
+    /// Kept for the calibration.
+    pub kept: bool,
+    /// `kept`, `not_found`, `not_usable`.
+    pub found: String,
+    /// Points placed.
+    pub points: u16,
+    /// Cells of the 8 × 8 coverage map it covers.
+    pub cover: u64,
+    /// Tilt about the picture's horizontal and vertical axes, degrees.
+    pub tilt_deg: [i8; 2],
+}
+
+/// The calibration's figures.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct CalibrationResult {
+    /// `calibrated`, `intrinsics_failed`, `board_failed`.
+    pub result: String,
+    /// Target shots used.
+    pub shots: u16,
+    /// RMS reprojection error, pixels.
+    pub rms_px: Option<f32>,
+    /// The halves' RMS difference over the picture, pixels.
+    pub halves_px: Option<f32>,
+    /// The board's fit, RMS pixels.
+    pub board_rms_px: Option<f32>,
+    /// The angle between the sheets, degrees.
+    pub board_angle_deg: Option<f32>,
+}
+
+/// A sweep: one view of the object.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct SweepRecord {
+    /// Its scan id.
+    pub scan_id: u32,
+    /// Its journal, relative to the project folder.
+    pub journal: PathBuf,
+    /// Frames captured (last status).
+    pub frames: u32,
+    /// Points received.
+    pub points: u64,
+    /// The sweep has ended.
+    pub done: bool,
+    /// How: `completed`, `stopped`, `camera_lost`.
+    pub ended: Option<String>,
+    /// The turntable disc: `found`, or why not (`too_few_dots`, `ambiguous_turn`, `edge_on`,
+    /// `no_pose`); `None`: not looked for.
+    pub disc: Option<String>,
+    /// Left out of the merge (by the maker).
+    pub left_out: bool,
+}
+
+/// The merge's outcome.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct Merge {
+    /// `running`, `merged`, `refused`, `failed`.
+    pub state: String,
+    /// Its error, as words.
+    pub error: Option<String>,
+    /// The report (`merge-report.json`), when written.
+    pub report: Option<serde_json::Value>,
+    /// Files to download.
+    pub files: Vec<String>,
+}
+
+impl Job {
+    /// Reads `job.json` of a project folder, or a new job.
+    ///
+    /// # Errors
+    /// The file exists but cannot be read as a job.
+    pub fn open(project: &Path) -> Result<Job, String> {
+        let path = project.join("job.json");
+        match std::fs::read(&path) {
+            Ok(bytes) => {
+                let mut job: Job = serde_json::from_slice(&bytes)
+                    .map_err(|e| format!("{} is no job: {e}", path.display()))?;
+                // a sweep cut by a crash stays as far as its journal goes
+                for v in &mut job.views {
+                    if !v.done {
+                        v.done = true;
+                        v.ended.get_or_insert_with(|| "interrupted".into());
+                    }
+                }
+                if job.merge.as_ref().is_some_and(|m| m.state == "running") {
+                    job.merge = None;
+                }
+                Ok(job)
+            }
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => Ok(Job::default()),
+            Err(e) => Err(format!("cannot read {}: {e}", path.display())),
+        }
+    }
+
+    /// Writes `job.json` whole or not at all.
+    ///
+    /// # Errors
+    /// The file cannot be written.
+    pub fn save(&self, project: &Path) -> Result<(), String> {
+        let bytes = serde_json::to_vec_pretty(self).map_err(|e| e.to_string())?;
+        crate::export::write_atomic(&project.join("job.json"), &bytes)
+            .map_err(|e| format!("cannot write the job: {e}"))
+    }
+
+    /// Adds a line to the log.
+    pub fn say(&mut self, line: impl Into<String>) {
+        if self.log.len() == LOG_LINES {
+            self.log.remove(0);
+        }
+        self.log.push(line.into());
+    }
+
+    /// The journals of the views the merge takes.
+    pub fn merge_views(&self, project: &Path) -> Vec<PathBuf> {
+        self.views
+            .iter()
+            .filter(|v| v.done && !v.left_out && v.points > 0)
+            .map(|v| project.join(&v.journal))
+            .collect()
+    }
+
+    /// Union of the target shots' coverage.
+    pub fn cover(&self) -> u64 {
+        self.shots
+            .iter()
+            .filter(|s| s.kept && !s.board)
+            .fold(0, |c, s| c | s.cover)
+    }
+}
+
+/// What a message from the head changes, and whether `job.json` should be written.
+pub struct Update {
+    /// Write `job.json` now.
+    pub save: bool,
+}
+
+/// Where a sweep's messages go: its view's journal.
+#[derive(Default)]
+pub struct Journals {
+    open: Option<(u32, Journal)>,
+}
+
+impl Journals {
+    /// Closes the open journal (synced).
+    pub fn close(&mut self) {
+        if let Some((_, mut j)) = self.open.take() {
+            let _ = j.sync();
+        }
+    }
+}
+
+/// Takes one message from the head into the job (and the sweep's journal).
+pub fn take(
+    job: &mut Job,
+    journals: &mut Journals,
+    project: &Path,
+    msg: &Message,
+) -> Result<Update, String> {
+    let mut save = false;
+    match msg {
+        Message::Reply(r) => take_reply(job, r),
+        Message::Preview(p) => {
+            let lit = p.stripe.iter().filter(|&&s| s != 255).count();
+            let facts = SetupCheck {
+                frame: p.frame,
+                width: p.width,
+                height: p.height,
+                scale: p.scale,
+                clipped_permille: p.clipped_permille,
+                markers: p.markers.len() / 2,
+                laser_lines_pct: if p.stripe.is_empty() {
+                    0.0
+                } else {
+                    100.0 * lit as f64 / p.stripe.len() as f64
+                },
+                laser_dn: p.laser_dn,
+                state: match p.state {
+                    PreviewState::Points => "points",
+                    PreviewState::Skipped => "skipped",
+                    PreviewState::NoCalibration => "no_calibration",
+                    PreviewState::LaserInReference => "laser_in_reference",
+                }
+                .into(),
+                verdict: String::new(),
+            };
+            job.preview = Some(SetupCheck {
+                verdict: verdict(&facts),
+                ..facts
+            });
+            job.picture = Some((p.width, p.height, p.pixels.to_vec()));
+        }
+        Message::Shot(s) => {
+            if job.shots.len() < MAX_SHOTS {
+                job.shots.push(ShotRecord {
+                    board: s.board,
+                    kept: s.found == 0,
+                    found: ["kept", "not_found", "not_usable"]
+                        .get(usize::from(s.found))
+                        .unwrap_or(&"not_usable")
+                        .to_string(),
+                    points: s.points,
+                    cover: s.cover,
+                    tilt_deg: s.tilt_deg,
+                });
+            }
+            job.say(format!(
+                "{} shot: {}",
+                if s.board { "board" } else { "target" },
+                if s.found == 0 {
+                    format!("kept ({} points)", s.points)
+                } else {
+                    "not usable: hold it in view, lit and in focus".into()
+                }
+            ));
+            save = true;
+        }
+        Message::Calibrated(c) => {
+            let f = |v: f32| v.is_finite().then_some(v);
+            job.calibration = Some(CalibrationResult {
+                result: ["calibrated", "intrinsics_failed", "board_failed"]
+                    .get(usize::from(c.result))
+                    .unwrap_or(&"failed")
+                    .to_string(),
+                shots: c.shots,
+                rms_px: f(c.rms_px),
+                halves_px: f(c.halves_px),
+                board_rms_px: f(c.board_rms_px),
+                board_angle_deg: f(c.board_angle_deg),
+            });
+            job.say(match c.result {
+                0 => format!(
+                    "calibrated from {} shots: {:.3} px RMS; the board's sheets meet at {:.1}°",
+                    c.shots, c.rms_px, c.board_angle_deg
+                ),
+                1 => "the intrinsics failed their checks: take more target shots, tilted and in every corner".into(),
+                _ => "the board was not found in its shot: take the board's shot again, laser off, both sheets in view".into(),
+            });
+            save = true;
+        }
+        Message::Header(h) => {
+            let known = job.views.iter().any(|v| v.scan_id == h.scan_id);
+            if !known && job.awaiting_sweep {
+                if job.views.len() >= MAX_VIEWS {
+                    return Err(format!("a job takes at most {MAX_VIEWS} views"));
+                }
+                job.awaiting_sweep = false;
+                let n = job.views.len() + 1;
+                let rel = PathBuf::from(format!("views/view-{n}.stream"));
+                let path = project.join(&rel);
+                std::fs::create_dir_all(project.join("views"))
+                    .map_err(|e| format!("cannot create the views folder: {e}"))?;
+                journals.close();
+                let j = Journal::open(&path).map_err(|e| e.to_string())?;
+                journals.open = Some((h.scan_id, j));
+                job.views.push(SweepRecord {
+                    scan_id: h.scan_id,
+                    journal: rel,
+                    frames: 0,
+                    points: 0,
+                    done: false,
+                    ended: None,
+                    disc: None,
+                    left_out: false,
+                });
+                job.say(format!("view {n}: sweeping"));
+                save = true;
+            }
+        }
+        _ => {}
+    }
+    // a sweep's messages go into its view's journal
+    if let (Some(id), Some((open, j))) = (msg.scan_id(), journals.open.as_mut())
+        && id == *open
+    {
+        j.append(msg).map_err(|e| e.to_string())?;
+    }
+    let Some(view) = msg
+        .scan_id()
+        .and_then(|id| job.views.iter_mut().find(|v| v.scan_id == id))
+    else {
+        return Ok(Update { save });
+    };
+    match msg {
+        Message::Points(p) => view.points += u64::from(p.count),
+        Message::Disc(d) => {
+            view.disc = Some(
+                match d.found {
+                    DiscFound::Found => "found",
+                    DiscFound::TooFewMarkers => "too_few_dots",
+                    DiscFound::Ambiguous => "ambiguous_turn",
+                    DiscFound::Tilted => "edge_on",
+                    DiscFound::PoorFit => "no_pose",
+                }
+                .into(),
+            );
+            save = true;
+        }
+        Message::Status(s) => {
+            view.frames = s.frames;
+            if s.done {
+                view.done = true;
+                view.ended = Some(
+                    match s.ended {
+                        scanner_wire::EndReason::Completed => "completed",
+                        scanner_wire::EndReason::CameraLost => "camera_lost",
+                        scanner_wire::EndReason::Stopped => "stopped",
+                    }
+                    .into(),
+                );
+                let line = format!(
+                    "view {}: {} points{}",
+                    job.views.len(),
+                    job.views.last().map_or(0, |v| v.points),
+                    match job.views.last().and_then(|v| v.disc.as_deref()) {
+                        Some("found") =>
+                            ", the disc found: turn the disc and take the next view".to_string(),
+                        Some(why) => format!(", the disc not found ({why})"),
+                        None => String::new(),
+                    }
+                );
+                job.say(line);
+                journals.close();
+                save = true;
+            }
+        }
+        Message::Notice(n) if n.kind == NoticeKind::NoLaser => {
+            job.say("no laser seen: switch the laser on");
+        }
+        _ => {}
+    }
+    Ok(Update { save })
+}
+
+fn take_reply(job: &mut Job, r: &Reply) {
+    job.head.heard = true;
+    job.head.state = match r.state {
+        scanner_wire::HeadState::Idle => "idle",
+        scanner_wire::HeadState::Previewing => "previewing",
+        scanner_wire::HeadState::Sweeping => "sweeping",
+        scanner_wire::HeadState::Calibrating => "calibrating",
+    }
+    .into();
+}
+
+/// The set-up's verdict on a preview: `good`, or what to fix first.
+fn verdict(f: &SetupCheck) -> String {
+    if f.clipped_permille > 20 {
+        return "too_bright".into();
+    }
+    if f.markers < 6 {
+        return "board_not_seen".into();
+    }
+    match f.state.as_str() {
+        "laser_in_reference" => "laser_in_reference".into(),
+        "skipped" => "laser_not_across_board".into(),
+        _ if f.laser_lines_pct < 5.0 => "laser_not_seen".into(),
+        _ => "good".into(),
+    }
+}

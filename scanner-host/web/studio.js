@@ -1,0 +1,130 @@
+// The studio's page: reads the job (/api/state) a few times a second and draws it; each button
+// sends the head a command (/api/command) and shows the answer in words.
+"use strict";
+
+const token = new URLSearchParams(location.search).get("token");
+const headers = { "Content-Type": "application/json" };
+if (token) headers["x-studio-token"] = token;
+const q = (id) => document.getElementById(id);
+const withToken = (url) => (token ? `${url}${url.includes("?") ? "&" : "?"}token=${token}` : url);
+
+/** Shots of the target the calibration asks for. */
+const TARGET_SHOTS = 6;
+
+/** What the page last read, for tests and the console. */
+window.studio = { state: null, lastAnswer: null };
+
+async function post(path, body) {
+  const r = await fetch(withToken(path), { method: "POST", headers, body: JSON.stringify(body) });
+  let v;
+  try { v = await r.json(); } catch { v = { outcome: "error", words: await r.text() }; }
+  window.studio.lastAnswer = v;
+  q("answer").textContent = v.words || "";
+  q("answer").className = v.outcome === "accepted" ? "good" : "bad";
+  return v;
+}
+
+const send = (command, extra) => post("/api/command", Object.assign({ command }, extra || {}));
+
+q("preview-on").onclick = () => send("preview", { on: true, every: 2 });
+q("preview-off").onclick = () => send("preview", { on: false });
+q("laser-on").onclick = () => send("laser", { on: true });
+q("laser-off").onclick = () => send("laser", { on: false });
+q("shot-target").onclick = () => send("shot", { board: false });
+q("shot-board").onclick = () => send("shot", { board: true });
+q("calibrate").onclick = () => send("calibrate");
+q("sweep").onclick = () => send("sweep", { disc: Number(q("disc").value) });
+q("stop").onclick = () => send("stop");
+q("turn").onclick = () => send("turn", { steps: 1 });
+q("merge").onclick = () => post("/api/merge", { min_overlap: Number(q("min-overlap").value) });
+q("picture").onclick = () => q("picture").classList.toggle("zoom");
+
+const ADVICE = {
+  good: "The board, the laser and the exposure are right.",
+  too_bright: "Too many pixels are clipped: lower the exposure or the light.",
+  board_not_seen: "The board's dots are not seen: aim the camera at both sheets, lit and in focus.",
+  laser_in_reference: "The laser was on while the head took its reference: switch it off, then on when told.",
+  laser_not_across_board: "The laser line does not cross both sheets: aim it across the crease.",
+  laser_not_seen: "No laser line is seen: switch the laser on and aim it at the board.",
+};
+
+function drawCover(cover, shots) {
+  const c = q("cover").getContext("2d");
+  c.clearRect(0, 0, 160, 120);
+  for (let r = 0; r < 8; r++) {
+    for (let k = 0; k < 8; k++) {
+      const on = (BigInt(cover) >> BigInt(r * 8 + k)) & 1n;
+      c.fillStyle = on ? "#7bc47f" : "#eee";
+      c.fillRect(k * 20 + 1, r * 15 + 1, 18, 13);
+    }
+  }
+  // each kept shot's tilt as a dot from the centre
+  c.fillStyle = "#2d3b45";
+  for (const s of shots) {
+    if (!s.kept || s.board) continue;
+    c.beginPath();
+    c.arc(80 + 2 * s.tilt_deg[1], 60 + 2 * s.tilt_deg[0], 2.5, 0, 6.3);
+    c.fill();
+  }
+}
+
+function cellsFree(cover) {
+  let n = 0;
+  for (let i = 0; i < 64; i++) if (!((BigInt(cover) >> BigInt(i)) & 1n)) n++;
+  return n;
+}
+
+function render(s) {
+  window.studio.state = s;
+  q("head").textContent = s.link_closed ? "head: the link closed" : s.head.heard ? `head: ${s.head.state}` : "head: not heard yet";
+  if (s.preview) {
+    const p = s.preview;
+    q("picture").src = withToken(`/api/preview.png?frame=${p.frame}`);
+    q("facts").textContent = `${p.width}×${p.height} (1:${p.scale}) · clipped ${(p.clipped_permille / 10).toFixed(1)} % · dots ${p.markers} · laser on ${p.laser_lines_pct.toFixed(0)} % of the lines, +${p.laser_dn} DN`;
+    q("verdict").textContent = p.verdict;
+    q("verdict").className = p.verdict === "good" ? "good" : "bad";
+    q("advice").textContent = ADVICE[p.verdict] || "";
+  }
+  const targets = s.shots.filter((x) => x.kept && !x.board).length;
+  const boards = s.shots.filter((x) => x.kept && x.board).length;
+  drawCover(s.cover, s.shots);
+  const more = Math.max(0, TARGET_SHOTS - targets);
+  q("asked").dataset.more = String(more + (boards ? 0 : 1));
+  q("asked").textContent = more > 0
+    ? `Take ${more} more shot(s) of the target: tilt it, and fill the grey cells (${cellsFree(s.cover)} of 64 still empty).`
+    : boards === 0 ? "Enough target shots. Now one shot of the board, laser off." : "Enough shots: calibrate.";
+  if (s.calibration) {
+    const c = s.calibration;
+    const f = (v, d) => (v == null ? "–" : v.toFixed(d));
+    q("calibration-result").innerHTML = `<b class="${c.result === "calibrated" ? "good" : "bad"}">${c.result}</b>: ${c.shots} shots, ${f(c.rms_px, 3)} px RMS, halves differ by ${f(c.halves_px, 3)} px; board ${f(c.board_rms_px, 2)} px, sheets at ${f(c.board_angle_deg, 1)}°`;
+  }
+  const body = q("views").tBodies[0];
+  body.innerHTML = "";
+  s.views.forEach((v, i) => {
+    const tr = body.insertRow();
+    for (const t of [i + 1, v.points, v.disc || "not looked for", v.done ? v.ended : "sweeping…"]) tr.insertCell().textContent = t;
+  });
+  const last = s.views[s.views.length - 1];
+  q("next").textContent = !last ? "Calibrated? Start the first sweep." : !last.done ? "Sweeping…" : "Turn the disc (or lay the object on its side), then start the next sweep; merge when every side is seen.";
+  if (s.merge) {
+    const m = s.merge;
+    let t = `<b class="${m.state === "merged" ? "good" : "bad"}">${m.state}</b>`;
+    if (m.error) t += `: ${m.error}`;
+    if (m.error && /overlap/.test(m.error)) t += "<br>Take a view between, or lower the least overlap (a side view shares little with the others) and merge again.";
+    q("merge-result").innerHTML = t;
+    q("downloads").innerHTML = m.files.map((f) => `<a href="${withToken(`/files/${f}`)}" download>${f}</a>`).join(" · ");
+    if (m.files.includes("model.png")) q("model").src = withToken("/files/model.png");
+  }
+  q("log").textContent = s.log.join("\n");
+}
+
+async function poll() {
+  try {
+    const r = await fetch(withToken("/api/state"), { headers });
+    if (r.ok) render(await r.json());
+  } catch (e) {
+    q("head").textContent = "the studio does not answer";
+  }
+  setTimeout(poll, 300);
+}
+poll();
