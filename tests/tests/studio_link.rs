@@ -1,0 +1,401 @@
+//! The studio and a head at the far end of a serial cable (the Pi's path): both on
+//! pseudo-terminals, the test the cable between them, which fails in the middle of a sweep
+//! (every byte either way lost for 1.5 s, then some bytes damaged). Nothing already received is
+//! lost, commands sent during the fault are answered when it ends, and the job goes on to its
+//! model. Driven through the page's own requests (`/api/...`), without a browser.
+
+use std::io::{BufRead, BufReader, Read, Write};
+use std::net::TcpStream;
+use std::path::Path;
+use std::process::{Child, Command, Stdio};
+use std::sync::Arc;
+use std::sync::atomic::{AtomicU8, AtomicU64, Ordering};
+use std::time::{Duration, Instant};
+
+use scanner_tests::workspace_bin;
+use serialport::{SerialPort, TTYPort};
+
+/// The cable's state: 0 good, 1 cut (every byte lost), 2 noisy (every 97th byte flipped).
+#[derive(Clone)]
+struct Cable {
+    state: Arc<AtomicU8>,
+    lost: Arc<AtomicU64>,
+}
+
+impl Cable {
+    /// Joins two pseudo-terminals' far ends, both ways.
+    fn join(a: TTYPort, b: TTYPort) -> Cable {
+        let cable = Cable {
+            state: Arc::new(AtomicU8::new(0)),
+            lost: Arc::new(AtomicU64::new(0)),
+        };
+        for (mut from, mut to) in [
+            (a.try_clone_native().unwrap(), b.try_clone_native().unwrap()),
+            (b, a),
+        ] {
+            let c = cable.clone();
+            from.set_timeout(Duration::from_millis(20)).unwrap();
+            std::thread::spawn(move || {
+                let mut buf = [0u8; 4096];
+                let mut k = 0u64;
+                loop {
+                    let n = match from.read(&mut buf) {
+                        Ok(0) => return,
+                        Ok(n) => n,
+                        Err(e) if e.kind() == std::io::ErrorKind::TimedOut => continue,
+                        Err(_) => return,
+                    };
+                    match c.state.load(Ordering::SeqCst) {
+                        1 => {
+                            c.lost.fetch_add(n as u64, Ordering::SeqCst);
+                            continue;
+                        }
+                        2 => {
+                            for b in &mut buf[..n] {
+                                k += 1;
+                                if k % 97 == 0 {
+                                    *b ^= 0x24;
+                                }
+                            }
+                        }
+                        _ => {}
+                    }
+                    if to.write_all(&buf[..n]).is_err() {
+                        return;
+                    }
+                }
+            });
+        }
+        cable
+    }
+}
+
+struct Killed(Child);
+
+impl Drop for Killed {
+    fn drop(&mut self) {
+        let _ = self.0.kill();
+        let _ = self.0.wait();
+    }
+}
+
+fn request(url: &str, method: &str, path: &str, body: &str) -> (u16, serde_json::Value) {
+    let host = url
+        .trim_start_matches("http://")
+        .trim_end_matches('/')
+        .to_string();
+    let mut s = TcpStream::connect(&host).unwrap();
+    s.set_read_timeout(Some(Duration::from_secs(30))).unwrap();
+    write!(
+        s,
+        "{method} {path} HTTP/1.1\r\nHost: {host}\r\nContent-Type: application/json\r\nContent-Length: {}\r\nConnection: close\r\n\r\n{body}",
+        body.len()
+    )
+    .unwrap();
+    let mut text = String::new();
+    s.read_to_string(&mut text).unwrap();
+    let status = text[9..12].parse().unwrap();
+    let body = text.split_once("\r\n\r\n").map_or("", |(_, b)| b);
+    (status, serde_json::from_str(body).unwrap_or_default())
+}
+
+fn command(url: &str, body: &str) -> serde_json::Value {
+    request(url, "POST", "/api/command", body).1
+}
+
+fn state(url: &str) -> serde_json::Value {
+    request(url, "GET", "/api/state", "").1
+}
+
+fn wait(url: &str, secs: u64, what: &str, f: impl Fn(&serde_json::Value) -> bool) {
+    let t0 = Instant::now();
+    loop {
+        let s = state(url);
+        if f(&s) {
+            return;
+        }
+        assert!(t0.elapsed() < Duration::from_secs(secs), "{what}: {s}");
+        std::thread::sleep(Duration::from_millis(200));
+    }
+}
+
+fn scene(dir: &Path) {
+    let text = std::fs::read_to_string(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../scanner-device/scenes/turntable.toml"
+    ))
+    .unwrap()
+    .replace("width = 1280", "width = 640")
+    .replace("height = 960", "height = 480")
+    .replace("paper = \"a4\"", "paper = \"a3\"")
+    .replace("frames = 300", "frames = 150");
+    std::fs::write(dir.join("job.toml"), text).unwrap();
+}
+
+#[test]
+fn a_cable_fault_mid_sweep_loses_nothing_received_and_the_job_goes_on() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path();
+    scene(dir);
+    // the head's end of the cable and the studio's
+    let (head_far, head_end) = TTYPort::pair().unwrap();
+    let (host_far, host_end) = TTYPort::pair().unwrap();
+    let cable = Cable::join(head_far, host_far);
+    let _head = Killed(
+        Command::new(workspace_bin("scanner-device"))
+            .args([
+                "serve", "--source", "rig", "--scene", "job.toml", "--work", "head",
+            ])
+            .arg("--out")
+            .arg(format!("serial:{}", head_end.name().unwrap()))
+            .current_dir(dir)
+            .stdin(Stdio::null())
+            .stdout(Stdio::null())
+            .stderr(Stdio::inherit())
+            .spawn()
+            .unwrap(),
+    );
+    let mut studio = Command::new(workspace_bin("scanner-host"))
+        .args(["studio", "--listen", "127.0.0.1:0", "--project", "project"])
+        .arg("--head")
+        .arg(format!("serial:{}", host_end.name().unwrap()))
+        .current_dir(dir)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::inherit())
+        .spawn()
+        .unwrap();
+    let mut line = String::new();
+    BufReader::new(studio.stdout.take().unwrap())
+        .read_line(&mut line)
+        .unwrap();
+    let _studio = Killed(studio);
+    let url = line
+        .split_whitespace()
+        .find(|w| w.starts_with("http://"))
+        .unwrap()
+        .to_string();
+
+    // calibration
+    for _ in 0..6 {
+        assert_eq!(
+            command(&url, r#"{"command":"shot"}"#)["outcome"],
+            "accepted"
+        );
+        wait(&url, 60, "a shot", |s| s["head"]["state"] == "idle");
+    }
+    assert_eq!(
+        command(&url, r#"{"command":"shot","board":true}"#)["outcome"],
+        "accepted"
+    );
+    wait(&url, 60, "the board's shot", |s| {
+        s["head"]["state"] == "idle"
+    });
+    assert_eq!(
+        command(&url, r#"{"command":"calibrate"}"#)["outcome"],
+        "accepted"
+    );
+    wait(&url, 180, "the calibration", |s| {
+        s["calibration"]["result"] == "calibrated"
+    });
+
+    // view 1, with the cable failing in its middle
+    assert_eq!(
+        command(&url, r#"{"command":"sweep","disc":2}"#)["outcome"],
+        "accepted"
+    );
+    wait(&url, 60, "points arrive", |s| {
+        s["views"][0]["points"].as_u64().unwrap_or(0) > 500
+    });
+    let before = state(&url)["views"][0]["points"].as_u64().unwrap();
+    let journal = dir.join("project/views/view-1.stream");
+    let on_disk = std::fs::metadata(&journal).unwrap().len();
+    cable.state.store(1, Ordering::SeqCst);
+    // a command during the fault: sent again until the cable is back
+    let asked = std::thread::spawn({
+        let url = url.clone();
+        move || command(&url, r#"{"command":"hello"}"#)
+    });
+    std::thread::sleep(Duration::from_millis(1500));
+    cable.state.store(2, Ordering::SeqCst);
+    std::thread::sleep(Duration::from_millis(500));
+    cable.state.store(0, Ordering::SeqCst);
+    assert_eq!(asked.join().unwrap()["outcome"], "accepted");
+    assert!(
+        cable.lost.load(Ordering::SeqCst) > 0,
+        "the cable lost bytes"
+    );
+    wait(&url, 120, "view 1 ends", |s| s["views"][0]["done"] == true);
+    // what came before the fault is all still there
+    let s = state(&url);
+    let after = s["views"][0]["points"].as_u64().unwrap();
+    assert!(after > before, "points after the fault: {before} → {after}");
+    assert!(std::fs::metadata(&journal).unwrap().len() > on_disk);
+
+    // the job goes on: two more views on the disc, the merge
+    for _ in 0..2 {
+        assert_eq!(
+            command(&url, r#"{"command":"turn","steps":2}"#)["outcome"],
+            "accepted"
+        );
+        let n = state(&url)["views"].as_array().unwrap().len();
+        assert_eq!(
+            command(&url, r#"{"command":"sweep","disc":2}"#)["outcome"],
+            "accepted"
+        );
+        wait(&url, 120, "a view", |s| {
+            s["views"].as_array().unwrap().len() == n + 1 && s["views"][n]["done"] == true
+        });
+    }
+    let (status, _) = request(&url, "POST", "/api/merge", r#"{"min_overlap":0.4}"#);
+    assert_eq!(status, 202);
+    wait(&url, 600, "the merge", |s| {
+        s["merge"]["state"] != "running" && !s["merge"].is_null()
+    });
+    let s = state(&url);
+    assert_eq!(s["merge"]["state"], "merged", "{}", s["merge"]);
+    assert!(dir.join("project/model/model.3mf").exists());
+    // the job on disk says the same
+    let job = scanner_tests::json(&dir.join("project/job.json"));
+    assert_eq!(job["views"].as_array().map(Vec::len), Some(3));
+}
+
+/// The studio's own child head over a pseudo-terminal (`--pty`), as over a cable: answered,
+/// and its shots reach the job.
+#[test]
+fn a_child_head_over_a_pseudo_terminal_answers() {
+    let tmp = tempfile::tempdir().unwrap();
+    let mut studio = Command::new(workspace_bin("scanner-host"))
+        .args([
+            "studio",
+            "--listen",
+            "127.0.0.1:0",
+            "--project",
+            "project",
+            "--pty",
+        ])
+        .current_dir(tmp.path())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::inherit())
+        .spawn()
+        .unwrap();
+    let mut line = String::new();
+    BufReader::new(studio.stdout.take().unwrap())
+        .read_line(&mut line)
+        .unwrap();
+    let _studio = Killed(studio);
+    let url = line
+        .split_whitespace()
+        .find(|w| w.starts_with("http://"))
+        .unwrap()
+        .to_string();
+    assert_eq!(
+        command(&url, r#"{"command":"hello"}"#)["outcome"],
+        "accepted"
+    );
+    assert_eq!(
+        command(&url, r#"{"command":"shot"}"#)["outcome"],
+        "accepted"
+    );
+    wait(&url, 60, "the shot", |s| {
+        s["shots"].as_array().is_some_and(|a| a.len() == 1)
+    });
+    // refused commands come back with their reason in words
+    let r = command(&url, r#"{"command":"sweep"}"#);
+    assert_eq!(r["outcome"], "not_calibrated");
+    assert!(r["words"].as_str().is_some_and(|w| !w.is_empty()));
+    let (status, r) = request(&url, "POST", "/api/command", r#"{"command":"fly"}"#);
+    assert_eq!((status, r["outcome"].as_str()), (400, Some("bad_request")));
+}
+
+fn raw(url: &str, request: &str) -> u16 {
+    let host = url
+        .trim_start_matches("http://")
+        .split('/')
+        .next()
+        .unwrap()
+        .to_string();
+    let mut s = TcpStream::connect(&host).unwrap();
+    s.set_read_timeout(Some(Duration::from_secs(30))).unwrap();
+    s.write_all(request.replace("HOST", &host).as_bytes())
+        .unwrap();
+    let mut text = Vec::new();
+    let _ = s.read_to_end(&mut text);
+    String::from_utf8_lossy(&text)[9..12].parse().unwrap()
+}
+
+/// Commands from another site's page, path tricks, oversized bodies and, beyond loopback,
+/// requests without the token are refused.
+#[test]
+fn cross_site_requests_path_tricks_and_requests_without_the_token_are_refused() {
+    let tmp = tempfile::tempdir().unwrap();
+    let mut studio = Command::new(workspace_bin("scanner-host"))
+        .args(["studio", "--listen", "0.0.0.0:0", "--project", "project"])
+        .current_dir(tmp.path())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::inherit())
+        .spawn()
+        .unwrap();
+    let mut line = String::new();
+    BufReader::new(studio.stdout.take().unwrap())
+        .read_line(&mut line)
+        .unwrap();
+    let _studio = Killed(studio);
+    let url = line
+        .split_whitespace()
+        .find(|w| w.starts_with("http://"))
+        .unwrap()
+        .to_string();
+    let token = url.split("token=").nth(1).expect("a token beyond loopback");
+    assert_eq!(token.len(), 32);
+    let url = url.replace("0.0.0.0", "127.0.0.1");
+    let get = |path: &str, with: bool| {
+        let h = if with {
+            format!("x-studio-token: {token}\r\n")
+        } else {
+            String::new()
+        };
+        raw(
+            &url,
+            &format!("GET {path} HTTP/1.1\r\nHost: HOST\r\n{h}Connection: close\r\n\r\n"),
+        )
+    };
+    assert_eq!(get("/api/state", false), 403, "no token");
+    assert_eq!(get("/api/state", true), 200);
+    assert_eq!(get(&format!("/api/state?token={token}"), false), 200);
+    assert_eq!(get("/api/state?token=00", false), 403, "a wrong token");
+    for trick in [
+        "/files/../job.json",
+        "/files/%2e%2e%2fjob.json",
+        "/files/model.3mf/../../job.json",
+        "/files//etc/passwd",
+    ] {
+        assert_eq!(get(trick, true), 404, "{trick}");
+    }
+    let post = |headers: &str, body: &str| {
+        raw(
+            &url,
+            &format!(
+                "POST /api/command HTTP/1.1\r\nHost: HOST\r\nx-studio-token: {token}\r\n{headers}Content-Length: {}\r\nConnection: close\r\n\r\n{body}",
+                body.len()
+            ),
+        )
+    };
+    let hello = r#"{"command":"hello"}"#;
+    assert_eq!(post("Content-Type: application/json\r\n", hello), 200);
+    assert_eq!(
+        post("Content-Type: text/plain\r\n", hello),
+        403,
+        "a form's post"
+    );
+    assert_eq!(
+        post(
+            "Content-Type: application/json\r\nOrigin: http://evil.example\r\n",
+            hello
+        ),
+        403,
+        "another site's page"
+    );
+    let big = format!(r#"{{"command":"hello","pad":"{}"}}"#, "x".repeat(5000));
+    assert_eq!(post("Content-Type: application/json\r\n", &big), 413);
+    assert_eq!(post("Content-Type: application/json\r\n", "{not json"), 400);
+}
