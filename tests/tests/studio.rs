@@ -301,6 +301,13 @@ fn a_whole_job_through_the_page_alone_set_up_calibration_four_views_merge_and_3m
         "the download is the model's file"
     );
 
+    // The page as the maker sees it at the end (`STUDIO_SHOTS=folder` keeps it: docs/studio.md's
+    // picture is made so).
+    let shot = b.screenshot();
+    if let Some(dir) = std::env::var_os("STUDIO_SHOTS") {
+        shot.save(Path::new(&dir).join("studio.png")).unwrap();
+    }
+
     // Nothing is lost with the page: the job is on disk and opens again.
     let job = scanner_tests::json(&tmp.path().join("project/job.json"));
     assert_eq!(job["views"].as_array().map(Vec::len), Some(4));

@@ -92,8 +92,9 @@ fn request(url: &str, method: &str, path: &str, body: &str) -> (u16, serde_json:
         body.len()
     )
     .unwrap();
-    let mut text = String::new();
-    s.read_to_string(&mut text).unwrap();
+    let mut bytes = Vec::new();
+    s.read_to_end(&mut bytes).unwrap();
+    let text = String::from_utf8_lossy(&bytes);
     let status = text[9..12].parse().unwrap();
     let body = text.split_once("\r\n\r\n").map_or("", |(_, b)| b);
     (status, serde_json::from_str(body).unwrap_or_default())
@@ -254,9 +255,35 @@ fn a_cable_fault_mid_sweep_loses_nothing_received_and_the_job_goes_on() {
     let s = state(&url);
     assert_eq!(s["merge"]["state"], "merged", "{}", s["merge"]);
     assert!(dir.join("project/model/model.3mf").exists());
-    // the job on disk says the same
+    // the job on disk says the same, and a studio started again on the folder opens it
     let job = scanner_tests::json(&dir.join("project/job.json"));
     assert_eq!(job["views"].as_array().map(Vec::len), Some(3));
+    drop(_studio);
+    let mut again = Command::new(workspace_bin("scanner-host"))
+        .args(["studio", "--listen", "127.0.0.1:0", "--project", "project"])
+        .arg("--head")
+        .arg(format!("serial:{}", host_end.name().unwrap()))
+        .current_dir(dir)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::inherit())
+        .spawn()
+        .unwrap();
+    let mut line = String::new();
+    BufReader::new(again.stdout.take().unwrap())
+        .read_line(&mut line)
+        .unwrap();
+    let _again = Killed(again);
+    let url = line
+        .split_whitespace()
+        .find(|w| w.starts_with("http://"))
+        .unwrap()
+        .to_string();
+    let s = state(&url);
+    assert_eq!(s["views"].as_array().map(Vec::len), Some(3));
+    assert_eq!(s["merge"]["state"], "merged");
+    assert_eq!(s["calibration"]["result"], "calibrated");
+    let (status, _) = request(&url, "GET", "/files/model.3mf", "");
+    assert_eq!(status, 200);
 }
 
 /// The studio's own child head over a pseudo-terminal (`--pty`), as over a cable: answered,
