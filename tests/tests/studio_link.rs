@@ -53,7 +53,7 @@ impl Cable {
                         2 => {
                             for b in &mut buf[..n] {
                                 k += 1;
-                                if k % 97 == 0 {
+                                if k.is_multiple_of(97) {
                                     *b ^= 0x24;
                                 }
                             }
