@@ -63,7 +63,7 @@ function drawCover(cover, shots) {
   for (const s of shots) {
     if (!s.kept || s.board) continue;
     c.beginPath();
-    c.arc(80 + 2 * s.tilt_deg[1], 60 + 2 * s.tilt_deg[0], 2.5, 0, 6.3);
+    c.arc(80 + 1.5 * s.tilt_deg[1], 60 + 1.2 * s.tilt_deg[0], 2.5, 0, 6.3);
     c.fill();
   }
 }

@@ -89,8 +89,10 @@ fn start(dir: &Path, extra: &[&str]) -> (Studio, String) {
             "127.0.0.1:0",
             "--project",
             "project",
+            "--source",
+            "rig",
             "--head-args",
-            "--source rig --scene job.toml",
+            "--scene job.toml",
         ])
         .args(extra)
         .current_dir(dir)

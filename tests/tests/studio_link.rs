@@ -298,6 +298,8 @@ fn a_child_head_over_a_pseudo_terminal_answers() {
             "127.0.0.1:0",
             "--project",
             "project",
+            "--source",
+            "rig",
             "--pty",
         ])
         .current_dir(tmp.path())
@@ -356,7 +358,15 @@ fn raw(url: &str, request: &str) -> u16 {
 fn cross_site_requests_path_tricks_and_requests_without_the_token_are_refused() {
     let tmp = tempfile::tempdir().unwrap();
     let mut studio = Command::new(workspace_bin("scanner-host"))
-        .args(["studio", "--listen", "0.0.0.0:0", "--project", "project"])
+        .args([
+            "studio",
+            "--listen",
+            "0.0.0.0:0",
+            "--project",
+            "project",
+            "--source",
+            "rig",
+        ])
         .current_dir(tmp.path())
         .stdout(Stdio::piped())
         .stderr(Stdio::inherit())

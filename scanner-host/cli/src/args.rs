@@ -255,9 +255,16 @@ pub struct StudioArgs {
     /// cable, its service running).
     #[arg(long, default_value = "child")]
     pub head: String,
-    /// With `--head child`: the head's source and settings, as `scanner-device serve` takes
-    /// them (e.g. `--source /dev/video0 --size 1280x960`).
-    #[arg(long, default_value = "--source rig", allow_hyphen_values = true)]
+    /// With `--head child`: the head's frame source, as `scanner-device serve --source` takes
+    /// it (`rig` for the virtual rig).
+    #[arg(long, default_value = "/dev/video0")]
+    pub source: String,
+    /// With `--head child`: the camera's resolution, WIDTHxHEIGHT.
+    #[arg(long)]
+    pub size: Option<String>,
+    /// With `--head child`: more of the head's settings, as `scanner-device serve` takes them
+    /// (e.g. `--scene job.toml` with `--source rig`), in one argument.
+    #[arg(long, default_value = "", allow_hyphen_values = true)]
     pub head_args: String,
     /// With `--head child`: talk to it over a pseudo-terminal (as over a Pi's cable) instead of
     /// pipes.

@@ -149,8 +149,11 @@ fn open_head(a: &StudioArgs) -> Result<(Ends, Option<ChildHead>, Option<serialpo
         .open(&log)
         .with_context(|| format!("cannot write {}", log.display()))?;
     let mut cmd = std::process::Command::new(&exe);
-    cmd.arg("serve")
-        .args(a.head_args.split_whitespace())
+    cmd.arg("serve").args(["--source", &a.source]);
+    if let Some(size) = &a.size {
+        cmd.args(["--size", size]);
+    }
+    cmd.args(a.head_args.split_whitespace())
         .arg("--work")
         .arg(a.project.join("head"))
         .stderr(err);
