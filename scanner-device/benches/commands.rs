@@ -19,6 +19,8 @@ struct Link {
     decoder: Box<Decoder<MAX_ENCODED>>,
     seq: u32,
     previews: u32,
+    pictures: u32,
+    picture_bytes: u64,
     done: bool,
 }
 
@@ -40,9 +42,14 @@ impl Link {
             };
             let mut answered = false;
             let (previews, done) = (&mut self.previews, &mut self.done);
+            let (pictures, bytes) = (&mut self.pictures, &mut self.picture_bytes);
             self.decoder.feed(&buf[..n], |m| match m {
                 Ok(Message::Reply(r)) if r.seq == seq => answered = true,
                 Ok(Message::Preview(_)) => *previews += 1,
+                Ok(Message::Picture(p)) => {
+                    *pictures += 1;
+                    *bytes += p.jpeg.len() as u64;
+                }
                 Ok(Message::Status(s)) if s.done => *done = true,
                 _ => {}
             });
@@ -107,6 +114,8 @@ fn main() {
         decoder: Box::new(Decoder::new()),
         seq: 0,
         previews: 0,
+        pictures: 0,
+        picture_bytes: 0,
         done: false,
     };
     // the head is listening once it answers
@@ -139,6 +148,8 @@ fn main() {
         on: true,
         every: 1,
         scale: 0,
+        picture: true,
+        zoom: [0; 4],
     }));
     let mut previewing = Vec::new();
     link.previews = 0;
@@ -146,11 +157,16 @@ fn main() {
         previewing.push(link.ask(Command::Hello));
         std::thread::sleep(Duration::from_millis(10));
     }
-    let rate = f64::from(link.previews) / t0.elapsed().as_secs_f64();
-    row("previewing", previewing);
+    let secs = t0.elapsed().as_secs_f64();
+    let rate = f64::from(link.previews) / secs;
+    let pictures = f64::from(link.pictures) / secs;
+    let bytes = link.picture_bytes as f64 / f64::from(link.pictures.max(1));
+    row("previewing with pictures", previewing);
     link.ask(Command::Stop);
     println!(
-        "\npreview pictures reaching the host: {rate:.1}/s (every frame, 160×120 thumbnails of 1280×960)"
+        "\npreviews reaching the host: {rate:.1}/s (160×120 thumbnails), with {pictures:.1} pictures/s (1280×960 averaged to 640×480, JPEG {:.1} kB each): {:.1} pictures/s fit a 1 MB/s link",
+        bytes / 1e3,
+        1e6 / (bytes + 19_500.0)
     );
     let _ = child.kill();
     let _ = child.wait();

@@ -9,9 +9,10 @@ use std::time::Instant;
 use scanner_calib::detect::{DetectConfig, find_markers};
 use scanner_core::pipeline::{Head, HeadConfig};
 use scanner_core::stripe::{Axis, Extractor, StripeConfig};
+use scanner_wire::picture::{PICTURE_MAX_HEIGHT, PICTURE_MAX_WIDTH};
 use scanner_wire::{
-    EndReason, Message, NoticeKind, PREVIEW_MAX_MARKERS, PREVIEW_MAX_PIXELS, PREVIEW_MAX_SIDE,
-    Preview, PreviewState, Status,
+    EndReason, Message, NoticeKind, PICTURE_MAX_JPEG, PREVIEW_MAX_MARKERS, PREVIEW_MAX_PIXELS,
+    PREVIEW_MAX_SIDE, Picture, Preview, PreviewState, Status,
 };
 
 use crate::link::Link;
@@ -34,6 +35,9 @@ pub struct PreviewOptions {
     /// Camera pixels per thumbnail pixel; 0, or less than [`thumbnail_scale`] allows: the
     /// smallest within the preview's limits.
     pub scale: usize,
+    /// Also send the picture (a JPEG) of this part of the frame, `x, y, width, height` in
+    /// camera pixels (all 0: the whole frame).
+    pub picture: Option<[u16; 4]>,
 }
 
 /// What one preview found, for the head's own terminal.
@@ -325,6 +329,25 @@ impl<'c> Work<'c> {
         if encode_to_link(link, &mut self.scratch, &msg, false)?.is_none() {
             return Ok(None);
         }
+        if let Some(zoom) = self.opts.picture
+            && let Some(p) = picture(&luma, zoom)
+        {
+            let msg = Message::Picture(Picture {
+                scan_id: self.opts.scan_id,
+                frame: number,
+                x: p.region[0],
+                y: p.region[1],
+                width: p.region[2],
+                height: p.region[3],
+                scale: p.scale,
+                edge_cpx: p
+                    .edge_px
+                    .map_or(u16::MAX, |w| (w * 100.0).round().min(65534.0) as u16),
+                jpeg: &p.jpeg,
+            });
+            // a busy link drops the picture, as it drops a preview
+            encode_to_link(link, &mut self.scratch, &msg, false)?;
+        }
         Ok(Some(PreviewFacts {
             frame: number,
             markers: markers.len() / 2,
@@ -336,6 +359,105 @@ impl<'c> Work<'c> {
             points,
         }))
     }
+}
+
+/// A part of the frame made ready to send.
+struct Taken {
+    /// `x, y, width, height`, camera pixels, within the frame.
+    region: [u16; 4],
+    scale: u8,
+    edge_px: Option<f64>,
+    jpeg: Vec<u8>,
+}
+
+/// The part `zoom` of a frame (all 0: the whole), averaged down to fit 640 × 480, as a JPEG
+/// within [`PICTURE_MAX_JPEG`] (quality 80, else 50), with its [`edge_width`]; `None` when it
+/// does not fit even so.
+fn picture(luma: &image::GrayImage, zoom: [u16; 4]) -> Option<Taken> {
+    let (fw, fh) = luma.dimensions();
+    let [x, y, w, h] = zoom.map(u32::from);
+    let (x, y) = (x.min(fw.saturating_sub(1)), y.min(fh.saturating_sub(1)));
+    let (w, h) = if zoom == [0; 4] {
+        (fw, fh)
+    } else {
+        (w.min(fw - x), h.min(fh - y))
+    };
+    let crop = image::imageops::crop_imm(luma, x, y, w, h).to_image();
+    let scale = (w.div_ceil(u32::from(PICTURE_MAX_WIDTH)))
+        .max(h.div_ceil(u32::from(PICTURE_MAX_HEIGHT)))
+        .max(1);
+    let (pw, ph) = (w / scale, h / scale);
+    let small = if scale == 1 {
+        crop.clone()
+    } else {
+        let px = thumbnail(
+            crop.as_raw(),
+            w as usize,
+            scale as usize,
+            (pw as usize, ph as usize),
+        );
+        image::GrayImage::from_raw(pw, ph, px)?
+    };
+    let jpeg = [80u8, 50].iter().find_map(|&q| {
+        let mut out = Vec::new();
+        image::codecs::jpeg::JpegEncoder::new_with_quality(&mut out, q)
+            .encode_image(&small)
+            .ok()?;
+        (out.len() <= PICTURE_MAX_JPEG).then_some(out)
+    })?;
+    Some(Taken {
+        region: [x, y, w, h].map(|v| u16::try_from(v).unwrap_or(u16::MAX)),
+        scale: u8::try_from(scale).ok()?,
+        edge_px: edge_width(&crop),
+        jpeg,
+    })
+}
+
+/// How wide the picture's sharpest edges are, pixels: over the strongest 0.5 % of the
+/// gradients (Sobel), each pixel's local step (the range of its 17 × 17 neighbourhood) over its
+/// gradient, the median. A sharp step measures about 2.5 px (the gradient spans two pixels),
+/// one blurred by a Gaussian of σ ≥ 2 px about 2.5 σ (`tests/picture.rs`). `None` on a picture without edges (a range under 24
+/// DN).
+pub fn edge_width(img: &image::GrayImage) -> Option<f64> {
+    /// The neighbourhood's reach: the whole step of an edge blurred by σ up to 4 px.
+    const R: u32 = 8;
+    let (w, h) = img.dimensions();
+    if w < 4 * R || h < 4 * R {
+        return None;
+    }
+    let g = imageproc::gradients::sobel_gradients(img);
+    let mut strong: Vec<(u16, u32, u32)> = g
+        .enumerate_pixels()
+        .filter(|(x, y, _)| *x >= R && *y >= R && *x + R < w && *y + R < h)
+        .map(|(x, y, p)| (p.0[0], x, y))
+        .collect();
+    let n = (strong.len() / 200).clamp(1, 4000);
+    if strong.len() < n {
+        return None;
+    }
+    let at = strong.len() - n;
+    strong.select_nth_unstable(at);
+    let mut widths: Vec<f64> = strong[at..]
+        .iter()
+        .filter_map(|&(grad, x, y)| {
+            let (mut lo, mut hi) = (u8::MAX, 0u8);
+            for yy in y - R..=y + R {
+                for xx in x - R..=x + R {
+                    let v = img.get_pixel(xx, yy).0[0];
+                    lo = lo.min(v);
+                    hi = hi.max(v);
+                }
+            }
+            // the Sobel kernel weighs a one-pixel step's difference by 8 over two pixels
+            let per_px = f64::from(grad) / 8.0;
+            (hi - lo >= 24 && per_px > 0.0).then(|| f64::from(hi - lo) / per_px)
+        })
+        .collect();
+    if widths.is_empty() {
+        return None;
+    }
+    let mid = widths.len() / 2;
+    Some(*widths.select_nth_unstable_by(mid, f64::total_cmp).1)
 }
 
 /// Camera pixels per thumbnail pixel: the smallest whole number that fits the frame into

@@ -55,6 +55,7 @@ fn decode(bytes: &[u8]) -> Decoded {
             | Message::Disc(_)
             | Message::Notice(_)
             | Message::Preview(_)
+            | Message::Picture(_)
             | Message::FixedLaser(_) => {}
             m @ (Message::Reply(_) | Message::Shot(_) | Message::Calibrated(_)) => {
                 panic!("a scan answers no command: {m:?}")

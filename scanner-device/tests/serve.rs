@@ -183,6 +183,8 @@ fn bad_commands_are_refused_with_their_reasons() {
         on: true,
         every: 0,
         scale: 0,
+        picture: false,
+        zoom: [0; 4],
     }));
     assert_eq!(
         (r.outcome, r.field, r.detail),
@@ -192,6 +194,8 @@ fn bad_commands_are_refused_with_their_reasons() {
         on: true,
         every: 5,
         scale: 64,
+        picture: false,
+        zoom: [0; 4],
     }));
     // the head's own limit: a 640×480 picture keeps at least 8 pixels a side at scale 60
     assert_eq!((r.outcome, r.field, r.detail), (Outcome::OutOfRange, 3, 60));
@@ -244,6 +248,8 @@ fn bad_commands_are_refused_with_their_reasons() {
         on: true,
         every: 2,
         scale: 0,
+        picture: false,
+        zoom: [0; 4],
     });
     let r = h.ask(on);
     assert_eq!(

@@ -439,7 +439,8 @@ impl State {
                 }
             }
             // the answers to commands: the studio reads them; a scan's grid has no use for them
-            Message::Reply(_) | Message::Shot(_) | Message::Calibrated(_) => {}
+            Message::Reply(_) | Message::Shot(_) | Message::Calibrated(_) | Message::Picture(_) => {
+            }
             Message::Preview(p) => {
                 self.counts.previews += 1;
                 self.preview = Some(PreviewImage {

@@ -26,7 +26,10 @@ async function post(path, body) {
 
 const send = (command, extra) => post("/api/command", Object.assign({ command }, extra || {}));
 
-q("preview-on").onclick = () => send("preview", { on: true, every: 2 });
+/** The part of the camera's picture shown: null for the whole. */
+let zoom = null;
+const previewOn = () => send("preview", { on: true, every: 2, picture: true, zoom: zoom || [0, 0, 0, 0] });
+q("preview-on").onclick = previewOn;
 q("preview-off").onclick = () => send("preview", { on: false });
 q("laser-on").onclick = () => send("laser", { on: true });
 q("laser-off").onclick = () => send("laser", { on: false });
@@ -37,7 +40,22 @@ q("sweep").onclick = () => send("sweep", { disc: Number(q("disc").value) });
 q("stop").onclick = () => send("stop");
 q("turn").onclick = () => send("turn", { steps: 1 });
 q("merge").onclick = () => post("/api/merge", { min_overlap: Number(q("min-overlap").value) });
-q("picture").onclick = () => q("picture").classList.toggle("zoom");
+// a click zooms to the camera's full resolution around the point clicked; another, back out
+q("picture").onclick = (ev) => {
+  const s = window.studio.state && window.studio.state.sharpness;
+  if (!s) return;
+  if (zoom) {
+    zoom = null;
+  } else {
+    const img = q("picture");
+    const [x0, y0, w, h] = s.region;
+    const cx = x0 + (ev.offsetX / img.clientWidth) * w;
+    const cy = y0 + (ev.offsetY / img.clientHeight) * h;
+    const zw = Math.min(w, 320), zh = Math.min(h, 240);
+    zoom = [Math.max(0, Math.round(cx - zw / 2)), Math.max(0, Math.round(cy - zh / 2)), zw, zh].map((v) => Math.max(0, v));
+  }
+  previewOn();
+};
 
 const ADVICE = {
   good: "The board, the laser and the exposure are right.",
@@ -46,6 +64,7 @@ const ADVICE = {
   laser_in_reference: "The laser was on while the head took its reference: switch it off, then on when told.",
   laser_not_across_board: "The laser line does not cross both sheets: aim it across the crease.",
   laser_not_seen: "No laser line is seen: switch the laser on and aim it at the board.",
+  out_of_focus: "The picture is blurred: turn the focus until the edges' width is smallest.",
 };
 
 function drawCover(cover, shots) {
@@ -79,7 +98,11 @@ function render(s) {
   q("head").textContent = s.link_closed ? "head: the link closed" : s.head.heard ? `head: ${s.head.state}` : "head: not heard yet";
   if (s.preview) {
     const p = s.preview;
-    q("picture").src = withToken(`/api/preview.png?frame=${p.frame}`);
+    const sh = s.sharpness;
+    if (!sh) q("picture").src = withToken(`/api/preview.png?frame=${p.frame}`);
+    q("focus").textContent = sh
+      ? `${sh.region[2]}×${sh.region[3]} at (${sh.region[0]}, ${sh.region[1]}), 1:${sh.scale}${zoom ? " (zoomed: click to go back)" : " (click to zoom)"} · edges ${sh.edge_px == null ? "–" : sh.edge_px.toFixed(1)} px wide (sharp: about 2.5; 8 or more: out of focus)`
+      : "";
     q("facts").textContent = `${p.width}×${p.height} (1:${p.scale}) · clipped ${(p.clipped_permille / 10).toFixed(1)} % · dots ${p.markers} · laser on ${p.laser_lines_pct.toFixed(0)} % of the lines, +${p.laser_dn} DN`;
     q("verdict").textContent = p.verdict;
     q("verdict").className = p.verdict === "good" ? "good" : "bad";
@@ -117,6 +140,35 @@ function render(s) {
   }
   q("log").textContent = s.log.join("\n");
 }
+
+/** The picture, fetched again as soon as the last one is shown: as fast as the head sends them. */
+window.studio.pictures = 0;
+let shownFrame = -1;
+let lastUrl = null;
+async function pictureLoop() {
+  let wait = 20;
+  try {
+    const s = window.studio.state;
+    if (s && s.sharpness && s.head.state === "previewing") {
+      const r = await fetch(withToken("/api/picture.jpg"), { headers });
+      const frame = Number(r.headers.get("X-Frame"));
+      if (r.ok && frame !== shownFrame) {
+        const url = URL.createObjectURL(await r.blob());
+        q("picture").src = url;
+        if (lastUrl) URL.revokeObjectURL(lastUrl);
+        lastUrl = url;
+        shownFrame = frame;
+        window.studio.pictures += 1;
+      }
+    } else {
+      wait = 300;
+    }
+  } catch (e) {
+    wait = 500;
+  }
+  setTimeout(pictureLoop, wait);
+}
+pictureLoop();
 
 async function poll() {
   try {

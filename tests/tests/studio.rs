@@ -156,6 +156,33 @@ fn a_whole_job_through_the_page_alone_set_up_calibration_four_views_merge_and_3m
         "the preview shows",
     );
     wait(&mut b, "s.preview.verdict === 'good'", 60, "a good set-up");
+    // the picture at the camera's resolution, its focus figure, a zoom to full resolution
+    wait(
+        &mut b,
+        "s.sharpness && s.sharpness.edge_px > 1 && s.sharpness.edge_px < 8",
+        60,
+        "a sharp picture with its focus figure",
+    );
+    // the pictures the page showed in 3 s (printed: the rate depends on the machine)
+    let before = b.eval("window.studio.pictures").as_u64().unwrap_or(0);
+    std::thread::sleep(Duration::from_secs(3));
+    let shown = b.eval("window.studio.pictures").as_u64().unwrap_or(0) - before;
+    eprintln!("pictures shown by the page: {:.1}/s", shown as f64 / 3.0);
+    assert!(shown > 0, "the page shows the pictures as they come");
+    click(&mut b, "picture");
+    wait(
+        &mut b,
+        "s.sharpness.region[2] === 320 && s.sharpness.scale === 1",
+        60,
+        "a zoom at full resolution",
+    );
+    click(&mut b, "picture");
+    wait(
+        &mut b,
+        "s.sharpness.region[2] === 640",
+        60,
+        "the whole picture again",
+    );
     click(&mut b, "laser-off");
     wait(
         &mut b,

@@ -74,8 +74,16 @@ pub struct PreviewRequest {
     /// Camera pixels per picture pixel, 1 to [`PREVIEW_MAX_SCALE`]; 0: the smallest that
     /// keeps the picture within the preview's limits.
     pub scale: u8,
+    /// Also send the picture at up to full resolution (a JPEG), with each preview.
+    pub picture: bool,
+    /// The part of the picture to send, camera pixels: `x, y, width, height`; all 0: the whole
+    /// picture (averaged down to 640 × 480 at most). A part of at most 640 × 480 comes at full
+    /// resolution: a zoom.
+    pub zoom: [u16; 4],
 }
 
+/// Smallest zoomed part of the picture, camera pixels a side.
+pub const MIN_ZOOM: u16 = 16;
 /// Most frames between two preview pictures.
 pub const PREVIEW_MAX_EVERY: u16 = 1000;
 /// Largest preview scale.
@@ -143,6 +151,10 @@ impl Command {
                 }
                 if p.scale > PREVIEW_MAX_SCALE {
                     return Err((3, i32::from(PREVIEW_MAX_SCALE)));
+                }
+                let [_, _, w, h] = p.zoom;
+                if p.zoom != [0; 4] && (w < MIN_ZOOM || h < MIN_ZOOM) {
+                    return Err((5, i32::from(MIN_ZOOM)));
                 }
             }
             Command::Sweep(s) => {

@@ -84,6 +84,11 @@ pub fn decode(frame: &mut [u8]) -> Result<Message<'_>, WireError> {
     {
         return Err(WireError::BadPayload);
     }
+    if let Message::Picture(p) = &msg
+        && !p.is_consistent()
+    {
+        return Err(WireError::BadPayload);
+    }
     if let Message::Points(p) = &msg {
         if !(p.rgb.is_empty() || p.rgb.len() == 3 * p.count as usize) {
             return Err(WireError::BadPoints);

@@ -24,6 +24,7 @@
 //! | [`Status`] | [`status`] | periodically and at the end: counters, skip reasons, why it ended |
 //! | [`Notice`] | [`notice`] | as it happens: prompts and events for the operator |
 //! | [`Preview`] | [`preview`] | about once a second while previewing: a thumbnail |
+//! | [`Picture`] | [`picture`] | with a preview, when asked: the picture at up to full resolution |
 //! | [`Reply`] | [`command`] | to every command of the host: accepted, or refused and why |
 //! | [`ShotTaken`] | [`calibration`] | after a shot command: what the detector found |
 //! | [`Calibrated`] | [`calibration`] | after a calibrate command: the calibration's figures |
@@ -38,7 +39,7 @@
 //! ```text
 //! framing
 //! message
-//! preview
+//! preview  picture
 //! header  points  status  controls  planes  disc_pose  fixed_laser  notice  command  calibration
 //! error
 //! ```
@@ -87,6 +88,7 @@ pub mod framing;
 pub mod header;
 pub mod message;
 pub mod notice;
+pub mod picture;
 pub mod planes;
 pub mod points;
 pub mod preview;
@@ -108,6 +110,7 @@ pub use framing::{
 pub use header::{CameraBlock, Header, PlaneBlock, PlaneMethod};
 pub use message::Message;
 pub use notice::{Notice, NoticeKind};
+pub use picture::{PICTURE_MAX_JPEG, Picture};
 pub use planes::Planes;
 pub use points::Points;
 pub use preview::{

@@ -3,8 +3,8 @@
 use serde::{Deserialize, Serialize};
 
 use crate::{
-    Calibrated, Controls, DiscPose, FixedLaser, Header, Notice, Planes, Points, Preview, Reply,
-    ShotTaken, Status,
+    Calibrated, Controls, DiscPose, FixedLaser, Header, Notice, Picture, Planes, Points, Preview,
+    Reply, ShotTaken, Status,
 };
 
 /// A message.
@@ -36,6 +36,9 @@ pub enum Message<'a> {
     Shot(ShotTaken),
     /// A calibration from the shots taken.
     Calibrated(Calibrated),
+    /// The camera's picture (or a part of it) at up to full resolution, with its sharpness.
+    #[serde(borrow)]
+    Picture(Picture<'a>),
 }
 
 impl Message<'_> {
@@ -52,6 +55,7 @@ impl Message<'_> {
             Message::Notice(n) => n.scan_id,
             Message::Preview(p) => p.scan_id,
             Message::FixedLaser(f) => f.scan_id,
+            Message::Picture(p) => p.scan_id,
             Message::Reply(_) | Message::Shot(_) | Message::Calibrated(_) => return None,
         })
     }

@@ -43,6 +43,8 @@ fn every_command() -> Vec<Command> {
             on: true,
             every: 30,
             scale: 4,
+            picture: false,
+            zoom: [0; 4],
         }),
         Command::Shot { board: true },
         Command::Calibrate,
@@ -176,6 +178,8 @@ fn fields_out_of_range_are_named_with_their_limit() {
                 on: true,
                 every: 0,
                 scale: 0,
+                picture: false,
+                zoom: [0; 4],
             }),
             (2, i32::from(PREVIEW_MAX_EVERY)),
         ),
@@ -184,6 +188,8 @@ fn fields_out_of_range_are_named_with_their_limit() {
                 on: true,
                 every: 1,
                 scale: 65,
+                picture: false,
+                zoom: [0; 4],
             }),
             (3, 64),
         ),
@@ -232,6 +238,8 @@ fn fields_out_of_range_are_named_with_their_limit() {
         on: false,
         every: 0,
         scale: 0,
+        picture: false,
+        zoom: [0; 4],
     });
     assert_eq!(off.check(), Ok(()));
 }

@@ -40,6 +40,7 @@ pub fn preview(a: &PreviewArgs) -> Result<PreviewReport> {
         head: o.head,
         find_axis: o.find_axis,
         scale: 0,
+        picture: None,
     };
     let report = run_preview(
         o.source.as_mut(),

@@ -99,8 +99,8 @@ impl SharedOut {
 enum Event {
     /// A frame from the host.
     Command(Result<CommandFrame, CommandFrameError>),
-    /// The worker finished.
-    Ended(Ended),
+    /// A worker finished (its job's number, and what it came to).
+    Ended(u64, Ended),
     /// The link's input closed (standard input ended) or Ctrl-C: the service ends.
     Quit,
 }
@@ -114,6 +114,7 @@ struct Ended {
 
 /// The work that runs.
 struct Running {
+    id: u64,
     state: HeadState,
     stop: Arc<AtomicBool>,
     thread: JoinHandle<()>,
@@ -143,6 +144,8 @@ struct Service {
     /// Views of the rig's scene (its turntable's steps); `None`: no rig.
     rig_views: Option<usize>,
     frame_size: (usize, usize),
+    /// Jobs started.
+    jobs: u64,
 }
 
 /// Runs the service until its input closes or Ctrl-C.
@@ -197,6 +200,7 @@ pub fn serve(a: &ServeArgs) -> Result<()> {
         view: a.scan.view.unwrap_or(0),
         laser: Arc::new(AtomicBool::new(true)),
         frame_size,
+        jobs: 0,
     };
     crate::errln!("serving {describe} on {}; waiting for commands", a.scan.out);
     s.dispatch(&rx);
@@ -294,8 +298,12 @@ impl Service {
         while let Ok(ev) = rx.recv() {
             match ev {
                 Event::Command(r) => self.command(r),
-                Event::Ended(e) => {
-                    if let Some(r) = self.running.take() {
+                Event::Ended(id, e) => {
+                    // a job replaced before it ended (the preview's new settings) was joined
+                    // then
+                    if self.running.as_ref().is_some_and(|r| r.id == id)
+                        && let Some(r) = self.running.take()
+                    {
                         let _ = r.thread.join();
                     }
                     self.settle(e.change);
@@ -422,6 +430,19 @@ impl Service {
                 }
                 _ => (self.reply(seq, Outcome::NotHere, 0, 0), None),
             },
+            // the preview's new settings (a zoom): the running preview makes way
+            Command::Preview(_)
+                if self
+                    .running
+                    .as_ref()
+                    .is_some_and(|r| r.state == HeadState::Previewing) =>
+            {
+                if let Some(r) = self.running.take() {
+                    r.stop.store(true, Ordering::SeqCst);
+                    let _ = r.thread.join();
+                }
+                self.decide(f)
+            }
             _ if busy => (self.reply(seq, Outcome::Busy, 0, 0), None),
             Command::Preview(p) => {
                 let (w, h) = self.frame_size;
@@ -490,16 +511,19 @@ impl Service {
         };
         let shots = (self.target_shots, self.board_shots);
         let tx = self.events.clone();
+        self.jobs += 1;
+        let id = self.jobs;
         let spawned = std::thread::Builder::new()
             .name("worker".into())
             .stack_size(WORKER_STACK)
             .spawn(move || {
                 let ended = w.run(job, shots);
-                let _ = tx.send(Event::Ended(ended));
+                let _ = tx.send(Event::Ended(id, ended));
             });
         match spawned {
             Ok(thread) => {
                 self.running = Some(Running {
+                    id,
                     state,
                     stop,
                     thread,
@@ -630,6 +654,7 @@ impl Worker {
             head: o.head,
             find_axis: o.find_axis,
             scale: usize::from(p.scale),
+            picture: p.picture.then_some(p.zoom),
         };
         o.stop.flag = Some(self.stop.clone());
         let reopen = {

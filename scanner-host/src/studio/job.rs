@@ -40,7 +40,29 @@ pub struct Job {
     /// Picture of the last preview (thumbnail luma and its size), not kept on disk.
     #[serde(skip)]
     pub picture: Option<(u16, u16, Vec<u8>)>,
+    /// The last full-resolution picture (a JPEG), not kept on disk.
+    #[serde(skip)]
+    pub jpeg: Option<Vec<u8>>,
+    /// What that picture shows.
+    pub sharpness: Option<Sharpness>,
 }
+
+/// The last full-resolution picture's region and focus figure.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct Sharpness {
+    /// Its frame number.
+    pub frame: u32,
+    /// `x, y, width, height` of the camera's picture it shows.
+    pub region: [u16; 4],
+    /// Camera pixels per picture pixel.
+    pub scale: u8,
+    /// The width of its sharpest edges, camera pixels (about 2.5 sharp; 8 or more: out of
+    /// focus); `None`: no edge to tell by.
+    pub edge_px: Option<f64>,
+}
+
+/// Edges wider than this, camera pixels, read as out of focus (a blur of σ ≈ 3 px).
+pub const OUT_OF_FOCUS_PX: f64 = 8.0;
 
 /// What the head last said of itself.
 #[derive(Debug, Clone, Default, Serialize, Deserialize)]
@@ -270,6 +292,25 @@ pub fn take(
                 ..facts
             });
             job.picture = Some((p.width, p.height, p.pixels.to_vec()));
+        }
+        Message::Picture(p) => {
+            job.jpeg = Some(p.jpeg.to_vec());
+            job.sharpness = Some(Sharpness {
+                frame: p.frame,
+                region: [p.x, p.y, p.width, p.height],
+                scale: p.scale,
+                edge_px: (p.edge_cpx != u16::MAX).then(|| f64::from(p.edge_cpx) / 100.0),
+            });
+            if let Some(f) = job.preview.as_mut()
+                && f.verdict == "good"
+                && job
+                    .sharpness
+                    .as_ref()
+                    .and_then(|s| s.edge_px)
+                    .is_some_and(|w| w > OUT_OF_FOCUS_PX)
+            {
+                f.verdict = "out_of_focus".into();
+            }
         }
         Message::Shot(s) => {
             if job.shots.len() < MAX_SHOTS {

@@ -76,6 +76,21 @@ pub fn command_of(v: &serde_json::Value) -> Result<Command, String> {
             on: flag("on"),
             every: u16::try_from(int("every", 2)?).map_err(|_| "every is out of range")?,
             scale: u8::try_from(int("scale", 0)?).map_err(|_| "scale is out of range")?,
+            picture: v["picture"].as_bool().unwrap_or(true),
+            zoom: match v["zoom"].as_array() {
+                None => [0; 4],
+                Some(z) if z.len() == 4 => {
+                    let mut out = [0u16; 4];
+                    for (o, n) in out.iter_mut().zip(z) {
+                        *o = n
+                            .as_u64()
+                            .and_then(|n| u16::try_from(n).ok())
+                            .ok_or("zoom takes four whole numbers: x, y, width, height")?;
+                    }
+                    out
+                }
+                Some(_) => return Err("zoom takes four whole numbers: x, y, width, height".into()),
+            },
         }),
         "shot" => Command::Shot {
             board: flag("board"),

@@ -157,6 +157,7 @@ fn handle(mut req: Request, studio: &Arc<Studio>, token: Option<&str>) {
             .with_header(header("Content-Type", "text/javascript; charset=utf-8")),
         (Method::Get, "/api/state") => state(studio),
         (Method::Get, "/api/preview.png") => preview_png(studio),
+        (Method::Get, "/api/picture.jpg") => picture_jpg(studio),
         (Method::Get, p) if p.starts_with("/files/") => {
             let _ = req.respond(file(studio, &p["/files/".len()..]));
             return;
@@ -232,6 +233,28 @@ fn preview_png(studio: &Studio) -> Response<std::io::Cursor<Vec<u8>>> {
     Response::from_data(png)
         .with_header(header("Content-Type", "image/png"))
         .with_header(header("Cache-Control", "no-store"))
+}
+
+fn picture_jpg(studio: &Studio) -> Response<std::io::Cursor<Vec<u8>>> {
+    let (jpeg, frame) = {
+        let job = studio
+            .link
+            .shared
+            .job
+            .lock()
+            .unwrap_or_else(std::sync::PoisonError::into_inner);
+        (
+            job.jpeg.clone(),
+            job.sharpness.as_ref().map_or(0, |s| s.frame),
+        )
+    };
+    match jpeg {
+        Some(j) => Response::from_data(j)
+            .with_header(header("Content-Type", "image/jpeg"))
+            .with_header(header("Cache-Control", "no-store"))
+            .with_header(header("X-Frame", &frame.to_string())),
+        None => text(404, "no picture yet: switch the preview on"),
+    }
 }
 
 fn command(studio: &Studio, v: &serde_json::Value) -> Response<std::io::Cursor<Vec<u8>>> {
