@@ -332,6 +332,11 @@ fn a_whole_job_through_the_page_alone_set_up_calibration_four_views_merge_and_3m
 
     // The page as the maker sees it at the end (`STUDIO_SHOTS=folder` keeps it: docs/studio.md's
     // picture is made so).
+    b.call(
+        "Emulation.setDeviceMetricsOverride",
+        serde_json::json!({"width": 1000, "height": 1250, "deviceScaleFactor": 1, "mobile": false}),
+    );
+    std::thread::sleep(Duration::from_millis(500));
     let shot = b.screenshot();
     if let Some(dir) = std::env::var_os("STUDIO_SHOTS") {
         shot.save(Path::new(&dir).join("studio.png")).unwrap();
