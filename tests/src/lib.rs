@@ -272,6 +272,49 @@ fn newer_source(dir: &std::path::Path, time: std::time::SystemTime) -> Option<st
     None
 }
 
+/// A studio (`scanner-host studio`) started in `dir` with `args` after its own, ended when
+/// dropped.
+pub struct StudioProcess {
+    child: std::process::Child,
+    /// The page's address it printed.
+    pub url: String,
+}
+
+impl StudioProcess {
+    /// Starts the studio and reads the address it prints.
+    ///
+    /// # Panics
+    /// It does not start or print an address (a test helper).
+    pub fn start(dir: &std::path::Path, args: &[&str]) -> StudioProcess {
+        use std::io::BufRead;
+        let mut child = std::process::Command::new(workspace_bin("scanner-host"))
+            .arg("studio")
+            .args(args)
+            .current_dir(dir)
+            .stdout(std::process::Stdio::piped())
+            .stderr(std::process::Stdio::inherit())
+            .spawn()
+            .expect("the studio starts");
+        let mut line = String::new();
+        std::io::BufReader::new(child.stdout.take().expect("its output"))
+            .read_line(&mut line)
+            .expect("its first line");
+        let url = line
+            .split_whitespace()
+            .find(|w| w.starts_with("http://"))
+            .unwrap_or_else(|| panic!("the studio printed its address: {line:?}"))
+            .to_string();
+        StudioProcess { child, url }
+    }
+}
+
+impl Drop for StudioProcess {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
 /// Stops a child the way Ctrl-C does (SIGINT) and checks that it ends well within 20 s.
 ///
 /// # Panics

@@ -4,13 +4,10 @@
 //! is the virtual rig, started by the studio as a child. Needs Debian's `chromium` (see
 //! `scanner_tests::browser`).
 
-use std::io::{BufRead, BufReader};
 use std::path::Path;
-use std::process::{Child, Command, Stdio};
 use std::time::Duration;
 
 use scanner_tests::browser::{Browser, chromium};
-use scanner_tests::workspace_bin;
 
 /// The job's scene: the turntable part (`scanner-device/scenes/turntable.toml`'s objects) on
 /// the A3 disc at 640×480, three turns 120° apart, then laid on its side without the disc.
@@ -70,21 +67,12 @@ pivot = [0.0, 40.0, 560.0]
 disc = false
 "#;
 
-struct Studio(Child);
-
-impl Drop for Studio {
-    fn drop(&mut self) {
-        let _ = self.0.kill();
-        let _ = self.0.wait();
-    }
-}
-
-/// Starts the studio in `dir` on the rig scene; its page's address.
-fn start(dir: &Path, extra: &[&str]) -> (Studio, String) {
+/// Starts the studio in `dir` on the rig scene.
+fn start(dir: &Path) -> scanner_tests::StudioProcess {
     std::fs::write(dir.join("job.toml"), SCENE).unwrap();
-    let mut child = Command::new(workspace_bin("scanner-host"))
-        .args([
-            "studio",
+    scanner_tests::StudioProcess::start(
+        dir,
+        &[
             "--listen",
             "127.0.0.1:0",
             "--project",
@@ -93,23 +81,8 @@ fn start(dir: &Path, extra: &[&str]) -> (Studio, String) {
             "rig",
             "--head-args",
             "--scene job.toml",
-        ])
-        .args(extra)
-        .current_dir(dir)
-        .stdout(Stdio::piped())
-        .stderr(Stdio::inherit())
-        .spawn()
-        .expect("the studio starts");
-    let mut line = String::new();
-    BufReader::new(child.stdout.take().unwrap())
-        .read_line(&mut line)
-        .unwrap();
-    let url = line
-        .split_whitespace()
-        .find(|w| w.starts_with("http://"))
-        .unwrap_or_else(|| panic!("the studio printed its address: {line:?}"))
-        .to_string();
-    (Studio(child), url)
+        ],
+    )
 }
 
 /// Clicks a button of the page.
@@ -142,7 +115,8 @@ fn count(b: &mut Browser, expr: &str) -> u64 {
 fn a_whole_job_through_the_page_alone_set_up_calibration_four_views_merge_and_3mf() {
     let Some(exe) = chromium() else { return };
     let tmp = tempfile::tempdir().unwrap();
-    let (_studio, url) = start(tmp.path(), &[]);
+    let studio = start(tmp.path());
+    let url = studio.url.clone();
     let mut b = Browser::launch(&exe);
     b.navigate(&url);
     wait(&mut b, "s.head !== undefined", 30, "the page reads the job");

@@ -4,7 +4,7 @@
 //! lost, commands sent during the fault are answered when it ends, and the job goes on to its
 //! model. Driven through the page's own requests (`/api/...`), without a browser.
 
-use std::io::{BufRead, BufReader, Read, Write};
+use std::io::{Read, Write};
 use std::net::TcpStream;
 use std::path::Path;
 use std::process::{Child, Command, Stdio};
@@ -156,25 +156,19 @@ fn a_cable_fault_mid_sweep_loses_nothing_received_and_the_job_goes_on() {
             .spawn()
             .unwrap(),
     );
-    let mut studio = Command::new(workspace_bin("scanner-host"))
-        .args(["studio", "--listen", "127.0.0.1:0", "--project", "project"])
-        .arg("--head")
-        .arg(format!("serial:{}", host_end.name().unwrap()))
-        .current_dir(dir)
-        .stdout(Stdio::piped())
-        .stderr(Stdio::inherit())
-        .spawn()
-        .unwrap();
-    let mut line = String::new();
-    BufReader::new(studio.stdout.take().unwrap())
-        .read_line(&mut line)
-        .unwrap();
-    let _studio = Killed(studio);
-    let url = line
-        .split_whitespace()
-        .find(|w| w.starts_with("http://"))
-        .unwrap()
-        .to_string();
+    let head = format!("serial:{}", host_end.name().unwrap());
+    let studio = scanner_tests::StudioProcess::start(
+        dir,
+        &[
+            "--listen",
+            "127.0.0.1:0",
+            "--project",
+            "project",
+            "--head",
+            &head,
+        ],
+    );
+    let url = studio.url.clone();
 
     // calibration
     for _ in 0..6 {
@@ -258,26 +252,20 @@ fn a_cable_fault_mid_sweep_loses_nothing_received_and_the_job_goes_on() {
     // the job on disk says the same, and a studio started again on the folder opens it
     let job = scanner_tests::json(&dir.join("project/job.json"));
     assert_eq!(job["views"].as_array().map(Vec::len), Some(3));
-    drop(_studio);
-    let mut again = Command::new(workspace_bin("scanner-host"))
-        .args(["studio", "--listen", "127.0.0.1:0", "--project", "project"])
-        .arg("--head")
-        .arg(format!("serial:{}", host_end.name().unwrap()))
-        .current_dir(dir)
-        .stdout(Stdio::piped())
-        .stderr(Stdio::inherit())
-        .spawn()
-        .unwrap();
-    let mut line = String::new();
-    BufReader::new(again.stdout.take().unwrap())
-        .read_line(&mut line)
-        .unwrap();
-    let _again = Killed(again);
-    let url = line
-        .split_whitespace()
-        .find(|w| w.starts_with("http://"))
-        .unwrap()
-        .to_string();
+    drop(studio);
+    let head = format!("serial:{}", host_end.name().unwrap());
+    let again = scanner_tests::StudioProcess::start(
+        dir,
+        &[
+            "--listen",
+            "127.0.0.1:0",
+            "--project",
+            "project",
+            "--head",
+            &head,
+        ],
+    );
+    let url = again.url.clone();
     let s = state(&url);
     assert_eq!(s["views"].as_array().map(Vec::len), Some(3));
     assert_eq!(s["merge"]["state"], "merged");
@@ -291,9 +279,9 @@ fn a_cable_fault_mid_sweep_loses_nothing_received_and_the_job_goes_on() {
 #[test]
 fn a_child_head_over_a_pseudo_terminal_answers() {
     let tmp = tempfile::tempdir().unwrap();
-    let mut studio = Command::new(workspace_bin("scanner-host"))
-        .args([
-            "studio",
+    let studio = scanner_tests::StudioProcess::start(
+        tmp.path(),
+        &[
             "--listen",
             "127.0.0.1:0",
             "--project",
@@ -301,22 +289,9 @@ fn a_child_head_over_a_pseudo_terminal_answers() {
             "--source",
             "rig",
             "--pty",
-        ])
-        .current_dir(tmp.path())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::inherit())
-        .spawn()
-        .unwrap();
-    let mut line = String::new();
-    BufReader::new(studio.stdout.take().unwrap())
-        .read_line(&mut line)
-        .unwrap();
-    let _studio = Killed(studio);
-    let url = line
-        .split_whitespace()
-        .find(|w| w.starts_with("http://"))
-        .unwrap()
-        .to_string();
+        ],
+    );
+    let url = studio.url.clone();
     assert_eq!(
         command(&url, r#"{"command":"hello"}"#)["outcome"],
         "accepted"
@@ -357,31 +332,18 @@ fn raw(url: &str, request: &str) -> u16 {
 #[test]
 fn cross_site_requests_path_tricks_and_requests_without_the_token_are_refused() {
     let tmp = tempfile::tempdir().unwrap();
-    let mut studio = Command::new(workspace_bin("scanner-host"))
-        .args([
-            "studio",
+    let studio = scanner_tests::StudioProcess::start(
+        tmp.path(),
+        &[
             "--listen",
             "0.0.0.0:0",
             "--project",
             "project",
             "--source",
             "rig",
-        ])
-        .current_dir(tmp.path())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::inherit())
-        .spawn()
-        .unwrap();
-    let mut line = String::new();
-    BufReader::new(studio.stdout.take().unwrap())
-        .read_line(&mut line)
-        .unwrap();
-    let _studio = Killed(studio);
-    let url = line
-        .split_whitespace()
-        .find(|w| w.starts_with("http://"))
-        .unwrap()
-        .to_string();
+        ],
+    );
+    let url = studio.url.clone();
     let token = url.split("token=").nth(1).expect("a token beyond loopback");
     assert_eq!(token.len(), 32);
     let url = url.replace("0.0.0.0", "127.0.0.1");

@@ -87,12 +87,7 @@ pub fn studio(a: &StudioArgs) -> Result<()> {
                         .ask(scanner_wire::Command::Hello, Duration::from_secs(2))
                         .is_ok();
                     if !answered {
-                        let mut job = studio
-                            .link
-                            .shared
-                            .job
-                            .lock()
-                            .unwrap_or_else(std::sync::PoisonError::into_inner);
+                        let mut job = studio.link.shared.job();
                         job.head.heard = false;
                     }
                     std::thread::sleep(HEARTBEAT);
@@ -107,12 +102,7 @@ pub fn studio(a: &StudioArgs) -> Result<()> {
     }
     server.stop();
     // what the job holds is on disk already; once more for the log's last lines
-    let job = studio
-        .link
-        .shared
-        .job
-        .lock()
-        .unwrap_or_else(std::sync::PoisonError::into_inner);
+    let job = studio.link.shared.job();
     job.save(&a.project).map_err(anyhow::Error::msg)?;
     Ok(())
 }

@@ -41,6 +41,16 @@ pub struct Shared {
     pub closed: AtomicBool,
 }
 
+impl Shared {
+    /// The job, locked (a thread that panicked while holding it left it whole: every change
+    /// is one assignment).
+    pub fn job(&self) -> std::sync::MutexGuard<'_, Job> {
+        self.job
+            .lock()
+            .unwrap_or_else(std::sync::PoisonError::into_inner)
+    }
+}
+
 /// The studio's link to the head.
 pub struct HeadLink {
     writer: Mutex<Box<dyn Write + Send>>,

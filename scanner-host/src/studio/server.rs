@@ -196,12 +196,7 @@ fn body(req: &mut Request) -> Result<serde_json::Value, Response<std::io::Cursor
 }
 
 fn state(studio: &Studio) -> Response<std::io::Cursor<Vec<u8>>> {
-    let job = studio
-        .link
-        .shared
-        .job
-        .lock()
-        .unwrap_or_else(std::sync::PoisonError::into_inner);
+    let job = studio.link.shared.job();
     let mut v = serde_json::to_value(&*job).unwrap_or_default();
     v["cover"] = job.cover().into();
     v["link_closed"] = studio.link.shared.closed.load(Ordering::SeqCst).into();
@@ -209,14 +204,7 @@ fn state(studio: &Studio) -> Response<std::io::Cursor<Vec<u8>>> {
 }
 
 fn preview_png(studio: &Studio) -> Response<std::io::Cursor<Vec<u8>>> {
-    let picture = studio
-        .link
-        .shared
-        .job
-        .lock()
-        .unwrap_or_else(std::sync::PoisonError::into_inner)
-        .picture
-        .clone();
+    let picture = studio.link.shared.job().picture.clone();
     let Some((w, h, pixels)) = picture else {
         return text(404, "no preview yet: switch the preview on");
     };
@@ -237,12 +225,7 @@ fn preview_png(studio: &Studio) -> Response<std::io::Cursor<Vec<u8>>> {
 
 fn picture_jpg(studio: &Studio) -> Response<std::io::Cursor<Vec<u8>>> {
     let (jpeg, frame) = {
-        let job = studio
-            .link
-            .shared
-            .job
-            .lock()
-            .unwrap_or_else(std::sync::PoisonError::into_inner);
+        let job = studio.link.shared.job();
         (
             job.jpeg.clone(),
             job.sharpness.as_ref().map_or(0, |s| s.frame),
@@ -268,23 +251,12 @@ fn command(studio: &Studio, v: &serde_json::Value) -> Response<std::io::Cursor<V
         }
     };
     if let scanner_wire::Command::Sweep(_) = cmd {
-        studio
-            .link
-            .shared
-            .job
-            .lock()
-            .unwrap_or_else(std::sync::PoisonError::into_inner)
-            .awaiting_sweep = true;
+        studio.link.shared.job().awaiting_sweep = true;
     }
     match studio.link.ask(cmd, REPLY_WITHIN) {
         Ok(r) => {
             let said = words(&cmd, &r);
-            let mut job = studio
-                .link
-                .shared
-                .job
-                .lock()
-                .unwrap_or_else(std::sync::PoisonError::into_inner);
+            let mut job = studio.link.shared.job();
             if r.outcome != scanner_wire::Outcome::Accepted {
                 job.awaiting_sweep = false;
                 job.say(said.clone());
@@ -308,12 +280,7 @@ fn command(studio: &Studio, v: &serde_json::Value) -> Response<std::io::Cursor<V
 
 /// Leaves a view out of the merge, or takes it back (`{"view": N, "left_out": true}`, from 1).
 fn view(studio: &Studio, v: &serde_json::Value) -> Response<std::io::Cursor<Vec<u8>>> {
-    let mut job = studio
-        .link
-        .shared
-        .job
-        .lock()
-        .unwrap_or_else(std::sync::PoisonError::into_inner);
+    let mut job = studio.link.shared.job();
     let n = v["view"].as_u64().unwrap_or(0) as usize;
     let Some(view) = n.checked_sub(1).and_then(|k| job.views.get_mut(k)) else {
         return text(400, "no such view");
@@ -334,12 +301,7 @@ fn merge(studio: &Arc<Studio>, v: &serde_json::Value) -> Response<std::io::Curso
         );
     }
     let views = {
-        let mut job = studio
-            .link
-            .shared
-            .job
-            .lock()
-            .unwrap_or_else(std::sync::PoisonError::into_inner);
+        let mut job = studio.link.shared.job();
         if job.merge.as_ref().is_some_and(|m| m.state == "running") {
             return text(409, "a merge runs");
         }
@@ -368,12 +330,7 @@ fn merge(studio: &Arc<Studio>, v: &serde_json::Value) -> Response<std::io::Curso
             let report = std::fs::read(out.join("merge-report.json"))
                 .ok()
                 .and_then(|b| serde_json::from_slice(&b).ok());
-            let mut job = s
-                .link
-                .shared
-                .job
-                .lock()
-                .unwrap_or_else(std::sync::PoisonError::into_inner);
+            let mut job = s.link.shared.job();
             let files = MODEL_FILES
                 .iter()
                 .filter(|f| out.join(f).exists())
