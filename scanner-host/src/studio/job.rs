@@ -146,7 +146,8 @@ pub struct SweepRecord {
     pub points: u64,
     /// The sweep has ended.
     pub done: bool,
-    /// How: `completed`, `stopped`, `camera_lost`.
+    /// How: `completed`, `stopped`, `camera_lost`; `end_lost`: the head had ended it but its
+    /// last status was lost on the link; `interrupted`: the studio stopped first.
     pub ended: Option<String>,
     /// The turntable disc: `found`, or why not (`too_few_dots`, `ambiguous_turn`, `edge_on`,
     /// `no_pose`); `None`: not looked for.
@@ -262,7 +263,28 @@ pub fn take(
 ) -> Result<Update, String> {
     let mut save = false;
     match msg {
-        Message::Reply(r) => take_reply(job, r),
+        Message::Reply(r) => {
+            take_reply(job, r);
+            // the head answers after everything of an ended sweep is on the link: a view
+            // still open then lost its last status to the link (its points stay)
+            if r.state != scanner_wire::HeadState::Sweeping && !job.awaiting_sweep {
+                let mut lines = Vec::new();
+                for (k, v) in job.views.iter_mut().enumerate().filter(|(_, v)| !v.done) {
+                    v.done = true;
+                    v.ended = Some("end_lost".into());
+                    lines.push(format!(
+                        "view {}: {} points; its last status was lost on the link",
+                        k + 1,
+                        v.points
+                    ));
+                }
+                if !lines.is_empty() {
+                    journals.close();
+                    save = true;
+                    lines.into_iter().for_each(|l| job.say(l));
+                }
+            }
+        }
         Message::Preview(p) => {
             let lit = p.stripe.iter().filter(|&&s| s != 255).count();
             let facts = SetupCheck {
@@ -478,5 +500,93 @@ fn verdict(f: &SetupCheck) -> String {
         "skipped" => "laser_not_across_board".into(),
         _ if f.laser_lines_pct < 5.0 => "laser_not_seen".into(),
         _ => "good".into(),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::{Job, Journals, take};
+    use scanner_wire::{
+        CameraBlock, HeadState, Header, Message, Outcome, PlaneBlock, PlaneMethod, Reply,
+    };
+
+    fn header(scan_id: u32) -> Header {
+        Header {
+            scan_id,
+            width: 640,
+            height: 480,
+            unit_um: 10,
+            camera: CameraBlock {
+                fx: 700.0,
+                fy: 700.0,
+                cx: 320.0,
+                cy: 240.0,
+                k1: 0.0,
+                k2: 0.0,
+                p1: 0.0,
+                p2: 0.0,
+                k3: 0.0,
+            },
+            board: [
+                PlaneBlock {
+                    normal: [0.7, 0.0, -0.7],
+                    offset: 565.0,
+                },
+                PlaneBlock {
+                    normal: [-0.7, 0.0, -0.7],
+                    offset: 565.0,
+                },
+            ],
+            colour: false,
+            method: PlaneMethod::LeastSquares,
+        }
+    }
+
+    fn reply(state: HeadState) -> Message<'static> {
+        Message::Reply(Reply {
+            seq: 1,
+            outcome: Outcome::Accepted,
+            state,
+            field: 0,
+            detail: 0,
+        })
+    }
+
+    /// A sweep whose last status the link lost is closed when the head says it is idle, and
+    /// not before; a header that no sweep was asked for opens no view.
+    #[test]
+    fn a_view_whose_last_status_was_lost_ends_when_the_head_is_idle() {
+        let dir = tempfile::tempdir().unwrap();
+        let (mut job, mut journals) = (Job::default(), Journals::default());
+        take(
+            &mut job,
+            &mut journals,
+            dir.path(),
+            &Message::Header(header(7)),
+        )
+        .unwrap();
+        assert!(job.views.is_empty(), "no sweep was asked for");
+        job.awaiting_sweep = true;
+        take(
+            &mut job,
+            &mut journals,
+            dir.path(),
+            &Message::Header(header(8)),
+        )
+        .unwrap();
+        assert_eq!(job.views.len(), 1);
+        take(
+            &mut job,
+            &mut journals,
+            dir.path(),
+            &reply(HeadState::Sweeping),
+        )
+        .unwrap();
+        assert!(!job.views[0].done);
+        let u = take(&mut job, &mut journals, dir.path(), &reply(HeadState::Idle)).unwrap();
+        assert!(u.save);
+        assert!(job.views[0].done);
+        assert_eq!(job.views[0].ended.as_deref(), Some("end_lost"));
+        assert!(dir.path().join("views/view-1.stream").exists());
     }
 }
