@@ -170,6 +170,48 @@ async function pictureLoop() {
 }
 pictureLoop();
 
+/** The open view's points, as the studio has them (thinned), and where the page is in them. */
+const live = { view: 0, generation: -1, xyz: [] };
+window.studio.livePoints = 0;
+
+function drawPoints() {
+  const c = q("points").getContext("2d");
+  c.clearRect(0, 0, 320, 240);
+  const p = live.xyz;
+  if (p.length < 3) return;
+  let [x0, x1, y0, y1, z0, z1] = [Infinity, -Infinity, Infinity, -Infinity, Infinity, -Infinity];
+  for (let i = 0; i < p.length; i += 3) {
+    x0 = Math.min(x0, p[i]); x1 = Math.max(x1, p[i]);
+    y0 = Math.min(y0, p[i + 1]); y1 = Math.max(y1, p[i + 1]);
+    z0 = Math.min(z0, p[i + 2]); z1 = Math.max(z1, p[i + 2]);
+  }
+  const k = Math.min(300 / Math.max(x1 - x0, 1), 220 / Math.max(y1 - y0, 1));
+  for (let i = 0; i < p.length; i += 3) {
+    const near = 1 - (p[i + 2] - z0) / Math.max(z1 - z0, 1);
+    const v = Math.round(90 + 165 * near);
+    c.fillStyle = `rgb(${v},${v},${Math.round(v * 0.8)})`;
+    c.fillRect(10 + (p[i] - x0) * k, 10 + (p[i + 1] - y0) * k, 1.5, 1.5);
+  }
+}
+
+async function pollPoints() {
+  try {
+    const from = live.xyz.length / 3;
+    const r = await fetch(withToken(`/api/points?from=${from}&gen=${live.generation}`), { headers });
+    if (r.ok) {
+      const v = await r.json();
+      if (v.generation !== live.generation || v.from === 0 && from !== 0) live.xyz = [];
+      live.generation = v.generation;
+      live.view = v.view;
+      if (v.points.length) live.xyz.push(...v.points);
+      window.studio.livePoints = live.xyz.length / 3;
+      drawPoints();
+    }
+  } catch (e) { /* the next poll tries again */ }
+  setTimeout(pollPoints, 400);
+}
+pollPoints();
+
 async function poll() {
   try {
     const r = await fetch(withToken("/api/state"), { headers });

@@ -230,6 +230,12 @@ fn a_whole_job_through_the_page_alone_set_up_calibration_four_views_merge_and_3m
             300,
             "a sweep",
         );
+        // the sweep's points reached the page's live picture
+        assert!(
+            b.wait_for("window.studio.livePoints > 500", Duration::from_secs(30)),
+            "view {k}: points drawn as they came: {}",
+            b.eval("window.studio.livePoints")
+        );
         let disc = b.eval(&format!("window.studio.state.views[{}].disc", k - 1));
         assert_eq!(
             disc.as_str(),

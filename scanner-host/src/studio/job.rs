@@ -45,6 +45,55 @@ pub struct Job {
     pub jpeg: Option<Vec<u8>>,
     /// What that picture shows.
     pub sharpness: Option<Sharpness>,
+    /// The open view's points as they arrive, thinned, for the page; not kept on disk (the
+    /// journal has them all).
+    #[serde(skip)]
+    pub live: LivePoints,
+}
+
+/// Most points the page's live picture of a sweep holds; past it every second one goes.
+pub const LIVE_POINTS: usize = 60_000;
+
+/// A sweep's points as they arrive, thinned to at most [`LIVE_POINTS`].
+#[derive(Debug, Clone, Default)]
+pub struct LivePoints {
+    /// The view they belong to (from 1; 0: none yet).
+    pub view: usize,
+    /// Bumped whenever the list is thinned or restarted: a reader starts again from 0.
+    pub generation: u32,
+    /// x, y, z per point, mm, camera coordinates.
+    pub xyz: Vec<[f32; 3]>,
+    unit_mm: f32,
+    stride: u32,
+    seen: u32,
+}
+
+impl LivePoints {
+    fn start(&mut self, view: usize, unit_um: u16) {
+        self.view = view;
+        self.generation += 1;
+        self.xyz.clear();
+        self.unit_mm = f32::from(unit_um) / 1000.0;
+        self.stride = 1;
+        self.seen = 0;
+    }
+
+    fn push(&mut self, q: [i32; 3]) {
+        self.seen = self.seen.wrapping_add(1);
+        if !self.seen.is_multiple_of(self.stride.max(1)) {
+            return;
+        }
+        self.xyz.push(q.map(|v| v as f32 * self.unit_mm));
+        if self.xyz.len() > LIVE_POINTS {
+            let mut k = 0;
+            self.xyz.retain(|_| {
+                k += 1;
+                k % 2 == 0
+            });
+            self.stride = self.stride.saturating_mul(2);
+            self.generation += 1;
+        }
+    }
 }
 
 /// The last full-resolution picture's region and focus figure.
@@ -397,6 +446,7 @@ pub fn take(
                 journals.close();
                 let j = Journal::open(&path).map_err(|e| e.to_string())?;
                 journals.open = Some((h.scan_id, j));
+                job.live.start(n, h.unit_um);
                 job.views.push(SweepRecord {
                     scan_id: h.scan_id,
                     journal: rel,
@@ -426,7 +476,18 @@ pub fn take(
         return Ok(Update { save });
     };
     match msg {
-        Message::Points(p) => view.points += u64::from(p.count),
+        Message::Points(p) => {
+            view.points += u64::from(p.count);
+            if journals
+                .open
+                .as_ref()
+                .is_some_and(|(id, _)| *id == p.scan_id)
+            {
+                let live = &mut job.live;
+                // a packet that does not decode was journaled as it came; the picture skips it
+                let _ = scanner_wire::points::decode(p.xyz, p.count as usize, |q| live.push(q));
+            }
+        }
         Message::Disc(d) => {
             view.disc = Some(
                 match d.found {

@@ -158,6 +158,7 @@ fn handle(mut req: Request, studio: &Arc<Studio>, token: Option<&str>) {
         (Method::Get, "/api/state") => state(studio),
         (Method::Get, "/api/preview.png") => preview_png(studio),
         (Method::Get, "/api/picture.jpg") => picture_jpg(studio),
+        (Method::Get, "/api/points") => points(studio, req.url()),
         (Method::Get, p) if p.starts_with("/files/") => {
             let _ = req.respond(file(studio, &p["/files/".len()..]));
             return;
@@ -221,6 +222,43 @@ fn preview_png(studio: &Studio) -> Response<std::io::Cursor<Vec<u8>>> {
     Response::from_data(png)
         .with_header(header("Content-Type", "image/png"))
         .with_header(header("Cache-Control", "no-store"))
+}
+
+/// Most points one answer carries (the page asks again for the rest).
+const POINTS_PER_ANSWER: usize = 20_000;
+
+/// The open view's points from `?from=N` of generation `&gen=G` (a page of another generation
+/// starts again from 0): `{"view", "generation", "from", "points": [x, y, z, …]}`.
+fn points(studio: &Studio, url: &str) -> Response<std::io::Cursor<Vec<u8>>> {
+    let arg = |name: &str| -> u64 {
+        url.split_once('?')
+            .and_then(|(_, q)| {
+                q.split('&')
+                    .find_map(|kv| kv.strip_prefix(name)?.strip_prefix('='))
+            })
+            .and_then(|v| v.parse().ok())
+            .unwrap_or(0)
+    };
+    let job = studio.link.shared.job();
+    let live = &job.live;
+    let from = if arg("gen") == u64::from(live.generation) {
+        usize::try_from(arg("from"))
+            .unwrap_or(usize::MAX)
+            .min(live.xyz.len())
+    } else {
+        0
+    };
+    let to = (from + POINTS_PER_ANSWER).min(live.xyz.len());
+    let flat: Vec<f32> = live.xyz[from..to].iter().flatten().copied().collect();
+    json(
+        200,
+        &serde_json::json!({
+            "view": live.view,
+            "generation": live.generation,
+            "from": from,
+            "points": flat,
+        }),
+    )
 }
 
 fn picture_jpg(studio: &Studio) -> Response<std::io::Cursor<Vec<u8>>> {
