@@ -119,6 +119,12 @@ function render(s) {
   if (s.calibration) {
     const c = s.calibration;
     const f = (v, d) => (v == null ? "–" : v.toFixed(d));
+    const img = q("overlay");
+    if (c.result === "calibrated" && !img.dataset.shown) {
+      img.dataset.shown = "1";
+      img.onload = () => { img.style.display = "block"; };
+      img.src = withToken(`/api/overlay.png?t=${Date.now()}`);
+    }
     q("calibration-result").innerHTML = `<b class="${c.result === "calibrated" ? "good" : "bad"}">${c.result}</b>: ${c.shots} shots, ${f(c.rms_px, 3)} px RMS, halves differ by ${f(c.halves_px, 3)} px; board ${f(c.board_rms_px, 2)} px, sheets at ${f(c.board_angle_deg, 1)}°`;
   }
   const body = q("views").tBodies[0];

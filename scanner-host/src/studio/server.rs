@@ -159,6 +159,10 @@ fn handle(mut req: Request, studio: &Arc<Studio>, token: Option<&str>) {
         (Method::Get, "/api/preview.png") => preview_png(studio),
         (Method::Get, "/api/picture.jpg") => picture_jpg(studio),
         (Method::Get, "/api/points") => points(studio, req.url()),
+        (Method::Get, "/api/overlay.png") => {
+            let _ = req.respond(overlay(studio));
+            return;
+        }
         (Method::Get, p) if p.starts_with("/files/") => {
             let _ = req.respond(file(studio, &p["/files/".len()..]));
             return;
@@ -403,6 +407,34 @@ fn merge(studio: &Arc<Studio>, v: &serde_json::Value) -> Response<std::io::Curso
     match started {
         Ok(_) => json(202, &serde_json::json!({"outcome": "accepted"})),
         Err(e) => text(500, format!("cannot start the merge: {e}")),
+    }
+}
+
+/// The board's calibration overlay (what `calibrate board` found), where a child head left it
+/// in the project folder (a Pi head keeps its own).
+fn overlay(studio: &Studio) -> Response<Box<dyn Read + Send>> {
+    let path = studio
+        .project()
+        .join("head")
+        .join("calibration-overlay.png");
+    match std::fs::File::open(&path) {
+        Ok(f) => {
+            let len = f
+                .metadata()
+                .ok()
+                .and_then(|m| usize::try_from(m.len()).ok());
+            Response::new(
+                200.into(),
+                vec![
+                    header("Content-Type", "image/png"),
+                    header("Cache-Control", "no-store"),
+                ],
+                Box::new(f) as Box<dyn Read + Send>,
+                len,
+                None,
+            )
+        }
+        Err(_) => text(404, "no overlay: calibrate first (a Pi head keeps its own)").boxed(),
     }
 }
 
