@@ -132,6 +132,13 @@ function render(s) {
   s.views.forEach((v, i) => {
     const tr = body.insertRow();
     for (const t of [i + 1, v.points, v.disc || "not looked for", v.done ? v.ended : "sweeping…"]) tr.insertCell().textContent = t;
+    // a view the merge refuses can be left out, and taken back
+    const box = document.createElement("input");
+    box.type = "checkbox";
+    box.id = `merge-view-${i + 1}`;
+    box.checked = !v.left_out;
+    box.onchange = () => post("/api/view", { view: i + 1, left_out: !box.checked });
+    tr.insertCell().appendChild(box);
   });
   const last = s.views[s.views.length - 1];
   q("next").textContent = !last ? "Calibrated? Start the first sweep." : !last.done ? "Sweeping…" : "Turn the disc (or lay the object on its side), then start the next sweep; merge when every side is seen.";
