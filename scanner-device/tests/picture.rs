@@ -27,3 +27,24 @@ fn the_edge_width_grows_with_the_blur_and_reads_sharp_when_sharp() {
     let (s, w) = widths[3];
     assert!((w / (2.5 * s) - 1.0).abs() < 0.3, "{widths:?}");
 }
+
+/// On real photographs (not tuned on): the real webcam chessboards and the real two-plane
+/// board read as in focus, within the range the rig's sharp lenses give.
+#[test]
+fn real_photographs_in_focus_read_as_sharp() {
+    let shared = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/data");
+    let files = [
+        "real-calibration/right01.jpg",
+        "real-calibration/right02.jpg",
+        "real-two-plane/20220331_faa7cdf/laser-off.png",
+        "real-two-plane/20220405_9eb8eaa/laser-off.png",
+    ];
+    for f in files {
+        let img = image::open(shared.join(f))
+            .unwrap_or_else(|e| panic!("{f}: {e}"))
+            .to_luma8();
+        let w = edge_width(&img).expect("edges");
+        eprintln!("{f}: edges {w:.2} px wide");
+        assert!((2.0..8.0).contains(&w), "{f}: {w}");
+    }
+}
