@@ -47,6 +47,15 @@ pub struct HeadConfig {
     /// fraction of its neighbour's: a pixel across the object's silhouette (0 keeps them).
     /// Applies with `continuity` only.
     pub silhouette: f32,
+    /// A point is dropped when it lies nearer than this many times its profile's width (the
+    /// stripe's FWHM, a shadow edge's ramp), in lines, to where the surface breaks: the end of
+    /// its run of continuous points (an object's silhouette, the edge of its shadow, which cut
+    /// the profiles of the lines within about a width of them), or the board's crease (where
+    /// the stripe bends: a board point there is neither sheet's, nor used for the plane). Their
+    /// centres are pulled off the surface. 0 keeps them (the default: the price is points at
+    /// every run's end, which the merge's registration and a fixed laser's fragmented real
+    /// stripes feel); run ends apply with `continuity` only.
+    pub edge_reach: f32,
     /// Board fringes: a run of at most this many continuous object points within twice the board
     /// tolerance of the board, continuing into board points, counts as board (the light sheet's
     /// tail where a shadow or a border clips it on the board). 0 turns it off.
@@ -99,6 +108,7 @@ impl HeadConfig {
             colour: false,
             board_tol_px: 2.0,
             silhouette: 0.85,
+            edge_reach: 0.0,
             board_fringe: 4,
             continuity: 6.0,
             fixed_plane: None,
@@ -188,8 +198,13 @@ struct StripePixel {
     sigma_px: f32,
     uncertainty: f32,
     peak: u16,
+    /// How wide what was located is, lines: the stripe's FWHM, or the edge's ramp.
+    width: f32,
     /// The ray's point on a board sheet (0 left, 1 right), when it meets one within range.
     on_board: Option<(Point3<f32>, usize)>,
+    /// That point lies nearer the crease, in the image, than `edge_reach` times the profile's
+    /// width: the stripe bends there, and a profile across the bend is centred off both sheets.
+    at_crease: bool,
 }
 
 impl<const W: usize> Head<W> {
@@ -377,12 +392,31 @@ impl<const W: usize> Head<W> {
             if before != after && f32::from(s.peak) < cfg.silhouette * f32::from(stripe[j].peak) {
                 return Verdict::Drop;
             }
+            // Nearer a run's end than the profile is wide, the profile may be cut by the
+            // occluding edge that ends the run: its centre is pulled off the surface.
+            let reach = (cfg.edge_reach * s.width) as usize;
+            let run = |up: bool| {
+                let (mut a, mut k) = (i, 0);
+                while k < reach {
+                    let b = if up { a + 1 } else { a.wrapping_sub(1) };
+                    if b >= stripe.len() || !continuous(stripe, a, b, cfg, fx) {
+                        break;
+                    }
+                    a = b;
+                    k += 1;
+                }
+                k
+            };
+            if run(false).min(run(true)) < reach {
+                return Verdict::Drop;
+            }
         }
         let tol = cfg.limits.board_tol.max(cfg.board_tol_px * s.sensitivity);
         match self.board.locate(&p, tol) {
             Ok(Surface::Object) => Verdict::Object {
                 near_board: !matches!(self.board.locate(&p, 2.0 * tol), Ok(Surface::Object)),
             },
+            Ok(_) if s.at_crease => Verdict::Drop,
             Ok(_) => Verdict::Board,
             Err(_) => Verdict::Drop,
         }
@@ -487,7 +521,9 @@ fn board_points<const W: usize>(
                 sigma_px,
                 uncertainty: f32::INFINITY,
                 peak: p.peak,
+                width: p.extent(locate),
                 on_board: None,
+                at_crease: false,
             })
             .is_err()
         {
@@ -505,6 +541,14 @@ fn board_points<const W: usize>(
             continue;
         }
         if let Some((q, s)) = on_board {
+            if cfg.edge_reach > 0.0
+                && crease_px(board, &q, camera.fx()) < cfg.edge_reach * p.extent(locate)
+            {
+                if let Some(last) = stripe.last_mut() {
+                    last.at_crease = true;
+                }
+                continue;
+            }
             let side = match s {
                 Surface::Left => left.push(q).map(|()| 0),
                 Surface::Right => right.push(q).map(|()| 1),
@@ -515,6 +559,14 @@ fn board_points<const W: usize>(
             }
         }
     }
+}
+
+/// How far board point `q` is from the crease in the image, pixels (`fx`: the focal length).
+fn crease_px(board: &Board<f32>, q: &Point3<f32>, fx: f32) -> f32 {
+    let c = board.crease();
+    let foot = c.point() + c.direction() * (q - c.point()).dot(c.direction());
+    let image = |p: &Point3<f32>| nalgebra::Vector2::new(p.x / p.z, p.y / p.z);
+    fx * (image(q) - image(&foot)).norm()
 }
 
 /// The share of [`HeadConfig::max_plane_tilt`] a plane that rests on the turntable disc may use:

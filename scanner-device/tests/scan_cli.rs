@@ -235,6 +235,11 @@ fn frame_and_time_limits_end_the_scan_with_a_final_stopped_status() {
     );
     let (ok, _, err) = run(&["scan", "--duration=-1"]);
     assert!(!ok && err.contains("seconds"), "{err}");
+    let (ok, _, err) = run(&["scan", "--edge-reach", "9"]);
+    assert!(
+        !ok && err.contains("--edge-reach") && err.contains("from 0 to 4"),
+        "{err}"
+    );
 }
 
 #[test]

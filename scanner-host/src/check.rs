@@ -201,17 +201,24 @@ pub fn find_sphere(
         }
     }
     let (_, mut inliers) = best.filter(|(_, b)| b.len() >= 30)?;
-    // The free-radius fit, then its points again.
+    // The free-radius fit, then its points again. A fit that wanders more than a quarter from
+    // the nominal radius found no such sphere: a patch of a plane (the board) fits a sphere of
+    // any radius above its own size, and the free fit runs off to the plane.
+    let plausible = |s: Sphere| {
+        (0.75 * radius..=1.25 * radius)
+            .contains(&s.radius)
+            .then_some(s)
+    };
     for _ in 0..3 {
         let pts: Vec<_> = inliers.iter().map(|&i| points[i]).collect();
-        let s = fit_sphere(&pts)?;
+        let s = plausible(fit_sphere(&pts)?)?;
         inliers = near(&s, band);
         if inliers.len() < 30 {
             return None;
         }
     }
     let pts: Vec<_> = inliers.iter().map(|&i| points[i]).collect();
-    Some((fit_sphere(&pts)?, inliers))
+    Some((plausible(fit_sphere(&pts)?)?, inliers))
 }
 
 /// Finds the plane that the most points lie within `band` mm of, and fits it: the plane and its

@@ -33,7 +33,12 @@ fn num(v: &serde_json::Value) -> f64 {
 fn a_two_sphere_bar_and_the_board_are_checked_against_the_truth() {
     let t = tempfile::tempdir().unwrap();
     let d = t.path();
-    scanner_tests::scan_rig(d, SCENE, &["--keep-board", "--scan-id", "9"], "bar.stream");
+    scanner_tests::scan_rig(
+        d,
+        SCENE,
+        &["--keep-board", "--scan-id", "9", "--edge-reach", "1"],
+        "bar.stream",
+    );
     let (ok, _, err) = run(
         d,
         "scanner-host",
@@ -162,35 +167,56 @@ fn a_two_sphere_bar_and_the_board_are_checked_against_the_truth() {
         "spacing {found} vs true {spacing:.4}"
     );
 
-    // The default tolerances are the project's targets (size 0.05 %, form 0.15 %, flatness
-    // 0.08 %): whether this scan meets them is stated, by figure, and a miss ends with an error.
+    // At the default tolerances (the project's targets: size and spacing 0.05 %, form 0.15 %)
+    // the bar, scanned for a check (`--edge-reach 1`: the lines within a profile's width of a
+    // run's end dropped, where the spheres' outlines cut their profiles), passes: measured size errors +0.039 and +0.030 mm (0.007 and 0.005 %), form
+    // errors 0.75 and 0.56 mm (0.13 and 0.10 %), spacing +0.012 mm.
     let (ok, out, err) = run(
         d,
         "scanner-host",
         &[
-            "check", "bar", "--sphere", "40", "--plane", "--out", "strict",
+            "check",
+            "bar",
+            "--sphere",
+            "40",
+            "--sphere",
+            "40",
+            "--spacing",
+            &format!("{spacing:.4}"),
+            "--out",
+            "strict",
         ],
     );
     println!("{out}");
+    assert!(ok, "{out}\n{err}");
     let strict = report(&d.join("strict"));
-    let sphere = &strict["spheres"][0];
-    let figures = [
-        &sphere["size"],
-        &sphere["form"],
-        &strict["plane"]["flatness"],
-    ];
-    let fails = figures.iter().filter(|f| f["pass"] == false).count();
-    assert_eq!(ok, fails == 0, "{out}\n{err}");
-    assert_eq!(strict["pass"], ok, "{strict}");
-    // each figure against its tolerance, in % of the distance
-    for f in figures {
-        let within = if f == &sphere["size"] {
-            num(&f["pct"]).abs() <= num(&f["tolerance_pct"])
-        } else {
-            num(&f["pct"]) <= num(&f["tolerance_pct"])
-        };
-        assert_eq!(f["pass"], within, "{f}");
+    assert_eq!(strict["pass"], true, "{strict}");
+    for sphere in strict["spheres"].as_array().unwrap() {
+        assert_eq!(sphere["size"]["pass"], true, "{sphere}");
+        assert_eq!(sphere["form"]["pass"], true, "{sphere}");
+        assert!(num(&sphere["size"]["pct"]).abs() <= 0.025, "{sphere}");
+        assert!(num(&sphere["form"]["pct"]) <= 0.14, "{sphere}");
     }
+    assert_eq!(strict["spacing"]["error"]["pass"], true, "{strict}");
+
+    // The board's flatness at the default 0.08 %: measured 0.80 mm (0.12 %), RMS 0.11 mm — the
+    // stripe's own noise (a centre σ of about 0.05 px, with the laser 150 mm above the camera
+    // meeting the board 12° off the camera's rays: 3 mm across the board per pixel), which
+    // this sweep's 240 frames do not average down. It is stated; a miss ends with an error.
+    let (ok, out, err) = run(
+        d,
+        "scanner-host",
+        &["check", "bar", "--plane", "--out", "flat"],
+    );
+    println!("{out}");
+    let flat = report(&d.join("flat"));
+    let flatness = &flat["plane"]["flatness"];
+    assert!(num(&flatness["pct"]) <= 0.14, "{flat}");
+    let within = num(&flatness["pct"]) <= num(&flatness["tolerance_pct"]);
+    assert_eq!(flatness["pass"], within, "{flatness}");
+    assert_eq!(ok, within, "{out}\n{err}");
+    assert_eq!(flat["pass"], ok, "{flat}");
+
     // A wrong nominal diameter (a 40 mm ball called 38) fails by name.
     let (ok, out, err) = run(
         d,

@@ -51,6 +51,15 @@ pub fn band_limit(width: usize) -> f32 {
 pub const BYTE_PASS_WIDTH: usize = 64 * 64;
 /// Half size of the first, narrow window read around a peak.
 const NARROW_HALF_WINDOW: usize = 6;
+
+/// The default [`StripeConfig::print_ratio`]: the rig's board dots (ink 0.06 on paper 0.8, a
+/// ratio of 13) and a real printed board's edges far exceed it, shading within two pixels does
+/// not come near it.
+const PRINT_RATIO: f32 = 1.5;
+
+/// Reference levels below this (DN) are taken as this for [`LineStatus::Print`]: in a dark
+/// reference the ratio of two noise levels means nothing.
+const PRINT_FLOOR: u8 = 12;
 /// Smallest half size of the second window, read when the first has not come down to the
 /// background: room enough to see a halo or a hump beside a narrow stripe (the 3σ tails of a
 /// 14 px one).
@@ -472,6 +481,11 @@ pub struct StripeConfig {
     /// quadrature to the sensor noise's ([`centre_sigma`]): [`SPECKLE_PX`] unless measured for
     /// the camera and laser at hand.
     pub speckle_px: f32,
+    /// With the difference method, a valid line is [`LineStatus::Print`] where the laser-off
+    /// reference's level (in the laser's channel) changes by more than this factor within two
+    /// samples somewhere across its profile: the edge of dark print under the stripe (0 keeps
+    /// every line).
+    pub print_ratio: f32,
 }
 
 /// A real webcam's speckle share of a stripe centre's uncertainty, pixels: the scatter of the
@@ -504,6 +518,7 @@ impl StripeConfig {
             width_spread: 3.0,
             cut_width: 0.5,
             cut_peak: 0.5,
+            print_ratio: PRINT_RATIO,
             edges: false,
             edge_level: 0.0,
             edge_ramp: 0.5,
@@ -542,11 +557,17 @@ pub enum LineStatus {
     /// else (a colour fringe at a printed edge, a glint, a speck); nor did the line's second
     /// peak continue the stripe.
     Isolated,
+    /// The surface's brightness changes under the stripe by more than
+    /// [`StripeConfig::print_ratio`] in the
+    /// laser-off reference (the edge of dark print, of a marker, of a painted line): the
+    /// profile is the light times the print, its centre pulled towards the brighter side (a
+    /// couple of millimetres on the board's markers).
+    Print,
 }
 
 impl LineStatus {
     /// Every status, in a fixed order (for tables and counters).
-    pub const ALL: [LineStatus; 9] = [
+    pub const ALL: [LineStatus; 10] = [
         LineStatus::Valid,
         LineStatus::NoStripe,
         LineStatus::Ambiguous,
@@ -556,6 +577,7 @@ impl LineStatus {
         LineStatus::BadProfile,
         LineStatus::Cut,
         LineStatus::Isolated,
+        LineStatus::Print,
     ];
 }
 
@@ -571,6 +593,7 @@ impl fmt::Display for LineStatus {
             Self::BadProfile => "no fit",
             Self::Cut => "cut by an edge",
             Self::Isolated => "isolated",
+            Self::Print => "on a print's edge",
         })
     }
 }
@@ -648,6 +671,16 @@ impl StripePoint {
             edge_sigma: [0.0; 2],
             ramps: [0.0; 2],
             ..p
+        }
+    }
+
+    /// How wide what [`Locate`] picks is, samples: the stripe's FWHM for its centre, the ramp of
+    /// an edge (NaN where that edge is missing).
+    pub fn extent(&self, locate: Locate) -> f32 {
+        match locate {
+            Locate::Centre => self.width,
+            Locate::RisingEdge => self.ramps[0],
+            Locate::FallingEdge => self.ramps[1],
         }
     }
 
@@ -1328,6 +1361,13 @@ impl<const W: usize> Extractor<W> {
         } else {
             LineStatus::Valid
         };
+        if point.status == LineStatus::Valid
+            && cfg.method == Method::Dim
+            && cfg.print_ratio > 0.0
+            && io.print_under(line, start, &shape) > cfg.print_ratio
+        {
+            point.status = LineStatus::Print;
+        }
         if point.status != LineStatus::Valid {
             return point;
         }
@@ -1409,6 +1449,33 @@ impl Io<'_, '_> {
                 self.roi.y + clamp(line as isize + dl, self.roi.height),
             ),
         }
+    }
+
+    /// How sharply the surface's brightness changes under the stripe: the largest ratio of two
+    /// reference levels (in the laser's channel) two samples apart, across the profile's
+    /// half-maximum run and half its width beyond either side, levels taken no lower than
+    /// [`PRINT_FLOOR`]. An edge of print (blurred over a pixel or two by the lens) changes the
+    /// level by its whole contrast within two samples; shading, a smooth gradient, does not.
+    fn print_under(&self, line: usize, start: usize, shape: &Profile) -> f32 {
+        let pad = 0.5 * shape.fwhm + 1.0;
+        let len = match self.axis {
+            Axis::Columns => self.roi.height,
+            Axis::Rows => self.roi.width,
+        };
+        let a = (start as f32 + shape.half_max.0 - pad).max(0.0) as usize;
+        let b = ((start as f32 + shape.half_max.1 + pad) as usize).min(len - 1);
+        let level = |i: usize| {
+            let (x, y) = self.sample_xy(line, i, 0);
+            signal::level(self.kind, self.reference.row(y), x).max(PRINT_FLOOR)
+        };
+        let (mut worst, mut before) = (1.0f32, [level(a), level(a)]);
+        for i in a + 1..=b {
+            let now = level(i);
+            let (lo, hi) = (now.min(before[0]), now.max(before[0]));
+            worst = worst.max(f32::from(hi) / f32::from(lo));
+            before = [before[1], now];
+        }
+        worst
     }
 
     /// Signal and clipping of samples `start .. start + sig.len()` of `line`.

@@ -550,6 +550,23 @@ pub(crate) fn signed_changes(
     }
 }
 
+/// The brightness of pixel `x` of a row in the laser's channel (gray, luma for white, the
+/// channel itself in RGB, `Y + chroma` in YUYV): of the laser-off reference, how much light the
+/// surface there returns, the albedo the stripe's profile is multiplied by.
+#[inline]
+pub(crate) fn level(k: SignalKind, row: &[u8], x: usize) -> u8 {
+    match (k.format, channels(k.colour)) {
+        (PixelFormat::Gray8, _) => row[x],
+        (PixelFormat::Yuyv, None) => row[2 * x],
+        (PixelFormat::Yuyv, Some(_)) => {
+            let (y, u, v) = yuyv_at(row, x);
+            yuv_value(k.colour, y, u, v)
+        }
+        (PixelFormat::Rgb24, None) => luma(&row[3 * x..][..3]),
+        (PixelFormat::Rgb24, Some((c, _, _))) => row[3 * x + c],
+    }
+}
+
 /// The LIM signal of one pixel (for the background histogram of LIM).
 #[inline]
 pub(crate) fn lim_of(k: SignalKind, row: &[u8], x: usize) -> u8 {
