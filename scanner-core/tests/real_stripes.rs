@@ -175,19 +175,14 @@ fn across_the_whole_board_no_centre_comes_from_anything_but_the_stripes() {
 /// ratio (it was set on the rig's board, whose dots pull its stripe by up to 2 mm).
 #[test]
 fn rows_across_the_edge_of_print_are_the_ones_off_the_line() {
-    use scanner_core::stripe::{Axis, Extractor, Frame, Method, PixelFormat, StripeConfig};
-    use support::real::{fit_quadratic, load};
+    use scanner_core::stripe::{Extractor, StripeConfig};
+    use support::real::{Photograph, board_config, fit_quadratic};
     let (mut on, mut off) = (Vec::new(), Vec::new());
     for case in &CASES {
-        let (frame, w, h) = load(case.image);
-        let (reference, _, _) = load(&format!("{}-background", case.image));
-        let f = Frame::packed(&frame, w, h, PixelFormat::Rgb24).unwrap();
-        let r = Frame::packed(&reference, w, h, PixelFormat::Rgb24).unwrap();
+        let photo = Photograph::of(case);
+        let (f, r) = photo.frames();
         let mut ex = Box::new(Extractor::<2048>::new());
-        let cfg = StripeConfig {
-            roi: Some(case.roi),
-            ..StripeConfig::new(Method::Dim, Axis::Rows)
-        };
+        let cfg = board_config(case);
         let print: Vec<bool> = ex
             .extract(&f, Some(&r), &cfg)
             .unwrap()

@@ -50,31 +50,26 @@ fn a_two_sphere_bar_and_the_board_are_checked_against_the_truth() {
         Point3::new(60.0, 20.0, 570.0),
     );
     let spacing = (a - b).norm();
+    let nominal = format!("{spacing:.4}");
+    let bar = |more: &[&str]| {
+        let mut args = vec!["check", "bar", "--sphere", "40", "--sphere", "40"];
+        args.extend(["--spacing", &nominal]);
+        args.extend(more);
+        run(d, "scanner-host", &args)
+    };
 
     // Tolerances loose enough for this 800×600 scan: it passes, exit 0.
-    let (ok, out, err) = run(
-        d,
-        "scanner-host",
-        &[
-            "check",
-            "bar",
-            "--sphere",
-            "40",
-            "--sphere",
-            "40",
-            "--spacing",
-            &format!("{spacing:.4}"),
-            "--plane",
-            "--size-tolerance",
-            "0.2",
-            "--form-tolerance",
-            "0.4",
-            "--flatness-tolerance",
-            "0.4",
-            "--out",
-            "loose",
-        ],
-    );
+    let (ok, out, err) = bar(&[
+        "--plane",
+        "--size-tolerance",
+        "0.2",
+        "--form-tolerance",
+        "0.4",
+        "--flatness-tolerance",
+        "0.4",
+        "--out",
+        "loose",
+    ]);
     assert!(ok, "{out}\n{err}");
     println!("{out}");
     let loose = report(&d.join("loose"));
@@ -169,24 +164,10 @@ fn a_two_sphere_bar_and_the_board_are_checked_against_the_truth() {
 
     // At the default tolerances (the project's targets: size and spacing 0.05 %, form 0.15 %)
     // the bar, scanned for a check (`--edge-reach 1`: the lines within a profile's width of a
-    // run's end dropped, where the spheres' outlines cut their profiles), passes: measured size errors +0.039 and +0.030 mm (0.007 and 0.005 %), form
-    // errors 0.75 and 0.56 mm (0.13 and 0.10 %), spacing +0.012 mm.
-    let (ok, out, err) = run(
-        d,
-        "scanner-host",
-        &[
-            "check",
-            "bar",
-            "--sphere",
-            "40",
-            "--sphere",
-            "40",
-            "--spacing",
-            &format!("{spacing:.4}"),
-            "--out",
-            "strict",
-        ],
-    );
+    // run's end dropped, where the spheres' outlines cut their profiles), passes: measured
+    // size errors +0.039 and +0.030 mm (0.007 and 0.005 %), form errors 0.75 and 0.56 mm (0.13
+    // and 0.10 %), spacing +0.012 mm.
+    let (ok, out, err) = bar(&["--out", "strict"]);
     println!("{out}");
     assert!(ok, "{out}\n{err}");
     let strict = report(&d.join("strict"));

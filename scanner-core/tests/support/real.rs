@@ -116,16 +116,51 @@ pub fn fit_quadratic(pts: &[(f64, f64)]) -> impl Fn(f64) -> f64 + use<> {
     }
 }
 
+/// A case's photograph and its laser-off reference (RGB), and their size.
+pub struct Photograph {
+    pub frame: Vec<u8>,
+    pub reference: Vec<u8>,
+    pub width: usize,
+    pub height: usize,
+}
+
+impl Photograph {
+    pub fn of(case: &Case) -> Self {
+        let (frame, width, height) = load(case.image);
+        let (reference, _, _) = load(&format!("{}-background", case.image));
+        Photograph {
+            frame,
+            reference,
+            width,
+            height,
+        }
+    }
+
+    /// The frame and the reference as the extractor takes them.
+    pub fn frames(&self) -> (Frame<'_>, Frame<'_>) {
+        let (w, h) = (self.width, self.height);
+        (
+            Frame::packed(&self.frame, w, h, PixelFormat::Rgb24).unwrap(),
+            Frame::packed(&self.reference, w, h, PixelFormat::Rgb24).unwrap(),
+        )
+    }
+}
+
+/// The difference method's settings for a case's board rows.
+pub fn board_config(case: &Case) -> StripeConfig {
+    StripeConfig {
+        roi: Some(case.roi),
+        ..StripeConfig::new(Method::Dim, Axis::Rows)
+    }
+}
+
 pub fn analyse(case: &Case, estimator: Estimator) -> Outcome {
-    let (frame, w, h) = load(case.image);
-    let (reference, _, _) = load(&format!("{}-background", case.image));
-    let f = Frame::packed(&frame, w, h, PixelFormat::Rgb24).unwrap();
-    let r = Frame::packed(&reference, w, h, PixelFormat::Rgb24).unwrap();
+    let photo = Photograph::of(case);
+    let (f, r) = photo.frames();
     let mut ex = Box::new(Extractor::<2048>::new());
     let cfg = StripeConfig {
-        roi: Some(case.roi),
         estimator,
-        ..StripeConfig::new(Method::Dim, Axis::Rows)
+        ..board_config(case)
     };
     let res = ex.extract(&f, Some(&r), &cfg).unwrap();
     let in_glint = |y: usize| case.glint.is_some_and(|(a, b)| (a..b).contains(&y));
@@ -198,16 +233,12 @@ pub struct FullHeight {
 /// `method` with the laser `colour` on the band of `case` from the top of the photograph down to
 /// row `to` (all of it: `usize::MAX`).
 pub fn full_height(case: &Case, method: Method, colour: LaserColour, to: usize) -> FullHeight {
-    let (frame, w, h) = load(case.image);
-    let (reference, _, _) = load(&format!("{}-background", case.image));
-    let f = Frame::packed(&frame, w, h, PixelFormat::Rgb24).unwrap();
-    let r = Frame::packed(&reference, w, h, PixelFormat::Rgb24).unwrap();
+    let photo = Photograph::of(case);
+    let (f, r) = photo.frames();
+    let (frame, reference, w, h) = (&photo.frame, &photo.reference, photo.width, photo.height);
     // The line: the difference method's centres on the board outside the glint.
     let mut ex = Box::new(Extractor::<2048>::new());
-    let board = StripeConfig {
-        roi: Some(case.roi),
-        ..StripeConfig::new(Method::Dim, Axis::Rows)
-    };
+    let board = board_config(case);
     let in_glint = |y: usize| case.glint.is_some_and(|(a, b)| (a..b).contains(&y));
     let pts: Vec<(f64, f64)> = ex
         .extract(&f, Some(&r), &board)
