@@ -55,7 +55,13 @@ fn head_on(name: &str, format: Option<PixelFormat>) -> (usize, f64) {
 
 /// [`head_on`] for frames already read.
 fn head_on_frames(name: &str, frame: &OwnedFrame, reference: &OwnedFrame) -> (usize, f64) {
-    head_with(name, frame, reference, &pair(name).join("calibration.toml"))
+    head_with(
+        name,
+        frame,
+        reference,
+        &pair(name).join("calibration.toml"),
+        0.0,
+    )
 }
 
 /// [`head_on_frames`] with the calibration file `calibration`.
@@ -64,6 +70,7 @@ fn head_with(
     frame: &OwnedFrame,
     reference: &OwnedFrame,
     calibration: &Path,
+    print_ratio: f32,
 ) -> (usize, f64) {
     let dir = pair(name);
     let format = frame.format;
@@ -71,6 +78,7 @@ fn head_with(
     let camera = file.camera().unwrap().cast::<f32>();
     let board = file.board().unwrap().unwrap().cast::<f32>();
     let mut cfg = HeadConfig::new(StripeConfig::new(Method::Dim, Axis::Columns));
+    cfg.stripe.print_ratio = print_ratio;
     cfg.stripe.axis = stripe_axis(frame, reference, &cfg.stripe).unwrap();
     assert_eq!(
         cfg.stripe.axis,
@@ -91,6 +99,28 @@ fn head_with(
     let p = out.plane;
     let found = [f64::from(p[0]), f64::from(p[1]), f64::from(p[2])];
     (out.points.len(), angle_deg(found, reference_normal(&dir)))
+}
+
+/// The stripe's rows on the edge of the boards' print left out (`scan --print-ratio 1.5`, set on
+/// the rig's board, not on these frames): the laser plane comes nearer the independent
+/// reference on both pairs — measured 0.0722° and 0.0090° against 0.0833° and 0.0161°.
+#[test]
+fn without_the_rows_on_the_edge_of_print_the_laser_plane_comes_nearer() {
+    for name in PAIRS {
+        let dir = pair(name);
+        let on = dir.join("laser-on.png");
+        let format = image_format(&on).unwrap();
+        let frame = load_frame(&on, format, 0).unwrap();
+        let reference = load_frame(&dir.join("laser-off.png"), format, u64::MAX).unwrap();
+        let cal = dir.join("calibration.toml");
+        let (_, all) = head_with(name, &frame, &reference, &cal, 0.0);
+        let (objects, without) = head_with(name, &frame, &reference, &cal, 1.5);
+        println!(
+            "{name}: laser plane {all:.4}° off the reference, {without:.4}° without the print's edges"
+        );
+        assert_eq!(objects, 0, "{name}");
+        assert!(without < all, "{name}: {without}° vs {all}°");
+    }
 }
 
 #[test]
@@ -254,10 +284,9 @@ fn a_folder_of_one_frame_without_a_reference_is_refused_with_the_fix() {
 /// The stated centre uncertainty on real stripes it was not fitted to: the speckle's share
 /// (`SPECKLE_PX`) was fitted on the Ciclop photographs (another webcam, another laser, a
 /// chessboard); here, in both pairs, in colour and in gray, the centres' scatter about each
-/// sheet's curve is within 1.6× of what each centre states (RMS of residual / σ over the frame:
-/// 0.68, 1.25 in colour, 1.28, 1.54 in gray; per sheet 0.66–1.58). The rows on the edge of the
-/// board's print are no longer in it (`LineStatus::Print`): with them the ratios were 0.89,
-/// 1.21, 1.28 and 1.41 — their larger stated σ (a weak stripe on black) covered their scatter.
+/// sheet's curve is within 1.5× of what each centre states (RMS of residual / σ over the frame:
+/// 0.89, 1.21 in colour, 1.28, 1.41 in gray; per sheet 0.65–1.31 in colour, where the 0.65 is a
+/// sheet on which the sensor noise's share alone, 0.36 px, exceeds the scatter, 0.29 px).
 #[test]
 fn the_stated_centre_uncertainty_holds_on_stripes_it_was_not_fitted_to() {
     use scanner_calib::speckle::stripe_scatter;
@@ -283,7 +312,7 @@ fn the_stated_centre_uncertainty_holds_on_stripes_it_was_not_fitted_to() {
             assert_eq!(s.sheets.len(), 2, "{name} {format:?}: {s:?}");
             assert!(s.sheets.iter().all(|sheet| sheet.points >= 100), "{s:?}");
             assert!(
-                (1.0 / 1.6..=1.6).contains(&s.z_rms),
+                (1.0 / 1.5..=1.5).contains(&s.z_rms),
                 "{name} {format:?}: {s:?}"
             );
         }
@@ -411,7 +440,7 @@ fn calibrate_board_on_the_charuco_photo_gives_opencvs_planes_and_the_laser_plane
         let format = image_format(&on).unwrap();
         let frame = load_frame(&on, format, 0).unwrap();
         let reference = load_frame(&dir.join("laser-off.png"), format, u64::MAX).unwrap();
-        let (objects, angle) = head_with(name, &frame, &reference, &out);
+        let (objects, angle) = head_with(name, &frame, &reference, &out, 0.0);
         println!(
             "{name}: with our planes, {objects} object points, laser plane {angle:.4}° off the reference"
         );

@@ -240,6 +240,11 @@ fn frame_and_time_limits_end_the_scan_with_a_final_stopped_status() {
         !ok && err.contains("--edge-reach") && err.contains("from 0 to 4"),
         "{err}"
     );
+    let (ok, _, err) = run(&["scan", "--print-ratio", "1.0"]);
+    assert!(
+        !ok && err.contains("--print-ratio") && err.contains("from 1.1 to 10"),
+        "{err}"
+    );
 }
 
 #[test]

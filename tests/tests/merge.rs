@@ -722,14 +722,6 @@ fn views_of_a_part_of_flat_faces_are_merged_right_or_refused() {
     args.extend(["--out", "model", "--min-overlap", "0.3", "-q"]);
     let (ok, out, err) = run(d, "scanner-host", &args);
     println!("{out}{err}");
-    // Refused before any registration: a view that matches no other by the overlap asked for
-    // (view 1 in one run, 30 % of its points within 1 mm, once the stripe's lines on the edge
-    // of print were dropped), named; no model.
-    if !ok && err.contains("overlaps no other view") {
-        assert!(err.contains("view ") && err.contains("(v"), "{err}");
-        assert!(!d.join("model/model.obj").exists() && !d.join("model/model.stl").exists());
-        return;
-    }
     // What a refusal leaves, and what it does not.
     assert!(d.join("model/views.png").exists() && d.join("model/merge-report.txt").exists());
     let r = report(&d.join("model"));

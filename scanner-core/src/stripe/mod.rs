@@ -52,11 +52,6 @@ pub const BYTE_PASS_WIDTH: usize = 64 * 64;
 /// Half size of the first, narrow window read around a peak.
 const NARROW_HALF_WINDOW: usize = 6;
 
-/// The default [`StripeConfig::print_ratio`]: the rig's board dots (ink 0.06 on paper 0.8, a
-/// ratio of 13) and a real printed board's edges far exceed it, shading within two pixels does
-/// not come near it.
-const PRINT_RATIO: f32 = 1.5;
-
 /// Reference levels below this (DN) are taken as this for [`LineStatus::Print`]: in a dark
 /// reference the ratio of two noise levels means nothing.
 const PRINT_FLOOR: u8 = 12;
@@ -483,8 +478,11 @@ pub struct StripeConfig {
     pub speckle_px: f32,
     /// With the difference method, a valid line is [`LineStatus::Print`] where the laser-off
     /// reference's level (in the laser's channel) changes by more than this factor within two
-    /// samples somewhere across its profile: the edge of dark print under the stripe (0 keeps
-    /// every line).
+    /// samples somewhere across its profile: the edge of dark print under the stripe. 0 keeps
+    /// every line (the default: on a textured object it takes whole stretches of the stripe);
+    /// 1.5 for an accuracy check on a printed board — the rig's dots (ink 0.06 on paper 0.8, a
+    /// ratio of 13) and a real printed board's edges far exceed it, shading within two pixels
+    /// does not come near it.
     pub print_ratio: f32,
 }
 
@@ -518,7 +516,7 @@ impl StripeConfig {
             width_spread: 3.0,
             cut_width: 0.5,
             cut_peak: 0.5,
-            print_ratio: PRINT_RATIO,
+            print_ratio: 0.0,
             edges: false,
             edge_level: 0.0,
             edge_ramp: 0.5,

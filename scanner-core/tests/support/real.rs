@@ -217,8 +217,6 @@ pub struct FullHeight {
     /// Board rows and, of those, rows with a valid centre.
     pub board_rows: usize,
     pub board_valid: usize,
-    /// Board rows whose stripe was found but crosses the edge of print ([`LineStatus::Print`]).
-    pub board_print: usize,
     /// Largest distance of a valid centre on a board row outside the glint, and in the glint's
     /// rows, from the line fitted to the difference method's centres outside the glint, px.
     pub max_off: f64,
@@ -270,7 +268,6 @@ pub fn full_height(case: &Case, method: Method, colour: LaserColour, to: usize) 
     let mut out = FullHeight {
         board_rows: 0,
         board_valid: 0,
-        board_print: 0,
         max_off: 0.0,
         glint_max_off: 0.0,
         dark_rows: 0,
@@ -280,7 +277,6 @@ pub fn full_height(case: &Case, method: Method, colour: LaserColour, to: usize) 
         let valid = p.status == LineStatus::Valid;
         if on_board(y) {
             out.board_rows += 1;
-            out.board_print += usize::from(p.status == LineStatus::Print);
             if valid {
                 out.board_valid += 1;
                 let off = (f64::from(p.centre) - line(y as f64)).abs();

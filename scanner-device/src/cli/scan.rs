@@ -135,6 +135,15 @@ pub struct ScanArgs {
     /// (docs/accuracy.md). 0: off.
     #[arg(long, default_value_t = 0.0, value_parser = edge_reach)]
     pub edge_reach: f32,
+    /// Drop the stripe's lines where it crosses the edge of print: the laser-off reference's
+    /// level changes by more than this factor within two pixels under the profile, which is
+    /// then the light times the print, its centre pulled towards the bright side (up to 2 mm on
+    /// the rig's board dots). 1.5 for an accuracy check, or to fit the laser plane on a printed
+    /// board without its marks (on the real two-plane frames: 0.072° from the independent
+    /// reference instead of 0.083°). It drops the stripe wherever an object is printed or
+    /// textured (docs/accuracy.md). 0: off. Difference method only.
+    #[arg(long, default_value_t = 0.0, value_parser = print_ratio)]
+    pub print_ratio: f32,
     /// Colour each point from the reference frame.
     #[arg(long)]
     pub colour: bool,
@@ -963,6 +972,7 @@ fn head_config(a: &ScanArgs) -> HeadConfig {
     };
     head.keep_board = a.keep_board;
     head.edge_reach = a.edge_reach;
+    head.stripe.print_ratio = a.print_ratio;
     head.colour = a.colour;
     if a.shadow {
         head = shadow_head(head);
@@ -975,6 +985,14 @@ fn edge_reach(text: &str) -> Result<f32, String> {
     match text.parse::<f32>() {
         Ok(v) if (0.0..=4.0).contains(&v) => Ok(v),
         _ => Err(format!("{text:?}: a number of profile widths from 0 to 4")),
+    }
+}
+
+/// `--print-ratio`: 0 (off), or a factor from 1.1 to 10.
+fn print_ratio(text: &str) -> Result<f32, String> {
+    match text.parse::<f32>() {
+        Ok(v) if v == 0.0 || (1.1..=10.0).contains(&v) => Ok(v),
+        _ => Err(format!("{text:?}: 0 (off) or a factor from 1.1 to 10")),
     }
 }
 
