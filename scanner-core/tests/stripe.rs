@@ -581,7 +581,7 @@ fn reference_rough(
     h: usize,
     sep: u16,
     floor: u16,
-) -> Vec<(u16, u16, u16)> {
+) -> Vec<(u16, u16, u16, u16)> {
     (0..w)
         .map(|x| {
             let (mut b, mut ba, mut s, mut sa) = (0u16, 0u16, 0u16, 0u16);
@@ -601,7 +601,7 @@ fn reference_rough(
                     (s, sa) = (t, at);
                 }
             }
-            (b, ba, s)
+            (b, ba, s, sa)
         })
         .collect()
 }
@@ -653,7 +653,7 @@ proptest! {
         let res = ex.extract(&f, Some(&r), &cfg).unwrap();
         let sig = |x: usize, y: usize| u16::from(frame[y * w + x].saturating_sub(10));
         let rough = reference_rough(&sig, w, h, cfg.separation, 2 * res.threshold);
-        for (x, (p, &(best, at, second))) in res.points.iter().zip(&rough).enumerate() {
+        for (x, (p, &(best, at, second, second_at))) in res.points.iter().zip(&rough).enumerate() {
             // the reported peak is the largest sample within ±2 of the rough centre
             if best == 0 { prop_assert_eq!(p.status, LineStatus::NoStripe); continue; }
             let lo = usize::from(at).saturating_sub(2);
@@ -662,7 +662,16 @@ proptest! {
             prop_assert_eq!(p.peak, peak, "column {}", x);
             let rival = u32::from(second) > 3 * u32::from(res.threshold) && f32::from(second) > cfg.ambiguity * f32::from(best);
             if peak >= res.threshold {
-                prop_assert_eq!(p.status == LineStatus::Ambiguous, rival, "column {}", x);
+                // a rival is ambiguous unless the band joins the two peaks (the signal between
+                // them never below half the second's, per sample): the band's own top
+                let (a, b) = (at.min(second_at), at.max(second_at));
+                let valley = (a..=b).map(|y| sig(x, usize::from(y))).min().unwrap_or(0);
+                let joined = 3 * u32::from(valley) >= u32::from(second) / 2;
+                if p.status == LineStatus::Ambiguous {
+                    prop_assert!(rival, "column {}", x);
+                } else {
+                    prop_assert!(!rival || joined, "column {}", x);
+                }
             }
         }
     }
