@@ -259,7 +259,8 @@ fn above_disc(
 /// not shrink with a sharper camera: cells of 2 px at 1280×960 hold half the points and made the
 /// round stand's model 0.042 % of the camera–board distance off on average, cells of 4 px
 /// 0.017 % (`tests/tests/turntable.rs`). 2 px where the journal's header cannot be read (the
-/// read then says why).
+/// read then says why). Views that cannot be registered so are read again at 2 px
+/// ([`merge_folders`]).
 pub fn cell_for(path: &Path) -> Cell {
     let head = std::fs::File::open(stream_of(path)).ok().map(|f| {
         let mut bytes = Vec::new();
@@ -338,6 +339,10 @@ impl std::str::FromStr for Thickness {
 pub trait MergeProgress: Progress {
     /// View `view` is being read with the sheet's thickness `sheet_mm`.
     fn reading(&mut self, view: usize, sheet_mm: f64);
+
+    /// The views could not be registered (`why`) at the cells chosen for their images and are
+    /// read again with cells of `cell`.
+    fn finer(&mut self, cell: Cell, why: &MergeError);
 }
 
 /// Merges the views in `paths` (cells of `cell`): reads them with the sheet's thickness
@@ -377,5 +382,24 @@ pub fn merge_folders(
         }
     };
     let views = load_views(paths, cell, sheet_mm, |k| progress.reading(k, sheet_mm))?;
-    Ok(scanner_merge::run(&views, &options, progress)?)
+    match scanner_merge::run(&views, &options, progress) {
+        // Cells chosen for the image (4 px at 1280×960) hold a quarter of the points of 2 px
+        // ones: a sparse sweep's views can then share too few to be registered by shape.
+        Err(e @ (MergeError::NoMatch { .. } | MergeError::Apart { .. }))
+            if cell.is_none() && paths.iter().any(|p| cell_for(p) != FINEST) =>
+        {
+            progress.finer(FINEST, &e);
+            let views = load_views(paths, Some(FINEST), sheet_mm, |k| {
+                progress.reading(k, sheet_mm)
+            })?;
+            let mut merged = scanner_merge::run(&views, &options, progress)?;
+            merged.report.finer_cell_px = Some(VIEW_CELL_PX);
+            Ok(merged)
+        }
+        merged => Ok(merged?),
+    }
 }
+
+/// The cell a merge reads the views with again when, at the cells [`cell_for`] chose, they
+/// could not be registered.
+const FINEST: Cell = Cell::Pixels(VIEW_CELL_PX);

@@ -188,6 +188,64 @@ fn three_views_of_the_bunny_register_with_the_rigs_rotations() {
     }
 }
 
+/// Views whose images are wide get coarse cells by default (2 px for every 640 px of width);
+/// when the views then share too few points to be registered by their shapes, the merge reads
+/// them again at 2 px and says so in its report. The bunny's 640×480 views 0, 1 and 6 with
+/// their headers' width set to 2 560 px (8 px cells by default) cannot be registered at 8 px
+/// cells, and are merged at 2 px as the views themselves are.
+#[test]
+fn views_too_sparse_at_their_default_cells_are_read_again_at_finer_ones() {
+    let f = bunny();
+    let d = &f.dir;
+    for k in ["0", "1", "6"] {
+        let journal = std::fs::read(d.join(format!("v{k}/journal.stream"))).unwrap();
+        let wide = d.join(format!("wide{k}"));
+        std::fs::create_dir_all(&wide).unwrap();
+        std::fs::write(wide.join("journal.stream"), with_width(&journal, 2560)).unwrap();
+    }
+    let views = ["wide0", "wide1", "wide6"];
+    let mut args = vec!["merge"];
+    args.extend(views);
+    args.extend(["--cell", "8px", "--out", "coarse", "-q"]);
+    let (ok, _, err) = run(d, "scanner-host", &args);
+    let kinds = scanner_tests::error_kinds(&err);
+    assert!(
+        !ok && (kinds.contains(&"NoMatch".to_string()) || kinds.contains(&"Apart".to_string())),
+        "at 8 px cells the views do not register: {err}"
+    );
+    let mut args = vec!["merge"];
+    args.extend(views);
+    args.extend(["--out", "finer", "-q"]);
+    let (ok, _, err) = run(d, "scanner-host", &args);
+    assert!(ok, "{err}");
+    let r = report(&d.join("finer"));
+    assert_eq!(r["finer_cell_px"], 2.0, "{r}");
+    assert_eq!(r["fusion"]["check"]["watertight"], true, "{r}");
+    let found = rotations(&r);
+    for (k, scene_view) in [(1, 1), (2, 6)] {
+        let truth = true_rotation(&f.scene, scene_view);
+        assert!(
+            (found[k] - truth).abs() < 0.1,
+            "view {k}: {}° found, {truth}° true",
+            found[k]
+        );
+    }
+    // Read at the cells the views were scanned with, nothing is read again.
+    let (ok, _, err) = run(
+        d,
+        "scanner-host",
+        &["merge", "v0", "v1", "v6", "--out", "as-chosen", "-q"],
+    );
+    assert!(ok, "{err}");
+    assert_eq!(report(&d.join("as-chosen"))["finer_cell_px"], Value::Null);
+}
+
+/// A journal's frames with every header's image width set to `width`, each frame re-encoded
+/// as the head sends it.
+fn with_width(journal: &[u8], width: u16) -> Vec<u8> {
+    rewrite_headers(journal, |h| h.width = width)
+}
+
 /// Views 0, 1 and 5 of the bunny are turns by 60° and 300° about one axis (a turntable whose
 /// step nobody gave), view 6 is laid on its side: `merge` without a hint finds the turns, says
 /// so, and refines the three as turns about one axis (each by its turn within 0.5°), the side
@@ -968,6 +1026,12 @@ fn open_edges(mesh: &tobj::Mesh) -> usize {
 /// A journal's frames with every header's right board plane replaced by its left one, each
 /// frame re-encoded as the head sends it.
 fn without_board(journal: &[u8]) -> Vec<u8> {
+    rewrite_headers(journal, |h| h.board[1] = h.board[0])
+}
+
+/// A journal's frames with `change` made to every header, each frame re-encoded as the head
+/// sends it.
+fn rewrite_headers(journal: &[u8], change: impl Fn(&mut scanner_wire::Header)) -> Vec<u8> {
     use scanner_wire::{Decoder, MAX_ENCODED, MAX_MESSAGE, Message};
     let mut out = Vec::new();
     let (mut scratch, mut frame) = (vec![0u8; MAX_MESSAGE], vec![0u8; MAX_ENCODED]);
@@ -975,7 +1039,7 @@ fn without_board(journal: &[u8]) -> Vec<u8> {
     decoder.feed(journal, |m| {
         let mut m = m.expect("a journal of good frames");
         if let Message::Header(h) = &mut m {
-            h.board[1] = h.board[0];
+            change(h);
         }
         let n = scanner_wire::encode(&m, &mut scratch, &mut frame).expect("re-encoded");
         out.extend_from_slice(&frame[..n]);

@@ -12,7 +12,7 @@ use scanner_host::live::LiveView;
 use scanner_host::mesh::{Mesh, MeshFrame};
 use scanner_host::views::{MergeProgress, Thickness, ViewsError, merge_folders};
 use scanner_host::{errln, outln};
-use scanner_merge::{Closing, MergeOptions, MergeReport, Progress, Registered, Stage};
+use scanner_merge::{Closing, MergeError, MergeOptions, MergeReport, Progress, Registered, Stage};
 
 use crate::show::progress_bar;
 
@@ -168,6 +168,14 @@ impl MergeProgress for Shown<'_> {
             String::new()
         };
         self.say(format!("reading view {view}{what}"));
+    }
+
+    fn finer(&mut self, cell: Cell, why: &MergeError) {
+        let cell = match cell {
+            Cell::Pixels(px) => format!("{px} px"),
+            Cell::Mm(mm) => format!("{mm} mm"),
+        };
+        errln!("note: {why}\nnote: reading the views again with cells of {cell}");
     }
 }
 

@@ -37,6 +37,10 @@ pub struct MergeReport {
     /// Without the disc: per view, the points left out because they stayed still while the
     /// object turned (a table, a stand, a disc not posed).
     pub still: Option<Vec<usize>>,
+    /// The grid cell (image pixels) the views were read again with when, at the cells chosen
+    /// for their images, too few of their points matched to register them; `None` when read
+    /// as chosen.
+    pub finer_cell_px: Option<f64>,
 }
 
 /// `--sheet auto`: each thickness tried and where the views agree best.
@@ -196,6 +200,7 @@ impl MergeReport {
             refused: None,
             disc: None,
             still: None,
+            finer_cell_px: None,
         }
     }
 
@@ -221,6 +226,12 @@ impl MergeReport {
         let mut s = String::new();
         if let Some(search) = &self.sheet_search {
             s += &sheet_line(search);
+        }
+        if let Some(px) = self.finer_cell_px {
+            let _ = writeln!(
+                s,
+                "the views read again at {px} px cells: at the cells chosen for their images too few points matched to register them"
+            );
         }
         s += "view | points (clear of its edges) | registered onto | overlap | residual RMS | also agrees with | rotation from view 0\n";
         for v in &self.views {
