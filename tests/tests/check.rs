@@ -14,7 +14,11 @@ fn run(dir: &Path, bin: &str, args: &[&str]) -> (bool, String, String) {
     scanner_tests::run_in(&workspace_bin(bin), dir, args)
 }
 
-const SCENE: &str = "width = 800\nheight = 600\n\n[laser]\nframes = 240\n\n\
+/// The bar in front of the board, scanned as a check is: the laser held 300 mm above the camera
+/// (the demo holds it 150 mm above: half the angle between the light sheet and the camera's
+/// rays, twice the depth per pixel of stripe noise).
+const SCENE: &str = "width = 800\nheight = 600\n\n\
+    [laser]\nframes = 240\nsource = [20.0, -300.0, 30.0]\n\n\
     [[objects]]\nshape = \"sphere\"\ncentre = [-60.0, 20.0, 560.0]\nradius = 20.0\n\n\
     [[objects]]\nshape = \"sphere\"\ncentre = [60.0, 20.0, 570.0]\nradius = 20.0\n";
 
@@ -36,7 +40,15 @@ fn a_two_sphere_bar_and_the_board_are_checked_against_the_truth() {
     scanner_tests::scan_rig(
         d,
         SCENE,
-        &["--keep-board", "--scan-id", "9", "--edge-reach", "1"],
+        &[
+            "--keep-board",
+            "--scan-id",
+            "9",
+            "--edge-reach",
+            "1",
+            "--print-ratio",
+            "1.5",
+        ],
         "bar.stream",
     );
     let (ok, _, err) = run(
@@ -162,12 +174,11 @@ fn a_two_sphere_bar_and_the_board_are_checked_against_the_truth() {
         "spacing {found} vs true {spacing:.4}"
     );
 
-    // At the default tolerances (the project's targets: size and spacing 0.05 %, form 0.15 %)
-    // the bar, scanned for a check (`--edge-reach 1`: the lines within a profile's width of a
-    // run's end dropped, where the spheres' outlines cut their profiles), passes: measured
-    // size errors +0.039 and +0.033 mm (0.007 and 0.006 %), form errors 0.75 and 0.56 mm (0.13
-    // and 0.10 %), spacing +0.012 mm.
-    let (ok, out, err) = bar(&["--out", "strict"]);
+    // At the default tolerances (the project's targets: size and spacing 0.05 %, form 0.15 %,
+    // flatness 0.08 %) the bar and the board, scanned for a check (`--edge-reach 1`: the lines
+    // within a profile's width of a run's end dropped, where the spheres' outlines cut their
+    // profiles; `--print-ratio 1.5`: the lines across the board's printed dots), pass.
+    let (ok, out, err) = bar(&["--plane", "--out", "strict"]);
     println!("{out}");
     assert!(ok, "{out}\n{err}");
     let strict = report(&d.join("strict"));
@@ -175,28 +186,39 @@ fn a_two_sphere_bar_and_the_board_are_checked_against_the_truth() {
     for sphere in strict["spheres"].as_array().unwrap() {
         assert_eq!(sphere["size"]["pass"], true, "{sphere}");
         assert_eq!(sphere["form"]["pass"], true, "{sphere}");
-        assert!(num(&sphere["size"]["pct"]).abs() <= 0.025, "{sphere}");
-        assert!(num(&sphere["form"]["pct"]) <= 0.14, "{sphere}");
     }
     assert_eq!(strict["spacing"]["error"]["pass"], true, "{strict}");
+    let flatness = &strict["plane"]["flatness"];
+    assert_eq!(flatness["pass"], true, "{flatness}");
+    assert!(num(&flatness["pct"]) <= 0.08, "{flatness}");
 
-    // The board's flatness at the default 0.08 %: measured 0.87 mm (0.13 %), RMS 0.12 mm — the
-    // stripe's own noise (a centre σ of about 0.05 px, with the laser 150 mm above the camera
-    // meeting the board 12° off the camera's rays: 3 mm across the board per pixel), which
-    // this sweep's 240 frames do not average down. It is stated; a miss ends with an error.
-    let (ok, out, err) = run(
-        d,
+    // The same bar with the laser held as in the demo, 150 mm above the camera: the stripe's
+    // noise is worth twice the depth, and the board is less flat (0.12 % in one run).
+    let near = d.join("near");
+    std::fs::create_dir(&near).unwrap();
+    scanner_tests::scan_rig(
+        &near,
+        &SCENE.replace("source = [20.0, -300.0, 30.0]\n", ""),
+        &["--keep-board", "--edge-reach", "1", "--print-ratio", "1.5"],
+        "bar.stream",
+    );
+    let (ok, _, err) = run(
+        &near,
+        "scanner-host",
+        &["receive", "bar.stream", "--out", "bar", "-q"],
+    );
+    assert!(ok, "{err}");
+    let (_, out, _) = run(
+        &near,
         "scanner-host",
         &["check", "bar", "--plane", "--out", "flat"],
     );
-    println!("{out}");
-    let flat = report(&d.join("flat"));
-    let flatness = &flat["plane"]["flatness"];
-    assert!(num(&flatness["pct"]) <= 0.14, "{flat}");
-    let within = num(&flatness["pct"]) <= num(&flatness["tolerance_pct"]);
-    assert_eq!(flatness["pass"], within, "{flatness}");
-    assert_eq!(ok, within, "{out}\n{err}");
-    assert_eq!(flat["pass"], ok, "{flat}");
+    println!("laser 150 mm above the camera:\n{out}");
+    let near_flatness = num(&report(&near.join("flat"))["plane"]["flatness"]["pct"]);
+    assert!(
+        near_flatness > 1.3 * num(&flatness["pct"]),
+        "{near_flatness} % with the laser 150 mm above, {flatness} with it 300 mm above"
+    );
 
     // A wrong nominal diameter (a 40 mm ball called 38) fails by name.
     let (ok, out, err) = run(
