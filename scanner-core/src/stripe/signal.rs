@@ -153,7 +153,7 @@ impl SignalKind {
 }
 
 /// The magnitude of pixel `x` of a row (the per-pixel form of [`magnitudes`]).
-#[inline]
+#[inline(always)]
 fn magnitude(k: SignalKind, row: &[u8], reference: &[u8], x: usize) -> u8 {
     match k.format {
         PixelFormat::Gray8 => match k.method {
@@ -483,7 +483,7 @@ pub(crate) fn row(k: SignalKind, row: &[u8], reference: &[u8], x0: usize, out: &
 
 /// Signal of the single pixel `x` of a row, and whether its raw value is clipped (255 in any
 /// channel of RGB, in Y of YUYV).
-#[inline]
+#[inline(always)]
 pub(crate) fn pixel(k: SignalKind, row: &[u8], reference: &[u8], x: usize) -> (u16, bool) {
     let bpp = k.format.bytes_per_pixel();
     let p = &row[x * bpp..][..bpp];
