@@ -511,6 +511,7 @@ fn board_points<const W: usize>(
         let Ok(ray) = camera.pixel_to_ray(&px) else {
             continue;
         };
+        let width = p.extent(locate);
         // One entry per line of at most W: the pushes cannot fail.
         if stripe
             .push(StripePixel {
@@ -521,7 +522,7 @@ fn board_points<const W: usize>(
                 sigma_px,
                 uncertainty: f32::INFINITY,
                 peak: p.peak,
-                width: p.extent(locate),
+                width,
                 on_board: None,
                 at_crease: false,
             })
@@ -541,9 +542,7 @@ fn board_points<const W: usize>(
             continue;
         }
         if let Some((q, s)) = on_board {
-            if cfg.edge_reach > 0.0
-                && crease_px(board, &q, camera.fx()) < cfg.edge_reach * p.extent(locate)
-            {
+            if cfg.edge_reach > 0.0 && crease_px(board, &q, camera.fx()) < cfg.edge_reach * width {
                 if let Some(last) = stripe.last_mut() {
                     last.at_crease = true;
                 }
