@@ -341,8 +341,8 @@ pub trait MergeProgress: Progress {
     fn reading(&mut self, view: usize, sheet_mm: f64);
 
     /// The views could not be registered (`why`) at the cells chosen for their images and are
-    /// read again with cells of `cell`.
-    fn finer(&mut self, cell: Cell, why: &MergeError);
+    /// read again with cells of `cell_px` image pixels.
+    fn finer(&mut self, cell_px: f64, why: &MergeError);
 }
 
 /// Merges the views in `paths` (cells of `cell`): reads them with the sheet's thickness
@@ -388,7 +388,7 @@ pub fn merge_folders(
         Err(e @ (MergeError::NoMatch { .. } | MergeError::Apart { .. }))
             if cell.is_none() && paths.iter().any(|p| cell_for(p) != FINEST) =>
         {
-            progress.finer(FINEST, &e);
+            progress.finer(VIEW_CELL_PX, &e);
             let views = load_views(paths, Some(FINEST), sheet_mm, |k| {
                 progress.reading(k, sheet_mm)
             })?;

@@ -170,12 +170,8 @@ impl MergeProgress for Shown<'_> {
         self.say(format!("reading view {view}{what}"));
     }
 
-    fn finer(&mut self, cell: Cell, why: &MergeError) {
-        let cell = match cell {
-            Cell::Pixels(px) => format!("{px} px"),
-            Cell::Mm(mm) => format!("{mm} mm"),
-        };
-        errln!("note: {why}\nnote: reading the views again with cells of {cell}");
+    fn finer(&mut self, cell_px: f64, why: &MergeError) {
+        errln!("note: {why}\nnote: reading the views again with cells of {cell_px} px");
     }
 }
 
