@@ -17,14 +17,14 @@
 //! - [`platform`]: a fixed-laser turntable scan's points in the platform's frame, and its
 //!   closed model;
 //! - [`views`]: scans read as views for the 360° merge, and the merge of view folders;
-//! - [`check`]: the acceptance check on a known artefact (spheres, a plane);
-//! - [`live`]: the live view in a web browser (`receive --view`);
-//! - [`studio`]: the whole job from one browser page, the head driven by commands.
+//! - [`check`]: the acceptance check on a known artefact (spheres, a plane).
+//!
+//! The web pages (the live view, the studio) are `scanner-web`'s: this library speaks no HTTP.
 //!
 //! # Layers
 //! Each module uses only modules on its own line or below (`tests/tests/layers.rs` checks it):
 //! ```text
-//! studio  views  live  check
+//! views  check
 //! outputs
 //! platform
 //! collect  export
@@ -41,11 +41,9 @@ pub mod export;
 pub mod grid;
 pub mod journal;
 pub mod link;
-pub mod live;
 pub mod mesh;
 pub mod outputs;
 pub mod platform;
-pub mod studio;
 pub mod thickness;
 pub mod views;
 

@@ -219,6 +219,9 @@ pub fn load_view(k: usize, path: &Path, cell: Cell, sheet_mm: f64) -> Result<Vie
         colours: m.colours,
     };
     let disc = c.disc_pose();
+    let disc_scale = disc
+        .as_ref()
+        .and_then(|d| disc_scale(&surface.cloud.points, d));
     let (surface, backdrop) = match &disc {
         Some(d) => above_disc(&surface, d),
         None => (surface, Vec::new()),
@@ -230,8 +233,60 @@ pub fn load_view(k: usize, path: &Path, cell: Cell, sheet_mm: f64) -> Result<Vie
         c.sheet_corrected().map(|moved| (moved, c.counts().points)),
     );
     view.disc = disc;
+    view.disc_scale = disc_scale;
     view.backdrop = backdrop;
     Ok(view)
+}
+
+/// Widest share of its pose's size a disc is looked for at (A4's disc posed as A3's is 0.69,
+/// A3's as A4's 1.46).
+const DISC_SCALES: (f64, f64) = (0.5, 1.6);
+/// Width of the histogram's bins the disc's plane is found in, as a share.
+const DISC_SCALE_BIN: f64 = 0.002;
+/// Fewest points on the disc's plane for a measure.
+const MIN_DISC_POINTS: usize = 200;
+
+/// The disc's size as the laser measures it, as a share of the size its pose `disc` (disc →
+/// camera) was computed for: a pose from a disc of the wrong size is the true one with its
+/// translation scaled, so the laser's points on the disc's plane lie at the share `s` of the
+/// pose's distance along the plane's normal. `s` is the densest share among the view's points
+/// (the disc and the table it lies on are the largest flat thing in view), refined by the
+/// median of the points within two bins of it. `None`: too few points on any plane.
+pub fn disc_scale(
+    points: &[scanner_core::nalgebra::Point3<f64>],
+    disc: &scanner_core::nalgebra::Isometry3<f64>,
+) -> Option<f64> {
+    let n = disc.rotation * scanner_core::nalgebra::Vector3::z();
+    let d = n.dot(&disc.translation.vector);
+    if !(d.abs() > 1.0) {
+        return None;
+    }
+    let (lo, hi) = DISC_SCALES;
+    let shares: Vec<f64> = points
+        .iter()
+        .map(|p| n.dot(&p.coords) / d)
+        .filter(|s| (lo..hi).contains(s))
+        .collect();
+    let bins = ((hi - lo) / DISC_SCALE_BIN).ceil() as usize;
+    let mut count = vec![0usize; bins];
+    for s in &shares {
+        count[(((s - lo) / DISC_SCALE_BIN) as usize).min(bins - 1)] += 1;
+    }
+    let (best, _) = count
+        .windows(3)
+        .enumerate()
+        .map(|(i, w)| (i + 1, w.iter().sum::<usize>()))
+        .max_by_key(|&(_, c)| c)?;
+    let centre = lo + (best as f64 + 0.5) * DISC_SCALE_BIN;
+    let mut near: Vec<f64> = shares
+        .into_iter()
+        .filter(|s| (s - centre).abs() <= 2.0 * DISC_SCALE_BIN)
+        .collect();
+    if near.len() < MIN_DISC_POINTS {
+        return None;
+    }
+    near.sort_by(f64::total_cmp);
+    Some(near[near.len() / 2])
 }
 
 /// Points nearer the turntable disc's plane than this, or below it, are the disc's or the

@@ -306,6 +306,17 @@ impl StudioProcess {
             .to_string();
         StudioProcess { child, url }
     }
+
+    /// Its process id.
+    pub fn pid(&self) -> u32 {
+        self.child.id()
+    }
+
+    /// Kills it with SIGKILL, as a crash or a power cut would end it: nothing of it runs after.
+    pub fn kill(mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
 }
 
 impl Drop for StudioProcess {

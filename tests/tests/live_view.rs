@@ -14,9 +14,9 @@ use std::sync::mpsc::Receiver;
 use std::time::{Duration, Instant};
 
 use scanner_core::nalgebra::Point3;
-use scanner_host::live::LiveView;
 use scanner_tests::browser::{Browser, chromium, lines_of, wait_line};
 use scanner_tests::interrupt;
+use scanner_web::live::LiveView;
 
 fn bin(name: &str) -> PathBuf {
     scanner_tests::workspace_bin(name)
@@ -288,7 +288,7 @@ fn offer_points(v: &LiveView, total: u64, rate: f64) -> Duration {
 #[test]
 fn the_page_keeps_up_with_300_000_points_a_second_in_bounded_memory() {
     let Some(exe) = chromium() else { return };
-    let v = LiveView::start("127.0.0.1:0".parse().unwrap()).unwrap();
+    let v = LiveView::start("127.0.0.1:0".parse().unwrap(), &[]).unwrap();
     let mut b = Browser::launch(&exe);
     // The page's default: at most 1 000 000 points drawn.
     b.navigate(v.url());
@@ -377,7 +377,7 @@ fn http_get(url: &str, path: &str) -> (u16, Vec<u8>) {
 
 #[test]
 fn only_this_scans_data_is_served_and_bad_requests_are_refused() {
-    let v = LiveView::start("127.0.0.1:0".parse().unwrap()).unwrap();
+    let v = LiveView::start("127.0.0.1:0".parse().unwrap(), &[]).unwrap();
     let url = v.url().to_string();
     let addr = host_port(&url);
     let (code, page) = http_get(&url, "/");
@@ -430,10 +430,12 @@ fn only_this_scans_data_is_served_and_bad_requests_are_refused() {
     }
     let post = format!("POST / HTTP/1.1\r\nHost: {addr}\r\nContent-Length: 5\r\n\r\nhello");
     assert_eq!(raw(&addr, post.as_bytes()).0, 405);
-    let body = format!("GET / HTTP/1.1\r\nHost: {addr}\r\nContent-Length: 5\r\n\r\nhello");
-    assert_eq!(raw(&addr, body.as_bytes()).0, 413);
-    let long_target = format!("GET /{} HTTP/1.1\r\nHost: {addr}\r\n\r\n", "a".repeat(3000));
-    assert_eq!(raw(&addr, long_target.as_bytes()).0, 414);
+    // the request line counts in the head's bytes
+    let long_target = format!(
+        "GET /{} HTTP/1.1\r\nHost: {addr}\r\n\r\n",
+        "a".repeat(20_000)
+    );
+    assert_eq!(raw(&addr, long_target.as_bytes()).0, 431);
     let huge_head = format!(
         "GET / HTTP/1.1\r\nHost: {addr}\r\nX-Filler: {}\r\n\r\n",
         "b".repeat(20_000)
@@ -445,19 +447,19 @@ fn only_this_scans_data_is_served_and_bad_requests_are_refused() {
 
 #[test]
 fn another_address_than_loopback_needs_the_token() {
-    let v = LiveView::start("0.0.0.0:0".parse().unwrap()).unwrap();
+    let v = LiveView::start("0.0.0.0:0".parse().unwrap(), &[]).unwrap();
     assert!(v.is_public());
     let url = v.url().to_string();
-    let (_, token) = url.split_once("?t=").expect("a token in the address");
+    let (_, token) = url.split_once("?token=").expect("a token in the address");
     assert!(token.len() >= 32, "128 random bits: {token}");
     let port = url.rsplit(':').next().unwrap().split('/').next().unwrap();
     let local = format!("http://127.0.0.1:{port}/");
     assert_eq!(http_get(&local, "/").0, 403, "no token");
-    assert_eq!(http_get(&local, "/?t=0123").0, 403, "a wrong token");
+    assert_eq!(http_get(&local, "/?token=0123").0, 403, "a wrong token");
     let mut wrong = token.to_string();
     wrong.replace_range(0..1, if token.starts_with('0') { "1" } else { "0" });
     assert_eq!(
-        http_get(&local, &format!("/?t={wrong}")).0,
+        http_get(&local, &format!("/?token={wrong}")).0,
         403,
         "one digit off"
     );
@@ -466,13 +468,15 @@ fn another_address_than_loopback_needs_the_token() {
         403,
         "every path needs it"
     );
-    let (code, page) = http_get(&local, &format!("/?t={token}"));
+    let (code, page) = http_get(&local, &format!("/?token={token}"));
     assert_eq!(code, 200);
     assert!(
-        String::from_utf8_lossy(&page).contains(&format!("app.js?t={token}")),
+        String::from_utf8_lossy(&page).contains(&format!("app.js?token={token}")),
         "the page's own requests carry the token"
     );
-    let ws = "GET /live HTTP/1.1\r\nHost: x\r\nUpgrade: websocket\r\nConnection: Upgrade\r\nSec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\nSec-WebSocket-Version: 13\r\n\r\n";
+    let ws = format!(
+        "GET /live HTTP/1.1\r\nHost: 127.0.0.1:{port}\r\nUpgrade: websocket\r\nConnection: Upgrade\r\nSec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\nSec-WebSocket-Version: 13\r\n\r\n"
+    );
     assert_eq!(
         raw(&format!("127.0.0.1:{port}"), ws.as_bytes()).0,
         403,
@@ -510,20 +514,27 @@ fn another_address_than_loopback_needs_the_token() {
         err.contains("warning: the live view is served on 0.0.0.0"),
         "{err}"
     );
-    assert!(err.contains("?t="), "{err}");
+    assert!(err.contains("?token="), "{err}");
 }
 
 #[test]
 fn a_flood_of_connections_is_bounded_and_survived() {
-    let v = LiveView::start("127.0.0.1:0".parse().unwrap()).unwrap();
+    let v = LiveView::start("127.0.0.1:0".parse().unwrap(), &[]).unwrap();
     let url = v.url().to_string();
     let addr = host_port(&url);
-    // 100 connections that say nothing hold the slots…
-    let idle: Vec<TcpStream> = (0..100)
+    // 100 connections that say nothing hold no page back…
+    let mut idle: Vec<TcpStream> = (0..100)
         .map(|_| TcpStream::connect(&addr).unwrap())
         .collect();
+    assert_eq!(
+        http_get(&url, "/").0,
+        200,
+        "idle connections lock nobody out"
+    );
+    // …up to the stated bound: past it a connection is closed at once,
+    let bound = scanner_web::front::Limits::DEFAULT.connections;
+    idle.extend((100..bound + 4).map(|_| TcpStream::connect(&addr).unwrap()));
     std::thread::sleep(Duration::from_millis(300));
-    // …so one more is closed unanswered,
     let (code, _) = http_get(&url, "/");
     assert_eq!(code, 0, "past the bound a connection is closed at once");
     // and once they go, the page is served again.
@@ -591,9 +602,9 @@ fn fifty_connections_at_once_leave_the_scan_untouched() {
 
 #[test]
 fn a_port_in_use_is_named() {
-    let a = LiveView::start("127.0.0.1:0".parse().unwrap()).unwrap();
+    let a = LiveView::start("127.0.0.1:0".parse().unwrap(), &[]).unwrap();
     let addr: std::net::SocketAddr = host_port(a.url()).parse().unwrap();
-    let e = LiveView::start(addr).err().expect("the port is taken");
+    let e = LiveView::start(addr, &[]).err().expect("the port is taken");
     assert!(
         e.to_string().contains(&addr.to_string()),
         "the error names the address: {e}"

@@ -221,7 +221,9 @@ fn a_whole_job_through_the_page_alone_set_up_calibration_four_views_merge_and_3m
         .unwrap();
     assert!(rms < 0.2, "the intrinsics fit: {rms} px");
 
-    // Three views on the disc, turned between them, and one on the side.
+    // Three views on the disc (the scene's is printed on A3; the page starts at A4, as the
+    // README prints it), turned between them, and one on the side.
+    b.eval("document.getElementById('disc').value = '2'");
     for k in 1..=4u64 {
         click(&mut b, "sweep");
         wait(
@@ -318,6 +320,25 @@ fn a_whole_job_through_the_page_alone_set_up_calibration_four_views_merge_and_3m
         report["views"].as_array().map(Vec::len),
         Some(4),
         "{report}"
+    );
+    // the 3-D viewer: the model's triangles, then one view's points
+    click(&mut b, "viewer-model");
+    assert!(
+        b.wait_for(
+            "window.studioViewer && window.studioViewer.model > 1000",
+            Duration::from_secs(60)
+        ),
+        "the model in the 3-D viewer: {}",
+        b.eval("JSON.stringify(window.studioViewer)")
+    );
+    click(&mut b, "viewer-view-1");
+    assert!(
+        b.wait_for(
+            "window.studioViewer.view === 1 && window.studioViewer.points > 1000",
+            Duration::from_secs(60)
+        ),
+        "view 1's points in the 3-D viewer: {}",
+        b.eval("JSON.stringify(window.studioViewer)")
     );
     // the download, read by the page: its length, first bytes and a checksum
     let got = b.eval_await(

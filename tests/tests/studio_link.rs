@@ -407,7 +407,7 @@ fn cross_site_requests_path_tricks_and_requests_without_the_token_are_refused() 
     let url = url.replace("0.0.0.0", "127.0.0.1");
     let get = |path: &str, with: bool| {
         let h = if with {
-            format!("x-studio-token: {token}\r\n")
+            format!("x-scanner-token: {token}\r\n")
         } else {
             String::new()
         };
@@ -432,7 +432,7 @@ fn cross_site_requests_path_tricks_and_requests_without_the_token_are_refused() 
         raw(
             &url,
             &format!(
-                "POST /api/command HTTP/1.1\r\nHost: HOST\r\nx-studio-token: {token}\r\n{headers}Content-Length: {}\r\nConnection: close\r\n\r\n{body}",
+                "POST /api/command HTTP/1.1\r\nHost: HOST\r\nx-scanner-token: {token}\r\n{headers}Content-Length: {}\r\nConnection: close\r\n\r\n{body}",
                 body.len()
             ),
         )
@@ -441,7 +441,7 @@ fn cross_site_requests_path_tricks_and_requests_without_the_token_are_refused() 
     assert_eq!(post("Content-Type: application/json\r\n", hello), 200);
     assert_eq!(
         post("Content-Type: text/plain\r\n", hello),
-        403,
+        415,
         "a form's post"
     );
     assert_eq!(

@@ -30,6 +30,10 @@ pub fn notice_line(n: &Notice) -> String {
             "no laser seen within {} s after the reference: the head stopped; start it again",
             n.seconds
         ),
+        NoticeKind::LaserOffUnheard => format!(
+            "the head switched the laser off: it heard nothing from the studio for {} s",
+            n.seconds
+        ),
     }
 }
 

@@ -29,13 +29,17 @@ pub enum NoticeKind {
     LaserSeen = 2,
     /// No laser was seen within the wait: the head stopped (exit status 3).
     NoLaser = 3,
+    /// The head switched every laser it drives off: no word from the host (its heartbeat) for
+    /// `seconds`. Sent when the host is heard again.
+    LaserOffUnheard = 4,
 }
 wire_enum!(
     NoticeKind,
     TakingReference = 0,
     SwitchLaserOn = 1,
     LaserSeen = 2,
-    NoLaser = 3
+    NoLaser = 3,
+    LaserOffUnheard = 4
 );
 
 impl NoticeKind {
@@ -46,6 +50,7 @@ impl NoticeKind {
             NoticeKind::SwitchLaserOn => "switch_laser_on",
             NoticeKind::LaserSeen => "laser_seen",
             NoticeKind::NoLaser => "no_laser",
+            NoticeKind::LaserOffUnheard => "laser_off_unheard",
         }
     }
 }

@@ -447,4 +447,5 @@ fn notices_and_previews_round_trip_and_bad_ones_are_refused() {
     body[at] = 9;
     assert!(postcard::from_bytes::<Message>(&body).is_err());
     assert_eq!(NoticeKind::try_from(3u8), Ok(NoticeKind::NoLaser));
+    assert_eq!(NoticeKind::try_from(4u8), Ok(NoticeKind::LaserOffUnheard));
 }

@@ -43,6 +43,10 @@ const MIN_PREVIEW_SIDE: usize = 8;
 const WORKER_STACK: usize = 64 << 20;
 /// How long a read of the link waits before looking again (a serial port's timeout).
 const READ_POLL: Duration = Duration::from_millis(100);
+/// Once a host has spoken, silence this long switches every laser the head drives off: the
+/// studio says hello every 500 ms, so this is four missed in a row (a closed page, a crashed
+/// studio, a pulled or silent cable). The laser stays off until a command switches it on.
+pub const LASER_SAFE_AFTER: Duration = Duration::from_secs(2);
 
 /// `serve`'s options.
 #[derive(Debug, Clone, clap::Args)]
@@ -146,6 +150,10 @@ struct Service {
     frame_size: (usize, usize),
     /// Jobs started.
     jobs: u64,
+    /// When the host last sent a command; `None` before the first.
+    heard: Option<std::time::Instant>,
+    /// The lasers were switched off for the host's silence (its length), not yet told.
+    silenced: Option<Duration>,
 }
 
 /// Runs the service until its input closes or Ctrl-C.
@@ -201,6 +209,8 @@ pub fn serve(a: &ServeArgs) -> Result<()> {
         laser: Arc::new(AtomicBool::new(true)),
         frame_size,
         jobs: 0,
+        heard: None,
+        silenced: None,
     };
     crate::errln!("serving {describe} on {}; waiting for commands", a.scan.out);
     s.dispatch(&rx);
@@ -295,9 +305,23 @@ impl Service {
     }
 
     fn dispatch(&mut self, rx: &Receiver<Event>) {
-        while let Ok(ev) = rx.recv() {
+        loop {
+            let ev = match rx.recv_timeout(READ_POLL) {
+                Ok(ev) => ev,
+                Err(std::sync::mpsc::RecvTimeoutError::Timeout) => {
+                    self.watch();
+                    continue;
+                }
+                Err(std::sync::mpsc::RecvTimeoutError::Disconnected) => break,
+            };
             match ev {
-                Event::Command(r) => self.command(r),
+                Event::Command(r) => {
+                    self.heard = Some(std::time::Instant::now());
+                    if let Some(quiet) = self.silenced.take() {
+                        self.tell_silenced(quiet);
+                    }
+                    self.command(r);
+                }
                 Event::Ended(id, e) => {
                     // a job replaced before it ended (the preview's new settings) was joined
                     // then
@@ -314,12 +338,41 @@ impl Service {
                 }
                 Event::Quit => break,
             }
+            self.watch();
         }
         if let Some(r) = self.running.take() {
             r.stop.store(true, Ordering::SeqCst);
             let _ = r.thread.join();
         }
         crate::errln!("service ended");
+    }
+
+    /// Switches the lasers off once the host has been silent for [`LASER_SAFE_AFTER`].
+    fn watch(&mut self) {
+        let Some(at) = self.heard else { return };
+        let quiet = at.elapsed();
+        if quiet < LASER_SAFE_AFTER || self.silenced.is_some() {
+            return;
+        }
+        let was_on = self.laser.swap(false, Ordering::SeqCst);
+        self.silenced = Some(quiet);
+        crate::errln!(
+            "no word from the host for {:.1} s: every laser this head drives is off{}",
+            quiet.as_secs_f64(),
+            if was_on { "" } else { " (it was)" }
+        );
+    }
+
+    /// Tells the host that came back that the lasers were switched off for its silence.
+    fn tell_silenced(&mut self, quiet: Duration) {
+        let n = scanner_wire::Notice {
+            scan_id: 0,
+            kind: scanner_wire::NoticeKind::LaserOffUnheard,
+            seconds: u16::try_from(quiet.as_secs()).unwrap_or(u16::MAX),
+        };
+        if let Err(e) = self.out.send(&Message::Notice(n)) {
+            crate::errln!("could not tell the host the laser is off: {e}");
+        }
     }
 
     fn send(&mut self, r: Reply) {

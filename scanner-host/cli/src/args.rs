@@ -278,6 +278,11 @@ pub struct StudioArgs {
     /// printed with the address).
     #[arg(long, default_value = "127.0.0.1:8090")]
     pub listen: SocketAddr,
+    /// A name of this machine the page may be opened by beside its addresses (e.g.
+    /// `scanner.local`); repeat for more. Requests naming any other host are refused (421), so
+    /// that no other site's page can reach the studio through a name it points here.
+    #[arg(long, value_name = "NAME")]
+    pub allow_host: Vec<String>,
     /// Stop after this many seconds (default: at Ctrl-C).
     #[arg(long, value_name = "SECS")]
     pub for_secs: Option<f64>,

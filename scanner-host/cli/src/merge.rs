@@ -8,11 +8,11 @@ use std::path::{Path, PathBuf};
 use anyhow::{Context, Result};
 use scanner_host::export::{self, write_atomic, write_atomic_with};
 use scanner_host::grid::Cell;
-use scanner_host::live::LiveView;
 use scanner_host::mesh::{Mesh, MeshFrame};
 use scanner_host::views::{MergeProgress, Thickness, ViewsError, merge_folders};
 use scanner_host::{errln, outln};
 use scanner_merge::{Closing, MergeError, MergeOptions, MergeReport, Progress, Registered, Stage};
+use scanner_web::live::LiveView;
 
 use crate::show::progress_bar;
 

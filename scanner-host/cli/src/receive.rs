@@ -11,10 +11,10 @@ use std::time::{Duration, Instant};
 use anyhow::{Context, Result};
 use scanner_host::collect::{CollectOptions, Collector, Journal};
 use scanner_host::link::Input;
-use scanner_host::live::LiveView;
 use scanner_host::mesh::MeshFrame;
 use scanner_host::outputs::{OutputOptions, Summary, mesh_of, replay_corrected, write_outputs};
 use scanner_host::{errln, outln};
+use scanner_web::live::LiveView;
 use scanner_wire::NoticeKind;
 
 use crate::args::OutputArgs;

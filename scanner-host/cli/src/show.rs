@@ -6,7 +6,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 
 use anyhow::Result;
 use scanner_host::errln;
-use scanner_host::live::LiveView;
+use scanner_web::live::LiveView;
 
 /// A spinner with the elapsed time and a message (hidden with `quiet`).
 pub fn progress_bar(quiet: bool) -> indicatif::ProgressBar {
@@ -44,7 +44,7 @@ pub fn check_view_for(secs: Option<f64>) -> Result<()> {
 
 /// Starts the live view and says where it is.
 pub fn start_view(addr: SocketAddr) -> Result<LiveView> {
-    let v = LiveView::start(addr)?;
+    let v = LiveView::start(addr, &[])?;
     if v.is_public() {
         errln!(
             "warning: the live view is served on {addr}, reachable from other machines on the network; the token in its address is the only key"

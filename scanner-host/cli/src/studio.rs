@@ -10,9 +10,9 @@ use std::time::{Duration, Instant};
 
 use anyhow::{Context, Result, bail};
 use scanner_host::outln;
-use scanner_host::studio::head::HeadLink;
-use scanner_host::studio::job::Job;
-use scanner_host::studio::{MergeFn, Studio, StudioServer};
+use scanner_web::studio::head::HeadLink;
+use scanner_web::studio::job::Job;
+use scanner_web::studio::{MergeFailed, MergeFn, Studio, StudioServer};
 
 use crate::args::StudioArgs;
 
@@ -43,7 +43,7 @@ pub fn studio(a: &StudioArgs) -> Result<()> {
     }
     std::fs::create_dir_all(&a.project)
         .with_context(|| format!("cannot create the project folder {}", a.project.display()))?;
-    let job = Job::open(&a.project).map_err(anyhow::Error::msg)?;
+    let job = Job::open(&a.project)?;
     let (ends, _child, _pty) = open_head(a)?;
     let link = HeadLink::start(ends.0, ends.1, job, a.project.clone())
         .context("cannot start the head's reader")?;
@@ -59,11 +59,11 @@ pub fn studio(a: &StudioArgs) -> Result<()> {
             options,
             true,
         )
-        .map_err(|e| format!("{e:#}"))?;
-        crate::merge::run(&plan, None).map_err(|e| format!("{e:#}"))
+        .map_err(|e| MergeFailed(format!("{e:#}")))?;
+        crate::merge::run(&plan, None).map_err(|e| MergeFailed(format!("{e:#}")))
     });
-    let studio = Arc::new(Studio { link, merge });
-    let server = StudioServer::start(a.listen, studio.clone()).map_err(anyhow::Error::msg)?;
+    let studio = Arc::new(Studio::new(link, merge));
+    let server = StudioServer::start(a.listen, &a.allow_host, studio.clone())?;
     outln!(
         "studio: open {} (project {})",
         server.url,
@@ -103,7 +103,7 @@ pub fn studio(a: &StudioArgs) -> Result<()> {
     server.stop();
     // what the job holds is on disk already; once more for the log's last lines
     let job = studio.link.shared.job();
-    job.save(&a.project).map_err(anyhow::Error::msg)?;
+    job.save(&a.project)?;
     Ok(())
 }
 

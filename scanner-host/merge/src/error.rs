@@ -144,6 +144,19 @@ pub enum MergeError {
         /// The share of its points there in front.
         share: f64,
     },
+    /// The laser measures the turntable disc at another size than the one its poses were
+    /// computed for: the disc chosen is not the disc printed, and a model from these poses
+    /// would come apart in pieces.
+    #[error(
+        "the laser measures the turntable disc at {:.1} % of the size it was posed as (views {views:?}): the disc chosen is not the one printed (A4's disc is 68.6 % of A3's); scan again with the disc size you printed, or merge with --no-disc; no model was written",
+        100.0 * measured
+    )]
+    DiscSize {
+        /// The disc's measured size, as a share of the size chosen (the views' median).
+        measured: f64,
+        /// The disc-posed views whose points measured it.
+        views: Vec<usize>,
+    },
     /// `--sheet auto` found no overlap to measure the views' agreement on.
     #[error(
         "--sheet auto: the views nowhere overlap within {agree_mm} mm of each other, so they tell no sheet thickness; give it with --sheet MM"
@@ -176,6 +189,7 @@ impl MergeError {
             MergeError::LoopOpen { .. }
                 | MergeError::SeenThrough { .. }
                 | MergeError::DiscMoved { .. }
+                | MergeError::DiscSize { .. }
         )
     }
 }

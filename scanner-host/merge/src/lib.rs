@@ -49,6 +49,7 @@ mod run;
 pub mod spatial;
 pub mod view;
 
+pub use check::disc::DISC_SIZE_TOLERANCE;
 pub use error::MergeError;
 pub use fuse::Closing;
 pub use fuse::Model;

@@ -41,6 +41,9 @@ pub struct MergeReport {
     /// for their images, too few of their points matched to register them; `None` when read
     /// as chosen.
     pub finer_cell_px: Option<f64>,
+    /// The turntable disc's size as the laser measured it, as a share of the size chosen (the
+    /// disc-posed views' median; 1: the right disc); `None`: no disc, or too few points on it.
+    pub disc_scale: Option<f64>,
 }
 
 /// `--sheet auto`: each thickness tried and where the views agree best.
@@ -157,6 +160,8 @@ pub enum RefusalCheck {
     SeenThrough,
     /// A view posed by the turntable disc lies far from its disc pose.
     DiscMoved,
+    /// The laser measures the disc at another size than the one chosen.
+    DiscSize,
 }
 
 impl MergeReport {
@@ -201,6 +206,7 @@ impl MergeReport {
             disc: None,
             still: None,
             finer_cell_px: None,
+            disc_scale: None,
         }
     }
 
@@ -210,6 +216,7 @@ impl MergeReport {
             MergeError::LoopOpen { .. } => RefusalCheck::LoopOpen,
             MergeError::SeenThrough { .. } => RefusalCheck::SeenThrough,
             MergeError::DiscMoved { .. } => RefusalCheck::DiscMoved,
+            MergeError::DiscSize { .. } => RefusalCheck::DiscSize,
             _ => return self.clone(),
         };
         MergeReport {

@@ -288,6 +288,7 @@ pub fn run(
     );
     if source == Source::Disc {
         report.disc = Some(crate::pose::disc::report(views, &poses, o.voxel_mm));
+        report.disc_scale = crate::check::disc::scale(views).map(|(s, _)| s);
     }
     report.still = still;
     let input = crate::fuse::fusion_input(model_views, &poses);

@@ -41,6 +41,11 @@ pub struct View {
     /// The turntable disc's pose in this view's camera frame (disc → camera), when its head
     /// found the disc: the merge then poses it by the disc ([`crate::pose`]).
     pub disc: Option<Isometry3<f64>>,
+    /// The disc's size as the laser measured it, as a share of the size its pose was computed
+    /// for (1: the disc chosen is the disc printed; a disc printed on A4 posed as A3's gives
+    /// about 0.69): the laser's points on the disc's plane lie at this share of the pose's
+    /// distance, since a pose from a disc of the wrong size is the true pose scaled.
+    pub disc_scale: Option<f64>,
     /// What the view saw beyond the object, its camera frame (mm): the points on and under the
     /// disc's plane (the disc, the table it lies on), left out of the view's surface. Only the
     /// space it saw empty comes from them (`crate::fuse::hull`).
@@ -115,6 +120,7 @@ impl View {
             sigma,
             sheet_moved,
             disc: None,
+            disc_scale: None,
             backdrop: Vec::new(),
         }
     }
@@ -226,6 +232,7 @@ impl View {
             sigma: Vec::new(),
             sheet_moved: None,
             disc: None,
+            disc_scale: None,
             backdrop: Vec::new(),
         }
     }

@@ -4,7 +4,7 @@
 //! of views that do not close (`loops`), points where another view saw empty space
 //! (`free_space`).
 
-mod disc;
+pub(crate) mod disc;
 mod free_space;
 mod loops;
 
@@ -19,7 +19,7 @@ use crate::view::View;
 /// registration's voxel.
 ///
 /// # Errors
-/// The first refusal: [`MergeError::DiscMoved`], [`MergeError::LoopOpen`],
+/// The first refusal: [`MergeError::DiscSize`], [`MergeError::DiscMoved`], [`MergeError::LoopOpen`],
 /// [`MergeError::SeenThrough`].
 pub(crate) fn registered(
     views: &[View],
@@ -29,6 +29,7 @@ pub(crate) fn registered(
     voxel_mm: f64,
 ) -> Result<(), MergeError> {
     if source == Source::Disc {
+        disc::check_size(views)?;
         disc::check(views, worst.as_ref())?;
     }
     loops::check_closure(closure, voxel_mm)?;

@@ -6,25 +6,27 @@
 //! by half whenever it passes [`HISTORY_POINTS`]); the `server` module sends the history and what
 //! follows to each page over a WebSocket in compact binary batches, and serves the page, the
 //! embedded three.js and, when the scan ends, the mesh and the output files (held in memory:
-//! no path from a request reaches the file system).
+//! no path from a request reaches the file system). The server is the front's
+//! ([`crate::front`]): its host allow-list, origin check, token and limits.
 
 mod server;
 
-pub use server::{MAX_HEAD, MAX_TARGET, Route, route};
+pub use server::MAX_PAGES;
 
 use std::collections::VecDeque;
 use std::net::SocketAddr;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::mpsc::{Receiver, RecvTimeoutError, SyncSender, TrySendError};
-use std::sync::{Arc, Condvar, Mutex, MutexGuard};
+use std::sync::{Arc, Mutex, MutexGuard};
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
 use scanner_core::nalgebra::Point3;
+use scanner_host::collect::{Counts, PreviewImage};
+use scanner_host::mesh::{Mesh, MeshFrame};
 use scanner_wire::{PreviewState, Skip};
 
-use crate::collect::{Counts, PreviewImage};
-use crate::mesh::{Mesh, MeshFrame};
+use crate::front::{FrontError, Limits, Served, read_inside, serve};
 
 /// Most points the page's history holds; past it every batch is thinned by half (a page that
 /// joins late sees the whole scan, thinner).
@@ -41,18 +43,9 @@ pub const MAX_DOWNLOAD: u64 = 512 << 20;
 /// Why the live view cannot start.
 #[derive(Debug, thiserror::Error)]
 pub enum LiveError {
-    /// The address cannot be bound.
-    #[error("cannot serve the live view on {addr}")]
-    Bind {
-        /// The address asked for.
-        addr: SocketAddr,
-        /// Why.
-        #[source]
-        source: std::io::Error,
-    },
-    /// No random token could be drawn for a non-loopback address.
-    #[error("cannot draw a random token for the live view: {0}")]
-    Token(String),
+    /// The front could not start (the address, the token, the runtime).
+    #[error(transparent)]
+    Front(#[from] FrontError),
     /// A thread could not be started.
     #[error("cannot start the live view's threads")]
     Thread(#[source] std::io::Error),
@@ -115,13 +108,11 @@ pub(crate) struct History {
 /// State shared by the hub, the server and the handle.
 pub(crate) struct Shared {
     history: Mutex<History>,
-    changed: Condvar,
-    token: Option<String>,
+    /// Told when the history changes.
+    news: tokio::sync::Notify,
     closing: AtomicBool,
     /// View updates the receive loop dropped because the hub was behind.
     dropped: AtomicU64,
-    /// Connections refused because too many were open.
-    refused: AtomicU64,
 }
 
 impl Shared {
@@ -148,37 +139,31 @@ pub struct LiveView {
     url: String,
     frame: Option<MeshFrame>,
     hub: Option<JoinHandle<()>>,
-    server: Option<JoinHandle<()>>,
+    server: Option<Served>,
     started: Instant,
 }
 
 impl LiveView {
-    /// Serves the page on `addr` (port 0: a free port). A non-loopback address gets a random
-    /// token that every request must carry (`?t=…`, in the printed URL).
+    /// Serves the page on `addr` (port 0: a free port) behind the front: loopback names and
+    /// addresses, `addr`'s own and `names` as hosts; a non-loopback address gets a random token
+    /// that every request must carry (`?token=…`, in the printed URL).
     ///
     /// # Errors
-    /// The address cannot be bound, or no token can be drawn.
-    pub fn start(addr: SocketAddr) -> Result<LiveView, LiveError> {
-        let token = if addr.ip().is_loopback() {
-            None
-        } else {
-            let mut b = [0u8; 16];
-            getrandom::fill(&mut b).map_err(|e| LiveError::Token(e.to_string()))?;
-            Some(b.iter().map(|x| format!("{x:02x}")).collect::<String>())
-        };
-        let listener =
-            std::net::TcpListener::bind(addr).map_err(|source| LiveError::Bind { addr, source })?;
-        let local = listener
-            .local_addr()
-            .map_err(|source| LiveError::Bind { addr, source })?;
+    /// The address cannot be bound, no token can be drawn, a thread cannot start.
+    pub fn start(addr: SocketAddr, names: &[String]) -> Result<LiveView, LiveError> {
         let shared = Arc::new(Shared {
             history: Mutex::new(History::default()),
-            changed: Condvar::new(),
-            token: token.clone(),
+            news: tokio::sync::Notify::new(),
             closing: AtomicBool::new(false),
             dropped: AtomicU64::new(0),
-            refused: AtomicU64::new(0),
         });
+        let server = {
+            let shared = shared.clone();
+            serve(addr, names, Limits::DEFAULT, "live-view", move |access| {
+                server::router(shared, access)
+            })?
+        };
+        let url = server.url("/");
         let (tx, rx) = std::sync::mpsc::sync_channel(QUEUE);
         let hub = {
             let shared = shared.clone();
@@ -186,21 +171,6 @@ impl LiveView {
                 .name("view-hub".into())
                 .spawn(move || hub(&rx, &shared))
                 .map_err(LiveError::Thread)?
-        };
-        let server = server::spawn(listener, shared.clone()).map_err(LiveError::Thread)?;
-        let host = if local.ip().is_unspecified() {
-            "<this-computer's-address>".to_string()
-        } else {
-            local.ip().to_string()
-        };
-        let host = if local.is_ipv6() {
-            format!("[{host}]")
-        } else {
-            host
-        };
-        let url = match &token {
-            Some(t) => format!("http://{host}:{}/?t={t}", local.port()),
-            None => format!("http://{host}:{}/", local.port()),
         };
         Ok(LiveView {
             tx: Some(tx),
@@ -220,7 +190,9 @@ impl LiveView {
 
     /// Whether the page is reachable from other machines (a token is needed).
     pub fn is_public(&self) -> bool {
-        self.shared.token.is_some()
+        self.server
+            .as_ref()
+            .is_some_and(|s| s.access.token().is_some())
     }
 
     /// The frame the page shows the points in (the board's once a header has come).
@@ -328,17 +300,17 @@ impl LiveView {
         let mut files = Vec::new();
         let mut listed = Vec::new();
         for name in names {
-            let path = dir.join(name);
-            let Ok(meta) = std::fs::metadata(&path) else {
-                continue;
-            };
-            if meta.len() > MAX_DOWNLOAD {
-                listed.push(serde_json::json!({"name": name, "bytes": meta.len(), "held": false}));
-                continue;
-            }
-            if let Ok(bytes) = std::fs::read(&path) {
-                listed.push(serde_json::json!({"name": name, "bytes": bytes.len(), "held": true}));
-                files.push((*name, media_type(name), bytes));
+            match read_inside(dir, &[name], MAX_DOWNLOAD) {
+                Ok(bytes) => {
+                    listed.push(
+                        serde_json::json!({"name": name, "bytes": bytes.len(), "held": true}),
+                    );
+                    files.push((*name, media_type(name), bytes));
+                }
+                Err(crate::front::FileError::TooLarge { bytes, .. }) => {
+                    listed.push(serde_json::json!({"name": name, "bytes": bytes, "held": false}));
+                }
+                Err(_) => {}
             }
         }
         let (mesh, vertices, faces) = match mesh {
@@ -383,12 +355,12 @@ impl Drop for LiveView {
     fn drop(&mut self) {
         self.tx = None;
         self.shared.closing.store(true, Ordering::SeqCst);
-        self.shared.changed.notify_all();
+        self.shared.news.notify_waiters();
         if let Some(h) = self.hub.take() {
             let _ = h.join();
         }
-        if let Some(h) = self.server.take() {
-            let _ = h.join();
+        if let Some(s) = self.server.take() {
+            s.stop();
         }
     }
 }
@@ -453,7 +425,7 @@ fn hub(rx: &Receiver<Update>, shared: &Shared) {
                 h.finished = Some(Arc::new(f));
             }
             drop(h);
-            shared.changed.notify_all();
+            shared.news.notify_waiters();
         }
         if closed {
             return;

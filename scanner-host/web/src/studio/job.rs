@@ -5,10 +5,11 @@
 
 use std::path::{Path, PathBuf};
 
-use scanner_wire::{DiscFound, Message, NoticeKind, PreviewState, Reply};
+use scanner_host::journal::{Journal, JournalError};
+use scanner_wire::{DiscFound, MAX_ENCODED, Message, NoticeKind, PreviewState, Reply};
 use serde::{Deserialize, Serialize};
 
-use crate::journal::Journal;
+use crate::front::{FileError, read_inside};
 
 /// Most lines the page's log keeps.
 const LOG_LINES: usize = 40;
@@ -33,6 +34,9 @@ pub struct Job {
     /// A sweep asked for whose header has not come yet.
     #[serde(skip)]
     pub awaiting_sweep: bool,
+    /// The disc the last sweep asked for (`a4`, `a3`), for the view it opens.
+    #[serde(skip)]
+    pub asked_disc: Option<String>,
     /// The merge, once asked for.
     pub merge: Option<Merge>,
     /// What happened, newest last.
@@ -120,6 +124,10 @@ pub struct HeadView {
     pub heard: bool,
     /// What it is doing: `idle`, `previewing`, `sweeping`, `calibrating`.
     pub state: String,
+    /// The head switched its lasers off because it heard nothing from the studio for this
+    /// many seconds (told when the studio was heard again); `None`: it has not.
+    #[serde(default)]
+    pub laser_off_unheard_s: Option<u16>,
 }
 
 /// A preview picture's facts, for the set-up's verdict.
@@ -203,6 +211,31 @@ pub struct SweepRecord {
     pub disc: Option<String>,
     /// Left out of the merge (by the maker).
     pub left_out: bool,
+    /// The disc asked for: `a4`, `a3`; `None`: no disc.
+    #[serde(default)]
+    pub disc_paper: Option<String>,
+    /// Rebuilt from its journal when the job was opened again (the studio stopped during the
+    /// sweep): its points and frames are the journal's.
+    #[serde(default)]
+    pub rebuilt: bool,
+}
+
+/// A view the merge did not take, and why.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct LeftOut {
+    /// The view, from 1 (as the page's table numbers them).
+    pub view: usize,
+    /// `left_out` (by the maker), `no_points`, `not_ended`.
+    pub why: String,
+}
+
+/// What a merge's report says against calling its model merged.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct Problem {
+    /// `pieces`, `disc_size`, …
+    pub kind: String,
+    /// What is wrong and what to do, in the page's terms.
+    pub words: String,
 }
 
 /// The merge's outcome.
@@ -216,61 +249,222 @@ pub struct Merge {
     pub report: Option<serde_json::Value>,
     /// Files to download.
     pub files: Vec<String>,
+    /// The views it did not take, and why.
+    #[serde(default)]
+    pub left_out: Vec<LeftOut>,
+    /// Why a model the merge wrote is not called merged.
+    #[serde(default)]
+    pub problems: Vec<Problem>,
+}
+
+/// Why a job cannot be opened or kept.
+#[derive(Debug, thiserror::Error)]
+pub enum JobError {
+    /// `job.json` is not a job.
+    #[error("{path} is no job: {source}")]
+    NotAJob {
+        /// The file.
+        path: PathBuf,
+        /// Why.
+        #[source]
+        source: serde_json::Error,
+    },
+    /// `job.json` could not be read or written.
+    #[error("cannot {doing} {path}")]
+    Io {
+        /// `read`, `write`.
+        doing: &'static str,
+        /// The file.
+        path: PathBuf,
+        /// Why.
+        #[source]
+        source: std::io::Error,
+    },
+    /// A view's journal could not be read or written.
+    #[error("the journal of a view: {0}")]
+    Journal(#[from] JournalError),
+    /// A job takes at most [`MAX_VIEWS`] views.
+    #[error("a job takes at most {MAX_VIEWS} views")]
+    TooManyViews,
+}
+
+/// What a view's journal holds.
+#[derive(Debug, Clone, Default)]
+pub struct JournalRead {
+    /// Its scan id (the first header's).
+    pub scan_id: Option<u32>,
+    /// Points of that scan.
+    pub points: u64,
+    /// Frames by its last status.
+    pub frames: u32,
+    /// Its last status said it had ended.
+    pub ended: bool,
+    /// Up to the asked-for number of its points, evenly thinned, mm, camera frame.
+    pub xyz: Vec<[f32; 3]>,
+}
+
+/// Largest view journal read, bytes.
+const MAX_JOURNAL: u64 = 1 << 30;
+
+/// Reads the journal `rel` of the project folder: its points counted, up to `keep` of them kept
+/// (evenly thinned), its frames and whether it ended. A journal cut mid-frame (a crash) is read
+/// up to its last whole frame.
+///
+/// # Errors
+/// The file is not there, is no regular file, or is too large.
+pub fn read_journal(project: &Path, rel: &Path, keep: usize) -> Result<JournalRead, FileError> {
+    let parts: Vec<&str> = rel.iter().filter_map(|p| p.to_str()).collect();
+    let bytes = read_inside(project, &parts, MAX_JOURNAL)?;
+    let mut out = JournalRead::default();
+    let mut unit_mm = 0.0f32;
+    let mut all: Vec<[f32; 3]> = Vec::new();
+    let mut stride = 1u64;
+    let mut seen = 0u64;
+    let mut d = Box::new(scanner_wire::Decoder::<MAX_ENCODED>::new());
+    d.feed(&bytes, |m| {
+        let Ok(msg) = m else { return };
+        if out.scan_id.is_none()
+            && let Message::Header(h) = &msg
+        {
+            out.scan_id = Some(h.scan_id);
+            unit_mm = f32::from(h.unit_um) / 1000.0;
+        }
+        if msg.scan_id() != out.scan_id || out.scan_id.is_none() {
+            return;
+        }
+        match &msg {
+            Message::Points(p) => {
+                out.points += u64::from(p.count);
+                let _ = scanner_wire::points::decode(p.xyz, p.count as usize, |q| {
+                    seen += 1;
+                    if keep > 0 && seen.is_multiple_of(stride) {
+                        all.push(q.map(|v| v as f32 * unit_mm));
+                        if all.len() > keep {
+                            let mut k = 0;
+                            all.retain(|_| {
+                                k += 1;
+                                k % 2 == 0
+                            });
+                            stride *= 2;
+                        }
+                    }
+                });
+            }
+            Message::Status(st) => {
+                out.frames = st.frames;
+                out.ended |= st.done;
+            }
+            _ => {}
+        }
+    });
+    out.xyz = all;
+    Ok(out)
 }
 
 impl Job {
-    /// Reads `job.json` of a project folder, or a new job.
+    /// Reads `job.json` of a project folder, or a new job. A view cut by a crash (its sweep
+    /// not ended in the job) is rebuilt from its journal: its points and frames are the
+    /// journal's, and the log says so. The log is cut to its last lines.
     ///
     /// # Errors
-    /// The file exists but cannot be read as a job.
-    pub fn open(project: &Path) -> Result<Job, String> {
+    /// [`JobError`]: the file exists but cannot be read as a job.
+    pub fn open(project: &Path) -> Result<Job, JobError> {
         let path = project.join("job.json");
-        match std::fs::read(&path) {
-            Ok(bytes) => {
-                let mut job: Job = serde_json::from_slice(&bytes)
-                    .map_err(|e| format!("{} is no job: {e}", path.display()))?;
-                // a sweep cut by a crash stays as far as its journal goes
-                for v in &mut job.views {
-                    if !v.done {
-                        v.done = true;
-                        v.ended.get_or_insert_with(|| "interrupted".into());
-                    }
-                }
-                if job.merge.as_ref().is_some_and(|m| m.state == "running") {
-                    job.merge = None;
-                }
-                Ok(job)
+        let bytes = match std::fs::read(&path) {
+            Ok(bytes) => bytes,
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(Job::default()),
+            Err(source) => {
+                return Err(JobError::Io {
+                    doing: "read",
+                    path,
+                    source,
+                });
             }
-            Err(e) if e.kind() == std::io::ErrorKind::NotFound => Ok(Job::default()),
-            Err(e) => Err(format!("cannot read {}: {e}", path.display())),
+        };
+        let mut job: Job =
+            serde_json::from_slice(&bytes).map_err(|source| JobError::NotAJob { path, source })?;
+        let keep = job.log.len().saturating_sub(LOG_LINES);
+        job.log.drain(..keep);
+        job.views.truncate(MAX_VIEWS);
+        let mut lines = Vec::new();
+        for (k, v) in job.views.iter_mut().enumerate() {
+            if v.done {
+                continue;
+            }
+            v.done = true;
+            v.ended.get_or_insert_with(|| "interrupted".into());
+            match read_journal(project, &v.journal, 0) {
+                Ok(r) => {
+                    v.points = v.points.max(r.points);
+                    v.frames = v.frames.max(r.frames);
+                    v.rebuilt = true;
+                    lines.push(format!(
+                        "view {}: cut when the studio stopped; rebuilt from its journal: {} points, {} frames",
+                        k + 1,
+                        v.points,
+                        v.frames
+                    ));
+                }
+                Err(e) => lines.push(format!(
+                    "view {}: cut when the studio stopped, and its journal cannot be read: {e}",
+                    k + 1
+                )),
+            }
         }
+        for l in lines {
+            job.say(l);
+        }
+        if job.merge.as_ref().is_some_and(|m| m.state == "running") {
+            job.merge = None;
+        }
+        Ok(job)
     }
 
     /// Writes `job.json` whole or not at all.
     ///
     /// # Errors
-    /// The file cannot be written.
-    pub fn save(&self, project: &Path) -> Result<(), String> {
-        let bytes = serde_json::to_vec_pretty(self).map_err(|e| e.to_string())?;
-        crate::export::write_atomic(&project.join("job.json"), &bytes)
-            .map_err(|e| format!("cannot write the job: {e}"))
+    /// [`JobError::Io`]: the file cannot be written.
+    pub fn save(&self, project: &Path) -> Result<(), JobError> {
+        let path = project.join("job.json");
+        let bytes = serde_json::to_vec_pretty(self).map_err(|source| JobError::NotAJob {
+            path: path.clone(),
+            source,
+        })?;
+        scanner_host::export::write_atomic(&path, &bytes).map_err(|e| JobError::Io {
+            doing: "write",
+            path,
+            source: std::io::Error::other(e.to_string()),
+        })
     }
 
     /// Adds a line to the log.
     pub fn say(&mut self, line: impl Into<String>) {
-        if self.log.len() == LOG_LINES {
-            self.log.remove(0);
-        }
+        let over = (self.log.len() + 1).saturating_sub(LOG_LINES);
+        self.log.drain(..over);
         self.log.push(line.into());
     }
 
-    /// The journals of the views the merge takes.
-    pub fn merge_views(&self, project: &Path) -> Vec<PathBuf> {
-        self.views
-            .iter()
-            .filter(|v| v.done && !v.left_out && v.points > 0)
-            .map(|v| project.join(&v.journal))
-            .collect()
+    /// The journals of the views the merge takes, and every view it leaves out (from 1) with
+    /// why: `left_out` (by the maker), `no_points`, `not_ended`.
+    pub fn merge_views(&self, project: &Path) -> (Vec<PathBuf>, Vec<(usize, &'static str)>) {
+        let mut taken = Vec::new();
+        let mut left = Vec::new();
+        for (k, v) in self.views.iter().enumerate() {
+            let why = if v.left_out {
+                Some("left_out")
+            } else if !v.done {
+                Some("not_ended")
+            } else if v.points == 0 {
+                Some("no_points")
+            } else {
+                None
+            };
+            match why {
+                Some(w) => left.push((k + 1, w)),
+                None => taken.push(project.join(&v.journal)),
+            }
+        }
+        (taken, left)
     }
 
     /// Union of the target shots' coverage.
@@ -304,12 +498,15 @@ impl Journals {
 }
 
 /// Takes one message from the head into the job (and the sweep's journal).
+///
+/// # Errors
+/// [`JobError`]: the view's journal cannot be opened or written, too many views.
 pub fn take(
     job: &mut Job,
     journals: &mut Journals,
     project: &Path,
     msg: &Message,
-) -> Result<Update, String> {
+) -> Result<Update, JobError> {
     let mut save = false;
     match msg {
         Message::Reply(r) => {
@@ -333,6 +530,14 @@ pub fn take(
                     lines.into_iter().for_each(|l| job.say(l));
                 }
             }
+        }
+        Message::Notice(n) if n.kind == NoticeKind::LaserOffUnheard => {
+            job.head.laser_off_unheard_s = Some(n.seconds);
+            job.say(format!(
+                "the head switched the laser off: it heard nothing from the studio for {} s (press Laser on to go on)",
+                n.seconds
+            ));
+            save = true;
         }
         Message::Preview(p) => {
             let lit = p.stripe.iter().filter(|&&s| s != 255).count();
@@ -431,20 +636,25 @@ pub fn take(
             });
             save = true;
         }
+        // every sweep the head runs is a view of the job: asked for by this page, by another,
+        // or before the studio restarted
         Message::Header(h) => {
             let known = job.views.iter().any(|v| v.scan_id == h.scan_id);
-            if !known && job.awaiting_sweep {
+            if !known {
                 if job.views.len() >= MAX_VIEWS {
-                    return Err(format!("a job takes at most {MAX_VIEWS} views"));
+                    return Err(JobError::TooManyViews);
                 }
                 job.awaiting_sweep = false;
                 let n = job.views.len() + 1;
                 let rel = PathBuf::from(format!("views/view-{n}.stream"));
                 let path = project.join(&rel);
-                std::fs::create_dir_all(project.join("views"))
-                    .map_err(|e| format!("cannot create the views folder: {e}"))?;
+                std::fs::create_dir_all(project.join("views")).map_err(|source| JobError::Io {
+                    doing: "create",
+                    path: project.join("views"),
+                    source,
+                })?;
                 journals.close();
-                let j = Journal::open(&path).map_err(|e| e.to_string())?;
+                let j = Journal::open(&path)?;
                 journals.open = Some((h.scan_id, j));
                 job.live.start(n, h.unit_um);
                 job.views.push(SweepRecord {
@@ -456,6 +666,8 @@ pub fn take(
                     ended: None,
                     disc: None,
                     left_out: false,
+                    disc_paper: job.asked_disc.clone(),
+                    rebuilt: false,
                 });
                 job.say(format!("view {n}: sweeping"));
                 save = true;
@@ -467,7 +679,7 @@ pub fn take(
     if let (Some(id), Some((open, j))) = (msg.scan_id(), journals.open.as_mut())
         && id == *open
     {
-        j.append(msg).map_err(|e| e.to_string())?;
+        j.append(msg)?;
     }
     let Some(view) = msg
         .scan_id()
@@ -603,6 +815,38 @@ mod tests {
         }
     }
 
+    /// The merge takes every ended view with points, and names each other with why.
+    #[test]
+    fn the_merge_names_every_view_it_leaves_out() {
+        let view = |points, done, left_out| super::SweepRecord {
+            scan_id: 1,
+            journal: "views/v.stream".into(),
+            frames: 0,
+            points,
+            done,
+            ended: None,
+            disc: None,
+            left_out,
+            disc_paper: None,
+            rebuilt: false,
+        };
+        let job = Job {
+            views: vec![
+                view(10, true, false),
+                view(10, true, true),
+                view(0, true, false),
+                view(10, false, false),
+            ],
+            ..Job::default()
+        };
+        let (taken, left) = job.merge_views(std::path::Path::new("p"));
+        assert_eq!(taken.len(), 1);
+        assert_eq!(
+            left,
+            vec![(2, "left_out"), (3, "no_points"), (4, "not_ended")]
+        );
+    }
+
     fn reply(state: HeadState) -> Message<'static> {
         Message::Reply(Reply {
             seq: 1,
@@ -614,7 +858,7 @@ mod tests {
     }
 
     /// A sweep whose last status the link lost is closed when the head says it is idle, and
-    /// not before; a header that no sweep was asked for opens no view.
+    /// not before; a scan's header opens one view, however often it comes.
     #[test]
     fn a_view_whose_last_status_was_lost_ends_when_the_head_is_idle() {
         let dir = tempfile::tempdir().unwrap();
@@ -626,16 +870,19 @@ mod tests {
             &Message::Header(header(7)),
         )
         .unwrap();
-        assert!(job.views.is_empty(), "no sweep was asked for");
-        job.awaiting_sweep = true;
+        assert_eq!(job.views.len(), 1, "every sweep of the head is a view");
         take(
             &mut job,
             &mut journals,
             dir.path(),
-            &Message::Header(header(8)),
+            &Message::Header(header(7)),
         )
         .unwrap();
-        assert_eq!(job.views.len(), 1);
+        assert_eq!(
+            job.views.len(),
+            1,
+            "a header once more opens no second view"
+        );
         take(
             &mut job,
             &mut journals,
@@ -649,5 +896,11 @@ mod tests {
         assert!(job.views[0].done);
         assert_eq!(job.views[0].ended.as_deref(), Some("end_lost"));
         assert!(dir.path().join("views/view-1.stream").exists());
+        // opened again as after a crash: the view is the journal's
+        job.views[0].done = false;
+        job.views[0].points = 0;
+        job.save(dir.path()).unwrap();
+        let again = Job::open(dir.path()).unwrap();
+        assert!(again.views[0].done && again.views[0].rebuilt);
     }
 }

@@ -185,11 +185,11 @@ fn read_loop(mut input: Box<dyn Read + Send>, s: &Shared) {
             match take(&mut job, &mut journals, &s.project, &msg) {
                 Ok(u) if u.save => {
                     if let Err(e) = job.save(&s.project) {
-                        job.say(e);
+                        job.say(e.to_string());
                     }
                 }
                 Ok(_) => {}
-                Err(e) => job.say(e),
+                Err(e) => job.say(e.to_string()),
             }
         });
     }

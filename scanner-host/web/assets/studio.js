@@ -4,9 +4,12 @@
 
 const token = new URLSearchParams(location.search).get("token");
 const headers = { "Content-Type": "application/json" };
-if (token) headers["x-studio-token"] = token;
+if (token) headers["x-scanner-token"] = token;
 const q = (id) => document.getElementById(id);
 const withToken = (url) => (token ? `${url}${url.includes("?") ? "&" : "?"}token=${token}` : url);
+
+/** Why the merge left a view out, in the page's words. */
+const LEFT_OUT = { left_out: "you unticked it", no_points: "it has no points", not_ended: "its sweep has not ended" };
 
 /** Shots of the target the calibration asks for. */
 const TARGET_SHOTS = 6;
@@ -96,6 +99,7 @@ function cellsFree(cover) {
 function render(s) {
   window.studio.state = s;
   q("head").textContent = s.link_closed ? "head: the link closed" : s.head.heard ? `head: ${s.head.state}` : "head: not heard yet";
+  if (s.head.laser_off_unheard_s != null) q("head").textContent += ` · the head switched the laser off after ${s.head.laser_off_unheard_s} s without the studio: press Laser on to go on`;
   if (s.preview) {
     const p = s.preview;
     const sh = s.sharpness;
@@ -146,11 +150,15 @@ function render(s) {
     const m = s.merge;
     let t = `<b class="${m.state === "merged" ? "good" : "bad"}">${m.state}</b>`;
     if (m.error) t += `: ${m.error}`;
+    for (const p of m.problems || []) t += `<br><span class="bad" data-kind="${p.kind}">${p.words}</span>`;
+    for (const l of m.left_out || []) t += `<br>View ${l.view} left out: ${LEFT_OUT[l.why] || l.why}`;
     if (m.error && /overlap/.test(m.error)) t += "<br>Take a view between, or lower the least overlap (a side view shares little with the others) and merge again.";
     q("merge-result").innerHTML = t;
     q("downloads").innerHTML = m.files.map((f) => `<a href="${withToken(`/files/${f}`)}" download>${f}</a>`).join(" · ");
     if (m.files.includes("model.png")) q("model").src = withToken("/files/model.png");
   }
+  for (const v of s.views) if (v.rebuilt) q("next").textContent = "A view cut when the studio stopped was rebuilt from its journal (see the log).";
+  if (window.studioViewerButtons) window.studioViewerButtons(s.views, !!(s.merge && s.merge.files.includes("model.stl")));
   q("log").textContent = s.log.join("\n");
 }
 

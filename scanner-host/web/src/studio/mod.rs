@@ -1,0 +1,316 @@
+//! The studio: the whole job from one browser page (`scanner-host studio`). The page asks, the
+//! studio sends the head its commands ([`head`]) and keeps what comes back in a project folder
+//! ([`job`]); the page reads the job, turns the model and each view in its 3-D viewer and
+//! downloads the model. The server is the front's ([`crate::front`]); only fixed routes exist,
+//! and files are served by name from a fixed list (no path from a request reaches the file
+//! system).
+//!
+//! Where a command is refused, the page says why in words ([`words`]) and by kind: the wire
+//! carries only numbers.
+
+pub mod head;
+pub mod job;
+mod server;
+
+pub use server::StudioServer;
+
+use std::path::{Path, PathBuf};
+use std::sync::Mutex;
+use std::time::Duration;
+
+use axum::http::StatusCode;
+use scanner_wire::{Command, Outcome, PreviewRequest, Reply, SweepRequest};
+
+use self::head::{HeadError, HeadLink};
+use self::job::Problem;
+
+/// How long a command may wait for its reply.
+pub const REPLY_WITHIN: Duration = Duration::from_secs(5);
+
+/// Why the merge the studio ran failed: the merge's own words (its report says more).
+#[derive(Debug, thiserror::Error)]
+#[error("{0}")]
+pub struct MergeFailed(pub String);
+
+/// What the studio's merge runs: the views' journals into the output folder, with the least
+/// overlap a match needs (the command line's own merge, handed in).
+pub type MergeFn = Box<dyn Fn(&[PathBuf], &Path, f64) -> Result<(), MergeFailed> + Send + Sync>;
+
+/// Why a command from the page was not answered by the head.
+#[derive(Debug, thiserror::Error)]
+pub enum SendError {
+    /// The studio holds it back: a sweep is asked for or runs (a second would be refused by the
+    /// head, or race the first).
+    #[error("a sweep runs already: wait for it to end, or press Stop")]
+    SweepRuns,
+    /// The head did not answer, or the link cannot be written.
+    #[error(transparent)]
+    Head(#[from] HeadError),
+}
+
+impl SendError {
+    /// The kind, as the page and the tests name it.
+    pub fn kind(&self) -> &'static str {
+        match self {
+            SendError::SweepRuns => "busy",
+            SendError::Head(HeadError::NoAnswer(_)) => "no_answer",
+            SendError::Head(HeadError::Write(_)) => "link_failed",
+        }
+    }
+
+    /// The status answered.
+    pub fn status(&self) -> StatusCode {
+        match self {
+            SendError::SweepRuns => StatusCode::CONFLICT,
+            SendError::Head(_) => StatusCode::GATEWAY_TIMEOUT,
+        }
+    }
+}
+
+/// The files a merge writes that the page offers.
+pub const MODEL_FILES: [&str; 7] = [
+    "model.3mf",
+    "model.stl",
+    "model.obj",
+    "model.ply",
+    "model.png",
+    "views.png",
+    "merge-report.json",
+];
+
+/// The studio: the link to the head, the project, the merge.
+pub struct Studio {
+    /// The link.
+    pub link: HeadLink,
+    /// The merge.
+    pub merge: MergeFn,
+    /// Held while a sweep command is on its way: one at a time.
+    sweeping: Mutex<()>,
+}
+
+impl Studio {
+    /// The studio of `link`, merging with `merge`.
+    pub fn new(link: HeadLink, merge: MergeFn) -> Studio {
+        Studio {
+            link,
+            merge,
+            sweeping: Mutex::new(()),
+        }
+    }
+
+    /// The project folder.
+    pub fn project(&self) -> &Path {
+        &self.link.shared.project
+    }
+
+    /// Sends a command from the page and waits for the head's answer; the answer in words.
+    /// A sweep is sent only while no other is asked for or runs, and only its own refusal
+    /// takes back the view it was to open: a command the head refuses changes nothing of the
+    /// job.
+    ///
+    /// # Errors
+    /// [`SendError`]: held back, or not answered.
+    pub fn send(&self, cmd: Command) -> Result<(Reply, String), SendError> {
+        let sweep = matches!(cmd, Command::Sweep(_));
+        let _one = if sweep {
+            let gate = self.sweeping.try_lock().map_err(|_| SendError::SweepRuns)?;
+            let mut job = self.link.shared.job();
+            if job.awaiting_sweep || job.views.iter().any(|v| !v.done) {
+                return Err(SendError::SweepRuns);
+            }
+            job.awaiting_sweep = true;
+            if let Command::Sweep(r) = cmd {
+                job.asked_disc = match r.disc {
+                    1 => Some("a4".into()),
+                    2 => Some("a3".into()),
+                    _ => None,
+                };
+            }
+            Some(gate)
+        } else {
+            None
+        };
+        let asked = self.link.ask(cmd, REPLY_WITHIN);
+        let mut job = self.link.shared.job();
+        match asked {
+            Ok(r) => {
+                let said = words(&cmd, &r);
+                if r.outcome == Outcome::Accepted && matches!(cmd, Command::Laser { on: true }) {
+                    job.head.laser_off_unheard_s = None;
+                }
+                if r.outcome != Outcome::Accepted {
+                    if sweep {
+                        job.awaiting_sweep = false;
+                    }
+                    job.say(said.clone());
+                }
+                Ok((r, said))
+            }
+            Err(e) => {
+                // unanswered: the head may still have taken it (its header opens the view)
+                if sweep {
+                    job.awaiting_sweep = false;
+                }
+                Err(e.into())
+            }
+        }
+    }
+}
+
+/// The disc's diameter, mm, of the paper named as the page and the job name it (`a4`, `a3`).
+fn disc_mm(paper: &str) -> Option<f64> {
+    let p: scanner_calib::disc::Paper = paper.parse().ok()?;
+    Some(2.0 * scanner_calib::disc::Disc::new(p).radius)
+}
+
+/// What a merge's report says against calling its model merged, in the page's terms: more than
+/// one piece; the disc measured at another size than the one chosen (`papers`: the disc each
+/// merged view asked for). Empty: nothing.
+pub fn merge_verdict(
+    report: Option<&serde_json::Value>,
+    papers: &[Option<String>],
+) -> Vec<Problem> {
+    let mut out = Vec::new();
+    let Some(r) = report else {
+        return out;
+    };
+    if let Some(c) = r["fusion"]["check"]["components"].as_u64()
+        && c > 1
+    {
+        out.push(Problem {
+            kind: "pieces".into(),
+            words: format!(
+                "the model is {c} pieces, not one: a view sits in the wrong place (is the disc size on the page the one you printed?) or a piece floats apart; untick the view that does not fit and merge again"
+            ),
+        });
+    }
+    if let Some(share) = r["disc_scale"].as_f64()
+        && (r["refused"]["check"] == "disc_size"
+            || (share - 1.0).abs() > scanner_merge::DISC_SIZE_TOLERANCE)
+    {
+        let chosen = papers.iter().flatten().next();
+        let words = match chosen.and_then(|p| Some((p, disc_mm(p)?))) {
+            Some((paper, mm)) => format!(
+                "the laser measures the disc at {:.0} mm across, not the {:.0} mm of the {} disc chosen: choose the disc size you printed in Scanning, sweep the views again and merge",
+                share * mm,
+                mm,
+                paper.to_uppercase()
+            ),
+            None => format!(
+                "the laser measures the disc at {:.1} % of the size chosen: choose the disc size you printed in Scanning, sweep the views again and merge",
+                100.0 * share
+            ),
+        };
+        out.push(Problem {
+            kind: "disc_size".into(),
+            words,
+        });
+    }
+    out
+}
+
+/// A command from the page's JSON (`{"command": "shot", "board": true}`).
+///
+/// # Errors
+/// An unknown command or a field of the wrong type, in words.
+pub fn command_of(v: &serde_json::Value) -> Result<Command, String> {
+    let flag = |k: &str| v[k].as_bool().unwrap_or(false);
+    let int = |k: &str, d: i64| -> Result<i64, String> {
+        match &v[k] {
+            serde_json::Value::Null => Ok(d),
+            n => n
+                .as_i64()
+                .ok_or_else(|| format!("{k} must be a whole number")),
+        }
+    };
+    let narrow = |k: &str, d: i64| -> Result<i32, String> {
+        i32::try_from(int(k, d)?).map_err(|_| format!("{k} is out of range"))
+    };
+    Ok(match v["command"].as_str().unwrap_or("") {
+        "hello" => Command::Hello,
+        "preview" => Command::Preview(PreviewRequest {
+            on: flag("on"),
+            every: u16::try_from(int("every", 2)?).map_err(|_| "every is out of range")?,
+            scale: u8::try_from(int("scale", 0)?).map_err(|_| "scale is out of range")?,
+            picture: v["picture"].as_bool().unwrap_or(true),
+            zoom: match v["zoom"].as_array() {
+                None => [0; 4],
+                Some(z) if z.len() == 4 => {
+                    let mut out = [0u16; 4];
+                    for (o, n) in out.iter_mut().zip(z) {
+                        *o = n
+                            .as_u64()
+                            .and_then(|n| u16::try_from(n).ok())
+                            .ok_or("zoom takes four whole numbers: x, y, width, height")?;
+                    }
+                    out
+                }
+                Some(_) => return Err("zoom takes four whole numbers: x, y, width, height".into()),
+            },
+        }),
+        "shot" => Command::Shot {
+            board: flag("board"),
+        },
+        "calibrate" => Command::Calibrate,
+        "sweep" => Command::Sweep(SweepRequest {
+            disc: u8::try_from(int("disc", 0)?).map_err(|_| "disc is out of range")?,
+            axis: u8::try_from(int("axis", 0)?).map_err(|_| "axis is out of range")?,
+            colour: flag("colour"),
+            keep_board: flag("keep_board"),
+            frames: u32::try_from(int("frames", 0)?).map_err(|_| "frames is out of range")?,
+        }),
+        "stop" => Command::Stop,
+        "camera" => Command::Camera {
+            control: u8::try_from(int("control", 0)?).map_err(|_| "control is out of range")?,
+            value: narrow("value", 0)?,
+        },
+        "laser" => Command::Laser { on: flag("on") },
+        "turn" => Command::Turn {
+            steps: narrow("steps", 1)?,
+        },
+        other => {
+            return Err(format!(
+                "{:?} is no command (hello, preview, shot, calibrate, sweep, stop, camera, laser, turn)",
+                other.chars().take(40).collect::<String>()
+            ));
+        }
+    })
+}
+
+/// What a reply means, in words for the page.
+pub fn words(command: &Command, r: &Reply) -> String {
+    let name = command.name();
+    let doing = match r.state {
+        scanner_wire::HeadState::Idle => "nothing",
+        scanner_wire::HeadState::Previewing => "the preview",
+        scanner_wire::HeadState::Sweeping => "a sweep",
+        scanner_wire::HeadState::Calibrating => "a shot or the calibration",
+    };
+    match r.outcome {
+        Outcome::Accepted => format!("{name}: done"),
+        Outcome::Unknown => format!("{name}: the head does not know this command (update it)"),
+        Outcome::OutOfRange => format!(
+            "{name}: field {} is out of range (limit {})",
+            r.field, r.detail
+        ),
+        Outcome::Busy => format!("{name}: the head is busy with {doing}: stop it first"),
+        Outcome::NotCalibrated => {
+            format!("{name}: calibrate first (take the shots the calibration asks for)")
+        }
+        Outcome::TooFewShots if r.field == 2 => {
+            format!("{name}: take a shot of the board first (laser off, both sheets in view)")
+        }
+        Outcome::TooFewShots => format!(
+            "{name}: take at least {} shots of the target first, tilted and in every corner",
+            r.detail
+        ),
+        Outcome::NothingToStop => format!("{name}: nothing runs"),
+        Outcome::NotHere => {
+            format!("{name}: this head has none (no such control, laser switch or turntable)")
+        }
+        Outcome::Oversized | Outcome::Malformed | Outcome::Version => {
+            format!("{name}: the head could not read it ({})", r.outcome.name())
+        }
+        Outcome::Failed => format!("{name}: the head tried and failed (see its log)"),
+    }
+}
