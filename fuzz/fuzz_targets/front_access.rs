@@ -3,7 +3,7 @@
 //! bytes; an answer, never a panic, and never an admission for a host that is not ours.
 #![no_main]
 use libfuzzer_sys::fuzz_target;
-use scanner_web::front::{Access, Refusal};
+use scanner_web::front::{Access, AccessRefusal};
 
 fuzz_target!(|data: &[u8]| {
     let mut parts = data.split(|&b| b == 0);
@@ -37,6 +37,6 @@ fuzz_target!(|data: &[u8]| {
                 || name.trim_matches(['[', ']']).parse::<std::net::IpAddr>().is_ok_and(|ip| ip.is_loopback());
             assert!(ours, "admitted a foreign host: {host:?}");
         }
-        let _ = Refusal::ForeignHost.kind();
+        let _ = AccessRefusal::ForeignHost.kind();
     }
 });

@@ -24,6 +24,7 @@ enum Heard {
     Points(u32, u32),
     Status(Status),
     Preview(u32, u16, u16),
+    Notice(scanner_wire::Notice),
     Other,
 }
 
@@ -102,6 +103,7 @@ impl Head {
                     Message::Points(p) => Heard::Points(p.scan_id, p.count),
                     Message::Status(s) => Heard::Status(s),
                     Message::Preview(p) => Heard::Preview(p.scan_id, p.width, p.height),
+                    Message::Notice(n) => Heard::Notice(n),
                     _ => Heard::Other,
                 });
             });
@@ -414,4 +416,45 @@ fn a_whole_job_by_commands_shots_calibration_and_sweeps_at_turned_views() {
         _ => None,
     });
     assert_eq!(done.ended, scanner_wire::EndReason::Stopped);
+}
+
+/// A head that stops hearing its host (a crashed studio, a silent cable) switches its laser
+/// off, and says so (once) when the host is heard again.
+#[test]
+fn a_silent_host_gets_the_laser_switched_off_and_is_told() {
+    let tmp = tempfile::tempdir().unwrap();
+    let mut h = Head::start(&tmp.path().join("head"), &[]);
+    assert_eq!(
+        h.ask(Command::Laser { on: true }).outcome,
+        Outcome::Accepted
+    );
+    // nothing for longer than the head waits
+    let quiet = scanner_device::cli::serve::LASER_SAFE_AFTER + Duration::from_millis(1500);
+    let t0 = Instant::now();
+    while t0.elapsed() < quiet {
+        h.pump(Duration::from_millis(100));
+    }
+    let from = h.heard.len();
+    assert_eq!(h.ask(Command::Hello).outcome, Outcome::Accepted);
+    let told = h.until(from, Duration::from_secs(10), |x| match x {
+        Heard::Notice(n) if n.kind == scanner_wire::NoticeKind::LaserOffUnheard => Some(*n),
+        _ => None,
+    });
+    assert!(
+        u64::from(told.seconds) >= scanner_device::cli::serve::LASER_SAFE_AFTER.as_secs(),
+        "{told:?}"
+    );
+    // told once: a host that keeps talking hears it no more
+    let from = h.heard.len();
+    for _ in 0..3 {
+        assert_eq!(h.ask(Command::Hello).outcome, Outcome::Accepted);
+    }
+    h.pump(Duration::from_millis(300));
+    assert!(
+        !h.heard[from..]
+            .iter()
+            .any(|x| matches!(x, Heard::Notice(_))),
+        "{:?}",
+        &h.heard[from..]
+    );
 }

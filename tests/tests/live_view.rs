@@ -532,7 +532,7 @@ fn a_flood_of_connections_is_bounded_and_survived() {
         "idle connections lock nobody out"
     );
     // …up to the stated bound: past it a connection is closed at once,
-    let bound = scanner_web::front::Limits::DEFAULT.connections;
+    let bound = scanner_web::front::FrontLimits::DEFAULT.connections;
     idle.extend((100..bound + 4).map(|_| TcpStream::connect(&addr).unwrap()));
     std::thread::sleep(Duration::from_millis(300));
     let (code, _) = http_get(&url, "/");

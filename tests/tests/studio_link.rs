@@ -404,7 +404,7 @@ fn cross_site_requests_path_tricks_and_requests_without_the_token_are_refused() 
     let url = studio.url.clone();
     let token = url.split("token=").nth(1).expect("a token beyond loopback");
     assert_eq!(token.len(), 32);
-    let url = url.replace("0.0.0.0", "127.0.0.1");
+    let url = url.replace("<this-computer's-address>", "127.0.0.1");
     let get = |path: &str, with: bool| {
         let h = if with {
             format!("x-scanner-token: {token}\r\n")

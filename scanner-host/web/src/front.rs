@@ -1,5 +1,5 @@
 //! The front every page stands behind: who may ask ([`Access`]: the host allow-list, the origin
-//! check, the token), how much a client may send and for how long ([`Limits`]), and the server
+//! check, the token), how much a client may send and for how long ([`FrontLimits`]), and the server
 //! that applies both to an `axum` router ([`serve`]). Built on hyper's HTTP/1 connection (its
 //! header size and count limits, its header read deadline) under a bounded accept loop.
 //!
@@ -26,7 +26,7 @@ use tower::ServiceExt;
 
 /// What a client may send and for how long. Every figure is a bound the server holds to.
 #[derive(Debug, Clone, Copy)]
-pub struct Limits {
+pub struct FrontLimits {
     /// Connections open at once; past it a new connection is closed unanswered (counted).
     pub connections: usize,
     /// Largest request head (request line and headers), bytes: 431 past it.
@@ -44,9 +44,9 @@ pub struct Limits {
     pub connection_life: Duration,
 }
 
-impl Limits {
+impl FrontLimits {
     /// The limits both pages use.
-    pub const DEFAULT: Limits = Limits {
+    pub const DEFAULT: FrontLimits = FrontLimits {
         connections: 256,
         header_bytes: 16 << 10,
         header_lines: 64,
@@ -59,7 +59,7 @@ impl Limits {
 
 /// Why a request was refused at the front, before any page saw it.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, thiserror::Error)]
-pub enum Refusal {
+pub enum AccessRefusal {
     /// No `Host`, or one that is not ours (a rebound name, another site): 421.
     #[error("this page answers only to its own addresses: open the address it printed")]
     ForeignHost,
@@ -71,21 +71,21 @@ pub enum Refusal {
     NoToken,
 }
 
-impl Refusal {
+impl AccessRefusal {
     /// The kind, as reports and tests name it.
     pub fn kind(self) -> &'static str {
         match self {
-            Refusal::ForeignHost => "foreign_host",
-            Refusal::ForeignOrigin => "foreign_origin",
-            Refusal::NoToken => "no_token",
+            AccessRefusal::ForeignHost => "foreign_host",
+            AccessRefusal::ForeignOrigin => "foreign_origin",
+            AccessRefusal::NoToken => "no_token",
         }
     }
 
     /// The status answered.
     pub fn status(self) -> StatusCode {
         match self {
-            Refusal::ForeignHost => StatusCode::MISDIRECTED_REQUEST,
-            Refusal::ForeignOrigin | Refusal::NoToken => StatusCode::FORBIDDEN,
+            AccessRefusal::ForeignHost => StatusCode::MISDIRECTED_REQUEST,
+            AccessRefusal::ForeignOrigin | AccessRefusal::NoToken => StatusCode::FORBIDDEN,
         }
     }
 }
@@ -159,21 +159,21 @@ impl Access {
     /// `query`: the target's query string.
     ///
     /// # Errors
-    /// The [`Refusal`].
+    /// The [`AccessRefusal`].
     pub fn admit(
         &self,
         method: &Method,
         headers: &HeaderMap,
         query: Option<&str>,
         local: IpAddr,
-    ) -> Result<(), Refusal> {
+    ) -> Result<(), AccessRefusal> {
         let host = headers
             .get(header::HOST)
             .and_then(|h| h.to_str().ok())
             .and_then(|h| split_host(h).map(|(n, _)| n.to_ascii_lowercase()))
-            .ok_or(Refusal::ForeignHost)?;
+            .ok_or(AccessRefusal::ForeignHost)?;
         if !self.ours(&host, local) {
-            return Err(Refusal::ForeignHost);
+            return Err(AccessRefusal::ForeignHost);
         }
         let upgrade = headers.contains_key(header::UPGRADE);
         let changes = method != Method::GET && method != Method::HEAD || upgrade;
@@ -187,7 +187,7 @@ impl Access {
                     port.unwrap_or(80) == self.port && self.ours(&n.to_ascii_lowercase(), local)
                 });
             if !ok {
-                return Err(Refusal::ForeignOrigin);
+                return Err(AccessRefusal::ForeignOrigin);
             }
         }
         if let Some(t) = &self.token {
@@ -200,7 +200,7 @@ impl Access {
                     .any(|v| same(v.as_bytes(), t.as_bytes()))
             });
             if !(in_header || in_query) {
-                return Err(Refusal::NoToken);
+                return Err(AccessRefusal::NoToken);
             }
         }
         Ok(())
@@ -271,7 +271,7 @@ pub struct Served {
     pub addr: SocketAddr,
     /// The access rules (its token).
     pub access: Arc<Access>,
-    /// Connections closed unanswered because [`Limits::connections`] were open.
+    /// Connections closed unanswered because [`FrontLimits::connections`] were open.
     pub refused: Arc<AtomicU64>,
     stop: Option<tokio::sync::watch::Sender<bool>>,
     thread: Option<JoinHandle<()>>,
@@ -324,7 +324,7 @@ impl Drop for Served {
 pub fn serve(
     addr: SocketAddr,
     names: &[String],
-    limits: Limits,
+    limits: FrontLimits,
     name: &str,
     app: impl FnOnce(Arc<Access>) -> Router,
 ) -> Result<Served, FrontError> {
@@ -389,7 +389,7 @@ fn guarded(app: Router, access: Arc<Access>) -> Router {
 async fn accept_loop(
     listener: tokio::net::TcpListener,
     router: Router,
-    limits: Limits,
+    limits: FrontLimits,
     mut stopped: tokio::sync::watch::Receiver<bool>,
     refused: Arc<AtomicU64>,
 ) {
@@ -447,7 +447,7 @@ async fn accept_loop(
 
 /// Why a file of a folder is not served.
 #[derive(Debug, thiserror::Error)]
-pub enum FileError {
+pub enum FileRefusal {
     /// Not there (yet).
     #[error("{0} is not there")]
     Missing(String),
@@ -472,15 +472,15 @@ pub enum FileError {
     Io(String, #[source] std::io::Error),
 }
 
-impl FileError {
+impl FileRefusal {
     /// The kind, as reports and tests name it.
     pub fn kind(&self) -> &'static str {
         match self {
-            FileError::Missing(_) => "missing",
-            FileError::Link(_) => "link",
-            FileError::NotRegular(_) => "not_regular",
-            FileError::TooLarge { .. } => "too_large",
-            FileError::Io(..) => "io",
+            FileRefusal::Missing(_) => "missing",
+            FileRefusal::Link(_) => "link",
+            FileRefusal::NotRegular(_) => "not_regular",
+            FileRefusal::TooLarge { .. } => "too_large",
+            FileRefusal::Io(..) => "io",
         }
     }
 }
@@ -491,26 +491,26 @@ impl FileError {
 /// the page's code, never a path from a request.
 ///
 /// # Errors
-/// [`FileError`].
+/// [`FileRefusal`].
 pub fn open_inside(
     root: &std::path::Path,
     parts: &[&str],
     limit: u64,
-) -> Result<(std::fs::File, u64), FileError> {
+) -> Result<(std::fs::File, u64), FileRefusal> {
     use std::os::unix::fs::OpenOptionsExt;
     let shown = parts.join("/");
     let mut path = root.to_path_buf();
     for (k, part) in parts.iter().enumerate() {
         if part.is_empty() || *part == "." || *part == ".." || part.contains('/') {
-            return Err(FileError::Missing(shown));
+            return Err(FileRefusal::Missing(shown));
         }
         path.push(part);
         if k + 1 < parts.len() {
             match std::fs::symlink_metadata(&path) {
-                Ok(m) if m.file_type().is_symlink() => return Err(FileError::Link(shown)),
+                Ok(m) if m.file_type().is_symlink() => return Err(FileRefusal::Link(shown)),
                 Ok(m) if m.is_dir() => {}
-                Ok(_) => return Err(FileError::NotRegular(shown)),
-                Err(_) => return Err(FileError::Missing(shown)),
+                Ok(_) => return Err(FileRefusal::NotRegular(shown)),
+                Err(_) => return Err(FileRefusal::Missing(shown)),
             }
         }
     }
@@ -519,16 +519,18 @@ pub fn open_inside(
         .custom_flags(libc::O_NOFOLLOW | libc::O_NONBLOCK)
         .open(&path)
         .map_err(|e| match e.raw_os_error() {
-            Some(libc::ELOOP) => FileError::Link(shown.clone()),
-            _ if e.kind() == std::io::ErrorKind::NotFound => FileError::Missing(shown.clone()),
-            _ => FileError::Io(shown.clone(), e),
+            Some(libc::ELOOP) => FileRefusal::Link(shown.clone()),
+            _ if e.kind() == std::io::ErrorKind::NotFound => FileRefusal::Missing(shown.clone()),
+            _ => FileRefusal::Io(shown.clone(), e),
         })?;
-    let meta = f.metadata().map_err(|e| FileError::Io(shown.clone(), e))?;
+    let meta = f
+        .metadata()
+        .map_err(|e| FileRefusal::Io(shown.clone(), e))?;
     if !meta.is_file() {
-        return Err(FileError::NotRegular(shown));
+        return Err(FileRefusal::NotRegular(shown));
     }
     if meta.len() > limit {
-        return Err(FileError::TooLarge {
+        return Err(FileRefusal::TooLarge {
             name: shown,
             bytes: meta.len(),
             limit,
@@ -540,18 +542,18 @@ pub fn open_inside(
 /// Reads a whole file with [`open_inside`]'s rules.
 ///
 /// # Errors
-/// [`FileError`].
+/// [`FileRefusal`].
 pub fn read_inside(
     root: &std::path::Path,
     parts: &[&str],
     limit: u64,
-) -> Result<Vec<u8>, FileError> {
+) -> Result<Vec<u8>, FileRefusal> {
     use std::io::Read;
     let (f, len) = open_inside(root, parts, limit)?;
     let mut out = Vec::with_capacity(usize::try_from(len).unwrap_or(0));
     f.take(limit)
         .read_to_end(&mut out)
-        .map_err(|e| FileError::Io(parts.join("/"), e))?;
+        .map_err(|e| FileRefusal::Io(parts.join("/"), e))?;
     Ok(out)
 }
 
@@ -578,23 +580,23 @@ pub fn download(root: &std::path::Path, parts: &[&str], limit: u64, media: &str)
         }
         Err(e) => {
             let status = match e {
-                FileError::Missing(_) => StatusCode::NOT_FOUND,
-                FileError::TooLarge { .. } => StatusCode::PAYLOAD_TOO_LARGE,
-                FileError::Link(_) | FileError::NotRegular(_) => StatusCode::FORBIDDEN,
-                FileError::Io(..) => StatusCode::INTERNAL_SERVER_ERROR,
+                FileRefusal::Missing(_) => StatusCode::NOT_FOUND,
+                FileRefusal::TooLarge { .. } => StatusCode::PAYLOAD_TOO_LARGE,
+                FileRefusal::Link(_) | FileRefusal::NotRegular(_) => StatusCode::FORBIDDEN,
+                FileRefusal::Io(..) => StatusCode::INTERNAL_SERVER_ERROR,
             };
             refusal(status, e.kind(), e)
         }
     }
 }
 
-/// A request body of at most [`Limits::body_bytes`], whole within [`Limits::body_within`], as
+/// A request body of at most [`FrontLimits::body_bytes`], whole within [`FrontLimits::body_within`], as
 /// JSON; anything else refused with its status and kind (`Content-Type` must be JSON: a form on
 /// another site cannot send it without the browser asking first).
 ///
 /// # Errors
 /// The refusal, ready to answer.
-pub async fn json_body(req: Request, limits: &Limits) -> Result<serde_json::Value, Response> {
+pub async fn json_body(req: Request, limits: &FrontLimits) -> Result<serde_json::Value, Response> {
     let is_json = req
         .headers()
         .get(header::CONTENT_TYPE)
@@ -648,7 +650,7 @@ mod tests {
         method: Method,
         pairs: &[(&str, &str)],
         query: Option<&str>,
-    ) -> Result<(), Refusal> {
+    ) -> Result<(), AccessRefusal> {
         let mut h = HeaderMap::new();
         for (k, v) in pairs {
             h.append(
@@ -680,9 +682,15 @@ mod tests {
         assert_eq!(get("localhost:8080"), Ok(()));
         assert_eq!(get("LOCALHOST"), Ok(()));
         assert_eq!(get("[::1]:8080"), Ok(()));
-        assert_eq!(get("evil.example:8080"), Err(Refusal::ForeignHost));
-        assert_eq!(get("127.0.0.1.evil.example"), Err(Refusal::ForeignHost));
-        assert_eq!(ask(&a, Method::GET, &[], None), Err(Refusal::ForeignHost));
+        assert_eq!(get("evil.example:8080"), Err(AccessRefusal::ForeignHost));
+        assert_eq!(
+            get("127.0.0.1.evil.example"),
+            Err(AccessRefusal::ForeignHost)
+        );
+        assert_eq!(
+            ask(&a, Method::GET, &[], None),
+            Err(AccessRefusal::ForeignHost)
+        );
         let post = |origin: &str| {
             ask(
                 &a,
@@ -695,15 +703,18 @@ mod tests {
         assert_eq!(post("http://localhost:8080"), Ok(()));
         assert_eq!(
             post("http://evil.example:8080"),
-            Err(Refusal::ForeignOrigin)
+            Err(AccessRefusal::ForeignOrigin)
         );
         assert_eq!(
             post("http://127.0.0.1:3000"),
-            Err(Refusal::ForeignOrigin),
+            Err(AccessRefusal::ForeignOrigin),
             "another local site"
         );
-        assert_eq!(post("null"), Err(Refusal::ForeignOrigin));
-        assert_eq!(post("https://127.0.0.1:8080"), Err(Refusal::ForeignOrigin));
+        assert_eq!(post("null"), Err(AccessRefusal::ForeignOrigin));
+        assert_eq!(
+            post("https://127.0.0.1:8080"),
+            Err(AccessRefusal::ForeignOrigin)
+        );
         // an upgrade is checked as a change is, a plain GET keeps its Origin unchecked
         let up = ask(
             &a,
@@ -715,7 +726,7 @@ mod tests {
             ],
             None,
         );
-        assert_eq!(up, Err(Refusal::ForeignOrigin));
+        assert_eq!(up, Err(AccessRefusal::ForeignOrigin));
         // the origin is checked against the allow-list, not against the request's own Host
         let same_as_host = ask(
             &a,
@@ -723,7 +734,7 @@ mod tests {
             &[("host", "evil.example"), ("origin", "http://evil.example")],
             None,
         );
-        assert_eq!(same_as_host, Err(Refusal::ForeignHost));
+        assert_eq!(same_as_host, Err(AccessRefusal::ForeignHost));
     }
 
     #[test]
@@ -732,7 +743,7 @@ mod tests {
         let t = a.token().unwrap().to_string();
         assert_eq!(t.len(), 32);
         let h = [("host", "scanner.local:8080")];
-        assert_eq!(ask(&a, Method::GET, &h, None), Err(Refusal::NoToken));
+        assert_eq!(ask(&a, Method::GET, &h, None), Err(AccessRefusal::NoToken));
         assert_eq!(
             ask(&a, Method::GET, &h, Some(&format!("token={t}"))),
             Ok(())
@@ -743,7 +754,7 @@ mod tests {
         );
         assert_eq!(
             ask(&a, Method::GET, &h, Some(&format!("token={}", &t[..31]))),
-            Err(Refusal::NoToken)
+            Err(AccessRefusal::NoToken)
         );
         assert_eq!(
             ask(
@@ -761,7 +772,7 @@ mod tests {
                 &[("host", "other.local")],
                 Some(&format!("token={t}"))
             ),
-            Err(Refusal::ForeignHost)
+            Err(AccessRefusal::ForeignHost)
         );
     }
 

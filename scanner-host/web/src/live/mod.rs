@@ -26,7 +26,7 @@ use scanner_host::collect::{Counts, PreviewImage};
 use scanner_host::mesh::{Mesh, MeshFrame};
 use scanner_wire::{PreviewState, Skip};
 
-use crate::front::{FrontError, Limits, Served, read_inside, serve};
+use crate::front::{FrontError, FrontLimits, Served, read_inside, serve};
 
 /// Most points the page's history holds; past it every batch is thinned by half (a page that
 /// joins late sees the whole scan, thinner).
@@ -159,9 +159,13 @@ impl LiveView {
         });
         let server = {
             let shared = shared.clone();
-            serve(addr, names, Limits::DEFAULT, "live-view", move |access| {
-                server::router(shared, access)
-            })?
+            serve(
+                addr,
+                names,
+                FrontLimits::DEFAULT,
+                "live-view",
+                move |access| server::router(shared, access),
+            )?
         };
         let url = server.url("/");
         let (tx, rx) = std::sync::mpsc::sync_channel(QUEUE);
@@ -307,7 +311,7 @@ impl LiveView {
                     );
                     files.push((*name, media_type(name), bytes));
                 }
-                Err(crate::front::FileError::TooLarge { bytes, .. }) => {
+                Err(crate::front::FileRefusal::TooLarge { bytes, .. }) => {
                     listed.push(serde_json::json!({"name": name, "bytes": bytes, "held": false}));
                 }
                 Err(_) => {}

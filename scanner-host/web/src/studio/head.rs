@@ -167,6 +167,23 @@ fn read_loop(mut input: Box<dyn Read + Send>, s: &Shared) {
         };
         d.feed(&buf[..n], |m| {
             let Ok(msg) = m else { return };
+            // the job first, then the waiting command: a page that reads the job after its
+            // command's answer sees what the answer changed
+            {
+                let mut job = s
+                    .job
+                    .lock()
+                    .unwrap_or_else(std::sync::PoisonError::into_inner);
+                match take(&mut job, &mut journals, &s.project, &msg) {
+                    Ok(u) if u.save => {
+                        if let Err(e) = job.save(&s.project) {
+                            job.say(e.to_string());
+                        }
+                    }
+                    Ok(_) => {}
+                    Err(e) => job.say(e.to_string()),
+                }
+            }
             if let Message::Reply(r) = &msg {
                 let mut replies = s
                     .replies
@@ -177,19 +194,6 @@ fn read_loop(mut input: Box<dyn Read + Send>, s: &Shared) {
                 }
                 replies.insert(r.seq, *r);
                 s.answered.notify_all();
-            }
-            let mut job = s
-                .job
-                .lock()
-                .unwrap_or_else(std::sync::PoisonError::into_inner);
-            match take(&mut job, &mut journals, &s.project, &msg) {
-                Ok(u) if u.save => {
-                    if let Err(e) = job.save(&s.project) {
-                        job.say(e.to_string());
-                    }
-                }
-                Ok(_) => {}
-                Err(e) => job.say(e.to_string()),
             }
         });
     }

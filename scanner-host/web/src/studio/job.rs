@@ -9,7 +9,7 @@ use scanner_host::journal::{Journal, JournalError};
 use scanner_wire::{DiscFound, MAX_ENCODED, Message, NoticeKind, PreviewState, Reply};
 use serde::{Deserialize, Serialize};
 
-use crate::front::{FileError, read_inside};
+use crate::front::{FileRefusal, read_inside};
 
 /// Most lines the page's log keeps.
 const LOG_LINES: usize = 40;
@@ -312,7 +312,7 @@ const MAX_JOURNAL: u64 = 1 << 30;
 ///
 /// # Errors
 /// The file is not there, is no regular file, or is too large.
-pub fn read_journal(project: &Path, rel: &Path, keep: usize) -> Result<JournalRead, FileError> {
+pub fn read_journal(project: &Path, rel: &Path, keep: usize) -> Result<JournalRead, FileRefusal> {
     let parts: Vec<&str> = rel.iter().filter_map(|p| p.to_str()).collect();
     let bytes = read_inside(project, &parts, MAX_JOURNAL)?;
     let mut out = JournalRead::default();

@@ -20,7 +20,7 @@ use super::job::{MAX_VIEWS, Merge};
 use super::{MODEL_FILES, Studio, command_of, merge_verdict};
 use crate::assets;
 use crate::front::{
-    Access, FrontError, Limits, Served, download, json_body, read_inside, refusal, serve,
+    Access, FrontError, FrontLimits, Served, download, json_body, read_inside, refusal, serve,
 };
 
 /// Largest file offered for download, bytes.
@@ -50,9 +50,13 @@ impl StudioServer {
         names: &[String],
         studio: Arc<Studio>,
     ) -> Result<StudioServer, FrontError> {
-        let served = serve(addr, names, Limits::DEFAULT, "studio-http", move |access| {
-            router(studio, &access)
-        })?;
+        let served = serve(
+            addr,
+            names,
+            FrontLimits::DEFAULT,
+            "studio-http",
+            move |access| router(studio, &access),
+        )?;
         Ok(StudioServer {
             url: served.url("/"),
             served,
@@ -225,7 +229,7 @@ async fn picture_jpg(State(studio): State<Arc<Studio>>) -> Response {
 
 /// The head's answer to a command from the page, in words and by kind.
 async fn command(State(studio): State<Arc<Studio>>, req: Request) -> Response {
-    let v = match json_body(req, &Limits::DEFAULT).await {
+    let v = match json_body(req, &FrontLimits::DEFAULT).await {
         Ok(v) => v,
         Err(r) => return r,
     };
@@ -263,7 +267,7 @@ async fn command(State(studio): State<Arc<Studio>>, req: Request) -> Response {
 
 /// Leaves a view out of the merge, or takes it back (`{"view": N, "left_out": true}`, from 1).
 async fn view(State(studio): State<Arc<Studio>>, req: Request) -> Response {
-    let v = match json_body(req, &Limits::DEFAULT).await {
+    let v = match json_body(req, &FrontLimits::DEFAULT).await {
         Ok(v) => v,
         Err(r) => return r,
     };
@@ -286,7 +290,7 @@ async fn view(State(studio): State<Arc<Studio>>, req: Request) -> Response {
 /// Starts the merge (`{"min_overlap": 0.4}`: the least share of a view's points another
 /// must bring close, 0.1–0.9).
 async fn merge(State(studio): State<Arc<Studio>>, req: Request) -> Response {
-    let v = match json_body(req, &Limits::DEFAULT).await {
+    let v = match json_body(req, &FrontLimits::DEFAULT).await {
         Ok(v) => v,
         Err(r) => return r,
     };
