@@ -1,10 +1,11 @@
 //! Workspace-level end-to-end tests live in `tests/tests/`; this library holds what tests across
 //! the workspace share: finding and checking the workspace's binaries, the accuracy harness
-//! ([`accuracy`]) and the browser driver ([`browser`]).
+//! ([`accuracy`]), the browser driver ([`browser`]) and a page's requests without one
+//! ([`page`]).
 //!
 //! # Layers
 //! ```text
-//! accuracy  browser
+//! accuracy  browser  page
 //! ```
 #![deny(missing_docs)]
 
@@ -12,6 +13,7 @@ use std::process::Command;
 
 pub mod accuracy;
 pub mod browser;
+pub mod page;
 
 /// Checks a binary of the workspace from the outside: `--info` succeeds and starts with its name
 /// and the unit convention, and an unknown flag is a usage error (exit code 2) that names the

@@ -10,9 +10,9 @@ use std::path::Path;
 use std::process::{Child, Command, Stdio};
 use std::sync::Arc;
 use std::sync::atomic::{AtomicU8, AtomicU64, Ordering};
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
-use scanner_tests::workspace_bin;
+use scanner_tests::{page, workspace_bin};
 use serialport::{SerialPort, TTYPort};
 
 /// The cable's state: 0 good, 1 cut (every byte lost), 2 noisy (every 97th byte flipped).
@@ -80,24 +80,11 @@ impl Drop for Killed {
 }
 
 fn request(url: &str, method: &str, path: &str, body: &str) -> (u16, serde_json::Value) {
-    let host = url
-        .trim_start_matches("http://")
-        .trim_end_matches('/')
-        .to_string();
-    let mut s = TcpStream::connect(&host).unwrap();
-    s.set_read_timeout(Some(Duration::from_secs(30))).unwrap();
-    write!(
-        s,
-        "{method} {path} HTTP/1.1\r\nHost: {host}\r\nContent-Type: application/json\r\nContent-Length: {}\r\nConnection: close\r\n\r\n{body}",
-        body.len()
-    )
-    .unwrap();
-    let mut bytes = Vec::new();
-    s.read_to_end(&mut bytes).unwrap();
-    let text = String::from_utf8_lossy(&bytes);
-    let status = text[9..12].parse().unwrap();
-    let body = text.split_once("\r\n\r\n").map_or("", |(_, b)| b);
-    (status, serde_json::from_str(body).unwrap_or_default())
+    let addr = page::addr_of(url);
+    match method {
+        "POST" => page::post(&addr, path, body),
+        _ => page::get(&addr, path),
+    }
 }
 
 fn command(url: &str, body: &str) -> serde_json::Value {
@@ -105,19 +92,11 @@ fn command(url: &str, body: &str) -> serde_json::Value {
 }
 
 fn state(url: &str) -> serde_json::Value {
-    request(url, "GET", "/api/state", "").1
+    page::state(&page::addr_of(url))
 }
 
 fn wait(url: &str, secs: u64, what: &str, f: impl Fn(&serde_json::Value) -> bool) {
-    let t0 = Instant::now();
-    loop {
-        let s = state(url);
-        if f(&s) {
-            return;
-        }
-        assert!(t0.elapsed() < Duration::from_secs(secs), "{what}: {s}");
-        std::thread::sleep(Duration::from_millis(200));
-    }
+    page::wait(&page::addr_of(url), secs, what, f);
 }
 
 fn scene(dir: &Path) {

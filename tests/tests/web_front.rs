@@ -10,61 +10,7 @@ use std::path::Path;
 use std::time::{Duration, Instant};
 
 use scanner_tests::StudioProcess;
-
-/// Sends `request` (`HOST` replaced by the page's `host:port`) and reads the answer: its status
-/// (0: closed unanswered) and its body as JSON (null when it is none).
-fn raw(addr: &str, request: &str) -> (u16, serde_json::Value) {
-    let mut s = TcpStream::connect(addr).unwrap();
-    s.set_read_timeout(Some(Duration::from_secs(30))).unwrap();
-    let _ = s.write_all(request.replace("HOST", addr).as_bytes());
-    let mut bytes = Vec::new();
-    let _ = s.read_to_end(&mut bytes);
-    let text = String::from_utf8_lossy(&bytes);
-    let status = text.get(9..12).and_then(|c| c.parse().ok()).unwrap_or(0);
-    let body = text.split_once("\r\n\r\n").map_or("", |(_, b)| b);
-    (status, serde_json::from_str(body).unwrap_or_default())
-}
-
-fn addr_of(url: &str) -> String {
-    url.trim_start_matches("http://")
-        .split('/')
-        .next()
-        .unwrap()
-        .to_string()
-}
-
-fn get(addr: &str, path: &str) -> (u16, serde_json::Value) {
-    raw(
-        addr,
-        &format!("GET {path} HTTP/1.1\r\nHost: HOST\r\nConnection: close\r\n\r\n"),
-    )
-}
-
-fn post(addr: &str, path: &str, body: &str) -> (u16, serde_json::Value) {
-    raw(
-        addr,
-        &format!(
-            "POST {path} HTTP/1.1\r\nHost: HOST\r\nOrigin: http://HOST\r\nContent-Type: application/json\r\nContent-Length: {}\r\nConnection: close\r\n\r\n{body}",
-            body.len()
-        ),
-    )
-}
-
-fn state(addr: &str) -> serde_json::Value {
-    get(addr, "/api/state").1
-}
-
-fn wait(addr: &str, secs: u64, what: &str, f: impl Fn(&serde_json::Value) -> bool) {
-    let t0 = Instant::now();
-    loop {
-        let s = state(addr);
-        if f(&s) {
-            return;
-        }
-        assert!(t0.elapsed() < Duration::from_secs(secs), "{what}: {s}");
-        std::thread::sleep(Duration::from_millis(200));
-    }
-}
+use scanner_tests::page::{addr_of, get, post, raw, state, wait};
 
 /// Peak and current resident memory of a process, kB (`VmHWM`, `VmRSS`).
 fn memory_kb(pid: u32) -> (u64, u64) {
