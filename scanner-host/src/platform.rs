@@ -297,9 +297,8 @@ fn standing(m: &mut Model, cloud: &PlatformCloud, floor: HalfSpace, reach: f64) 
     }
     // each piece's cloud points, still and in all (by the nearest vertex)
     let mut counts = vec![(0usize, 0usize); n];
-    if n > 0 {
-        let vertices: Vec<Point3<f64>> = m.vertices.iter().map(|v| v.cast()).collect();
-        let t = spatial::tree(&vertices);
+    let vertices: Vec<Point3<f64>> = m.vertices.iter().map(|v| v.cast()).collect();
+    if let Some(t) = spatial::balanced(&vertices) {
         for (p, &still) in cloud.points.iter().zip(&cloud.still) {
             let i = t
                 .nearest_one::<kiddo::SquaredEuclidean>(&[p.x, p.y, p.z])
@@ -353,10 +352,9 @@ fn keep_all<T: Copy + Default>(values: &mut Vec<T>, new: &[u32], count: u32) {
 /// platform's frame): the object's, once the pieces that did not stand on the platform went.
 pub fn near_model(cloud: &PlatformCloud, m: &Model, cell: f64) -> Vec<bool> {
     let vertices: Vec<Point3<f64>> = m.vertices.iter().map(|v| v.cast()).collect();
-    if vertices.is_empty() {
+    let Some(t) = spatial::balanced(&vertices) else {
         return vec![false; cloud.points.len()];
-    }
-    let t = spatial::tree(&vertices);
+    };
     let reach = (OFF_MODEL_CELLS * cell).powi(2);
     cloud
         .points

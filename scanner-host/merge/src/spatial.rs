@@ -3,7 +3,7 @@
 //! single-view code (the sheet's correction, the artefact check) uses it without reaching the
 //! registration.
 
-use kiddo::{KdTree, SquaredEuclidean};
+use kiddo::{ImmutableKdTree, KdTree, SquaredEuclidean};
 use scanner_core::nalgebra::{Matrix3, Point3, SymmetricEigen, Unit, Vector3};
 
 /// Points with unit normals (facing their camera).
@@ -20,25 +20,55 @@ pub fn tree(points: &[Point3<f64>]) -> KdTree<f64, 3> {
     tree_of(points.iter().map(|p| [p.x, p.y, p.z]))
 }
 
+/// A balanced k-d tree of `points`, built once (items their indices): for the searches of a
+/// large set that does not change. A tree grown point by point in the points' own order grows
+/// deep where that order is spatial (a marching-cubes mesh's vertices come slice by slice, a
+/// turntable's points frame by frame: depths of 40 to 56 seen), and its searches slow with it.
+/// `None` for no points.
+pub fn balanced(points: &[Point3<f64>]) -> Option<ImmutableKdTree<f64, 3>> {
+    if points.is_empty() {
+        return None;
+    }
+    let items: Vec<[f64; 3]> = points.iter().map(|p| [p.x, p.y, p.z]).collect();
+    Some(ImmutableKdTree::new_from_slice(&items))
+}
+
 /// Copies of one exact point a k-d tree takes: kiddo's leaves hold 32 items and cannot split
 /// identical ones (it panics at the 33rd), and a journal can hold any number of the same point.
 /// A query then finds one of the copies kept, at the same distance.
 const MAX_SAME: usize = 16;
 
 /// A k-d tree of `items`, each under its index, with at most [`MAX_SAME`] copies of any one.
+/// The items go in in a scrambled order: kiddo's tree grows by splitting the leaf a point falls
+/// in, so points that come in their spatial order (a turntable's frame after frame, a grid's
+/// slice after slice) grow it deep on one side (depths of 40 to 56 seen, every search walking
+/// them); in a scrambled order it grows about balanced. The order is fixed (a hash of the
+/// index), so every run builds the same tree.
 pub(crate) fn tree_of<A: kiddo::float::kdtree::Axis + Into<f64>, const K: usize>(
     items: impl Iterator<Item = [A; K]>,
 ) -> KdTree<A, K> {
+    let items: Vec<[A; K]> = items.collect();
+    let mut order: Vec<u32> = (0..items.len() as u32).collect();
+    order.sort_unstable_by_key(|&i| scramble(u64::from(i)));
     let mut t: KdTree<A, K> = KdTree::new();
     let mut copies: std::collections::HashMap<[u64; K], usize> = std::collections::HashMap::new();
-    for (i, item) in items.enumerate() {
+    for i in order {
+        let item = items[i as usize];
         let n = copies.entry(item.map(|a| a.into().to_bits())).or_default();
         if *n < MAX_SAME {
             *n += 1;
-            t.add(&item, i as u64);
+            t.add(&item, u64::from(i));
         }
     }
     t
+}
+
+/// SplitMix64's finaliser: a fixed, well-spread order of the indices.
+fn scramble(mut x: u64) -> u64 {
+    x = x.wrapping_add(0x9e37_79b9_7f4a_7c15);
+    x = (x ^ (x >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+    x = (x ^ (x >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+    x ^ (x >> 31)
 }
 
 /// The indices of `points` grouped by the `voxel` mm cube they lie in, cubes in a fixed order.
@@ -100,11 +130,14 @@ pub(crate) fn thin_with(
 /// Unit normals from the `k` nearest neighbours (the direction of least spread), turned to face
 /// the camera at the origin.
 pub fn normals(points: &[Point3<f64>], k: usize) -> Vec<Vector3<f64>> {
-    let t = tree(points);
+    let Some(t) = balanced(points) else {
+        return Vec::new();
+    };
+    let k = std::num::NonZero::new(k.max(3)).unwrap_or(std::num::NonZero::<usize>::MIN);
     points
         .iter()
         .map(|p| {
-            let nn = t.nearest_n::<SquaredEuclidean>(&[p.x, p.y, p.z], k.max(3));
+            let nn = t.nearest_n::<SquaredEuclidean>(&[p.x, p.y, p.z], k);
             let mean = nn
                 .iter()
                 .fold(Vector3::zeros(), |a, n| a + points[n.item as usize].coords)
