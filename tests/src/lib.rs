@@ -309,6 +309,27 @@ impl StudioProcess {
         StudioProcess { child, url }
     }
 
+    /// The studio on loopback (a free port) with its project in `dir/project` and a child head
+    /// on the virtual rig, given `head_args` (`--scene job.toml`, …).
+    ///
+    /// # Panics
+    /// As [`StudioProcess::start`].
+    pub fn on_rig(dir: &std::path::Path, head_args: &str) -> StudioProcess {
+        StudioProcess::start(
+            dir,
+            &[
+                "--listen",
+                "127.0.0.1:0",
+                "--project",
+                "project",
+                "--source",
+                "rig",
+                "--head-args",
+                head_args,
+            ],
+        )
+    }
+
     /// Its process id.
     pub fn pid(&self) -> u32 {
         self.child.id()

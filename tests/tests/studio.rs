@@ -70,19 +70,7 @@ disc = false
 /// Starts the studio in `dir` on the rig scene.
 fn start(dir: &Path) -> scanner_tests::StudioProcess {
     std::fs::write(dir.join("job.toml"), SCENE).unwrap();
-    scanner_tests::StudioProcess::start(
-        dir,
-        &[
-            "--listen",
-            "127.0.0.1:0",
-            "--project",
-            "project",
-            "--source",
-            "rig",
-            "--head-args",
-            "--scene job.toml",
-        ],
-    )
+    scanner_tests::StudioProcess::on_rig(dir, "--scene job.toml")
 }
 
 /// Clicks a button of the page.

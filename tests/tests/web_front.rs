@@ -45,19 +45,7 @@ fn turntable_job(dir: &Path, frames: u32) {
 }
 
 fn start_studio(dir: &Path) -> StudioProcess {
-    StudioProcess::start(
-        dir,
-        &[
-            "--listen",
-            "127.0.0.1:0",
-            "--project",
-            "project",
-            "--source",
-            "rig",
-            "--head-args",
-            "--scene job.toml --calibration calibration.toml",
-        ],
-    )
+    StudioProcess::on_rig(dir, "--scene job.toml --calibration calibration.toml")
 }
 
 #[test]
