@@ -117,11 +117,12 @@ pub fn native_format(path: &std::path::Path) -> Result<PixelFormat, SourceError>
 }
 
 impl ImageDir {
-    /// The folder's images (PNG and JPEG, in name order) and its reference image, if any.
+    /// The folder's images (PNG and JPEG, in frame order: [`frame_order`]) and its reference
+    /// image, if any.
     ///
     /// # Errors
     /// [`SourceError::Folder`] for an unreadable folder, [`SourceError::Images`] for one without
-    /// images.
+    /// images, or with two names of one place in the order (`7.png` and `07.png`).
     fn list(
         dir: &std::path::Path,
         reference: Option<std::path::PathBuf>,
@@ -147,7 +148,17 @@ impl ImageDir {
             }
             files.push(path);
         }
-        files.sort();
+        files.sort_by_key(|p| frame_order(p));
+        if let Some(w) = files
+            .windows(2)
+            .find(|w| frame_order(&w[0]) == frame_order(&w[1]))
+        {
+            return Err(SourceError::Images(format!(
+                "{} and {} name the same place in the frames' order: rename one",
+                w[0].display(),
+                w[1].display()
+            )));
+        }
         if files.is_empty() {
             return Err(SourceError::Images(format!(
                 "{}: no PNG or JPEG images",
@@ -263,5 +274,102 @@ impl FrameSource for ImageDir {
         }
         self.next += 1;
         Ok(Some(f))
+    }
+}
+
+/// One run of a file name as the frames' order reads it: text, or a number.
+#[derive(Debug, Clone, PartialEq, Eq, PartialOrd, Ord)]
+enum NamePart {
+    /// A number: its digits without leading zeros, compared by count first (so by value).
+    Number(usize, String),
+    /// Text between numbers.
+    Text(String),
+}
+
+/// The frames' order of a file: its name's runs of text and of digits, the digits read as
+/// numbers, so that `2.png` comes before `10.png` (a folder of `1.png … 320.png` in byte order
+/// would put 10 before 2, and the turn's angles out of place).
+fn frame_order(path: &std::path::Path) -> Vec<NamePart> {
+    let name = path
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    let mut parts = Vec::new();
+    let mut run = String::new();
+    let mut digits = false;
+    let flush = |run: &mut String, digits: bool, parts: &mut Vec<NamePart>| {
+        if run.is_empty() {
+            return;
+        }
+        let r = std::mem::take(run);
+        parts.push(if digits {
+            let n = r.trim_start_matches('0').to_string();
+            NamePart::Number(n.len(), n)
+        } else {
+            NamePart::Text(r)
+        });
+    };
+    for c in name.chars() {
+        if c.is_ascii_digit() != digits {
+            flush(&mut run, digits, &mut parts);
+            digits = c.is_ascii_digit();
+        }
+        run.push(c);
+    }
+    flush(&mut run, digits, &mut parts);
+    parts
+}
+
+#[cfg(test)]
+mod tests {
+    use super::ImageDir;
+
+    /// Frames `1.png … 120.png` come in the order of their numbers; two names of one number are
+    /// refused, naming both.
+    #[test]
+    fn numbered_frames_come_in_numeric_order_and_twins_are_refused() {
+        let d = tempfile::tempdir().unwrap();
+        for k in (1..=120).rev() {
+            std::fs::write(d.path().join(format!("{k}.png")), b"").unwrap();
+        }
+        std::fs::write(d.path().join("notes.txt"), b"").unwrap();
+        let (files, reference) = ImageDir::list(d.path(), None).unwrap();
+        assert!(reference.is_none());
+        let names: Vec<String> = files
+            .iter()
+            .map(|p| p.file_name().unwrap().to_string_lossy().into_owned())
+            .collect();
+        let want: Vec<String> = (1..=120).map(|k| format!("{k}.png")).collect();
+        assert_eq!(names, want);
+        // text around the numbers, zero-padded or not, orders the same way
+        let e = tempfile::tempdir().unwrap();
+        for name in [
+            "scan_10_b.jpg",
+            "scan_2_b.jpg",
+            "scan_2_a.jpg",
+            "scan_0003_a.jpg",
+        ] {
+            std::fs::write(e.path().join(name), b"").unwrap();
+        }
+        let (files, _) = ImageDir::list(e.path(), None).unwrap();
+        let names: Vec<String> = files
+            .iter()
+            .map(|p| p.file_name().unwrap().to_string_lossy().into_owned())
+            .collect();
+        assert_eq!(
+            names,
+            [
+                "scan_2_a.jpg",
+                "scan_2_b.jpg",
+                "scan_0003_a.jpg",
+                "scan_10_b.jpg"
+            ]
+        );
+        std::fs::write(e.path().join("scan_02_a.jpg"), b"").unwrap();
+        let err = ImageDir::list(e.path(), None).unwrap_err();
+        assert!(
+            matches!(err, crate::source::SourceError::Images(_)),
+            "{err}"
+        );
     }
 }
