@@ -220,6 +220,8 @@ fn split_host(h: &str) -> Option<(&str, Option<u16>)> {
     }
     let (name, port) = if let Some(rest) = h.strip_prefix('[') {
         let (name, after) = rest.split_once(']')?;
+        // brackets hold an IPv6 address and nothing else (`[scanner.local]` is no host)
+        name.parse::<std::net::Ipv6Addr>().ok()?;
         match after {
             "" => (name, None),
             p => (name, Some(p.strip_prefix(':')?)),
