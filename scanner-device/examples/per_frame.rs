@@ -35,11 +35,11 @@ fn main() {
         ["prepare", dir, size] => prepare(Path::new(dir), size),
         ["run", dir, format, n] => match n.parse::<usize>() {
             Ok(n) => run(Path::new(dir), format, n),
-            Err(_) => Err(format!("{n:?}: a number of frames")),
+            Err(_) => Err(anyhow::anyhow!("{n:?}: a number of frames")),
         },
-        _ => {
-            Err("usage: per_frame prepare DIR WIDTHxHEIGHT | per_frame run DIR yuyv|mjpeg N".into())
-        }
+        _ => Err(anyhow::anyhow!(
+            "usage: per_frame prepare DIR WIDTHxHEIGHT | per_frame run DIR yuyv|mjpeg N"
+        )),
     };
     if let Err(e) = result {
         eprintln!("per_frame: {e}");
@@ -47,28 +47,21 @@ fn main() {
     }
 }
 
-fn prepare(dir: &Path, size: &str) -> Result<(), String> {
-    let (w, h) = scanner_device::source::parse_size(size).map_err(|e| e.to_string())?;
+fn prepare(dir: &Path, size: &str) -> anyhow::Result<()> {
+    let (w, h) = scanner_device::source::parse_size(size)?;
     let scene = scanner_rig::Scene::demo(w, h);
-    let rig = scanner_rig::Rig::new(scene).map_err(|e| e.to_string())?;
-    std::fs::create_dir_all(dir).map_err(|e| e.to_string())?;
+    let rig = scanner_rig::Rig::new(scene)?;
+    std::fs::create_dir_all(dir)?;
     rig.truth_calibration()
-        .save(&dir.join("calibration.toml"))
-        .map_err(|e| e.to_string())?;
+        .save(&dir.join("calibration.toml"))?;
     let mut yuyv = RigSource::new(rig.clone(), PixelFormat::Yuyv);
     let mut rgb = RigSource::new(rig.clone(), PixelFormat::Rgb24);
     let frames = rig.scene().laser.frames;
     // The reference, then frames from the middle of the sweep (where the line crosses objects).
-    let mut picked: Vec<(String, OwnedFrame, OwnedFrame)> = vec![(
-        "reference".into(),
-        yuyv.reference().map_err(|e| e.to_string())?,
-        rgb.reference().map_err(|e| e.to_string())?,
-    )];
+    let mut picked: Vec<(String, OwnedFrame, OwnedFrame)> =
+        vec![("reference".into(), yuyv.reference()?, rgb.reference()?)];
     for i in 0..frames {
-        let (Some(y), Some(c)) = (
-            yuyv.next_frame().map_err(|e| e.to_string())?,
-            rgb.next_frame().map_err(|e| e.to_string())?,
-        ) else {
+        let (Some(y), Some(c)) = (yuyv.next_frame()?, rgb.next_frame()?) else {
             break;
         };
         if i >= frames / 3 && picked.len() <= FRAMES {
@@ -76,11 +69,11 @@ fn prepare(dir: &Path, size: &str) -> Result<(), String> {
         }
     }
     for (name, y, c) in &picked {
-        std::fs::write(dir.join(format!("{name}.yuyv")), &y.data).map_err(|e| e.to_string())?;
-        let jpeg = scanner_rig::mjpeg(&c.data, w, h, 90).map_err(|e| e.to_string())?;
-        std::fs::write(dir.join(format!("{name}.jpg")), jpeg).map_err(|e| e.to_string())?;
+        std::fs::write(dir.join(format!("{name}.yuyv")), &y.data)?;
+        let jpeg = scanner_rig::mjpeg(&c.data, w, h, 90)?;
+        std::fs::write(dir.join(format!("{name}.jpg")), jpeg)?;
     }
-    std::fs::write(dir.join("size"), format!("{w}x{h}")).map_err(|e| e.to_string())?;
+    std::fs::write(dir.join("size"), format!("{w}x{h}"))?;
     println!(
         "prepared {} frames of {w}×{h} in {}",
         picked.len() - 1,
@@ -89,28 +82,26 @@ fn prepare(dir: &Path, size: &str) -> Result<(), String> {
     Ok(())
 }
 
-fn run(dir: &Path, format: &str, n: usize) -> Result<(), String> {
+fn run(dir: &Path, format: &str, n: usize) -> anyhow::Result<()> {
     let mjpeg = match format {
         "yuyv" => false,
         "mjpeg" => true,
-        other => return Err(format!("{other:?}: yuyv or mjpeg")),
+        other => return Err(anyhow::anyhow!("{other:?}: yuyv or mjpeg")),
     };
-    let size = std::fs::read_to_string(dir.join("size")).map_err(|e| e.to_string())?;
-    let (w, h) = scanner_device::source::parse_size(size.trim()).map_err(|e| e.to_string())?;
+    let size = std::fs::read_to_string(dir.join("size"))?;
+    let (w, h) = scanner_device::source::parse_size(size.trim())?;
     let (w, h) = (w as usize, h as usize);
-    let file = scanner_calib::file::CalibrationFile::load(&dir.join("calibration.toml"))
-        .map_err(|e| e.to_string())?;
+    let file = scanner_calib::file::CalibrationFile::load(&dir.join("calibration.toml"))?;
     let cal = Calibration {
-        camera: file.camera().map_err(|e| e.to_string())?,
+        camera: file.camera()?,
         board: file
             .board()
-            .ok_or("no board in the calibration")?
-            .map_err(|e| e.to_string())?,
+            .ok_or_else(|| anyhow::anyhow!("no board in the calibration"))??,
         size: (w as u32, h as u32),
         spread: None,
         speckle_px: None,
     };
-    let read = |name: &str| std::fs::read(dir.join(name)).map_err(|e| e.to_string());
+    let read = |name: &str| std::fs::read(dir.join(name));
     let frame = |data: Vec<u8>| OwnedFrame {
         data,
         width: w,
@@ -121,17 +112,15 @@ fn run(dir: &Path, format: &str, n: usize) -> Result<(), String> {
     };
     let mut converter = Converter::new();
     let mut decode = |jpeg: &[u8], out: &mut OwnedFrame| {
-        converter
-            .convert(
-                CameraFormat::Mjpeg,
-                jpeg,
-                w,
-                h,
-                2 * w,
-                PixelFormat::Yuyv,
-                &mut out.data,
-            )
-            .map_err(|e| e.to_string())
+        converter.convert(
+            CameraFormat::Mjpeg,
+            jpeg,
+            w,
+            h,
+            2 * w,
+            PixelFormat::Yuyv,
+            &mut out.data,
+        )
     };
     let mut reference = frame(read("reference.yuyv")?);
     if mjpeg {
@@ -153,7 +142,7 @@ fn run(dir: &Path, format: &str, n: usize) -> Result<(), String> {
         fixed: None,
         shadow: false,
     };
-    let mut session = Session::new(&cal, reference.clone(), opts).map_err(|e| e.to_string())?;
+    let mut session = Session::new(&cal, reference.clone(), opts)?;
     let mut link = Link::spawn(Box::new(std::io::sink()), 64, MAX_ENCODED);
     let mut decoded = reference.clone();
     let (mut times, mut points) = (Vec::with_capacity(n), 0usize);
@@ -166,12 +155,10 @@ fn run(dir: &Path, format: &str, n: usize) -> Result<(), String> {
         } else {
             &raw[k]
         };
-        session
-            .frame(f, &mut link, |_, p| points += p.len())
-            .map_err(|e| e.to_string())?;
+        session.frame(f, &mut link, |_, p| points += p.len())?;
         times.push(t.elapsed().as_secs_f64() * 1e3);
     }
-    link.finish().map_err(|e| e.to_string())?;
+    link.finish()?;
     times.sort_by(f64::total_cmp);
     let median = times.get(times.len() / 2).copied().unwrap_or(0.0);
     println!(

@@ -20,14 +20,23 @@ fn main() -> ExitCode {
 }
 
 /// `Err(why)` when `ok` is false.
-fn ensure(ok: bool, why: impl FnOnce() -> String) -> Result<(), String> {
-    if ok { Ok(()) } else { Err(why()) }
+fn ensure(ok: bool, why: impl FnOnce() -> String) -> anyhow::Result<()> {
+    if ok {
+        Ok(())
+    } else {
+        Err(anyhow::anyhow!(why()))
+    }
 }
 
-fn check() -> Result<String, String> {
-    let dir = std::path::PathBuf::from(std::env::args().nth(1).ok_or("usage: check_outputs DIR")?);
-    let read =
-        |name: &str| std::fs::read(dir.join(name)).map_err(|e| format!("cannot read {name}: {e}"));
+fn check() -> anyhow::Result<String> {
+    let dir = std::path::PathBuf::from(
+        std::env::args()
+            .nth(1)
+            .ok_or_else(|| anyhow::anyhow!("usage: check_outputs DIR"))?,
+    );
+    let read = |name: &str| {
+        std::fs::read(dir.join(name)).map_err(|e| anyhow::anyhow!("cannot read {name}: {e}"))
+    };
     let (models, _) = tobj::load_obj(
         dir.join("scan.obj"),
         &tobj::LoadOptions {
@@ -35,22 +44,22 @@ fn check() -> Result<String, String> {
             ..Default::default()
         },
     )
-    .map_err(|e| format!("tobj cannot read scan.obj: {e}"))?;
+    .map_err(|e| anyhow::anyhow!("tobj cannot read scan.obj: {e}"))?;
     let faces: usize = models.iter().map(|m| m.mesh.indices.len() / 3).sum();
     let ply = read("scan.ply")?;
     let end = ply
         .windows(11)
         .position(|w| w == b"end_header\n")
-        .ok_or("scan.ply has no header")?;
+        .ok_or_else(|| anyhow::anyhow!("scan.ply has no header"))?;
     let header = String::from_utf8_lossy(&ply[..end]);
-    let count = |el: &str| -> Result<usize, String> {
+    let count = |el: &str| -> anyhow::Result<usize> {
         header
             .lines()
             .find_map(|l| l.strip_prefix(&format!("element {el} ")))
-            .ok_or(format!("scan.ply: element {el} missing"))?
+            .ok_or_else(|| anyhow::anyhow!("scan.ply: element {el} missing"))?
             .trim()
             .parse()
-            .map_err(|e| format!("scan.ply: bad count of {el}: {e}"))
+            .map_err(|e| anyhow::anyhow!("scan.ply: bad count of {el}: {e}"))
     };
     let (pv, pf) = (count("vertex")?, count("face")?);
     ensure(pf == faces, || {
@@ -63,13 +72,14 @@ fn check() -> Result<String, String> {
         format!("scan.stl disagrees: {sf} faces")
     })?;
     for png in ["depth.png", "preview.png"] {
-        let img = image::open(dir.join(png)).map_err(|e| format!("cannot read {png}: {e}"))?;
+        let img =
+            image::open(dir.join(png)).map_err(|e| anyhow::anyhow!("cannot read {png}: {e}"))?;
         ensure(img.width() > 100 && img.height() > 100, || {
             format!("{png} is {}×{}", img.width(), img.height())
         })?;
     }
-    let summary: serde_json::Value =
-        serde_json::from_slice(&read("summary.json")?).map_err(|e| format!("summary.json: {e}"))?;
+    let summary: serde_json::Value = serde_json::from_slice(&read("summary.json")?)
+        .map_err(|e| anyhow::anyhow!("summary.json: {e}"))?;
     ensure(
         summary["vertices"] == pv && summary["faces"] == faces,
         || format!("summary.json disagrees with the meshes: {summary}"),

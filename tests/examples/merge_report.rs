@@ -52,7 +52,7 @@ fn main() {
     }
 }
 
-fn run() -> Result<(), String> {
+fn run() -> anyhow::Result<()> {
     let mut args: Vec<String> = std::env::args().skip(1).collect();
     // --on-truth: every point moved onto the true surface (its nearest point there) before the
     // merge, so that what is left of the poses' errors is the registration's own.
@@ -63,8 +63,8 @@ fn run() -> Result<(), String> {
     if let Some(i) = args.iter().position(|a| a == "--sheet") {
         let v = args
             .get(i + 1)
-            .ok_or("--sheet needs the sheet's thickness in mm")?;
-        sheet_mm = v.parse().map_err(|e| format!("--sheet {v}: {e}"))?;
+            .ok_or_else(|| anyhow::anyhow!("--sheet needs the sheet's thickness in mm"))?;
+        sheet_mm = v.parse().map_err(|e| anyhow::anyhow!("--sheet {v}: {e}"))?;
         args.drain(i..=i + 1);
     }
     // --turntable DEG: the views merged with `merge --turntable DEG`'s hint.
@@ -72,31 +72,35 @@ fn run() -> Result<(), String> {
     if let Some(i) = args.iter().position(|a| a == "--turntable") {
         let v = args
             .get(i + 1)
-            .ok_or("--turntable needs the step in degrees")?;
-        turntable = Some(v.parse().map_err(|e| format!("--turntable {v}: {e}"))?);
+            .ok_or_else(|| anyhow::anyhow!("--turntable needs the step in degrees"))?;
+        turntable = Some(
+            v.parse()
+                .map_err(|e| anyhow::anyhow!("--turntable {v}: {e}"))?,
+        );
         args.drain(i..=i + 1);
     }
     let mut args = args.into_iter();
-    let out =
-        PathBuf::from(args.next().ok_or(
-            "usage: merge_report OUT [SCENE] (OUT: the folder scripts/scan-rig-360 wrote)",
-        )?);
+    let out = PathBuf::from(args.next().ok_or_else(|| {
+        anyhow::anyhow!(
+            "usage: merge_report OUT [SCENE] (OUT: the folder scripts/scan-rig-360 wrote)"
+        )
+    })?);
     let scene_path = args.next().map_or_else(
         || Path::new(env!("CARGO_MANIFEST_DIR")).join("../scanner-device/scenes/bunny-360.toml"),
         PathBuf::from,
     );
     let text = std::fs::read_to_string(&scene_path)
-        .map_err(|e| format!("{}: {e}", scene_path.display()))?;
+        .map_err(|e| anyhow::anyhow!("{}: {e}", scene_path.display()))?;
     let scene = Scene::from_toml_in(&text, scene_path.parent().unwrap_or(Path::new(".")))
-        .map_err(|e| format!("{}: {e}", scene_path.display()))?;
+        .map_err(|e| anyhow::anyhow!("{}: {e}", scene_path.display()))?;
     let n = scene.view_count();
-    let cell: scanner_host::grid::Cell = "2px".parse().map_err(|e| format!("{e}"))?;
+    let cell: scanner_host::grid::Cell = "2px".parse().map_err(|e| anyhow::anyhow!("{e}"))?;
     let t0 = std::time::Instant::now();
     let mut views = Vec::new();
     for k in 0..n {
         views.push(
             scanner_host::views::load_view(k, &out.join(format!("view{k}")), cell, sheet_mm)
-                .map_err(|e| format!("{e}"))?,
+                .map_err(|e| anyhow::anyhow!("{e}"))?,
         );
     }
     if on_truth {
@@ -114,20 +118,27 @@ fn run() -> Result<(), String> {
         ..MergeOptions::default()
     };
     let mut input = Fused::default();
-    let merged = scanner_merge::run(&views, &opts, &mut input).map_err(|e| format!("{e}"))?;
+    let merged =
+        scanner_merge::run(&views, &opts, &mut input).map_err(|e| anyhow::anyhow!("{e}"))?;
     let fusion = merged
         .report
         .fusion
         .clone()
-        .ok_or("the merge made no model")?;
+        .ok_or_else(|| anyhow::anyhow!("the merge made no model"))?;
     let seconds = t0.elapsed().as_secs_f64();
     let distance = scene.board.distance;
     let pct = |mm: f64| 100.0 * mm / distance;
 
     // The truth: the object as placed in view 0 (camera frame), and each view's pose into it.
-    let true_pose = |k: usize| -> Result<Isometry3<f64>, String> {
-        let p0 = scene.view(0).map_err(|e| format!("{e}"))?.object_pose;
-        let pk = scene.view(k).map_err(|e| format!("{e}"))?.object_pose;
+    let true_pose = |k: usize| -> anyhow::Result<Isometry3<f64>> {
+        let p0 = scene
+            .view(0)
+            .map_err(|e| anyhow::anyhow!("{e}"))?
+            .object_pose;
+        let pk = scene
+            .view(k)
+            .map_err(|e| anyhow::anyhow!("{e}"))?
+            .object_pose;
         Ok(p0 * pk.inverse())
     };
     let truth = placed(&scene, 0)?;
@@ -292,16 +303,16 @@ fn run() -> Result<(), String> {
 }
 
 /// The object as the rig placed it in view `k` (camera frame).
-fn placed(scene: &Scene, k: usize) -> Result<std::sync::Arc<scanner_rig::mesh::SceneMesh>, String> {
+fn placed(scene: &Scene, k: usize) -> anyhow::Result<std::sync::Arc<scanner_rig::mesh::SceneMesh>> {
     match scene
         .view(k)
-        .map_err(|e| format!("{e}"))?
+        .map_err(|e| anyhow::anyhow!("{e}"))?
         .objects
         .first()
         .map(|o| o.shape.clone())
     {
         Some(Shape::Mesh(m)) => Ok(m),
-        _ => Err("the scene's first object is not a mesh".into()),
+        _ => Err(anyhow::anyhow!("the scene's first object is not a mesh")),
     }
 }
 

@@ -24,24 +24,25 @@ fn main() {
     }
 }
 
-fn run() -> Result<(), String> {
+fn run() -> anyhow::Result<()> {
     let args: Vec<String> = std::env::args().skip(1).collect();
     let [dir, scene_path, k] = &args[..] else {
-        return Err("usage: point_errors VIEW_DIR SCENE K".into());
+        return Err(anyhow::anyhow!("usage: point_errors VIEW_DIR SCENE K"));
     };
     let (dir, scene_path) = (PathBuf::from(dir), PathBuf::from(scene_path));
-    let k: usize = k.parse().map_err(|e| format!("view {k}: {e}"))?;
+    let k: usize = k.parse().map_err(|e| anyhow::anyhow!("view {k}: {e}"))?;
     let text = std::fs::read_to_string(&scene_path)
-        .map_err(|e| format!("{}: {e}", scene_path.display()))?;
+        .map_err(|e| anyhow::anyhow!("{}: {e}", scene_path.display()))?;
     let scene = Scene::from_toml_in(&text, scene_path.parent().unwrap_or(Path::new(".")))
-        .map_err(|e| format!("{}: {e}", scene_path.display()))?;
-    let view = scene.view(k).map_err(|e| format!("{e}"))?;
+        .map_err(|e| anyhow::anyhow!("{}: {e}", scene_path.display()))?;
+    let view = scene.view(k).map_err(|e| anyhow::anyhow!("{e}"))?;
     let Some(Shape::Mesh(placed)) = view.objects.first().map(|o| o.shape.clone()) else {
-        return Err("the scene's first object is not a mesh".into());
+        return Err(anyhow::anyhow!("the scene's first object is not a mesh"));
     };
-    let rig = Rig::new(view).map_err(|e| format!("{e}"))?;
+    let rig = Rig::new(view).map_err(|e| anyhow::anyhow!("{e}"))?;
     let journal = dir.join("journal.stream");
-    let bytes = std::fs::read(&journal).map_err(|e| format!("{}: {e}", journal.display()))?;
+    let bytes =
+        std::fs::read(&journal).map_err(|e| anyhow::anyhow!("{}: {e}", journal.display()))?;
     let mut decoder = Box::new(scanner_wire::Decoder::<{ scanner_wire::MAX_ENCODED }>::new());
     let (mut whole, mut on_true, mut tilt, mut along) = (vec![], vec![], vec![], vec![]);
     decoder.feed(&bytes, |m| {
@@ -66,7 +67,7 @@ fn run() -> Result<(), String> {
         });
     });
     if whole.is_empty() {
-        return Err(format!("{}: no points", journal.display()));
+        return Err(anyhow::anyhow!("{}: no points", journal.display()));
     }
     let quantile = |v: &mut Vec<f64>, f: f64| {
         v.sort_by(f64::total_cmp);

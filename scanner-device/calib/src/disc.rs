@@ -73,13 +73,18 @@ impl Paper {
     }
 }
 
+/// A paper name that is neither `a4` nor `a3` (at most 40 characters of it).
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("expected a4 or a3, found {0:?}")]
+pub struct UnknownPaper(pub String);
+
 impl std::str::FromStr for Paper {
-    type Err = String;
-    fn from_str(s: &str) -> Result<Paper, String> {
+    type Err = UnknownPaper;
+    fn from_str(s: &str) -> Result<Paper, UnknownPaper> {
         match s.to_ascii_lowercase().as_str() {
             "a4" => Ok(Paper::A4),
             "a3" => Ok(Paper::A3),
-            _ => Err(format!("expected a4 or a3, found {s:?}")),
+            _ => Err(UnknownPaper(s.chars().take(40).collect())),
         }
     }
 }

@@ -170,51 +170,80 @@ impl PlaneEq {
     }
 }
 
+/// Why a file's fixed lasers or platform are unusable (its `[[laser]]` and `[platform]`).
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum FixedUnusable {
+    /// A laser's numbers are not a plane.
+    #[error("[[laser]] {index}: {error} (normal {normal:?}, offset {offset})")]
+    NotAPlane {
+        /// The laser, from 0.
+        index: usize,
+        /// Why.
+        error: scanner_core::GeomError,
+        /// The normal written.
+        normal: [f64; 3],
+        /// The offset written, mm (rounded for the message).
+        offset: String,
+    },
+    /// A laser plane through the camera, or too far from it.
+    #[error(
+        "[[laser]] {index}: the plane passes {distance} mm from the camera: a laser plane through the camera (or beyond {MAX_PLANE_OFFSET_MM} mm) triangulates nothing"
+    )]
+    ThroughCamera {
+        /// The laser, from 0.
+        index: usize,
+        /// Its distance from the camera, mm (rounded).
+        distance: String,
+    },
+    /// The platform's numbers are not a pose.
+    #[error("[platform]: {0}")]
+    Platform(scanner_core::GeomError),
+    /// A step count out of range.
+    #[error("[platform] steps_per_turn {0} is not a turntable's (1 to {MAX_STEPS_PER_TURN})")]
+    Steps(u32),
+    /// A height out of range.
+    #[error("[platform] height {0} mm is not a scanner's (0 to {MAX_PLATFORM_RADIUS_MM} mm)")]
+    Height(String),
+    /// A radius out of range.
+    #[error("[platform] radius {0} mm is not a platform's (0 to {MAX_PLATFORM_RADIUS_MM} mm)")]
+    Radius(String),
+    /// An origin far from the camera.
+    #[error("[platform] origin {0:?} is not within {MAX_PLANE_OFFSET_MM} mm of the camera")]
+    Origin([f64; 3]),
+}
+
 /// The fixed lasers and the platform of a file checked: planes that are planes and miss the
 /// camera, a platform that is a pose, a radius and a step count in range.
-fn check_fixed(f: &CalibrationFile) -> Result<(), String> {
+fn check_fixed(f: &CalibrationFile) -> Result<(), FixedUnusable> {
     for (k, l) in f.lasers.iter().enumerate() {
-        let plane = l.plane().map_err(|e| {
-            format!(
-                "[[laser]] {k}: {e} (normal {:?}, offset {})",
-                l.normal,
-                short(l.offset)
-            )
+        let plane = l.plane().map_err(|error| FixedUnusable::NotAPlane {
+            index: k,
+            error,
+            normal: l.normal,
+            offset: short(l.offset),
         })?;
         if !(plane.offset().abs() >= 1.0 && plane.offset().abs() <= MAX_PLANE_OFFSET_MM) {
-            return Err(format!(
-                "[[laser]] {k}: the plane passes {} mm from the camera: a laser plane through the camera (or beyond {MAX_PLANE_OFFSET_MM} mm) triangulates nothing",
-                short(plane.offset().abs())
-            ));
+            return Err(FixedUnusable::ThroughCamera {
+                index: k,
+                distance: short(plane.offset().abs()),
+            });
         }
     }
     if let Some(p) = &f.platform {
-        p.platform().map_err(|e| format!("[platform]: {e}"))?;
+        p.platform().map_err(FixedUnusable::Platform)?;
         if p.steps_per_turn == 0 || p.steps_per_turn > MAX_STEPS_PER_TURN {
-            return Err(format!(
-                "[platform] steps_per_turn {} is not a turntable's (1 to {MAX_STEPS_PER_TURN})",
-                p.steps_per_turn
-            ));
+            return Err(FixedUnusable::Steps(p.steps_per_turn));
         }
         if !(0.0..=MAX_PLATFORM_RADIUS_MM).contains(&p.height) {
-            return Err(format!(
-                "[platform] height {} mm is not a scanner's (0 to {MAX_PLATFORM_RADIUS_MM} mm)",
-                short(p.height)
-            ));
+            return Err(FixedUnusable::Height(short(p.height)));
         }
         if !(0.0..=MAX_PLATFORM_RADIUS_MM).contains(&p.radius) {
-            return Err(format!(
-                "[platform] radius {} mm is not a platform's (0 to {MAX_PLATFORM_RADIUS_MM} mm)",
-                short(p.radius)
-            ));
+            return Err(FixedUnusable::Radius(short(p.radius)));
         }
         if !(p.origin.iter().all(|v| v.is_finite())
             && Vector3::from(p.origin).norm() <= MAX_PLANE_OFFSET_MM)
         {
-            return Err(format!(
-                "[platform] origin {:?} is not within {MAX_PLANE_OFFSET_MM} mm of the camera",
-                p.origin
-            ));
+            return Err(FixedUnusable::Origin(p.origin));
         }
     }
     Ok(())
@@ -367,6 +396,14 @@ pub enum FileError {
         /// Why.
         #[source]
         source: toml::ser::Error,
+    },
+    /// Readable, but the fixed lasers or the platform are unusable.
+    #[error("calibration file {path}: {reason}")]
+    Fixed {
+        /// The file.
+        path: String,
+        /// What is wrong.
+        reason: FixedUnusable,
     },
     /// Readable, but the numbers are unusable.
     #[error("calibration file {path}: {why}")]
@@ -642,7 +679,10 @@ impl CalibrationFile {
         if let Some(b) = f.board() {
             b.map_err(|e| invalid(format!("[board]: {e}")))?;
         }
-        check_fixed(&f).map_err(invalid)?;
+        check_fixed(&f).map_err(|reason| FileError::Fixed {
+            path: name.to_string(),
+            reason,
+        })?;
         Ok(f)
     }
 

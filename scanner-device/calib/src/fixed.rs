@@ -36,6 +36,14 @@ pub enum ImportError {
         #[source]
         source: serde_json::Error,
     },
+    /// Readable, but its frames' turn or a flag is unusable.
+    #[error("{path}: {reason}")]
+    Unusable {
+        /// The file.
+        path: String,
+        /// What is wrong.
+        reason: FixedError,
+    },
     /// Readable, but a value is unusable.
     #[error("{path}: {why}")]
     Invalid {
@@ -44,6 +52,74 @@ pub enum ImportError {
         /// What is wrong.
         why: String,
     },
+}
+
+/// Why a fixed-laser calibration step cannot give its result: a frame turn that mirrors, a
+/// calibration of another size, a stripe, a laser plane or a platform that the shots do not
+/// give.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum FixedError {
+    /// One flip without the other, or with a transpose.
+    #[error("the orientation {0:?} mirrors the frames; only turns are supported")]
+    Mirrors(FrameTurn),
+    /// The calibration is for frames of another size.
+    #[error(
+        "the calibration is for {}×{} frames, the turned frames are {}×{}",
+        calibration.0,
+        calibration.1,
+        turned.0,
+        turned.1
+    )]
+    OtherSize {
+        /// The calibration's frame size.
+        calibration: (u32, u32),
+        /// The turned frames' size.
+        turned: (u32, u32),
+    },
+    /// The tangential distortion has no counterpart in the stored frames.
+    #[error("the tangential distortion cannot be turned")]
+    Tangential,
+    /// A flag of the config that is neither true nor false.
+    #[error("camera.{name} is {value:?}, not \"True\" or \"False\"")]
+    Flag {
+        /// The flag.
+        name: &'static str,
+        /// What it holds.
+        value: String,
+    },
+    /// A frame that is no frame (a size of 0).
+    #[error("the frame: {0}")]
+    Frame(scanner_core::stripe::FrameError),
+    /// The pattern's pose gives no plane.
+    #[error("the pattern's plane: {0}")]
+    PatternPlane(scanner_core::GeomError),
+    /// The stripe's points give no plane (too few, or on one line).
+    #[error("{points} points{}: {error}", if *.kept { " kept" } else { "" })]
+    LaserPlane {
+        /// Points fitted.
+        points: usize,
+        /// Whether these are the points kept after dropping outliers.
+        kept: bool,
+        /// Why.
+        error: scanner_core::GeomError,
+    },
+    /// Fewer than three poses of the pattern on the platform.
+    #[error("{0} pattern pose(s): the platform's axis needs three turns at least")]
+    TooFewPoses(usize),
+    /// The pattern's centre does not run on a circle.
+    #[error("the pattern's centre does not run on a circle: {0}")]
+    NoCircle(scanner_core::GeomError),
+    /// The poses do not turn the pattern about an axis.
+    #[error("the pattern's poses do not turn it about an axis")]
+    NoAxis,
+    /// The corners lie off circles about one axis.
+    #[error(
+        "the pattern's corners lie {0:.2} mm (RMS) off circles about one axis: did the pattern move on the platform?"
+    )]
+    OffCircle(f64),
+    /// The platform found is not a pose.
+    #[error("the platform found is not a pose: {0}")]
+    NotAPose(scanner_core::GeomError),
 }
 
 /// How a scanner turns its stored frames before reading them: transposed first (`rotate`),
@@ -98,18 +174,16 @@ pub fn unturn(
     turned: &CalibrationFile,
     orientation: FrameTurn,
     stored: (u32, u32),
-) -> Result<CalibrationFile, String> {
+) -> Result<CalibrationFile, FixedError> {
     let (p, b, size) = orientation.map(stored);
     if p.determinant() < 0.0 {
-        return Err(format!(
-            "the orientation {orientation:?} mirrors the frames; only turns are supported"
-        ));
+        return Err(FixedError::Mirrors(orientation));
     }
     if size != (turned.image.width, turned.image.height) {
-        return Err(format!(
-            "the calibration is for {}×{} frames, the turned frames are {}×{}",
-            turned.image.width, turned.image.height, size.0, size.1
-        ));
+        return Err(FixedError::OtherSize {
+            calibration: (turned.image.width, turned.image.height),
+            turned: size,
+        });
     }
     let m = camera_axes(&p);
     let c = &turned.camera;
@@ -133,7 +207,7 @@ pub fn unturn(
             let s = inv * want;
             (s.x, s.y)
         })
-        .ok_or("the tangential distortion cannot be turned")?;
+        .ok_or(FixedError::Tangential)?;
     let mut out = turned.clone();
     out.image.width = stored.0;
     out.image.height = stored.1;
@@ -229,12 +303,15 @@ enum Flag {
 }
 
 impl Flag {
-    fn get(&self, name: &str) -> Result<bool, String> {
+    fn get(&self, name: &'static str) -> Result<bool, FixedError> {
         match self {
             Flag::Bool(b) => Ok(*b),
             Flag::Text(t) if t.eq_ignore_ascii_case("true") => Ok(true),
             Flag::Text(t) if t.eq_ignore_ascii_case("false") => Ok(false),
-            Flag::Text(t) => Err(format!("camera.{name} is {t:?}, not \"True\" or \"False\"")),
+            Flag::Text(t) => Err(FixedError::Flag {
+                name,
+                value: t.chars().take(40).collect(),
+            }),
             Flag::Missing => Ok(false),
         }
     }
@@ -269,10 +346,14 @@ pub fn import_fabscan(path: &Path) -> Result<Imported, ImportError> {
         path: name.clone(),
         why,
     };
+    let unusable = |reason: FixedError| ImportError::Unusable {
+        path: name.clone(),
+        reason,
+    };
     let orientation = FrameTurn {
-        rotate: cfg.camera.rotate.get("rotate").map_err(invalid)?,
-        hflip: cfg.camera.hflip.get("hflip").map_err(invalid)?,
-        vflip: cfg.camera.vflip.get("vflip").map_err(invalid)?,
+        rotate: cfg.camera.rotate.get("rotate").map_err(unusable)?,
+        hflip: cfg.camera.hflip.get("hflip").map_err(unusable)?,
+        vflip: cfg.camera.vflip.get("vflip").map_err(unusable)?,
     };
     let stored = (cfg.camera.resolution.width, cfg.camera.resolution.height);
     let (_, _, turned_size) = orientation.map(stored);
@@ -327,7 +408,7 @@ pub fn import_fabscan(path: &Path) -> Result<Imported, ImportError> {
         clockwise: true,
         height: cfg.turntable.height,
     });
-    let file = unturn(&turned, orientation, stored).map_err(invalid)?;
+    let file = unturn(&turned, orientation, stored).map_err(unusable)?;
     // the checks of any calibration file (a NaN, a plane through the camera, 0 steps)
     let text = toml::to_string(&file).map_err(|e| invalid(format!("cannot be written: {e}")))?;
     let file = CalibrationFile::parse(&text, &name).map_err(|e| invalid(format!("{e}")))?;
@@ -439,15 +520,15 @@ pub fn laser_points(
     target: (usize, usize, f64),
     pose: &scanner_core::geometry::Pose,
     frame: &image::RgbImage,
-) -> Result<Vec<scanner_core::nalgebra::Point3<f64>>, String> {
+) -> Result<Vec<scanner_core::nalgebra::Point3<f64>>, FixedError> {
     use scanner_core::nalgebra::{Point2, Point3};
     use scanner_core::stripe::{Axis, Extractor, Frame, Method, PixelFormat, StripeConfig};
     let (w, h) = (frame.width() as usize, frame.height() as usize);
     let view =
-        Frame::packed(frame.as_raw(), w, h, PixelFormat::Rgb24).map_err(|e| e.to_string())?;
+        Frame::packed(frame.as_raw(), w, h, PixelFormat::Rgb24).map_err(FixedError::Frame)?;
     let black = vec![0u8; frame.as_raw().len()];
-    let reference = Frame::packed(&black, w, h, PixelFormat::Rgb24).map_err(|e| e.to_string())?;
-    let plane = pose.plane().map_err(|e| e.to_string())?;
+    let reference = Frame::packed(&black, w, h, PixelFormat::Rgb24).map_err(FixedError::Frame)?;
+    let plane = pose.plane().map_err(FixedError::PatternPlane)?;
     let (cols, rows, square) = target;
     let (half_u, half_v) = (
         cols as f64 / 2.0 * square - PATTERN_INSET_MM,
@@ -509,16 +590,26 @@ pub struct LaserFit {
 /// # Errors
 /// Too few points, or points on one line (one pose only, or poses that do not turn the
 /// pattern).
-pub fn fit_laser(points: &[scanner_core::nalgebra::Point3<f64>]) -> Result<LaserFit, String> {
-    let first = scanner_core::geometry::fit_plane(points.iter().copied())
-        .map_err(|e| format!("{} points: {e}", points.len()))?;
+pub fn fit_laser(points: &[scanner_core::nalgebra::Point3<f64>]) -> Result<LaserFit, FixedError> {
+    let first = scanner_core::geometry::fit_plane(points.iter().copied()).map_err(|error| {
+        FixedError::LaserPlane {
+            points: points.len(),
+            kept: false,
+            error,
+        }
+    })?;
     let keep: Vec<_> = points
         .iter()
         .copied()
         .filter(|p| first.plane.signed_distance(p).abs() <= OUTLIER_RMS * first.rms.max(0.01))
         .collect();
-    let fit = scanner_core::geometry::fit_plane(keep.iter().copied())
-        .map_err(|e| format!("{} points kept: {e}", keep.len()))?;
+    let fit = scanner_core::geometry::fit_plane(keep.iter().copied()).map_err(|error| {
+        FixedError::LaserPlane {
+            points: keep.len(),
+            kept: true,
+            error,
+        }
+    })?;
     Ok(LaserFit {
         plane: fit.plane,
         points: keep.len(),
@@ -557,13 +648,10 @@ pub fn fit_platform(
     target: (usize, usize, f64),
     poses: &[scanner_core::geometry::Pose],
     origin_distance: f64,
-) -> Result<PlatformFit, String> {
+) -> Result<PlatformFit, FixedError> {
     use scanner_core::nalgebra::{Point2, Point3};
     if poses.len() < 3 {
-        return Err(format!(
-            "{} pattern pose(s): the platform's axis needs three turns at least",
-            poses.len()
-        ));
+        return Err(FixedError::TooFewPoses(poses.len()));
     }
     let (cols, rows, square) = target;
     let corners: Vec<Point2<f64>> = (1..rows)
@@ -583,8 +671,8 @@ pub fn fit_platform(
         .iter()
         .map(|p| p.transform(&Point2::origin()))
         .collect();
-    let plane = scanner_core::geometry::fit_plane(track.iter().copied())
-        .map_err(|e| format!("the pattern's centre does not run on a circle: {e}"))?;
+    let plane =
+        scanner_core::geometry::fit_plane(track.iter().copied()).map_err(FixedError::NoCircle)?;
     let axis = *plane.plane.normal();
     let (e1, e2) = {
         let a = if axis.x.abs() < 0.9 {
@@ -607,7 +695,7 @@ pub fn fit_platform(
     let s = ata
         .try_inverse()
         .map(|inv| inv * atb)
-        .ok_or("the pattern's poses do not turn it about an axis")?;
+        .ok_or(FixedError::NoAxis)?;
     let (cx, cy) = (-s.x / 2.0, -s.y / 2.0);
     let r = (cx * cx + cy * cy - s.z).max(0.0).sqrt();
     let height = plane.centroid.coords.dot(&axis);
@@ -623,9 +711,7 @@ pub fn fit_platform(
     let circle_rms_mm =
         (residuals.iter().map(|r| r * r).sum::<f64>() / residuals.len() as f64).sqrt();
     if !(circle_rms_mm <= 2.0) {
-        return Err(format!(
-            "the pattern's corners lie {circle_rms_mm:.2} mm (RMS) off circles about one axis: did the pattern move on the platform?"
-        ));
+        return Err(FixedError::OffCircle(circle_rms_mm));
     }
     // a point of the axis: the centres' mean, moved along the axis
     let centre = Point3::from(
@@ -646,8 +732,8 @@ pub fn fit_platform(
     let x = toward.normalize();
     let y = up.cross(&x);
     let rotation = Matrix3::from_columns(&[x, y, up]);
-    let platform = scanner_core::geometry::Platform::new(rotation, origin)
-        .map_err(|e| format!("the platform found is not a pose: {e}"))?;
+    let platform =
+        scanner_core::geometry::Platform::new(rotation, origin).map_err(FixedError::NotAPose)?;
     // the widest turn between two poses, seen along the axis (the pattern's normal: the same
     // for both readings of a chessboard)
     let dir = |p: &scanner_core::geometry::Pose| {

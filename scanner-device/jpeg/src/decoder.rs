@@ -194,8 +194,7 @@ impl JpegDecoder {
                 }
                 0xDA => {
                     let mut f = frame.ok_or_else(|| bad("image data before the frame header"))?;
-                    self.scan_header(body, &mut f)
-                        .map_err(|what| JpegError::BadSegment { marker, at, what })?;
+                    self.scan_header(body, at, &mut f)?;
                     let needed = match output {
                         Output::Yuyv => 2 * width * height,
                         Output::Gray => width * height,
@@ -265,28 +264,35 @@ impl JpegDecoder {
 
     /// `SOS`: which tables each component uses; only an interleaved scan of all components
     /// (baseline's one scan) is read.
-    fn scan_header(&self, body: &[u8], f: &mut Frame) -> Result<(), &'static str> {
-        let n = usize::from(*body.first().ok_or("too short")?);
+    fn scan_header(&self, body: &[u8], at: usize, f: &mut Frame) -> Result<(), JpegError> {
+        let bad = |what| JpegError::BadSegment {
+            marker: 0xDA,
+            at,
+            what,
+        };
+        let n = usize::from(*body.first().ok_or(bad("too short"))?);
         if n != f.count {
-            return Err("a scan of some components only (several scans are not read)");
+            return Err(bad(
+                "a scan of some components only (several scans are not read)",
+            ));
         }
         for i in 0..n {
-            let id = *body.get(1 + 2 * i).ok_or("too short")?;
-            let tables = *body.get(2 + 2 * i).ok_or("too short")?;
+            let id = *body.get(1 + 2 * i).ok_or(bad("too short"))?;
+            let tables = *body.get(2 + 2 * i).ok_or(bad("too short"))?;
             let c = f.components[..f.count]
                 .iter_mut()
                 .find(|c| c.id == id)
-                .ok_or("a component the frame does not have")?;
+                .ok_or(bad("a component the frame does not have"))?;
             c.dc = usize::from(tables >> 4);
             c.ac = usize::from(tables & 15);
             if c.dc > 3 || c.ac > 3 {
-                return Err("table number above 3");
+                return Err(bad("table number above 3"));
             }
             if !self.dc[c.dc].defined || !self.ac[c.ac].defined {
-                return Err("a Huffman table that was never defined");
+                return Err(bad("a Huffman table that was never defined"));
             }
             if !self.quant_defined[c.quant] {
-                return Err("a quantisation table that was never defined");
+                return Err(bad("a quantisation table that was never defined"));
             }
         }
         Ok(())

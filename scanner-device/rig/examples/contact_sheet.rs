@@ -8,7 +8,7 @@ use scanner_core::nalgebra::Point3;
 use scanner_rig::target::{Pattern, TargetPose};
 use scanner_rig::{Rig, Scene};
 
-fn main() -> Result<(), Box<dyn std::error::Error>> {
+fn main() -> anyhow::Result<()> {
     let out = std::env::args()
         .nth(1)
         .unwrap_or_else(|| "docs/rig-contact-sheet.png".into());
@@ -35,7 +35,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut sheet =
         image::RgbImage::from_pixel(n * w + (n - 1) * gap, h, image::Rgb([255, 255, 255]));
     for (k, tile) in tiles.iter().enumerate() {
-        let img = image::RgbImage::from_raw(w, h, tile.data.clone()).ok_or("tile size")?;
+        let img = image::RgbImage::from_raw(w, h, tile.data.clone())
+            .ok_or_else(|| anyhow::anyhow!("tile size"))?;
         image::imageops::overlay(&mut sheet, &img, i64::from(k as u32 * (w + gap)), 0);
     }
     sheet.save(&out)?;

@@ -21,23 +21,24 @@ use super::report::{
     self, BoardData, CameraData, CoverageData, DistanceData, IntrinsicsData, IntrinsicsImage,
     SelfCheckData, SheetData, TurntableData, write_json,
 };
+use super::values;
 
 /// The intrinsics target: a dot grid (default) or a chessboard, with its sizes.
 #[derive(Debug, Clone, clap::Args)]
 pub struct TargetArgs {
     /// A chessboard with COLSxROWS inner corners (OpenCV's count: 9x6 for a board of 10x7
     /// squares) instead of the dot grid.
-    #[arg(long, value_parser = parse_grid, conflicts_with_all = ["dots", "pitch", "dot", "chessboard_squares"])]
+    #[arg(long, value_parser = values::parse_grid, conflicts_with_all = ["dots", "pitch", "dot", "chessboard_squares"])]
     pub chessboard_corners: Option<(usize, usize)>,
     /// A chessboard of COLSxROWS squares (10x7 has 9x6 inner corners) instead of the dot grid.
-    #[arg(long, value_parser = parse_grid, conflicts_with_all = ["dots", "pitch", "dot"])]
+    #[arg(long, value_parser = values::parse_grid, conflicts_with_all = ["dots", "pitch", "dot"])]
     pub chessboard_squares: Option<(usize, usize)>,
     /// Refused: it did not say whether it counts squares or inner corners.
     #[arg(long, hide = true)]
     pub chessboard: Option<String>,
     /// A ChArUco board of COLSxROWS squares (OpenCV's layout and count: 7x5 for 6x4 inner
     /// corners) instead of the dot grid; give --square, --marker and --dictionary.
-    #[arg(long, value_parser = parse_grid, conflicts_with_all = ["dots", "pitch", "dot", "chessboard_squares", "chessboard_corners"])]
+    #[arg(long, value_parser = values::parse_grid, conflicts_with_all = ["dots", "pitch", "dot", "chessboard_squares", "chessboard_corners"])]
     pub charuco: Option<(usize, usize)>,
     /// The ChArUco board's marker side, mm.
     #[arg(long, requires = "charuco")]
@@ -52,7 +53,7 @@ pub struct TargetArgs {
     #[arg(long, default_value_t = 25.0)]
     pub square: f64,
     /// The grid: dots per row × rows.
-    #[arg(long, default_value = "9x7", value_parser = parse_grid)]
+    #[arg(long, default_value = "9x7", value_parser = values::parse_grid)]
     pub dots: (usize, usize),
     /// Centre-to-centre distance, mm.
     #[arg(long, default_value_t = 30.0)]
@@ -203,22 +204,6 @@ impl From<MethodArg> for BoardMethod {
             MethodArg::PaperLines => BoardMethod::PaperLines,
         }
     }
-}
-
-fn parse_grid(s: &str) -> Result<(usize, usize), String> {
-    let max = scanner_core::config::MAX_MARKERS as u32;
-    let (a, b) = crate::source::parse_size(s).map_err(|_| {
-        format!(
-            "{:?}: expected COLSxROWS, like 9x7, with at most {max} in all",
-            s.chars().take(40).collect::<String>()
-        )
-    })?;
-    if a < 2 || b < 2 || a * b > max {
-        return Err(format!(
-            "{s:?}: both counts must be at least 2, and there can be at most {max} in all"
-        ));
-    }
-    Ok((a as usize, b as usize))
 }
 
 /// Reads an image file as gray.

@@ -8,6 +8,7 @@ pub mod render;
 pub mod report;
 pub mod scan;
 pub mod serve;
+pub mod values;
 
 use std::path::PathBuf;
 

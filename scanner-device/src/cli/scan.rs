@@ -16,6 +16,8 @@ use crate::session::{Calibration, DiscOutcome, ScanOptions, ScanReport, StopWhen
 use crate::source::convert::CameraFormat;
 use crate::source::{FrameSource, SourceOptions, open_with};
 
+use super::values;
+
 /// `--firmware` of `scan`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
 pub enum FirmwareArg {
@@ -133,7 +135,7 @@ pub struct ScanArgs {
     /// (`scanner-host check`): on the rig's two-sphere bar it takes the size errors from
     /// 0.05 % to under 0.01 %. It costs points at every run's end, the more the wider the line
     /// (docs/accuracy.md). 0: off.
-    #[arg(long, default_value_t = 0.0, value_parser = edge_reach)]
+    #[arg(long, default_value_t = 0.0, value_parser = values::edge_reach)]
     pub edge_reach: f32,
     /// Drop the stripe's lines where it crosses the edge of print: the laser-off reference's
     /// level changes by more than this factor within two pixels under the profile, which is
@@ -142,13 +144,13 @@ pub struct ScanArgs {
     /// board without its marks (on the real two-plane frames: 0.072° from the independent
     /// reference instead of 0.083°). It drops the stripe wherever an object is printed or
     /// textured (docs/accuracy.md). 0: off. Difference method only.
-    #[arg(long, default_value_t = 0.0, value_parser = print_ratio)]
+    #[arg(long, default_value_t = 0.0, value_parser = values::print_ratio)]
     pub print_ratio: f32,
     /// Colour each point from the reference frame.
     #[arg(long)]
     pub colour: bool,
     /// Buffers between the camera and the link (frames dropped beyond), 1 to 64.
-    #[arg(long, default_value_t = 8, value_parser = parse_link_depth)]
+    #[arg(long, default_value_t = 8, value_parser = values::parse_link_depth)]
     pub link_depth: usize,
     /// Keep the raw frames (and the reference) in this folder, so that the scan can be
     /// reprocessed later with `--source record:FOLDER` and another calibration.
@@ -156,13 +158,13 @@ pub struct ScanArgs {
     pub record: Option<PathBuf>,
     /// After the reference, wait up to this many seconds for the laser before counting frames
     /// (default: 60 for a camera, none for files and the rig; 0 turns it off).
-    #[arg(long, value_parser = parse_wait)]
+    #[arg(long, value_parser = values::parse_wait)]
     pub wait_for_laser: Option<std::time::Duration>,
     /// Stop after this many frames (after the reference), with a final status.
     #[arg(long)]
     pub frames: Option<u32>,
     /// Stop after this many seconds of scanning, with a final status.
-    #[arg(long, value_parser = parse_seconds)]
+    #[arg(long, value_parser = values::parse_seconds)]
     pub duration: Option<std::time::Duration>,
     /// Scan id (random without).
     #[arg(long)]
@@ -186,7 +188,7 @@ pub struct CameraArgs {
     #[arg(long)]
     pub fps: Option<u32>,
     /// The local mains frequency (50 or 60 Hz), for the camera's power-line filter.
-    #[arg(long, value_parser = parse_mains)]
+    #[arg(long, value_parser = values::parse_mains)]
     pub mains: Option<u32>,
     /// Camera pixel format FourCC (YUYV, GREY, RGB3, MJPG). What keeps up with a 30 frames/s
     /// camera (estimated, docs/speed.md): on a Raspberry Pi 4, YUYV at any size and MJPG up to
@@ -980,22 +982,6 @@ fn head_config(a: &ScanArgs) -> HeadConfig {
     head
 }
 
-/// `--edge-reach`: a number of profile widths from 0 to 4.
-fn edge_reach(text: &str) -> Result<f32, String> {
-    match text.parse::<f32>() {
-        Ok(v) if (0.0..=4.0).contains(&v) => Ok(v),
-        _ => Err(format!("{text:?}: a number of profile widths from 0 to 4")),
-    }
-}
-
-/// `--print-ratio`: 0 (off), or a factor from 1.1 to 10.
-fn print_ratio(text: &str) -> Result<f32, String> {
-    match text.parse::<f32>() {
-        Ok(v) if v == 0.0 || (1.1..=10.0).contains(&v) => Ok(v),
-        _ => Err(format!("{text:?}: 0 (off) or a factor from 1.1 to 10")),
-    }
-}
-
 /// The pipeline's settings for a shadow sweep: the light-intensity method on the contrast
 /// frames (gray), the band's rising edge first, no speckle (a lamp's light is not coherent),
 /// and a band much narrower than the frame's taken for one cut by an outline whatever its depth
@@ -1060,35 +1046,6 @@ pub fn devices() {
     }
 }
 
-fn parse_link_depth(s: &str) -> Result<usize, String> {
-    let max = crate::link::MAX_DEPTH;
-    s.trim()
-        .parse::<usize>()
-        .ok()
-        .filter(|d| (1..=max).contains(d))
-        .ok_or_else(|| {
-            format!(
-                "{:?}: a whole number of buffers from 1 to {max} (each holds one packet of up to {} KB)",
-                s.chars().take(40).collect::<String>(),
-                scanner_wire::MAX_ENCODED / 1024
-            )
-        })
-}
-
-fn parse_seconds(s: &str) -> Result<std::time::Duration, String> {
-    s.trim()
-        .parse::<f64>()
-        .ok()
-        .filter(|v| *v > 0.0 && *v <= 86_400.0)
-        .map(std::time::Duration::from_secs_f64)
-        .ok_or_else(|| {
-            format!(
-                "{:?}: seconds, more than 0 and at most 86400 (a day)",
-                s.chars().take(40).collect::<String>()
-            )
-        })
-}
-
 /// A flag raised by Ctrl-C (SIGINT) or SIGTERM, so that a scan ends with its final status
 /// instead of being killed mid-stream. `None` when a handler cannot be installed (a second
 /// scan in one process, e.g. in tests): the scan then runs without it.
@@ -1098,23 +1055,4 @@ fn stop_flag() -> Option<std::sync::Arc<std::sync::atomic::AtomicBool>> {
     ctrlc::set_handler(move || f.store(true, std::sync::atomic::Ordering::SeqCst))
         .ok()
         .map(|()| flag)
-}
-
-/// `--mains`: 50 or 60 (Hz).
-pub(crate) fn parse_mains(s: &str) -> Result<u32, String> {
-    match s.trim() {
-        "50" => Ok(50),
-        "60" => Ok(60),
-        other => Err(format!(
-            "{:?}: the mains frequency is 50 or 60 (Hz)",
-            other.chars().take(20).collect::<String>()
-        )),
-    }
-}
-
-fn parse_wait(s: &str) -> Result<std::time::Duration, String> {
-    if s.trim() == "0" {
-        return Ok(std::time::Duration::ZERO);
-    }
-    parse_seconds(s)
 }

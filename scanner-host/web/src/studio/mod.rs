@@ -209,72 +209,135 @@ pub fn merge_verdict(
     out
 }
 
-/// A command from the page's JSON (`{"command": "shot", "board": true}`).
-///
-/// # Errors
-/// An unknown command or a field of the wrong type, in words.
-pub fn command_of(v: &serde_json::Value) -> Result<Command, String> {
-    let flag = |k: &str| v[k].as_bool().unwrap_or(false);
-    let int = |k: &str, d: i64| -> Result<i64, String> {
-        match &v[k] {
-            serde_json::Value::Null => Ok(d),
-            n => n
-                .as_i64()
-                .ok_or_else(|| format!("{k} must be a whole number")),
+/// A command as the page writes it: `{"command": "shot", "board": true}`, every field but the
+/// command's name optional (the defaults below). serde reads it; a name that is no command, a
+/// field of the wrong type or out of its type's range is a [`serde_json::Error`] that names it.
+/// The head judges the values' own limits (a preview's scale, a zoom's size) and answers with
+/// its reply.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Deserialize)]
+#[serde(tag = "command", rename_all = "lowercase")]
+pub enum PageCommand {
+    /// [`Command::Hello`].
+    Hello,
+    /// [`Command::Preview`]: a picture every 2 frames, the smallest scale, the whole picture.
+    Preview {
+        /// On.
+        #[serde(default)]
+        on: bool,
+        /// A picture every this many frames.
+        #[serde(default = "every_default")]
+        every: u16,
+        /// Camera pixels per picture pixel; 0: the smallest that fits.
+        #[serde(default)]
+        scale: u8,
+        /// The full-resolution picture too.
+        #[serde(default = "yes")]
+        picture: bool,
+        /// `x, y, width, height`; all 0: the whole picture.
+        #[serde(default)]
+        zoom: [u16; 4],
+    },
+    /// [`Command::Shot`].
+    Shot {
+        /// The board rather than the intrinsics target.
+        #[serde(default)]
+        board: bool,
+    },
+    /// [`Command::Calibrate`].
+    Calibrate,
+    /// [`Command::Sweep`].
+    Sweep {
+        /// 0 no disc, 1 A4, 2 A3.
+        #[serde(default)]
+        disc: u8,
+        /// 0 find it, 1 rows, 2 columns.
+        #[serde(default)]
+        axis: u8,
+        /// Colour the points.
+        #[serde(default)]
+        colour: bool,
+        /// Send the board's points too.
+        #[serde(default)]
+        keep_board: bool,
+        /// Stop after this many frames; 0: never.
+        #[serde(default)]
+        frames: u32,
+    },
+    /// [`Command::Stop`].
+    Stop,
+    /// [`Command::Camera`].
+    Camera {
+        /// [`scanner_wire::Adjustable`] as its number.
+        #[serde(default)]
+        control: u8,
+        /// Its value.
+        #[serde(default)]
+        value: i32,
+    },
+    /// [`Command::Laser`].
+    Laser {
+        /// On.
+        #[serde(default)]
+        on: bool,
+    },
+    /// [`Command::Turn`]: one step unless told.
+    Turn {
+        /// Steps (negative: the other way).
+        #[serde(default = "one")]
+        steps: i32,
+    },
+}
+
+fn every_default() -> u16 {
+    2
+}
+
+fn yes() -> bool {
+    true
+}
+
+fn one() -> i32 {
+    1
+}
+
+impl From<PageCommand> for Command {
+    fn from(c: PageCommand) -> Command {
+        match c {
+            PageCommand::Hello => Command::Hello,
+            PageCommand::Preview {
+                on,
+                every,
+                scale,
+                picture,
+                zoom,
+            } => Command::Preview(PreviewRequest {
+                on,
+                every,
+                scale,
+                picture,
+                zoom,
+            }),
+            PageCommand::Shot { board } => Command::Shot { board },
+            PageCommand::Calibrate => Command::Calibrate,
+            PageCommand::Sweep {
+                disc,
+                axis,
+                colour,
+                keep_board,
+                frames,
+            } => Command::Sweep(SweepRequest {
+                disc,
+                axis,
+                colour,
+                keep_board,
+                frames,
+            }),
+            PageCommand::Stop => Command::Stop,
+            PageCommand::Camera { control, value } => Command::Camera { control, value },
+            PageCommand::Laser { on } => Command::Laser { on },
+            PageCommand::Turn { steps } => Command::Turn { steps },
         }
-    };
-    let narrow = |k: &str, d: i64| -> Result<i32, String> {
-        i32::try_from(int(k, d)?).map_err(|_| format!("{k} is out of range"))
-    };
-    Ok(match v["command"].as_str().unwrap_or("") {
-        "hello" => Command::Hello,
-        "preview" => Command::Preview(PreviewRequest {
-            on: flag("on"),
-            every: u16::try_from(int("every", 2)?).map_err(|_| "every is out of range")?,
-            scale: u8::try_from(int("scale", 0)?).map_err(|_| "scale is out of range")?,
-            picture: v["picture"].as_bool().unwrap_or(true),
-            zoom: match v["zoom"].as_array() {
-                None => [0; 4],
-                Some(z) if z.len() == 4 => {
-                    let mut out = [0u16; 4];
-                    for (o, n) in out.iter_mut().zip(z) {
-                        *o = n
-                            .as_u64()
-                            .and_then(|n| u16::try_from(n).ok())
-                            .ok_or("zoom takes four whole numbers: x, y, width, height")?;
-                    }
-                    out
-                }
-                Some(_) => return Err("zoom takes four whole numbers: x, y, width, height".into()),
-            },
-        }),
-        "shot" => Command::Shot {
-            board: flag("board"),
-        },
-        "calibrate" => Command::Calibrate,
-        "sweep" => Command::Sweep(SweepRequest {
-            disc: u8::try_from(int("disc", 0)?).map_err(|_| "disc is out of range")?,
-            axis: u8::try_from(int("axis", 0)?).map_err(|_| "axis is out of range")?,
-            colour: flag("colour"),
-            keep_board: flag("keep_board"),
-            frames: u32::try_from(int("frames", 0)?).map_err(|_| "frames is out of range")?,
-        }),
-        "stop" => Command::Stop,
-        "camera" => Command::Camera {
-            control: u8::try_from(int("control", 0)?).map_err(|_| "control is out of range")?,
-            value: narrow("value", 0)?,
-        },
-        "laser" => Command::Laser { on: flag("on") },
-        "turn" => Command::Turn {
-            steps: narrow("steps", 1)?,
-        },
-        other => {
-            return Err(format!(
-                "{:?} is no command (hello, preview, shot, calibrate, sweep, stop, camera, laser, turn)",
-                other.chars().take(40).collect::<String>()
-            ));
-        }
-    })
+    }
 }
 
 /// What a reply means, in words for the page.
@@ -312,5 +375,53 @@ pub fn words(command: &Command, r: &Reply) -> String {
             format!("{name}: the head could not read it ({})", r.outcome.name())
         }
         Outcome::Failed => format!("{name}: the head tried and failed (see its log)"),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn read(json: &str) -> Result<Command, serde_json::Error> {
+        serde_json::from_str::<PageCommand>(json).map(Command::from)
+    }
+
+    #[test]
+    fn the_pages_commands_with_their_defaults() {
+        assert_eq!(read(r#"{"command":"hello"}"#).unwrap(), Command::Hello);
+        assert_eq!(
+            read(r#"{"command":"preview","on":true}"#).unwrap(),
+            Command::Preview(PreviewRequest {
+                on: true,
+                every: 2,
+                scale: 0,
+                picture: true,
+                zoom: [0; 4]
+            })
+        );
+        assert_eq!(
+            read(r#"{"command":"turn"}"#).unwrap(),
+            Command::Turn { steps: 1 }
+        );
+        assert_eq!(
+            read(r#"{"command":"sweep","disc":2,"frames":7}"#).unwrap(),
+            Command::Sweep(SweepRequest {
+                disc: 2,
+                axis: 0,
+                colour: false,
+                keep_board: false,
+                frames: 7
+            })
+        );
+    }
+
+    #[test]
+    fn a_bad_command_names_what_is_wrong() {
+        let fly = read(r#"{"command":"fly"}"#).unwrap_err().to_string();
+        assert!(fly.contains("fly"), "{fly}");
+        let range = read(r#"{"command":"sweep","disc":300}"#).unwrap_err();
+        assert!(range.is_data(), "{range}");
+        assert!(read(r#"{"command":"preview","zoom":[1,2,3]}"#).is_err());
+        assert!(read(r#"{"on":true}"#).is_err());
     }
 }

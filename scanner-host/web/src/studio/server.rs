@@ -17,7 +17,7 @@ use axum::routing::{get, post};
 use serde::Deserialize;
 
 use super::job::{MAX_VIEWS, Merge};
-use super::{MODEL_FILES, Studio, command_of, merge_verdict};
+use super::{MODEL_FILES, PageCommand, Studio, merge_verdict};
 use crate::assets;
 use crate::front::{
     Access, FrontError, FrontLimits, Served, download, json_body, read_inside, refusal, serve,
@@ -233,12 +233,12 @@ async fn command(State(studio): State<Arc<Studio>>, req: Request) -> Response {
         Ok(v) => v,
         Err(r) => return r,
     };
-    let cmd = match command_of(&v) {
-        Ok(c) => c,
+    let cmd: scanner_wire::Command = match serde_json::from_value::<PageCommand>(v) {
+        Ok(c) => c.into(),
         Err(why) => {
             return json(
                 StatusCode::BAD_REQUEST,
-                &serde_json::json!({"outcome": "bad_request", "words": why}),
+                &serde_json::json!({"outcome": "bad_request", "words": why.to_string()}),
             );
         }
     };
