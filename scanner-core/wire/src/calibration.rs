@@ -60,3 +60,49 @@ impl ShotTaken {
         (c as u32, r as u32)
     }
 }
+
+#[cfg(test)]
+mod golden_tests {
+    use super::*;
+    use crate::Message;
+
+    /// Its frame byte for byte, its round trip, every shorter body refused.
+    #[test]
+    fn shot_taken_golden_frame() {
+        crate::golden::check(
+            Message::Shot(ShotTaken {
+                seq: 7,
+                board: true,
+                found: 42,
+                kept: 40,
+                points: 1234,
+                cover: 0x0000_00F0_F0F0_0000,
+                tilt_deg: [-12, 30],
+            }),
+            &[
+                0, 21, 2, 10, 7, 1, 42, 40, 210, 9, 128, 128, 192, 135, 143, 30, 244, 30, 146, 248,
+                15, 109, 0,
+            ],
+        );
+    }
+
+    /// Its frame byte for byte, its round trip, every shorter body refused.
+    #[test]
+    fn calibrated_golden_frame() {
+        crate::golden::check(
+            Message::Calibrated(Calibrated {
+                seq: 8,
+                result: 0,
+                shots: 12,
+                rms_px: 0.21,
+                halves_px: 0.05,
+                board_rms_px: 0.4,
+                board_angle_deg: 91.5,
+            }),
+            &[
+                0, 4, 2, 11, 8, 14, 12, 61, 10, 87, 62, 205, 204, 76, 61, 205, 204, 204, 62, 1, 7,
+                183, 66, 36, 16, 60, 180, 0,
+            ],
+        );
+    }
+}

@@ -352,3 +352,114 @@ pub fn parse(body: &[u8]) -> Result<CommandFrame, CommandError> {
         _ => Err(CommandError::Malformed(seq)),
     }
 }
+
+#[cfg(test)]
+mod golden_tests {
+    use super::*;
+    use crate::Message;
+
+    /// Its frame byte for byte, its round trip, every shorter body refused.
+    #[test]
+    fn reply_golden_frame() {
+        crate::golden::check(
+            Message::Reply(Reply {
+                seq: 7,
+                outcome: Outcome::Busy,
+                state: HeadState::Sweeping,
+                field: 0,
+                detail: -3,
+            }),
+            &[0, 6, 2, 9, 7, 3, 2, 6, 5, 128, 204, 135, 254, 0],
+        );
+    }
+}
+
+#[cfg(test)]
+mod command_golden {
+    use super::*;
+
+    /// Every command: its body's bytes (after the version byte), read back by [`parse`], and
+    /// every shorter body refused.
+    #[test]
+    fn each_command_has_its_bytes() {
+        let preview = PreviewRequest {
+            on: true,
+            every: 2,
+            scale: 4,
+            picture: true,
+            zoom: [16, 32, 640, 480],
+        };
+        let sweep = SweepRequest {
+            disc: 1,
+            axis: 2,
+            colour: true,
+            keep_board: false,
+            frames: 300,
+        };
+        let cases: [(Command, &[u8]); 9] = [
+            (Command::Hello, &[172, 2, 0]),
+            (
+                Command::Preview(preview),
+                &[172, 2, 1, 1, 2, 4, 1, 16, 32, 128, 5, 224, 3],
+            ),
+            (Command::Shot { board: true }, &[172, 2, 2, 1]),
+            (Command::Calibrate, &[172, 2, 3]),
+            (Command::Sweep(sweep), &[172, 2, 4, 1, 2, 1, 0, 172, 2]),
+            (Command::Stop, &[172, 2, 5]),
+            (
+                Command::Camera {
+                    control: 1,
+                    value: -5,
+                },
+                &[172, 2, 6, 1, 9],
+            ),
+            (Command::Laser { on: true }, &[172, 2, 7, 1]),
+            (Command::Turn { steps: -200 }, &[172, 2, 8, 143, 3]),
+        ];
+        for (command, golden) in cases {
+            let frame = CommandFrame { seq: 300, command };
+            let mut buf = [0u8; MAX_COMMAND];
+            let body = postcard::to_slice(&frame, &mut buf).unwrap();
+            assert_eq!(&body[..], golden, "{command:?}: now {:?}", &body[..]);
+            assert_eq!(parse(golden), Ok(frame));
+            for cut in 0..golden.len() {
+                assert!(parse(&golden[..cut]).is_err(), "{command:?} cut to {cut}");
+            }
+        }
+    }
+
+    /// The largest command (every field at its type's largest) fits [`MAX_COMMAND`] with its
+    /// version and CRC.
+    #[test]
+    fn the_largest_command_fits_its_buffer() {
+        let widest = [
+            Command::Preview(PreviewRequest {
+                on: true,
+                every: u16::MAX,
+                scale: u8::MAX,
+                picture: true,
+                zoom: [u16::MAX; 4],
+            }),
+            Command::Sweep(SweepRequest {
+                disc: u8::MAX,
+                axis: u8::MAX,
+                colour: true,
+                keep_board: true,
+                frames: u32::MAX,
+            }),
+            Command::Camera {
+                control: u8::MAX,
+                value: i32::MIN,
+            },
+        ];
+        for command in widest {
+            let mut buf = [0u8; MAX_COMMAND];
+            let frame = CommandFrame {
+                seq: u32::MAX,
+                command,
+            };
+            let n = postcard::to_slice(&frame, &mut buf).unwrap().len();
+            assert!(1 + n + 4 <= MAX_COMMAND, "{command:?}: {n} bytes");
+        }
+    }
+}

@@ -47,3 +47,27 @@ impl Controls {
         ]
     }
 }
+
+#[cfg(test)]
+mod golden_tests {
+    use super::*;
+    use crate::Message;
+
+    /// Its frame byte for byte, its round trip, every shorter body refused.
+    #[test]
+    fn controls_golden_frame() {
+        crate::golden::check(
+            Message::Controls(Controls {
+                scan_id: 3,
+                exposure: Control::Set(156),
+                white_balance: Control::NotOffered,
+                gain: Control::Refused,
+                focus: Control::NoCamera,
+                power_line: Control::Set(-1),
+            }),
+            &[
+                0, 9, 2, 3, 3, 2, 184, 2, 1, 3, 7, 2, 1, 16, 252, 194, 151, 0,
+            ],
+        );
+    }
+}

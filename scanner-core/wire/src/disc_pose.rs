@@ -47,3 +47,29 @@ wire_enum!(
     Tilted = 3,
     PoorFit = 4
 );
+
+#[cfg(test)]
+mod golden_tests {
+    use super::*;
+    use crate::Message;
+
+    /// Its frame byte for byte, its round trip, every shorter body refused.
+    #[test]
+    fn disc_pose_golden_frame() {
+        crate::golden::check(
+            Message::Disc(DiscPose {
+                scan_id: 3,
+                found: DiscFound::Found,
+                rotation: [1.0, 0.0, 0.0, 0.0],
+                translation: [10.5, -20.25, 600.0],
+                markers: 31,
+                of: 36,
+                rms_px: 0.35,
+            }),
+            &[
+                0, 4, 2, 5, 3, 1, 1, 3, 128, 63, 1, 1, 1, 1, 1, 1, 1, 1, 1, 1, 1, 1, 1, 3, 40, 65,
+                1, 3, 162, 193, 1, 13, 22, 68, 31, 36, 51, 51, 179, 62, 100, 71, 198, 107, 0,
+            ],
+        );
+    }
+}

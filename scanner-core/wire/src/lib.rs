@@ -37,6 +37,7 @@
 //!
 //! # Layers
 //! ```text
+//! golden
 //! framing
 //! message
 //! preview  picture
@@ -85,6 +86,8 @@ pub mod disc_pose;
 mod error;
 pub mod fixed_laser;
 pub mod framing;
+#[cfg(test)]
+mod golden;
 pub mod header;
 pub mod message;
 pub mod notice;

@@ -54,3 +54,22 @@ impl NoticeKind {
         }
     }
 }
+
+#[cfg(test)]
+mod golden_tests {
+    use super::*;
+    use crate::Message;
+
+    /// Its frame byte for byte, its round trip, every shorter body refused.
+    #[test]
+    fn notice_golden_frame() {
+        crate::golden::check(
+            Message::Notice(Notice {
+                scan_id: 4,
+                kind: NoticeKind::LaserOffUnheard,
+                seconds: 2,
+            }),
+            &[0, 10, 2, 6, 4, 4, 2, 85, 247, 226, 20, 0],
+        );
+    }
+}

@@ -47,3 +47,31 @@ impl Picture<'_> {
             && u32::from(self.height) / s <= u32::from(PICTURE_MAX_HEIGHT)
     }
 }
+
+#[cfg(test)]
+mod golden_tests {
+    use super::*;
+    use crate::Message;
+
+    /// Its frame byte for byte, its round trip, every shorter body refused.
+    #[test]
+    fn picture_golden_frame() {
+        crate::golden::check(
+            Message::Picture(Picture {
+                scan_id: 2,
+                frame: 40,
+                x: 16,
+                y: 32,
+                width: 64,
+                height: 48,
+                scale: 1,
+                edge_cpx: 250,
+                jpeg: &[0xFF, 0xD8, 0xFF, 0xD9],
+            }),
+            &[
+                0, 21, 2, 12, 2, 40, 16, 32, 64, 48, 1, 250, 1, 4, 255, 216, 255, 217, 169, 219,
+                62, 31, 0,
+            ],
+        );
+    }
+}

@@ -73,3 +73,31 @@ pub struct Status {
     /// Why the scan ended (in the last status; [`EndReason::Completed`] before).
     pub ended: EndReason,
 }
+
+#[cfg(test)]
+mod golden_tests {
+    use super::*;
+    use crate::Message;
+
+    /// Its frame byte for byte, its round trip, every shorter body refused.
+    #[test]
+    fn status_golden_frame() {
+        crate::golden::check(
+            Message::Status(Status {
+                scan_id: 4,
+                frames: 300,
+                packets: 290,
+                points: 185_000,
+                bytes: 1_200_000,
+                skipped: [4, 3, 0, 2, 1, 0],
+                fps_milli: 29_970,
+                done: true,
+                ended: EndReason::Stopped,
+            }),
+            &[
+                0, 16, 2, 2, 4, 172, 2, 162, 2, 168, 165, 11, 128, 159, 73, 4, 3, 3, 2, 1, 10, 146,
+                234, 1, 1, 2, 98, 2, 29, 133, 0,
+            ],
+        );
+    }
+}
