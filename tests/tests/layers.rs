@@ -15,7 +15,9 @@
 //!
 //! one line per layer, top first: a module may use the modules of its own line and of the lines
 //! below, never those above. Every top-level module is on exactly one line. An arrow between a
-//! module and one inside it (a parent and its child) is no arrow between layers.
+//! module and one inside it (a parent and its child) is no arrow between layers. Test modules
+//! (`#[cfg(test)] mod …`) are no part of the layers: a message's golden test beside its code
+//! may read it as the message enum above it does.
 
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
@@ -153,6 +155,55 @@ fn is_ident(ch: char) -> bool {
     ch.is_alphanumeric() || ch == '_'
 }
 
+/// The code with every `#[cfg(test)] mod name { … }` and `#[cfg(test)] mod name;` blanked
+/// (lines kept).
+fn without_test_modules(code: &str) -> String {
+    let mut out: Vec<char> = code.chars().collect();
+    let attr: Vec<char> = "#[cfg(test)]".chars().collect();
+    let mut i = 0;
+    while i + attr.len() <= out.len() {
+        if out[i..i + attr.len()] != attr[..] {
+            i += 1;
+            continue;
+        }
+        let mut j = i + attr.len();
+        while j < out.len() && out[j].is_whitespace() {
+            j += 1;
+        }
+        let rest: String = out[j..out.len().min(j + 4)].iter().collect();
+        if rest != "mod " {
+            i += 1;
+            continue;
+        }
+        while j < out.len() && out[j] != '{' && out[j] != ';' {
+            j += 1;
+        }
+        if j < out.len() && out[j] == '{' {
+            let mut depth = 0;
+            while j < out.len() {
+                match out[j] {
+                    '{' => depth += 1,
+                    '}' => depth -= 1,
+                    _ => {}
+                }
+                j += 1;
+                if depth == 0 {
+                    break;
+                }
+            }
+        } else {
+            j = (j + 1).min(out.len());
+        }
+        for ch in &mut out[i..j] {
+            if *ch != '\n' {
+                *ch = ' ';
+            }
+        }
+        i = j;
+    }
+    out.into_iter().collect()
+}
+
 /// One module file: its path of module names from the crate's root and its code.
 struct Module {
     path: Vec<String>,
@@ -165,7 +216,7 @@ fn modules(root: &Path) -> Vec<Module> {
     let mut out = Vec::new();
     let mut todo = vec![(Vec::new(), root.to_path_buf())];
     while let Some((path, file)) = todo.pop() {
-        let code = code_only(&std::fs::read_to_string(&file).unwrap());
+        let code = without_test_modules(&code_only(&std::fs::read_to_string(&file).unwrap()));
         // where its children's files are
         let stem = file.file_stem().unwrap().to_str().unwrap();
         let dir = if path.is_empty() || stem == "mod" {

@@ -37,7 +37,6 @@
 //!
 //! # Layers
 //! ```text
-//! golden
 //! framing
 //! message
 //! preview  picture
