@@ -18,8 +18,8 @@
 //! Each module uses only modules on its own line or below (`tests/tests/layers.rs` checks it):
 //! ```text
 //! cli
-//! preview
-//! session
+//! calibrate  preview
+//! session  report
 //! axis  motor
 //! source  link
 //! ```
@@ -41,10 +41,12 @@ pub fn error_chain(e: &dyn std::error::Error) -> String {
 }
 
 pub mod axis;
+pub mod calibrate;
 pub mod cli;
 pub mod link;
 pub mod motor;
 pub mod preview;
+pub mod report;
 pub mod session;
 pub mod source;
 

@@ -79,6 +79,58 @@ impl Drop for Killed {
     }
 }
 
+/// The processes `pid` has started and not yet reaped, from each of its threads' `children`
+/// list in /proc.
+fn children_of(pid: u32) -> Vec<u32> {
+    let Ok(tasks) = std::fs::read_dir(format!("/proc/{pid}/task")) else {
+        return Vec::new();
+    };
+    tasks
+        .flatten()
+        .filter_map(|t| std::fs::read_to_string(t.path().join("children")).ok())
+        .flat_map(|s| {
+            s.split_whitespace()
+                .filter_map(|w| w.parse().ok())
+                .collect::<Vec<u32>>()
+        })
+        .collect()
+}
+
+/// Watches `pid`'s children every 2 ms until dropped; [`ChildWatch::seen`] is every child pid
+/// seen.
+struct ChildWatch {
+    stop: Arc<std::sync::atomic::AtomicBool>,
+    thread: Option<std::thread::JoinHandle<Vec<u32>>>,
+}
+
+impl ChildWatch {
+    fn start(pid: u32) -> ChildWatch {
+        let stop = Arc::new(std::sync::atomic::AtomicBool::new(false));
+        let s = stop.clone();
+        let thread = std::thread::spawn(move || {
+            let mut seen = Vec::new();
+            while !s.load(Ordering::SeqCst) {
+                for c in children_of(pid) {
+                    if !seen.contains(&c) {
+                        seen.push(c);
+                    }
+                }
+                std::thread::sleep(Duration::from_millis(2));
+            }
+            seen
+        });
+        ChildWatch {
+            stop,
+            thread: Some(thread),
+        }
+    }
+
+    fn seen(mut self) -> Vec<u32> {
+        self.stop.store(true, Ordering::SeqCst);
+        self.thread.take().unwrap().join().unwrap()
+    }
+}
+
 fn request(url: &str, method: &str, path: &str, body: &str) -> (u16, serde_json::Value) {
     let addr = page::addr_of(url);
     match method {
@@ -121,7 +173,7 @@ fn a_cable_fault_mid_sweep_loses_nothing_received_and_the_job_goes_on() {
     let (head_far, head_end) = TTYPort::pair().unwrap();
     let (host_far, host_end) = TTYPort::pair().unwrap();
     let cable = Cable::join(head_far, host_far);
-    let _head = Killed(
+    let head_process = Killed(
         Command::new(workspace_bin("scanner-device"))
             .args([
                 "serve", "--source", "rig", "--scene", "job.toml", "--work", "head",
@@ -180,6 +232,8 @@ fn a_cable_fault_mid_sweep_loses_nothing_received_and_the_job_goes_on() {
     wait(&url, 60, "the board's shot", |s| {
         s["head"]["state"] == "idle"
     });
+    // the head calibrates in its own process: no child of it runs while it calibrates
+    let watch = ChildWatch::start(head_process.0.id());
     assert_eq!(
         command(&url, r#"{"command":"calibrate"}"#)["outcome"],
         "accepted"
@@ -187,6 +241,9 @@ fn a_cable_fault_mid_sweep_loses_nothing_received_and_the_job_goes_on() {
     wait(&url, 180, "the calibration", |s| {
         s["calibration"]["result"] == "calibrated"
     });
+    assert_eq!(watch.seen(), Vec::<u32>::new(), "the head started processes");
+    let log = std::fs::read_to_string(dir.join("head/calibrate.log")).unwrap();
+    assert!(log.lines().count() >= 3, "the calibration's lines: {log}");
 
     // view 1, with the cable failing in its middle
     assert_eq!(
@@ -434,4 +491,18 @@ fn cross_site_requests_path_tricks_and_requests_without_the_token_are_refused() 
     let big = format!(r#"{{"command":"hello","pad":"{}"}}"#, "x".repeat(5000));
     assert_eq!(post("Content-Type: application/json\r\n", &big), 413);
     assert_eq!(post("Content-Type: application/json\r\n", "{not json"), 400);
+}
+
+/// The watch of the calibration test sees a child when there is one: a shell running `sleep`.
+#[test]
+fn the_child_watch_sees_a_child() {
+    let shell = Killed(
+        Command::new("sh")
+            .args(["-c", "sleep 0.5; sleep 0.5"])
+            .spawn()
+            .unwrap(),
+    );
+    let watch = ChildWatch::start(shell.0.id());
+    std::thread::sleep(Duration::from_millis(300));
+    assert!(!watch.seen().is_empty());
 }

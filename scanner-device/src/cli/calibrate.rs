@@ -11,15 +11,13 @@ use scanner_io::outln;
 use scanner_calib::board::BoardFile;
 use scanner_calib::disc::{Disc, Paper};
 use scanner_calib::file::{CalibrationFile, write_atomic};
-use scanner_calib::selfcheck::{Halves, SelfCheck, self_check};
 use scanner_calib::{
-    BoardMethod, CalibError, Coverage, DotGrid, ImageFit, Target, board_planes, check_size,
-    intrinsics_auto, overlay, print, short,
+    BoardMethod, DotGrid, Target, check_size, intrinsics_auto, print, short,
 };
 
-use super::report::{
-    self, BoardData, CameraData, CoverageData, DistanceData, IntrinsicsData, IntrinsicsImage,
-    SelfCheckData, SheetData, TurntableData, write_json,
+use crate::calibrate::{Said, load_board, load_gray, save_png};
+use crate::report::{
+    self, DistanceData, write_json,
 };
 use super::values;
 
@@ -206,30 +204,6 @@ impl From<MethodArg> for BoardMethod {
     }
 }
 
-/// Reads an image file as gray.
-///
-/// # Errors
-/// Names the file and the problem.
-pub fn load_gray(path: &Path) -> Result<GrayImage> {
-    Ok(scanner_io::image_file::open(path)?.to_luma8())
-}
-
-pub(crate) fn load_board(path: Option<&Path>) -> Result<BoardFile> {
-    match path {
-        Some(p) => Ok(BoardFile::load(p)?),
-        None => Ok(BoardFile::default()),
-    }
-}
-
-fn save_png(img: &image::RgbImage, path: &Path) -> Result<()> {
-    let mut bytes = Vec::new();
-    img.write_to(
-        &mut std::io::Cursor::new(&mut bytes),
-        image::ImageFormat::Png,
-    )?;
-    write_atomic(path, &bytes).with_context(|| format!("cannot write {}", path.display()))
-}
-
 /// `scanner-device board`: writes the board file and its printable sheets.
 ///
 /// # Errors
@@ -280,6 +254,15 @@ pub fn board_command(
     Ok(())
 }
 
+/// A calibration's words on the terminal: findings to standard output, warnings to standard
+/// error.
+pub(crate) fn on_terminal(said: Said) {
+    match said {
+        Said::Line(l) => outln!("{l}"),
+        Said::Warning(w) => crate::errln!("warning: {w}"),
+    }
+}
+
 /// Runs a calibration command.
 ///
 /// # Errors
@@ -291,7 +274,16 @@ pub fn calibrate(cmd: &Calibrate) -> Result<()> {
             out,
             overlays,
             images,
-        } => intrinsics_command(&target.target()?, images, out, overlays.as_deref()),
+        } => {
+            let plan = crate::calibrate::IntrinsicsPlan {
+                target: target.target()?,
+                images: images.clone(),
+                out: out.clone(),
+                overlays: overlays.clone(),
+            };
+            crate::calibrate::intrinsics(&plan, &mut on_terminal)?;
+            Ok(())
+        }
         Calibrate::Distance {
             board,
             near,
@@ -322,14 +314,16 @@ pub fn calibrate(cmd: &Calibrate) -> Result<()> {
             overlay,
             image,
         } => {
-            let paths = BoardPaths {
-                board: board.as_deref(),
-                camera,
-                image,
-                out,
-                overlay,
+            let plan = crate::calibrate::BoardPlan {
+                board: board.clone(),
+                camera: camera.clone(),
+                image: image.clone(),
+                out: out.clone(),
+                overlay: overlay.clone(),
+                method: (*method).into(),
             };
-            board_planes_command(&paths, (*method).into())
+            crate::calibrate::board(&plan, &mut on_terminal)?;
+            Ok(())
         }
     }
 }
@@ -623,354 +617,7 @@ fn distance_command(
         d_z_px: d.d_z,
         epsilon_mm: d.epsilon_mm,
     };
-    write_json(&report::beside(out), &data)
+    write_json(&report::beside(out), &data)?;
+    Ok(())
 }
 
-/// The files of `calibrate board`.
-struct BoardPaths<'a> {
-    board: Option<&'a Path>,
-    camera: &'a Path,
-    image: &'a Path,
-    out: &'a Path,
-    overlay: &'a Path,
-}
-
-/// `calibrate board`: both planes from one image, the overlay written also when it fails.
-fn board_planes_command(p: &BoardPaths, method: BoardMethod) -> Result<()> {
-    let b = load_board(p.board)?;
-    let cam_file = CalibrationFile::load(p.camera)?;
-    let cam = cam_file
-        .camera()
-        .with_context(|| format!("camera in {}", p.camera.display()))?;
-    let img = load_gray(p.image)?;
-    check_size((cam_file.image.width, cam_file.image.height), &img).with_context(|| {
-        format!(
-            "{} with the camera of {}",
-            p.image.display(),
-            p.camera.display()
-        )
-    })?;
-    let outcome = board_planes(&img, &b, &cam);
-    save_png(&overlay::board_overlay(&img, &outcome, &b, &cam), p.overlay)?;
-    let turntable = outcome
-        .turntable
-        .as_ref()
-        .map(|t| TurntableData { dots: t.fit.used });
-    if let Some(t) = &turntable {
-        outln!(
-            "turntable disc in the picture: its {} dots are no board markers, left out",
-            t.dots
-        );
-    }
-    let fit = match outcome.result {
-        Ok(fit) => fit,
-        Err(e) => {
-            if turntable.is_some() {
-                crate::errln!(
-                    "the turntable disc lies in the picture: if it hides the board's lower markers, take the board's picture without it"
-                );
-            }
-            let data = BoardData {
-                sheets: Vec::new(),
-                method: None,
-                angle_deg: None,
-                turntable,
-                error: Some(e.to_string()),
-            };
-            write_json(&report::beside(p.out), &data)?;
-            return Err(e).with_context(|| {
-                format!(
-                    "board calibration from {} (see {})",
-                    p.image.display(),
-                    p.overlay.display()
-                )
-            });
-        }
-    };
-    let mut file = cam_file;
-    let used = file.set_board(&fit, &b, &cam, method);
-    if used != method {
-        crate::errln!(
-            "warning: the paper's construction needs all six markers of the paper's layout on each sheet; used the layout pose"
-        );
-    }
-    let angle = file.board.as_ref().map_or(f64::NAN, |s| s.angle_deg);
-    file.save(p.out)?;
-    for (k, s) in fit.sheets.iter().enumerate() {
-        outln!("{}", s.summary(["left", "right"][k]));
-        if s.rms_px > scanner_calib::MAX_SHEET_RMS_PX {
-            crate::errln!(
-                "warning: the {} sheet fits its layout with {:.2} px RMS, a flat print within {} px: is it flat? A bent sheet tilts its plane, by a tenth of a degree or so where the object hides part of it",
-                ["left", "right"][k],
-                s.rms_px,
-                scanner_calib::MAX_SHEET_RMS_PX
-            );
-        }
-    }
-    outln!(
-        "planes by {}; angle between them {angle:.3}°; -> {} (picture: {})",
-        used.name(),
-        p.out.display(),
-        p.overlay.display()
-    );
-    let data = BoardData {
-        sheets: fit
-            .sheets
-            .iter()
-            .zip(["left", "right"])
-            .map(|(s, side)| SheetData::of(s, side))
-            .collect(),
-        method: Some(used.name()),
-        angle_deg: Some(angle),
-        turntable,
-        error: None,
-    };
-    write_json(&report::beside(p.out), &data)
-}
-
-/// `calibrate intrinsics`: a line and an overlay per image (also when the calibration fails),
-/// then the camera file.
-fn intrinsics_command(
-    target: &Target,
-    images: &[PathBuf],
-    out: &Path,
-    overlays: Option<&Path>,
-) -> Result<()> {
-    let imgs: Vec<GrayImage> = images.iter().map(|p| load_gray(p)).collect::<Result<_>>()?;
-    let (outcome, k3_fixed) = intrinsics_auto(&imgs, target);
-    let name = |i: usize| images[i].display().to_string();
-    for (i, r) in outcome.images.iter().enumerate() {
-        let cropped = r.cropped_from.map_or(String::new(), |(w, h)| {
-            format!(
-                " ({w}×{h}, one pixel more than the rest: its last {} dropped)",
-                match (w > outcome.size.0, h > outcome.size.1) {
-                    (true, true) => "column and row",
-                    (true, false) => "column",
-                    _ => "row",
-                }
-            )
-        });
-        outln!("  {}: {}{cropped}", name(i), image_line(&r.status, name));
-    }
-    let mut data = IntrinsicsData {
-        images: outcome
-            .images
-            .iter()
-            .enumerate()
-            .map(|(i, r)| IntrinsicsImage::of(name(i), r, name))
-            .collect(),
-        used: 0,
-        camera: None,
-        rms_px: None,
-        k3_fixed,
-        coverage: None,
-        self_check: None,
-        error: None,
-    };
-    let dir = overlays.map_or_else(|| default_overlays(out), Path::to_path_buf);
-    std::fs::create_dir_all(&dir).with_context(|| format!("cannot create {}", dir.display()))?;
-    for ((p, img), r) in images.iter().zip(&imgs).zip(&outcome.images) {
-        let stem = p
-            .file_stem()
-            .map_or("image".into(), |s| s.to_string_lossy());
-        save_png(
-            &overlay::grid_overlay(img, r),
-            &dir.join(format!("{stem}-overlay.png")),
-        )?;
-    }
-    let overlays_note = format!("(pictures: {})", dir.display());
-    let fit = match outcome.into_fit() {
-        Ok(fit) => fit,
-        Err(e) => {
-            data.error = Some(e.to_string());
-            write_json(&report::beside(out), &data)?;
-            return Err(e).with_context(|| format!("no camera calibrated {overlays_note}"));
-        }
-    };
-    let used = fit.views.iter().filter(|v| v.is_ok()).count();
-    let check = self_check(&fit, target);
-    let mut file = CalibrationFile::from_camera(
-        &fit.camera,
-        fit.size,
-        source_note(target, used),
-        Some(fit.rms_px),
-    );
-    if let Ok(c) = &check {
-        let halves = c.halves.as_ref().ok();
-        file.set_covariance(
-            &c.covariance,
-            halves.map(Halves::ratio),
-            halves.map_or(1.0, Halves::covariance_scale),
-        );
-    }
-    file.save(out)?;
-    let c = &fit.camera;
-    let d = c.distortion();
-    outln!(
-        "fx {:.3} fy {:.3} cx {:.3} cy {:.3} k1 {:.5} k2 {:.5} p1 {:.6} p2 {:.6} k3 {:.5}; rms {:.4} px over {used} images -> {} {overlays_note}",
-        c.fx(),
-        c.fy(),
-        c.principal_point().x,
-        c.principal_point().y,
-        d.k1,
-        d.k2,
-        d.p1,
-        d.p2,
-        d.k3,
-        fit.rms_px,
-        out.display()
-    );
-    let cover = Coverage::of(&fit);
-    let ((cells, all), (border, ring)) = (cover.cells(), cover.border());
-    let (cols, rows) = scanner_calib::intrinsics::COVER_CELLS;
-    let empty = cover.empty_corners();
-    let corners = if empty.is_empty() {
-        String::new()
-    } else {
-        format!(
-            "; none in the {} corner{}, where the distortion is extrapolated",
-            empty.join(", "),
-            if empty.len() == 1 { "" } else { "s" }
-        )
-    };
-    outln!(
-        "coverage: the features used fall in {cells} of the image's {all} cells ({cols}×{rows}), {border} of the {ring} on its border{corners}"
-    );
-    if k3_fixed {
-        outln!(
-            "k3 fixed at 0: no feature used lies on the image's border, and only there does k3 show apart from k1 and k2 (shots with the target in the corners let it be fitted)"
-        );
-    }
-    match &check {
-        Ok(c) => {
-            let picture = dir.join("uncertainty.png");
-            let first = fit.views.iter().position(Result::is_ok).unwrap_or(0);
-            let features = fit
-                .views
-                .iter()
-                .flatten()
-                .flat_map(|v| v.found.iter().map(|f| f.1));
-            save_png(
-                &overlay::uncertainty_overlay(&imgs[first], c, features),
-                &picture,
-            )?;
-            print_self_check(c, &picture);
-            data.self_check = Some(SelfCheckData::of(c));
-        }
-        Err(e) => outln!("self-check: not possible ({e})"),
-    }
-    data.used = used;
-    data.camera = Some(CameraData::of(&fit.camera));
-    data.rms_px = Some(fit.rms_px);
-    data.coverage = Some(CoverageData::of(&fit));
-    write_json(&report::beside(out), &data)
-}
-
-/// The self-check's lines: the halves' difference, the uncertainty and where to add shots.
-fn print_self_check(c: &SelfCheck, picture: &Path) {
-    match &c.halves {
-        Ok(h) => {
-            outln!(
-                "cross-validation: halves of {} and {} images differ by {:.3} px rms where the features were ({:.3} px expected from the corner noise of {:.3} px), {:.3} px rms and {:.3} px at most over the whole image",
-                h.images.0,
-                h.images.1,
-                h.features_rms_px,
-                h.expected_features_rms_px,
-                c.covariance.noise_px,
-                h.image_rms_px,
-                h.image_max_px
-            );
-            if h.too_far() {
-                outln!(
-                    "warning: the halves differ {:.1}× more than the corner noise explains: the lens model does not fit, the target is not flat, or some shots moved or blurred — check the overlays, retake the worst images",
-                    h.ratio()
-                );
-            }
-        }
-        Err(e) => outln!(
-            "cross-validation: not possible ({e}): with {} or more usable images each half is calibrated apart and the two compared",
-            2 * scanner_calib::selfcheck::MIN_HALF_IMAGES
-        ),
-    }
-    let more = c.map.more_shots();
-    let advice = if more.is_empty() {
-        String::new()
-    } else {
-        format!(
-            "; more shots with the target in the {} would help",
-            more.iter()
-                .map(|r| format!("{} ({:.2} px)", r.name, r.sigma_px))
-                .collect::<Vec<_>>()
-                .join(", ")
-        )
-    };
-    outln!(
-        "projection uncertainty: {:.3} px median where the features were, {:.3} px at most{advice} (map: {})",
-        c.map.covered_median(),
-        c.map.max(),
-        picture.display()
-    );
-}
-
-/// What `calibrate intrinsics` says about one image.
-fn image_line(status: &Result<ImageFit, CalibError>, name: impl Fn(usize) -> String) -> String {
-    match status {
-        Ok(v) if v.dropped.is_empty() => format!(
-            "used: {} features, rms {:.3} px, max {:.3} px",
-            v.found.len(),
-            v.rms_px,
-            v.max_px
-        ),
-        Ok(v) => format!(
-            "used: {} features, rms {:.3} px, max {:.3} px; dropped {} far off the fit ({})",
-            v.found.len(),
-            v.rms_px,
-            v.max_px,
-            v.dropped.len(),
-            v.dropped
-                .iter()
-                .map(|(k, _, e)| format!("#{k} {e:.1} px"))
-                .collect::<Vec<_>>()
-                .join(", ")
-        ),
-        Err(CalibError::SameView { other }) => {
-            format!(
-                "refused: the same view as {} (it adds nothing)",
-                name(*other)
-            )
-        }
-        Err(e) => format!("refused: {e}"),
-    }
-}
-
-/// `<out stem>-overlays/` beside the camera file.
-fn default_overlays(out: &Path) -> PathBuf {
-    let stem = out
-        .file_stem()
-        .map_or("camera".into(), |s| s.to_string_lossy());
-    out.with_file_name(format!("{stem}-overlays"))
-}
-
-/// The calibration file's note on where the intrinsics came from.
-fn source_note(target: &Target, used: usize) -> String {
-    match *target {
-        Target::Dots(g) => format!(
-            "intrinsics from {used} dot-grid images ({}x{}, {} mm pitch)",
-            g.cols, g.rows, g.pitch
-        ),
-        Target::Chessboard { cols, rows, square } => format!(
-            "intrinsics from {used} chessboard images ({cols}x{rows} squares of {square} mm, {}x{} inner corners)",
-            cols - 1,
-            rows - 1
-        ),
-        Target::Charuco(b) => format!(
-            "intrinsics from {used} ChArUco images ({}x{} squares of {} mm, markers {} mm, {} from ID {})",
-            b.cols,
-            b.rows,
-            b.square,
-            b.marker,
-            b.dictionary.name(),
-            b.first_id
-        ),
-    }
-}

@@ -10,8 +10,9 @@ use scanner_calib::file::CalibrationFile;
 use scanner_calib::{Target, board_planes, find_grid};
 use scanner_core::stripe::PixelFormat;
 
-use super::calibrate::{TargetArgs, load_board};
-use super::report::{CaptureData, GridData, ImageRefusal, SheetData, ShotData, write_json};
+use super::calibrate::TargetArgs;
+use crate::calibrate::load_board;
+use crate::report::{CaptureData, GridData, ImageRefusal, SheetData, ShotData, write_json};
 use crate::source::OwnedFrame;
 
 /// `capture`'s options.

@@ -5,7 +5,6 @@ pub mod capture;
 pub mod preview;
 #[cfg(feature = "rig")]
 pub mod render;
-pub mod report;
 pub mod scan;
 pub mod serve;
 pub mod values;
@@ -196,7 +195,7 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
             let b = if *charuco {
                 scanner_calib::board::BoardFile::charuco_default()
             } else {
-                calibrate::load_board(board.as_deref())?
+                crate::calibrate::load_board(board.as_deref())?
             };
             calibrate::board_command(&b, out, *dpi, *a4, *turntable)?;
         }
@@ -205,7 +204,7 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
             let done = scan::scan(a)?;
             scan::print_report(&done, a.out.trim() == "-");
             if let Some(path) = &a.report {
-                report::write_json(path, &report::ScanData::from(&done))?;
+                crate::report::write_json(path, &crate::report::ScanData::from(&done))?;
             }
             if let Some(e) = done.ended_early {
                 anyhow::bail!("{e}");

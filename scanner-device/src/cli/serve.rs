@@ -10,7 +10,7 @@
 //! through one lock (`SharedOut`).
 
 use std::io::{Read, Write};
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::mpsc::{Receiver, Sender, channel};
 use std::sync::{Arc, Mutex};
@@ -26,7 +26,8 @@ use scanner_wire::{
     Message, Outcome, PreviewRequest, Reply, SweepRequest, WireError,
 };
 
-use super::calibrate::{TargetArgs, load_board};
+use super::calibrate::TargetArgs;
+use crate::calibrate::load_board;
 use super::scan::{ScanArgs, open_on, open_source, source_format};
 use crate::link::Link;
 use crate::preview::{PreviewOptions, run_preview};
@@ -863,18 +864,28 @@ impl Worker {
         Ok(image::DynamicImage::ImageRgb8(rgb).to_luma8())
     }
 
-    /// Calibrates from the kept shots by the head's own `calibrate` commands (run as children,
+    /// Calibrates from the kept shots in this process (the camera, then the board's planes;
     /// their lines into `calibrate.log`), then tells the host; the log's line and the new
     /// calibration file when it passed.
     fn calibrate(&self, seq: u32, shots: (u16, u16)) -> Result<(String, Option<PathBuf>)> {
+        use crate::calibrate::{BoardPlan, IntrinsicsPlan, Said};
         let work = &self.args.work;
-        let log = work.join("calibrate.log");
+        let log_path = work.join("calibrate.log");
+        let mut log = std::fs::OpenOptions::new()
+            .create(true)
+            .append(true)
+            .open(&log_path)
+            .with_context(|| format!("cannot write {}", log_path.display()))?;
+        let mut say = |said: Said| {
+            let line = match said {
+                Said::Line(l) => l,
+                Said::Warning(w) => format!("warning: {w}"),
+            };
+            // the log is for reading later: a line that cannot be written is not worth a refusal
+            let _ = writeln!(log, "{line}");
+        };
         let camera = work.join("camera.toml");
         let calibration = work.join("calibration.toml");
-        let grids: Vec<PathBuf> = (0..shots.0)
-            .map(|k| work.join("shots").join(shot_name(false, k)))
-            .collect();
-        let board_shot = work.join("shots").join(shot_name(true, shots.1 - 1));
         let mut msg = Calibrated {
             seq,
             result: 1,
@@ -884,51 +895,48 @@ impl Worker {
             board_rms_px: f32::NAN,
             board_angle_deg: f32::NAN,
         };
-        let mut intrinsics = vec!["calibrate".to_string(), "intrinsics".into()];
-        intrinsics.extend(target_flags(&self.args.target));
-        intrinsics.extend(["--out".into(), camera.display().to_string()]);
-        intrinsics.extend(grids.iter().map(|p| p.display().to_string()));
-        let first = run_child(&intrinsics, &log)?;
-        if let Ok(r) = read_json(&super::report::beside(&camera)) {
-            let num = |v: &serde_json::Value| v.as_f64().unwrap_or(f64::NAN) as f32;
-            msg.shots = r["used"]
-                .as_u64()
-                .map_or(0, |n| n.min(u64::from(u16::MAX)) as u16);
-            msg.rms_px = num(&r["rms_px"]);
-            msg.halves_px = num(&r["self_check"]["halves"]["image_rms_px"]);
-        }
+        let intrinsics = IntrinsicsPlan {
+            target: self.args.target.target()?,
+            images: (0..shots.0)
+                .map(|k| work.join("shots").join(shot_name(false, k)))
+                .collect(),
+            out: camera.clone(),
+            overlays: None,
+        };
         let mut done = None;
-        if first {
-            msg.result = 2;
-            let mut board = vec![
-                "calibrate".to_string(),
-                "board".into(),
-                "--camera".into(),
-                camera.display().to_string(),
-                "--out".into(),
-                calibration.display().to_string(),
-                "--overlay".into(),
-                work.join("calibration-overlay.png").display().to_string(),
-            ];
-            if let Some(b) = &self.args.board_file {
-                board.extend(["--board".into(), b.display().to_string()]);
+        match crate::calibrate::intrinsics(&intrinsics, &mut say) {
+            Ok(r) => {
+                msg.shots = u16::try_from(r.used).unwrap_or(u16::MAX);
+                msg.rms_px = r.rms_px.map_or(f32::NAN, |v| v as f32);
+                msg.halves_px = r
+                    .self_check
+                    .as_ref()
+                    .and_then(|c| c.halves.as_ref())
+                    .map_or(f32::NAN, |h| h.image_rms_px as f32);
+                msg.result = 2;
+                let board = BoardPlan {
+                    board: self.args.board_file.clone(),
+                    camera,
+                    image: work.join("shots").join(shot_name(true, shots.1 - 1)),
+                    out: calibration.clone(),
+                    overlay: work.join("calibration-overlay.png"),
+                    method: scanner_calib::BoardMethod::LayoutPose,
+                };
+                match crate::calibrate::board(&board, &mut say) {
+                    Ok(b) => {
+                        msg.board_rms_px =
+                            b.sheets.iter().map(|s| s.rms_px).fold(f64::NAN, f64::max) as f32;
+                        msg.board_angle_deg = b.angle_deg.map_or(f32::NAN, |a| a as f32);
+                        msg.result = 0;
+                        done = Some(calibration);
+                    }
+                    Err(e) => say(Said::Line(format!(
+                        "error: {}",
+                        crate::error_chain(&e)
+                    ))),
+                }
             }
-            board.push(board_shot.display().to_string());
-            let second = run_child(&board, &log)?;
-            if let Ok(r) = read_json(&super::report::beside(&calibration)) {
-                let rms = r["sheets"]
-                    .as_array()
-                    .into_iter()
-                    .flatten()
-                    .filter_map(|s| s["rms_px"].as_f64())
-                    .fold(f64::NAN, f64::max);
-                msg.board_rms_px = rms as f32;
-                msg.board_angle_deg = r["angle_deg"].as_f64().unwrap_or(f64::NAN) as f32;
-            }
-            if second {
-                msg.result = 0;
-                done = Some(calibration);
-            }
+            Err(e) => say(Said::Line(format!("error: {}", crate::error_chain(&e)))),
         }
         let mut out = self.out.clone();
         out.send(&Message::Calibrated(msg))
@@ -939,7 +947,7 @@ impl Worker {
                 msg.result,
                 msg.shots,
                 msg.rms_px,
-                log.display()
+                log_path.display()
             ),
             done,
         ))
@@ -957,75 +965,6 @@ fn shot_name(board: bool, k: u16) -> String {
     } else {
         format!("grid-{k:02}.png")
     }
-}
-
-/// The intrinsics target as `calibrate intrinsics`' flags.
-fn target_flags(t: &TargetArgs) -> Vec<String> {
-    let grid = |(c, r): (usize, usize)| format!("{c}x{r}");
-    if let Some(sq) = t.charuco {
-        let mut v = vec![
-            "--charuco".into(),
-            grid(sq),
-            "--square".into(),
-            t.square.to_string(),
-            "--dictionary".into(),
-            t.dictionary.clone(),
-            "--first-id".into(),
-            t.first_id.to_string(),
-        ];
-        if let Some(m) = t.marker {
-            v.extend(["--marker".into(), m.to_string()]);
-        }
-        return v;
-    }
-    if let Some(sq) = t.chessboard_squares {
-        return vec![
-            "--chessboard-squares".into(),
-            grid(sq),
-            "--square".into(),
-            t.square.to_string(),
-        ];
-    }
-    if let Some(c) = t.chessboard_corners {
-        return vec![
-            "--chessboard-corners".into(),
-            grid(c),
-            "--square".into(),
-            t.square.to_string(),
-        ];
-    }
-    vec![
-        "--dots".into(),
-        grid(t.dots),
-        "--pitch".into(),
-        t.pitch.to_string(),
-        "--dot".into(),
-        t.dot.to_string(),
-    ]
-}
-
-/// Runs this program with `args`, its output appended to `log`; whether it succeeded.
-fn run_child(args: &[String], log: &Path) -> Result<bool> {
-    let exe = std::env::current_exe().context("cannot find this program to calibrate with")?;
-    let file = std::fs::OpenOptions::new()
-        .create(true)
-        .append(true)
-        .open(log)
-        .with_context(|| format!("cannot write {}", log.display()))?;
-    let status = std::process::Command::new(exe)
-        .args(args)
-        .stdin(std::process::Stdio::null())
-        .stdout(file.try_clone()?)
-        .stderr(file)
-        .status()
-        .context("cannot run the calibration")?;
-    Ok(status.success())
-}
-
-/// A report written by a child, read back.
-fn read_json(path: &Path) -> Result<serde_json::Value> {
-    let bytes = std::fs::read(path).with_context(|| format!("cannot read {}", path.display()))?;
-    serde_json::from_slice(&bytes).with_context(|| format!("{} is no report", path.display()))
 }
 
 /// A camera for checking a board shot before any calibration: a focal length of the picture's

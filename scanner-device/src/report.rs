@@ -4,7 +4,6 @@
 
 use std::path::{Path, PathBuf};
 
-use anyhow::{Context, Result};
 use scanner_calib::selfcheck::SelfCheck;
 use scanner_calib::{
     CalibError, Coverage, FoundGrid, ImageFit, ImageReport, IntrinsicsFit, SheetFit,
@@ -14,14 +13,28 @@ use serde::Serialize;
 
 use crate::session::{DiscOutcome, ScanReport};
 
+/// A report that could not be written.
+#[derive(Debug, thiserror::Error)]
+#[error("cannot write the report {path}")]
+pub struct ReportError {
+    /// The report's file.
+    pub path: PathBuf,
+    /// Why.
+    #[source]
+    pub source: std::io::Error,
+}
+
 /// Writes `report` as pretty JSON to `path`, whole or not at all.
 ///
 /// # Errors
-/// The file cannot be written.
-pub fn write_json(path: &Path, report: &impl Serialize) -> Result<()> {
-    let bytes = serde_json::to_vec_pretty(report).context("a report as JSON")?;
-    scanner_calib::file::write_atomic(path, &bytes)
-        .with_context(|| format!("cannot write {}", path.display()))
+/// [`ReportError`]: the file cannot be written.
+pub fn write_json(path: &Path, report: &impl Serialize) -> Result<(), ReportError> {
+    let fail = |source| ReportError {
+        path: path.to_path_buf(),
+        source,
+    };
+    let bytes = serde_json::to_vec_pretty(report).map_err(|e| fail(std::io::Error::other(e)))?;
+    scanner_calib::file::write_atomic(path, &bytes).map_err(fail)
 }
 
 /// `<stem>-report.json` beside a calibration file `out` (`camera.toml` → `camera-report.json`).
