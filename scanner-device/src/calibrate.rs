@@ -388,7 +388,10 @@ pub fn board(p: &BoardPlan, say: &mut dyn FnMut(Said)) -> Result<BoardData, Cali
         }
     })?;
     let outcome = board_planes(&img, &b, &cam);
-    save_png(&overlay::board_overlay(&img, &outcome, &b, &cam), &p.overlay)?;
+    save_png(
+        &overlay::board_overlay(&img, &outcome, &b, &cam),
+        &p.overlay,
+    )?;
     let turntable = outcome
         .turntable
         .as_ref()

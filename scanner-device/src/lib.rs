@@ -18,7 +18,7 @@
 //! Each module uses only modules on its own line or below (`tests/tests/layers.rs` checks it):
 //! ```text
 //! cli
-//! calibrate  preview
+//! calibrate  preview  scan
 //! session  report
 //! axis  motor
 //! source  link
@@ -47,6 +47,7 @@ pub mod link;
 pub mod motor;
 pub mod preview;
 pub mod report;
+pub mod scan;
 pub mod session;
 pub mod source;
 

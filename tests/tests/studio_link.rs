@@ -241,7 +241,11 @@ fn a_cable_fault_mid_sweep_loses_nothing_received_and_the_job_goes_on() {
     wait(&url, 180, "the calibration", |s| {
         s["calibration"]["result"] == "calibrated"
     });
-    assert_eq!(watch.seen(), Vec::<u32>::new(), "the head started processes");
+    assert_eq!(
+        watch.seen(),
+        Vec::<u32>::new(),
+        "the head started processes"
+    );
     let log = std::fs::read_to_string(dir.join("head/calibrate.log")).unwrap();
     assert!(log.lines().count() >= 3, "the calibration's lines: {log}");
 

@@ -11,15 +11,11 @@ use scanner_io::outln;
 use scanner_calib::board::BoardFile;
 use scanner_calib::disc::{Disc, Paper};
 use scanner_calib::file::{CalibrationFile, write_atomic};
-use scanner_calib::{
-    BoardMethod, DotGrid, Target, check_size, intrinsics_auto, print, short,
-};
+use scanner_calib::{BoardMethod, DotGrid, Target, check_size, intrinsics_auto, print, short};
 
-use crate::calibrate::{Said, load_board, load_gray, save_png};
-use crate::report::{
-    self, DistanceData, write_json,
-};
 use super::values;
+use crate::calibrate::{Said, load_board, load_gray, save_png};
+use crate::report::{self, DistanceData, write_json};
 
 /// The intrinsics target: a dot grid (default) or a chessboard, with its sizes.
 #[derive(Debug, Clone, clap::Args)]
@@ -620,4 +616,3 @@ fn distance_command(
     write_json(&report::beside(out), &data)?;
     Ok(())
 }
-

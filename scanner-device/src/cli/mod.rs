@@ -202,7 +202,7 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
         Some(Command::Calibrate(c)) => calibrate::calibrate(c)?,
         Some(Command::Scan(a)) => {
             let done = scan::scan(a)?;
-            scan::print_report(&done, a.out.trim() == "-");
+            crate::scan::print_report(&done, a.out.trim() == "-");
             if let Some(path) = &a.report {
                 crate::report::write_json(path, &crate::report::ScanData::from(&done))?;
             }

@@ -27,8 +27,8 @@ use scanner_wire::{
 };
 
 use super::calibrate::TargetArgs;
-use crate::calibrate::load_board;
 use super::scan::{ScanArgs, open_on, open_source, source_format};
+use crate::calibrate::load_board;
 use crate::link::Link;
 use crate::preview::{PreviewOptions, run_preview};
 use crate::source::{FrameSource, OwnedFrame, SourceError};
@@ -684,8 +684,7 @@ impl Worker {
         a.scan_id = None;
         let mut plan = super::scan::plan_on(&a, self.link())?;
         plan.stop.flag = Some(self.stop.clone());
-        plan.quiet = true;
-        let report = super::scan::run(plan)?;
+        let report = crate::scan::run(plan, |_| {})?;
         Ok(format!(
             "{} frames, {} points{}",
             report.status.frames,
@@ -930,10 +929,7 @@ impl Worker {
                         msg.result = 0;
                         done = Some(calibration);
                     }
-                    Err(e) => say(Said::Line(format!(
-                        "error: {}",
-                        crate::error_chain(&e)
-                    ))),
+                    Err(e) => say(Said::Line(format!("error: {}", crate::error_chain(&e)))),
                 }
             }
             Err(e) => say(Said::Line(format!("error: {}", crate::error_chain(&e)))),

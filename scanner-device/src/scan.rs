@@ -1,0 +1,185 @@
+//! A scan, planned and run: the source open, the calibration read and checked against it, the
+//! link open ([`ScanPlan`]); [`run`] takes frames to the link until the plan's stop, and
+//! [`report_lines`] says how it ended. The command line and the head's service build plans.
+
+use scanner_core::stripe::Axis;
+use scanner_wire::Skip;
+
+use crate::link::Link;
+use crate::session::{Calibration, DiscOutcome, ScanOptions, ScanReport, StopWhen, run_scan_until};
+use crate::source::FrameSource;
+
+/// A scan, validated and with its resources open: what [`run`] runs.
+pub struct ScanPlan {
+    /// The frames.
+    pub source: Box<dyn FrameSource>,
+    /// The camera and the planes (or the fixed laser's).
+    pub calibration: Calibration,
+    /// The pipeline's settings and the scan's.
+    pub options: ScanOptions,
+    /// Where the packets go.
+    pub link: Link,
+    /// When to stop.
+    pub stop: StopWhen,
+}
+
+/// Link speeds for the README's table, bytes per second.
+pub const LINKS: [(&str, f64); 3] = [
+    ("115200 baud UART", 11_520.0),
+    ("921600 baud UART", 92_160.0),
+    ("USB CDC", 1_000_000.0),
+];
+
+/// Counts a noun: `1 frame`, `2 frames`.
+fn count(n: impl Into<u64>, noun: &str) -> String {
+    let n = n.into();
+    format!("{n} {noun}{}", if n == 1 { "" } else { "s" })
+}
+
+/// The end-of-scan summary, one line per item.
+pub fn report_lines(r: &ScanReport) -> Vec<String> {
+    let s = &r.status;
+    let mut lines = vec![format!(
+        "scan {:08x}: {}, {}, {}, {} bytes in {:.2} s ({:.1} frames/s){}",
+        s.scan_id,
+        count(s.frames, "frame"),
+        count(s.packets, "point packet"),
+        count(s.points, "point"),
+        r.bytes,
+        r.seconds,
+        f64::from(s.frames) / r.seconds.max(1e-9),
+        match (&r.ended_early, &r.stopped) {
+            (Some(e), _) => format!("; ended early: {e}"),
+            (None, Some(why)) => format!("; {why}"),
+            (None, None) => String::new(),
+        }
+    )];
+    match r.bytes_per_point() {
+        Some(bpp) => {
+            lines.push(format!(
+                "{bpp:.2} bytes per point on the link (framing and headers included)"
+            ));
+            for (name, bps) in LINKS {
+                lines.push(format!("  {name}: {:.0} points/s", bps / bpp));
+            }
+        }
+        None => lines.push(
+            "no points were sent: check the laser, the reference frame and the calibration (the skip reasons below)".into(),
+        ),
+    }
+    for reason in Skip::ALL {
+        let n = s.skipped[reason as usize];
+        if n > 0 {
+            lines.push(format!(
+                "  skipped {}: {}",
+                count(n, "frame"),
+                scanner_io::words::skip_reason(reason)
+            ));
+        }
+    }
+    match &r.disc {
+        Some(DiscOutcome::Found {
+            pose,
+            markers,
+            of,
+            rms_px,
+        }) => lines.push(format!(
+            "turntable disc: found, {markers} of {of} dots, rms {rms_px:.3} px, centre {:.1} mm from the camera",
+            pose.translation.norm()
+        )),
+        Some(DiscOutcome::Missed(why)) => lines.push(format!(
+            "turntable disc: not found: {why} (the merge registers this view by its shape)"
+        )),
+        None => {}
+    }
+    if let Some(pace) = &r.pace {
+        lines.push(format!(
+            "camera: {}",
+            crate::session::pace_line(pace, r.pipeline_ms)
+        ));
+    }
+    if let Some(seen) = r.axis_seen.filter(|&a| a != r.axis) {
+        lines.push(format!(
+            "the first laser frame's stripe is a {} line but the scan read a {} one: give {}",
+            axis_words(seen).1,
+            axis_words(r.axis).1,
+            axis_words(seen).0
+        ));
+    } else if r.one_sheet_only() {
+        lines.push(one_plane_hint(r));
+    }
+    lines
+}
+
+/// An axis's flag and the line it reads.
+fn axis_words(a: Axis) -> (&'static str, &'static str) {
+    match a {
+        Axis::Columns => ("--columns", "horizontal"),
+        Axis::Rows => ("--rows", "vertical"),
+    }
+}
+
+/// What to do when most frames saw the stripe on one board sheet only.
+fn one_plane_hint(r: &ScanReport) -> String {
+    let (flag, line) = axis_words(r.axis);
+    format!(
+        "most frames showed the stripe on one sheet only: the laser line must cross the crease onto both sheets (the scan read a {line} line, {flag}, {})",
+        if r.axis_found {
+            "found from the first laser frame"
+        } else {
+            "as given"
+        }
+    )
+}
+
+/// Prints the end-of-scan summary: on standard output, or on standard error when standard
+/// output carries the scan itself (`--out -`). A closed stream is not an error.
+pub fn print_report(r: &ScanReport, to_stderr: bool) {
+    use std::io::Write as _;
+    for line in report_lines(r) {
+        let _ = if to_stderr {
+            writeln!(std::io::stderr().lock(), "{line}")
+        } else {
+            writeln!(std::io::stdout().lock(), "{line}")
+        };
+    }
+}
+
+/// Runs a planned scan to its end; `progress` sees the counters after every frame.
+///
+/// # Errors
+/// [`RunError`]: the source failing before the first frame, the link failing.
+pub fn run(
+    plan: ScanPlan,
+    mut progress: impl FnMut(&scanner_wire::Status),
+) -> Result<ScanReport, RunError> {
+    let ScanPlan {
+        mut source,
+        calibration,
+        options,
+        mut link,
+        stop,
+    } = plan;
+    let report = run_scan_until(
+        source.as_mut(),
+        &calibration,
+        options,
+        &mut link,
+        &stop,
+        |s| progress(s),
+        |_, _| {},
+    )?;
+    link.finish()?;
+    Ok(report)
+}
+
+/// Why a scan stopped short of its report.
+#[derive(Debug, thiserror::Error)]
+pub enum RunError {
+    /// The session failed (the source before the first frame, the link).
+    #[error(transparent)]
+    Session(#[from] crate::session::SessionError),
+    /// The link could not be finished (its last packets flushed).
+    #[error(transparent)]
+    Link(#[from] crate::link::LinkError),
+}
