@@ -30,7 +30,7 @@ pub enum HeadError {
 }
 
 /// What the reader and the commands share.
-pub struct Shared {
+pub struct LinkState {
     /// The job.
     pub job: Mutex<Job>,
     /// The project folder.
@@ -41,7 +41,7 @@ pub struct Shared {
     pub closed: AtomicBool,
 }
 
-impl Shared {
+impl LinkState {
     /// The job, locked (a thread that panicked while holding it left it whole: every change
     /// is one assignment).
     pub fn job(&self) -> std::sync::MutexGuard<'_, Job> {
@@ -56,7 +56,7 @@ pub struct HeadLink {
     writer: Mutex<Box<dyn Write + Send>>,
     seq: AtomicU32,
     /// The state both threads see.
-    pub shared: Arc<Shared>,
+    pub shared: Arc<LinkState>,
 }
 
 impl HeadLink {
@@ -70,7 +70,7 @@ impl HeadLink {
         job: Job,
         project: PathBuf,
     ) -> std::io::Result<HeadLink> {
-        let shared = Arc::new(Shared {
+        let shared = Arc::new(LinkState {
             job: Mutex::new(job),
             project,
             replies: Mutex::new(HashMap::new()),
@@ -140,7 +140,7 @@ impl HeadLink {
     }
 }
 
-fn read_loop(mut input: Box<dyn Read + Send>, s: &Shared) {
+fn read_loop(mut input: Box<dyn Read + Send>, s: &LinkState) {
     let mut d = Box::new(Decoder::<MAX_ENCODED>::new());
     let mut journals = Journals::default();
     let mut buf = vec![0u8; 64 * 1024];
