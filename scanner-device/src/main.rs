@@ -4,7 +4,23 @@ use std::process::ExitCode;
 use clap::Parser;
 
 fn main() -> ExitCode {
-    let args = scanner_device::Args::parse();
+    let args = match scanner_device::Args::try_parse() {
+        Ok(a) => a,
+        Err(e) => {
+            let refused = e.use_stderr();
+            let _ = e.print();
+            if refused {
+                scanner_io::error_record_if_asked(|| {
+                    scanner_io::usage_record(
+                        "scanner-device",
+                        &format!("{:?}", e.kind()),
+                        &e.to_string(),
+                    )
+                });
+            }
+            return ExitCode::from(u8::try_from(e.exit_code()).unwrap_or(2));
+        }
+    };
     match scanner_device::run(&args) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {

@@ -127,10 +127,7 @@ fn calibrate_the_rig_from_its_images() {
         &p(d, "board.png"),
     ]);
     assert!(!ok);
-    assert!(
-        err.contains("image is 640×480 but the camera was calibrated at 1280×960"),
-        "{err}"
-    );
+    assert!(scanner_tests::has_kind(&err, "ImageSize"), "{err}");
 
     // No board in the image: a clear error, and the overlay is still written.
     image::GrayImage::from_pixel(640, 480, image::Luma([170]))
@@ -148,7 +145,7 @@ fn calibrate_the_rig_from_its_images() {
         &p(d, "wall.png"),
     ]);
     assert!(!ok);
-    assert!(err.contains("no markers found"), "{err}");
+    assert!(scanner_tests::has_kind(&err, "NoMarkers"), "{err}");
     assert!(d.join("wall-overlay.png").exists() && !d.join("y.toml").exists());
 
     // A board file that is not one.
@@ -163,7 +160,7 @@ fn calibrate_the_rig_from_its_images() {
         &p(d, "board.png"),
     ]);
     assert!(!ok);
-    assert!(err.contains("bad.toml"), "{err}");
+    assert!(scanner_tests::has_kind(&err, "BoardFile"), "{err}");
 }
 
 /// With no feature on the image's border `calibrate intrinsics` fixes k3 at 0 and says so, and
@@ -391,7 +388,10 @@ fn render_calibration_takes_3_to_64_shots() {
     for bad in ["2", "65", "-1", "many"] {
         let shots = format!("--shots={bad}");
         let (ok, _, err) = run(&["render-calibration", "--out", &p(d, ""), &shots]);
-        assert!(!ok && err.contains("--shots"), "--shots {bad}: {err}");
+        assert!(
+            !ok && scanner_tests::has_kind(&err, "Usage"),
+            "--shots {bad}: {err}"
+        );
     }
     assert!(
         std::fs::read_dir(d).unwrap().next().is_none(),
@@ -433,7 +433,7 @@ fn the_papers_large_set_up_is_a_board_like_any_other() {
     huge.sheet.width = 9000.0;
     std::fs::write(d.join("huge.toml"), huge.to_toml().unwrap()).unwrap();
     let (ok, _, err) = run(&["board", "--board", &p(d, "huge.toml"), "--out", &p(d, "x")]);
-    assert!(!ok && err.contains("--dpi"), "{err}");
+    assert!(!ok && scanner_tests::has_kind(&err, "PngTooLarge"), "{err}");
     let rig = scanner_rig::Rig::new(scene).unwrap();
     rig.reference()
         .to_gray_image()

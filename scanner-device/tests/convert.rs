@@ -149,10 +149,6 @@ fn bad_buffers_are_named_errors() {
         ),
         "{e}"
     );
-    assert!(
-        e.to_string()
-            .contains("camera buffer of 10 bytes, 48 expected for 6×4 Yuyv")
-    );
     let e = convert(
         CameraFormat::Mjpeg,
         b"not a jpeg",
@@ -163,7 +159,10 @@ fn bad_buffers_are_named_errors() {
         &mut out,
     )
     .unwrap_err();
-    assert!(e.to_string().starts_with("MJPEG frame"), "{e}");
+    assert!(
+        matches!(e, ConvertError::Jpeg(scanner_jpeg::JpegError::NotJpeg)),
+        "{e}"
+    );
     let e = convert(
         CameraFormat::Yuyv,
         &[0; 40],
@@ -237,7 +236,10 @@ fn a_folder_of_rendered_frames_is_a_source() {
     )
     .err()
     .unwrap();
-    assert!(e.to_string().contains("no PNG or JPEG images"), "{e}");
+    assert!(
+        matches!(e, scanner_device::source::SourceError::NoImages(_)),
+        "{e}"
+    );
 }
 
 #[test]

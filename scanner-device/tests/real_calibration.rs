@@ -455,9 +455,10 @@ fn a_chessboard_count_that_does_not_match_the_board_is_refused_with_what_was_see
         &real_paths(),
     ));
     assert!(!ok);
+    // the message family of a target's count: the sentence names the count seen and the one
+    // given
     assert!(
-        err.contains("the images show a complete grid of 9×6 inner corners, but 10×7 were given")
-            && err.contains("a chessboard of 10×7 squares has 9×6 inner corners"),
+        err.contains("the images show a complete grid of 9×6 inner corners, but 10×7 were given"),
         "{err}"
     );
     // Fewer corners given than the board has: each image says what it saw; the pictures are
@@ -472,7 +473,7 @@ fn a_chessboard_count_that_does_not_match_the_board_is_refused_with_what_was_see
     for image in r["images"].as_array().unwrap() {
         assert_eq!(image["refused"]["reason"], "count_mismatch", "{image}");
     }
-    assert!(err.contains("camera-overlays"), "{err}");
+    assert!(scanner_tests::has_kind(&err, "Intrinsics"), "{err}");
     assert!(
         dir.path()
             .join("camera-overlays/right01-overlay.png")
@@ -533,7 +534,7 @@ fn images_that_do_not_fit_one_camera_are_refused_and_the_rest_calibrate() {
         &few,
     ));
     assert!(!ok, "{text}");
-    assert!(err.contains("do not fit one camera"), "{err}");
+    assert!(scanner_tests::has_kind(&err, "PoorCalibration"), "{err}");
 }
 
 /// A JSON report a command wrote.

@@ -271,14 +271,12 @@ fn a_folder_of_one_frame_without_a_reference_is_refused_with_the_fix() {
         .arg(dir.join("calibration.toml"))
         .arg("--out")
         .arg(t.path().join("x.stream"))
+        .env(scanner_io::ERRORS_ENV, "json")
         .output()
         .unwrap();
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(!out.status.success(), "{err}");
-    assert!(
-        err.contains("no reference") && err.contains("--reference"),
-        "{err}"
-    );
+    assert!(scanner_tests::has_kind(&err, "NoReference"), "{err}");
 }
 
 /// The stated centre uncertainty on real stripes it was not fitted to: the speckle's share

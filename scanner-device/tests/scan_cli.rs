@@ -54,7 +54,7 @@ fn errors_before_the_first_frame_are_clear() {
     let truth = truth_file(dir.path(), 320, 240);
     // No calibration.
     let (ok, _, err) = run(&["scan", "--out", &d("a")]);
-    assert!(!ok && err.contains("no calibration"), "{err}");
+    assert!(!ok && has_kind(&err, "NoCalibration"), "{err}");
     // A calibration for another resolution.
     let cam = scanner_rig::Scene::demo(1280, 960).camera;
     let mut f =
@@ -71,8 +71,10 @@ fn errors_before_the_first_frame_are_clear() {
         "--out",
         &d("b"),
     ]);
+    // the message family of sizes: the sentence names both
     assert!(
-        !ok && err.contains("1280×960") && err.contains("320×240"),
+        !ok && has_kind(&err, "CalibrationSize")
+            && err.contains("1280×960 images but rig:320x240 gives 320×240"),
         "{err}"
     );
     // A calibration without a board.
@@ -88,7 +90,7 @@ fn errors_before_the_first_frame_are_clear() {
         "--out",
         &d("c"),
     ]);
-    assert!(!ok && err.contains("no board"), "{err}");
+    assert!(!ok && has_kind(&err, "NoBoard"), "{err}");
     // A corrupt calibration file.
     std::fs::write(
         dir.path().join("corrupt.toml"),
@@ -104,7 +106,7 @@ fn errors_before_the_first_frame_are_clear() {
         "--out",
         &d("g"),
     ]);
-    assert!(!ok && err.contains("corrupt.toml"), "{err}");
+    assert!(!ok && has_kind(&err, "Toml"), "{err}");
     // An unknown camera.
     let (ok, _, err) = run(&[
         "scan",
@@ -115,7 +117,7 @@ fn errors_before_the_first_frame_are_clear() {
         "--out",
         &d("e"),
     ]);
-    assert!(!ok && err.contains("/dev/video99"), "{err}");
+    assert!(!ok && has_kind(&err, "Camera"), "{err}");
     // An unsupported pixel format.
     let (ok, _, err) = run(&[
         "scan",
@@ -126,12 +128,9 @@ fn errors_before_the_first_frame_are_clear() {
         "--out",
         &d("f"),
     ]);
-    assert!(
-        !ok && has_kind(&err, "UnsupportedFormat") && err.contains("\"H264\""),
-        "{err}"
-    );
+    assert!(!ok && has_kind(&err, "UnsupportedFormat"), "{err}");
     let (ok, _, err) = run(&["scan", "--format", "bayer", "--calibration", &truth]);
-    assert!(!ok && err.contains("bayer"), "{err}");
+    assert!(!ok && has_kind(&err, "InvalidValue"), "{err}");
     // An output that cannot be written.
     let (ok, _, err) = run(&[
         "scan",
@@ -142,10 +141,7 @@ fn errors_before_the_first_frame_are_clear() {
         "--out",
         "/nonexistent-dir/x.stream",
     ]);
-    assert!(
-        !ok && has_kind(&err, "File") && err.contains("/nonexistent-dir/x.stream"),
-        "{err}"
-    );
+    assert!(!ok && has_kind(&err, "File"), "{err}");
     // A serial port that is not there.
     let (ok, _, err) = run(&[
         "scan",
@@ -156,13 +152,10 @@ fn errors_before_the_first_frame_are_clear() {
         "--out",
         "serial:/dev/ttyNONE@115200",
     ]);
-    assert!(
-        !ok && has_kind(&err, "Serial") && err.contains("/dev/ttyNONE at 115200"),
-        "{err}"
-    );
+    assert!(!ok && has_kind(&err, "Serial"), "{err}");
     // The rig's truth for another size than the source's.
     let (ok, _, err) = run(&["scan", "--source", "rig:640x480", "--calibration", &truth]);
-    assert!(!ok && err.contains("is for 320×240 images"), "{err}");
+    assert!(!ok && has_kind(&err, "CalibrationSize"), "{err}");
 }
 
 /// The last status message of a stream file.
@@ -234,17 +227,18 @@ fn frame_and_time_limits_end_the_scan_with_a_final_stopped_status() {
         "{s:?} {stdout}"
     );
     let (ok, _, err) = run(&["scan", "--duration=-1"]);
-    assert!(!ok && err.contains("seconds"), "{err}");
+    assert!(!ok && has_kind(&err, "ValueValidation"), "{err}");
     let (ok, _, err) = run(&["scan", "--edge-reach", "9"]);
+    // the message family of option values: the sentence names the option and its range
     assert!(
-        !ok && err.contains("--edge-reach") && err.contains("from 0 to 4"),
+        !ok && has_kind(&err, "ValueValidation")
+            && err.contains(
+                "'--edge-reach <EDGE_REACH>': \"9\": a number of profile widths from 0 to 4"
+            ),
         "{err}"
     );
     let (ok, _, err) = run(&["scan", "--print-ratio", "1.0"]);
-    assert!(
-        !ok && err.contains("--print-ratio") && err.contains("from 1.1 to 10"),
-        "{err}"
-    );
+    assert!(!ok && has_kind(&err, "ValueValidation"), "{err}");
 }
 
 #[test]
@@ -387,7 +381,7 @@ fn a_recorded_scan_reprocesses_to_the_same_stream_and_with_a_new_calibration() {
         "--record",
         &rec,
     ]);
-    assert!(!ok && err.contains("already holds a recording"), "{err}");
+    assert!(!ok && has_kind(&err, "RecordingExists"), "{err}");
     let (ok, _, err) = run(&[
         "scan",
         "--source",
@@ -399,7 +393,7 @@ fn a_recorded_scan_reprocesses_to_the_same_stream_and_with_a_new_calibration() {
         "--out",
         &d("y.stream"),
     ]);
-    assert!(!ok && err.contains("same --format"), "{err}");
+    assert!(!ok && has_kind(&err, "RecordedFormat"), "{err}");
 }
 
 #[test]
@@ -486,19 +480,16 @@ fn json(path: &std::path::Path) -> serde_json::Value {
 #[test]
 fn a_disc_of_unknown_paper_is_refused_naming_the_sizes() {
     let (ok, _, err) = run(&["scan", "--source", "rig:64x48", "--disc", "a5"]);
-    assert!(
-        !ok && err.contains("--disc") && err.contains("a4 or a3"),
-        "{err}"
-    );
+    assert!(!ok && has_kind(&err, "ValueValidation"), "{err}");
 }
 
 /// `preview`'s own option is checked, and its other options are `scan`'s, refused alike.
 #[test]
 fn a_preview_with_bad_options_is_refused_naming_them() {
     let (ok, _, err) = run(&["preview", "--source", "rig:64x48", "--every", "0"]);
-    assert!(!ok && err.contains("--every"), "{err}");
+    assert!(!ok && has_kind(&err, "ValueValidation"), "{err}");
     let (ok, _, err) = run(&["preview", "--source", "rig:64x48", "--size", "NaNxNaN"]);
-    assert!(!ok && err.contains("NaNxNaN"), "{err}");
+    assert!(!ok && has_kind(&err, "SizeError"), "{err}");
     let (ok, _, err) = run(&["preview", "--source", "no-such:thing", "--out", "-"]);
-    assert!(!ok && err.contains("no-such:thing"), "{err}");
+    assert!(!ok && has_kind(&err, "Unknown"), "{err}");
 }

@@ -85,6 +85,7 @@ fn render_writes_a_views_pose_and_refuses_a_view_the_scene_lacks() {
     let run = |args: &[&str]| {
         std::process::Command::new(env!("CARGO_BIN_EXE_scanner-device"))
             .args(args)
+            .env(scanner_io::ERRORS_ENV, "json")
             .current_dir(d)
             .output()
             .unwrap()
@@ -123,13 +124,13 @@ fn render_writes_a_views_pose_and_refuses_a_view_the_scene_lacks() {
     ]);
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(
-        !out.status.success() && err.contains("view 7: the scene has 4 view(s)"),
+        !out.status.success() && scanner_tests::has_kind(&err, "Scene"),
         "{err}"
     );
     let out = run(&["scan", "--view", "1", "--calibration", "x.toml"]);
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(
-        !out.status.success() && err.contains("--view needs --scene"),
+        !out.status.success() && scanner_tests::has_kind(&err, "ViewWithoutScene"),
         "{err}"
     );
 }

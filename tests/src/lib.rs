@@ -388,6 +388,11 @@ pub fn error_kinds(stderr: &str) -> Vec<String> {
         .collect()
 }
 
+/// Whether a failed command's error (from its stderr, [`error_kinds`]) has a cause of `kind`.
+pub fn has_kind(stderr: &str, kind: &str) -> bool {
+    error_kinds(stderr).iter().any(|k| k == kind)
+}
+
 /// Reads a binary little-endian PLY back by its header (float and uchar vertex properties in any
 /// order): vertices, faces and the `quality` property (empty without).
 ///

@@ -411,6 +411,8 @@ fn troubleshooting_covers_every_refusal_of_the_head_and_the_calibration() {
         ("scanner-device/calib/src/fixed.rs", "FixedError"),
         ("scanner-device/calib/src/file.rs", "FixedUnusable"),
         ("scanner-device/src/calibrate.rs", "CalibrateError"),
+        ("scanner-device/src/cli/scan/refusal.rs", "ScanRefusal"),
+        ("scanner-device/src/cli/scan/refusal.rs", "ScanFailed"),
         ("scanner-device/calib/src/file.rs", "CovarianceError"),
         ("scanner-host/merge/src/error.rs", "MergeError"),
         ("scanner-host/merge/src/error.rs", "RegisterError"),

@@ -43,10 +43,10 @@ fn run_in(dir: &Path, bin: &str, args: &[&str]) -> (i32, String, String) {
 fn expect(dir: &Path, bin: &str, args: &[&str], code: i32, words: &[&str]) -> String {
     let (c, _, err) = run_in(dir, bin, args);
     assert_eq!(c, code, "{bin} {args:?}: exit {c}, stderr:\n{err}");
+    // the message family of hostile input: each sentence names what was wrong and where
     for w in words {
         assert!(err.contains(w), "{bin} {args:?}: {w:?} not in:\n{err}");
     }
-    assert!(!err.contains("panicked"), "{err}");
     err
 }
 
@@ -331,11 +331,11 @@ fn a_closed_stdout_is_not_an_error_and_the_work_is_done() {
         drop(child.stdout.take()); // the reader goes away at once, like `| true`
         let out = child.wait_with_output().unwrap();
         let err = String::from_utf8_lossy(&out.stderr).into_owned();
+        // a panic would end it with 101: a closed stdout is no failure
         assert!(
             out.status.success(),
             "{bin} {args:?} with stdout closed:\n{err}"
         );
-        assert!(!err.contains("panicked"), "{err}");
     };
     closed(
         "scanner-host",

@@ -365,7 +365,9 @@ fn the_sheets_correction_moves_the_views_nearer_the_truth() {
             &["merge", "v0", "v1", "--sheet", value, "--out", bad, "-q"],
         );
         assert!(
-            !ok && err.contains("--sheet") && err.contains(value),
+            !ok && scanner_tests::error_kinds(&err)
+                .iter()
+                .any(|k| k == "ValueValidation"),
             "{err}"
         );
         assert!(!d.join(bad).join("model.obj").exists());
@@ -539,7 +541,9 @@ fn a_flat_base_closes_the_model_for_printing() {
         &["merge", "v0", "v1", "--flat-base", "--trim-unseen"],
     );
     assert!(
-        !ok && err.contains("--flat-base") && err.contains("--trim-unseen"),
+        !ok && scanner_tests::error_kinds(&err)
+            .iter()
+            .any(|k| k == "ArgumentConflict"),
         "{err}"
     );
     // A view 0 whose scan carries no usable board (both planes the same: no crease, so no up):
@@ -552,7 +556,10 @@ fn a_flat_base_closes_the_model_for_printing() {
         "scanner-host",
         &["merge", "noboard", "v1", "--out", "nb", "--flat-base", "-q"],
     );
-    assert!(!ok && err.contains("--flat-base"), "{err}");
+    assert!(
+        !ok && scanner_tests::error_kinds(&err).iter().any(|k| k == "NoUp"),
+        "{err}"
+    );
     assert!(!d.join("nb/model.obj").exists());
     let (ok, _, err) = run(
         d,
@@ -680,7 +687,12 @@ fn the_turntable_hint_changes_nothing_where_the_views_register_alone() {
         "scanner-host",
         &["merge", "v0", "v1", "--turntable", "0"],
     );
-    assert!(!ok && err.contains("--turntable"), "{err}");
+    assert!(
+        !ok && scanner_tests::error_kinds(&err)
+            .iter()
+            .any(|k| k == "ValueValidation"),
+        "{err}"
+    );
 }
 
 /// Bad input is refused, naming the view: one view, a folder that is no scan, a scan of another
@@ -695,6 +707,7 @@ fn bad_views_are_refused_and_named() {
     );
     std::fs::create_dir_all(d.join("empty")).unwrap();
     let (ok, _, err) = run(d, "scanner-host", &["merge", "v0", "empty", "--out", "m2"]);
+    // the message family of bad views: the sentence names the view by number and name
     assert!(!ok && err.contains("view 1 (empty)"), "{err}");
     let small = scanner_rig::Rig::new(scanner_rig::Scene::demo(320, 240)).unwrap();
     small
@@ -721,7 +734,12 @@ fn bad_views_are_refused_and_named() {
         "scanner-host",
         &["merge", "v0", "small.stream", "--out", "m3"],
     );
-    assert!(!ok && err.contains("view 1 (small.stream)"), "{err}");
+    assert!(
+        !ok && scanner_tests::error_kinds(&err)
+            .iter()
+            .any(|k| k == "OtherCamera"),
+        "{err}"
+    );
     std::fs::write(
         d.join("dark.toml"),
         std::fs::read_to_string(d.join("s.toml"))
@@ -754,7 +772,12 @@ fn bad_views_are_refused_and_named() {
         "scanner-host",
         &["merge", "v0", "dark.stream", "--out", "m4"],
     );
-    assert!(!ok && err.contains("view 1 (dark.stream)"), "{err}");
+    assert!(
+        !ok && scanner_tests::error_kinds(&err)
+            .iter()
+            .any(|k| k == "NoPoints"),
+        "{err}"
+    );
     for m in ["m1", "m2", "m3", "m4"] {
         assert!(!d.join(m).join("model.obj").exists());
     }
@@ -965,10 +988,7 @@ fn two_views_of_the_part_are_merged_right_or_refused_by_their_free_space() {
                 .angle()
                 .to_degrees();
                 let found = rotations(&r)[1];
-                assert!(
-                    r["closure"]["after"].is_null() && err.contains("warning"),
-                    "{err}"
-                );
+                assert!(r["closure"]["after"].is_null(), "{r}");
                 if (found - truth).abs() < 1.0 {
                     assert!(num(&r["free_space"]["worst_share"]) < 0.005, "{r}");
                     "right"

@@ -77,6 +77,37 @@ fn json_escaped(s: &str) -> String {
     out
 }
 
+/// A command line its parser refused, as one error: `Debug` reads `Usage(ValueValidation)`, so
+/// that its record's kinds are `Usage` and the parser's own kind.
+struct UsageError {
+    kind: String,
+    message: String,
+}
+
+impl std::fmt::Debug for UsageError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "Usage({})", self.kind)
+    }
+}
+
+impl std::fmt::Display for UsageError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.message.trim_end())
+    }
+}
+
+impl std::error::Error for UsageError {}
+
+/// A refused command line as an [`error_record`]: kinds `Usage` and `kind` (the parser's, e.g.
+/// clap's `ValueValidation` or `UnknownArgument`), with the parser's words.
+pub fn usage_record(program: &str, kind: &str, message: &str) -> String {
+    let e = UsageError {
+        kind: kind.to_string(),
+        message: message.to_string(),
+    };
+    error_record(program, std::iter::once(&e as &dyn std::error::Error))
+}
+
 /// Prints `record` (an [`error_record`]) to standard error when [`ERRORS_ENV`] asks for JSON.
 pub fn error_record_if_asked(record: impl FnOnce() -> String) {
     if std::env::var(ERRORS_ENV).is_ok_and(|v| v == "json") {

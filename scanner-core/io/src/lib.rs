@@ -26,7 +26,7 @@ pub mod text_file;
 pub mod words;
 
 pub use atomic::{TempWriter, write_atomic, write_atomic_with};
-pub use errors::{ERRORS_ENV, error_record, error_record_if_asked};
+pub use errors::{ERRORS_ENV, error_record, error_record_if_asked, usage_record};
 
 /// Prints a line to standard output. A closed stdout (`scanner-host replay … | head -1`) is not
 /// an error for the work itself: a failed write is ignored and the command carries on (its

@@ -292,6 +292,61 @@ pub enum BoardError {
     /// Readable, but the numbers do not describe a usable board.
     #[error("board file: {0}")]
     Invalid(String),
+    /// A ChArUco sheet of a dictionary OpenCV does not predefine.
+    #[error(
+        "board file: [{sheet}].charuco: unknown dictionary {dictionary:?}; OpenCV's predefined ones are {}",
+        crate::aruco::DICTIONARIES.join(", ")
+    )]
+    UnknownDictionary {
+        /// `left` or `right`.
+        sheet: String,
+        /// The name given.
+        dictionary: String,
+    },
+    /// A ChArUco sheet whose marker IDs run past its dictionary's codes.
+    #[error(
+        "board file: [{sheet}].charuco: {markers} markers from ID {first_id} run past the {codes} codes of {dictionary}"
+    )]
+    IdsPastDictionary {
+        /// `left` or `right`.
+        sheet: String,
+        /// Its markers.
+        markers: usize,
+        /// Its first ID.
+        first_id: usize,
+        /// Codes the dictionary has.
+        codes: usize,
+        /// The dictionary.
+        dictionary: String,
+    },
+    /// Axes that lay a ChArUco sheet mirrored.
+    #[error(
+        "board file: [{sheet}].charuco: x = \"{x}\" and y = \"{y}\" lay the board mirrored (its markers would not read): change the sign of one"
+    )]
+    Mirrored {
+        /// `left` or `right`.
+        sheet: String,
+        /// Its x axis.
+        x: String,
+        /// Its y axis.
+        y: String,
+    },
+    /// Both sheets ChArUco boards of one dictionary whose IDs overlap.
+    #[error(
+        "board file: [left] and [right] are both ChArUco boards of {dictionary} with marker IDs {}–{} and {}–{}: the two sheets must not share IDs (print one with another dictionary or `first_id`)",
+        left.0,
+        left.1,
+        right.0,
+        right.1
+    )]
+    SharedIds {
+        /// The dictionary.
+        dictionary: String,
+        /// The left sheet's first and last ID.
+        left: (usize, usize),
+        /// The right sheet's.
+        right: (usize, usize),
+    },
 }
 
 impl Default for BoardFile {
@@ -600,16 +655,11 @@ impl BoardFile {
             && a.ids().start < b.ids().end
             && b.ids().start < a.ids().end
         {
-            return bad(format!(
-                "[left] and [right] are both ChArUco boards of {} with marker IDs {}–{} and {}–{}: \
-                 the two sheets must not share IDs (print one with another dictionary or \
-                 `first_id`)",
-                l.dictionary,
-                a.ids().start,
-                a.ids().end - 1,
-                b.ids().start,
-                b.ids().end - 1
-            ));
+            return Err(BoardError::SharedIds {
+                dictionary: l.dictionary.clone(),
+                left: (a.ids().start, a.ids().end - 1),
+                right: (b.ids().start, b.ids().end - 1),
+            });
         }
         Ok(())
     }
@@ -619,11 +669,10 @@ impl BoardFile {
     fn check_charuco(&self, name: &str, c: &Charuco) -> Result<(), BoardError> {
         let bad = |s: String| Err(BoardError::Invalid(s));
         let Some(b) = c.board() else {
-            return bad(format!(
-                "[{name}].charuco: unknown dictionary {:?}; OpenCV's predefined ones are {}",
-                c.dictionary,
-                crate::aruco::DICTIONARIES.join(", ")
-            ));
+            return Err(BoardError::UnknownDictionary {
+                sheet: name.to_string(),
+                dictionary: c.dictionary.chars().take(40).collect(),
+            });
         };
         if !(c.cols >= 3 && c.rows >= 3) {
             return bad(format!(
@@ -639,13 +688,13 @@ impl BoardFile {
             ));
         }
         if b.ids().end > b.dictionary.count {
-            return bad(format!(
-                "[{name}].charuco: {} markers from ID {} run past the {} codes of {}",
-                b.marker_count(),
-                c.first_id,
-                b.dictionary.count,
-                c.dictionary
-            ));
+            return Err(BoardError::IdsPastDictionary {
+                sheet: name.to_string(),
+                markers: b.marker_count(),
+                first_id: c.first_id,
+                codes: b.dictionary.count,
+                dictionary: c.dictionary.clone(),
+            });
         }
         let (ax, ay) = (c.x.unit(), c.y.unit());
         if ax[0] * ay[0] + ax[1] * ay[1] != 0.0 {
@@ -657,12 +706,11 @@ impl BoardFile {
         // left sheet's (its u runs to the left) the other way: else the board is mirrored.
         let turn = ax[0] * ay[1] - ax[1] * ay[0];
         if (turn > 0.0) != (name == "right") {
-            return bad(format!(
-                "[{name}].charuco: x = \"{}\" and y = \"{}\" lay the board mirrored (its markers \
-                 would not read): change the sign of one",
-                c.x.name(),
-                c.y.name()
-            ));
+            return Err(BoardError::Mirrored {
+                sheet: name.to_string(),
+                x: c.x.name().to_string(),
+                y: c.y.name().to_string(),
+            });
         }
         let (w, h) = (c.cols as f64 * c.square, c.rows as f64 * c.square);
         let outline =

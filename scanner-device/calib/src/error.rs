@@ -43,9 +43,48 @@ pub enum CalibError {
         /// Needed.
         needed: usize,
     },
-    /// A ChArUco board not found as printed (the text says what the picture shows instead).
-    #[error("ChArUco board: {0}")]
-    Charuco(String),
+    /// A ChArUco board's marker IDs seen at two places or more: two boards that share IDs.
+    #[error(
+        "ChArUco board: {what}: marker IDs {ids:?} of {dictionary} are seen at two places or more: two boards that share IDs in view (print each sheet with its own dictionary or first_id)"
+    )]
+    RepeatedIds {
+        /// The sheet or target.
+        what: String,
+        /// The IDs seen twice.
+        ids: Vec<u32>,
+        /// Their dictionary.
+        dictionary: String,
+    },
+    /// Markers of another dictionary than the board file names, more than of the one named.
+    #[error(
+        "ChArUco board: {what}: {found} markers of {dictionary} found, but the picture shows {others}: does the board file name the dictionary printed?"
+    )]
+    OtherDictionary {
+        /// The sheet.
+        what: String,
+        /// Markers of the named dictionary found.
+        found: usize,
+        /// The dictionary named.
+        dictionary: String,
+        /// What the picture shows instead (`12 markers of DICT_6X6`).
+        others: String,
+    },
+    /// Markers too small in the picture to read.
+    #[error(
+        "ChArUco board: {what}: the board is too small in the picture: {count} dark squares of about {side_px:.0} px; a marker of {cells}×{cells} cells needs {needed_px:.0} px or more to be read (move the camera closer or print larger)"
+    )]
+    MarkersTooSmall {
+        /// The sheet.
+        what: String,
+        /// Dark squares seen.
+        count: usize,
+        /// Their side, pixels.
+        side_px: f64,
+        /// The marker's cells a side.
+        cells: usize,
+        /// The side a marker needs, pixels.
+        needed_px: f64,
+    },
     /// A result that no real board or target gives (the text says why and what to check).
     #[error("implausible result: {0}")]
     Implausible(String),

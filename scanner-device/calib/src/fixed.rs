@@ -36,6 +36,10 @@ pub enum ImportError {
         #[source]
         source: serde_json::Error,
     },
+    /// Read, but its values fail the checks of any calibration file (a NaN, a plane through the
+    /// camera, 0 steps).
+    #[error(transparent)]
+    Checked(crate::file::FileError),
     /// Readable, but its frames' turn or a flag is unusable.
     #[error("{path}: {reason}")]
     Unusable {
@@ -411,7 +415,7 @@ pub fn import_fabscan(path: &Path) -> Result<Imported, ImportError> {
     let file = unturn(&turned, orientation, stored).map_err(unusable)?;
     // the checks of any calibration file (a NaN, a plane through the camera, 0 steps)
     let text = toml::to_string(&file).map_err(|e| invalid(format!("cannot be written: {e}")))?;
-    let file = CalibrationFile::parse(&text, &name).map_err(|e| invalid(format!("{e}")))?;
+    let file = CalibrationFile::parse(&text, &name).map_err(ImportError::Checked)?;
     debug_assert_eq!(file.version, VERSION);
     Ok(Imported {
         file,

@@ -160,11 +160,11 @@ fn find_charuco_grid(img: &GrayImage, board: &CharucoBoard) -> Result<FoundGrid,
     let quads = crate::aruco::quads(img, crate::aruco::MIN_QUAD_SIDE_PX);
     let seen = find_charuco(img, &quads, board);
     if !seen.markers.repeated.is_empty() {
-        return Err(CalibError::Charuco(format!(
-            "marker IDs {:?} of {} are seen at two places or more: two boards that share IDs in view",
-            seen.markers.repeated,
-            board.dictionary.name()
-        )));
+        return Err(CalibError::RepeatedIds {
+            what: "the target".into(),
+            ids: seen.markers.repeated.iter().map(|&i| i as u32).collect(),
+            dictionary: board.dictionary.name().to_string(),
+        });
     }
     let layout_len = board.corner_count();
     let needed = (layout_len / 4).max(MIN_CHARUCO_CORNERS);

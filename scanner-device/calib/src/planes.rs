@@ -317,11 +317,11 @@ fn charuco_failure(
         return None;
     }
     if !found.markers.repeated.is_empty() {
-        return Some(CalibError::Charuco(format!(
-            "{what}: marker IDs {:?} of {} are seen at two places or more: two boards that share IDs \
-             (print each sheet with its own dictionary or first_id)",
-            found.markers.repeated, sheet.dictionary
-        )));
+        return Some(CalibError::RepeatedIds {
+            what: what.to_string(),
+            ids: found.markers.repeated.iter().map(|&i| i as u32).collect(),
+            dictionary: sheet.dictionary.clone(),
+        });
     }
     // Markers of a size no sheet of the board file has, more than of the one named.
     let named = found.markers.markers.len();
@@ -333,24 +333,24 @@ fn charuco_failure(
         })
         .collect();
     if !others.is_empty() {
-        return Some(CalibError::Charuco(format!(
-            "{what}: {} markers of {} found, but the picture shows {}: does the board file name the \
-             dictionary printed?",
-            found.markers.markers.len(),
-            sheet.dictionary,
-            others.join(" and ")
-        )));
+        return Some(CalibError::OtherDictionary {
+            what: what.to_string(),
+            found: found.markers.markers.len(),
+            dictionary: sheet.dictionary.clone(),
+            others: others.join(" and "),
+        });
     }
     if let Some((side, count)) = found.markers.too_small
         && found.markers.markers.len() < 2
     {
         let n = Dictionary::named(&sheet.dictionary).map_or(4, |d| d.n);
-        return Some(CalibError::Charuco(format!(
-            "{what}: the board is too small in the picture: {count} dark squares of about {side:.0} px; \
-             a marker of {n}×{n} cells needs {:.0} px or more to be read (move the camera closer or \
-             print larger)",
-            aruco::MIN_CELL_PX * (n + 2) as f64
-        )));
+        return Some(CalibError::MarkersTooSmall {
+            what: what.to_string(),
+            count,
+            side_px: side,
+            cells: n,
+            needed_px: aruco::MIN_CELL_PX * (n + 2) as f64,
+        });
     }
     None
 }

@@ -210,7 +210,6 @@ fn bad_input_names_what_was_expected_and_found() {
         .result
         .unwrap_err();
     assert!(matches!(e, CalibError::NoMarkers { .. }), "{e}");
-    assert!(e.to_string().contains("no markers found"));
     // Too few markers: the right half of the image covered.
     let mut half = rig.reference().to_gray_image();
     for (x, _, p) in half.enumerate_pixels_mut() {

@@ -15,6 +15,18 @@ use crate::calibrate::load_board;
 use crate::report::{CaptureData, GridData, ImageRefusal, SheetData, ShotData, write_json};
 use crate::source::OwnedFrame;
 
+/// Fewer usable shots than asked for (the report and the kept shots are written).
+#[derive(Debug, thiserror::Error)]
+#[error(
+    "{kept} of {of} usable shots kept (see the line of each frame): check the target is in view, lit and in focus"
+)]
+pub struct TooFewShots {
+    /// Shots kept.
+    pub kept: u32,
+    /// Shots asked for.
+    pub of: u32,
+}
+
 /// `capture`'s options.
 #[derive(Debug, clap::Args)]
 pub struct CaptureArgs {
@@ -195,10 +207,7 @@ pub fn capture(a: &CaptureArgs) -> Result<()> {
     };
     write_json(&a.out.join("capture-report.json"), &data)?;
     if kept < a.count {
-        bail!(
-            "{kept} of {} usable shots kept (see the line of each frame): check the target is in view, lit and in focus",
-            a.count
-        );
+        return Err(TooFewShots { kept, of: a.count }.into());
     }
     crate::outln!("{kept} shots in {}", a.out.display());
     Ok(())

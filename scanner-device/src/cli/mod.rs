@@ -209,18 +209,16 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
             if let Some(e) = done.ended_early {
                 anyhow::bail!("{e}");
             }
-            let (beyond, limit) = done.beyond_limit;
-            if done.status.points == 0 && beyond > 0 {
-                anyhow::bail!(
-                    "no points: on {beyond} lines the stripe was wider than the limit of {limit:.0} px (64 px or 4 % of the image width, whichever is more): focus the laser's line, hold it further from the object, or scan at a lower resolution"
-                );
+            let (lines, limit) = done.beyond_limit;
+            if done.status.points == 0 && lines > 0 {
+                return Err(scan::ScanFailed::TooWide { lines, limit }.into());
             }
             if let Some(b) = done.shadow.filter(crate::session::ShadowBands::blurred) {
-                anyhow::bail!(
-                    "the shadow's edges are a blur: its band was seen on {} lines but only {} had an edge (where half the lamp is hidden): use a smaller bulb (or take the shade off the lamp), a thicker rod, or hold the rod nearer the object (docs/shadow-scanner.md)",
-                    b.lines,
-                    b.edged,
-                );
+                return Err(scan::ScanFailed::BlurredShadow {
+                    lines: b.lines,
+                    edged: b.edged,
+                }
+                .into());
             }
         }
         Some(Command::Preview(a)) => {

@@ -160,10 +160,7 @@ impl ImageDir {
             )));
         }
         if files.is_empty() {
-            return Err(SourceError::Images(format!(
-                "{}: no PNG or JPEG images",
-                dir.display()
-            )));
+            return Err(SourceError::NoImages(dir.to_path_buf()));
         }
         Ok((files, reference))
     }
@@ -231,12 +228,11 @@ impl FrameSource for ImageDir {
             Some(p) => load_frame(p, self.format, u64::MAX)?,
             // Without a laser-off photo the first images make the reference: some must be left.
             None if self.files.len() <= self.reference_frames => {
-                return Err(SourceError::Images(format!(
-                    "{}: {} image(s) and no reference: without a laser-off photo the first {} images are averaged into the reference, which leaves none to scan; give --reference FILE (a photo of the same view with the laser off) or put it in the folder as reference.png",
-                    self.dir.display(),
-                    self.files.len(),
-                    self.reference_frames
-                )));
+                return Err(SourceError::NoReference {
+                    dir: self.dir.clone(),
+                    images: self.files.len(),
+                    averaged: self.reference_frames,
+                });
             }
             None => {
                 let n = self.reference_frames.min(self.files.len());

@@ -64,6 +64,35 @@ pub enum SourceError {
     /// The name's parameters are malformed (the text says how).
     #[error("bad frame source: {0}")]
     BadSpec(String),
+    /// A recording read in another pixel format than it was recorded in.
+    #[error(
+        "{name:?} was recorded as {recorded:?}: leave --format out (a recording is read in its own format) or give the same --format"
+    )]
+    RecordedFormat {
+        /// The source's name.
+        name: String,
+        /// The recording's format.
+        recorded: PixelFormat,
+    },
+    /// A folder of frames without a PNG or JPEG image.
+    #[error("{}: no PNG or JPEG images", .0.display())]
+    NoImages(std::path::PathBuf),
+    /// A folder of frames without a laser-off reference, and too few images to average one.
+    #[error(
+        "{}: {images} image(s) and no reference: without a laser-off photo the first {averaged} images are averaged into the reference, which leaves none to scan; give --reference FILE (a photo of the same view with the laser off) or put it in the folder as reference.png",
+        dir.display()
+    )]
+    NoReference {
+        /// The folder.
+        dir: std::path::PathBuf,
+        /// Its images.
+        images: usize,
+        /// Images a reference averages.
+        averaged: usize,
+    },
+    /// A recording into a folder that already holds one.
+    #[error("recording {}: already holds a recording: give another folder", .0.display())]
+    RecordingExists(std::path::PathBuf),
     /// The virtual rig failed.
     #[cfg(feature = "rig")]
     #[error("virtual rig")]
@@ -513,10 +542,10 @@ pub fn open_with(
     if let Some(dir) = name.strip_prefix("record:") {
         let r = record::RecordingSource::open(std::path::Path::new(dir))?;
         if r.format() != format {
-            return Err(SourceError::BadSpec(format!(
-                "{name:?} was recorded as {:?}: leave --format out (a recording is read in its own format) or give the same --format",
-                r.format()
-            )));
+            return Err(SourceError::RecordedFormat {
+                name: name.to_string(),
+                recorded: r.format(),
+            });
         }
         return Ok(Box::new(r));
     }

@@ -71,10 +71,7 @@ impl Recorder {
     pub fn new(inner: Box<dyn FrameSource>, dir: &Path) -> Result<Recorder, SourceError> {
         std::fs::create_dir_all(dir).map_err(io(dir))?;
         if dir.join("recording.toml").exists() {
-            return Err(bad(
-                dir,
-                "already holds a recording: give another folder".into(),
-            ));
+            return Err(SourceError::RecordingExists(dir.to_path_buf()));
         }
         let (width, height) = inner.size();
         let meta = Meta {

@@ -27,7 +27,23 @@ use scanner_host::{errln, outln};
 use crate::args::{Args, Command};
 
 fn main() -> ExitCode {
-    let args = Args::parse();
+    let args = match Args::try_parse() {
+        Ok(a) => a,
+        Err(e) => {
+            let refused = e.use_stderr();
+            let _ = e.print();
+            if refused {
+                scanner_io::error_record_if_asked(|| {
+                    scanner_io::usage_record(
+                        "scanner-host",
+                        &format!("{:?}", e.kind()),
+                        &e.to_string(),
+                    )
+                });
+            }
+            return ExitCode::from(u8::try_from(e.exit_code()).unwrap_or(2));
+        }
+    };
     match run(&args) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {

@@ -9,7 +9,9 @@ use std::io::Write;
 use std::process::{Command, Stdio};
 
 fn host() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_scanner-host"))
+    let mut c = Command::new(env!("CARGO_BIN_EXE_scanner-host"));
+    c.env(scanner_io::ERRORS_ENV, "json");
+    c
 }
 
 /// A recorded rig scan (320×240, 30 frames).
@@ -294,10 +296,7 @@ fn an_output_that_cannot_be_written_is_named_and_the_journal_kept() {
         .unwrap();
     assert!(!res.status.success());
     let err = String::from_utf8_lossy(&res.stderr);
-    assert!(
-        err.contains("cannot write") && err.contains("scan.obj"),
-        "{err}"
-    );
+    assert!(scanner_tests::has_kind(&err, "Write"), "{err}");
     // Everything received is in the journal, and replays elsewhere.
     let journal = out.join("journal.stream");
     assert_eq!(

@@ -204,7 +204,6 @@ fn points_of_low_weight_give_way_where_sure_points_saw_the_same_surface() {
         w[7] = bad;
         let e = fuse_with(&points, &normals, &w, 1.0, |_, _| {}).unwrap_err();
         assert!(matches!(e, FuseError::Weight { index: 7, .. }), "{e}");
-        assert!(e.to_string().contains("point 7"), "{e}");
     }
 }
 

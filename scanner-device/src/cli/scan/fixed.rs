@@ -1,7 +1,7 @@
 //! A fixed-laser scan's plan: the laser and its platform from the calibration file, the turn
 //! per frame, the motor that turns the platform.
 
-use anyhow::{Context, Result, bail};
+use anyhow::{Context, Result};
 use scanner_core::pipeline::HeadConfig;
 
 use crate::source::FrameSource;
@@ -9,7 +9,7 @@ use crate::source::FrameSource;
 use scanner_calib::file::CalibrationFile;
 use scanner_core::stripe::Method;
 
-use super::{FirmwareArg, ScanArgs};
+use super::{FirmwareArg, ScanArgs, ScanRefusal};
 
 /// The source's frames on a platform the motor board at `spec` turns.
 pub(super) fn turning(
@@ -19,16 +19,15 @@ pub(super) fn turning(
 ) -> Result<Box<dyn FrameSource>> {
     let (Some(laser), Some(steps), Some(cal)) = (a.fixed_laser, a.steps_per_frame, &a.calibration)
     else {
-        bail!(
-            "--motor turns a fixed-laser scan's platform: give --fixed-laser, --steps-per-frame and --calibration"
-        );
+        return Err(ScanRefusal::MotorWithoutFixedLaser.into());
     };
     let file = CalibrationFile::load(cal)?;
     let Some(platform) = file.platform else {
-        bail!(
-            "--motor: {} has no [platform] (its steps per turn)",
-            cal.display()
-        );
+        return Err(ScanRefusal::NoPlatform {
+            option: "--motor",
+            path: cal.to_path_buf(),
+        }
+        .into());
     };
     let serial = scanner_io::link_spec::SerialSpec::parse(spec)
         .map_err(|e| anyhow::anyhow!("--motor {spec:?}: {e}"))?
@@ -80,18 +79,19 @@ pub(super) fn read_fixed(path: &std::path::Path, n: usize, a: &ScanArgs) -> Resu
     let file = CalibrationFile::load(path)?;
     let name = path.display();
     let Some(laser) = file.lasers.get(n) else {
-        bail!(
-            "--fixed-laser {n}: {name} has {} fixed laser plane(s) ([[laser]]){}",
-            file.lasers.len(),
-            if file.lasers.is_empty() {
-                "; calibrate them or import a scanner's own calibration (`scanner-device import-fabscan`)"
-            } else {
-                ""
-            }
-        );
+        return Err(ScanRefusal::NoSuchLaser {
+            index: n,
+            path: path.to_path_buf(),
+            lasers: file.lasers.len(),
+        }
+        .into());
     };
     let Some(section) = file.platform else {
-        bail!("--fixed-laser: {name} has no [platform]: the turntable's pose is needed");
+        return Err(ScanRefusal::NoPlatform {
+            option: "--fixed-laser",
+            path: path.to_path_buf(),
+        }
+        .into());
     };
     let plane = laser
         .plane()
@@ -112,21 +112,22 @@ pub(super) fn read_fixed(path: &std::path::Path, n: usize, a: &ScanArgs) -> Resu
     let turn = match (a.turn_deg, a.steps_per_frame, a.frames_per_turn) {
         (Some(d), _, _) if d.is_finite() && d != 0.0 && d.abs() <= 180.0 => d.to_radians(),
         (Some(d), _, _) => {
-            bail!("--turn-deg {d}: give a turn between frames of up to ±180°, not 0")
+            return Err(ScanRefusal::TurnDeg(d).into());
         }
-        (_, Some(0), _) => bail!("--steps-per-frame 0: the platform would not turn"),
+        (_, Some(0), _) => return Err(ScanRefusal::NoSteps.into()),
         (_, Some(s), _) if s <= section.steps_per_turn / 2 => {
             sense * std::f64::consts::TAU * f64::from(s) / f64::from(section.steps_per_turn)
         }
-        (_, Some(s), _) => bail!(
-            "--steps-per-frame {s}: more than half of the platform's {} steps per turn",
-            section.steps_per_turn
-        ),
+        (_, Some(s), _) => {
+            return Err(ScanRefusal::StepsOverHalf {
+                steps: s,
+                per_turn: section.steps_per_turn,
+            }
+            .into());
+        }
         (_, _, Some(f)) if f >= 2 => sense * std::f64::consts::TAU / f64::from(f),
-        (_, _, Some(f)) => bail!("--frames-per-turn {f}: a turn needs at least 2 frames"),
-        _ => bail!(
-            "--fixed-laser needs the platform's turn between frames: --turn-deg, --steps-per-frame or --frames-per-turn"
-        ),
+        (_, _, Some(f)) => return Err(ScanRefusal::FramesPerTurn(f).into()),
+        _ => return Err(ScanRefusal::NoTurn.into()),
     };
     let r = platform.rotation();
     let o = platform.origin();

@@ -3,9 +3,10 @@
 
 mod args;
 mod fixed;
+mod refusal;
 mod shadow;
 
-use anyhow::{Context, Result, bail};
+use anyhow::{Context, Result};
 use scanner_calib::file::CalibrationFile;
 use scanner_core::pipeline::HeadConfig;
 use scanner_core::stripe::{Axis, LaserColour, Method, PixelFormat, StripeConfig};
@@ -19,6 +20,7 @@ use crate::source::{FrameSource, SourceOptions, open_with};
 
 pub use args::{CameraArgs, FirmwareArg, FormatArg, LaserArg, PlaneArg, ScanArgs};
 use fixed::{Fixed, fixed_head, read_fixed, turning};
+pub use refusal::{ScanFailed, ScanRefusal};
 use shadow::sweep_extremes;
 
 /// Runs `scan`: [`plan`], then [`run`].
@@ -51,9 +53,7 @@ fn plan_with(a: &ScanArgs, link: Option<Link>) -> Result<ScanPlan> {
         if let Some(f) = &a.camera.fourcc {
             CameraFormat::parse(f)?;
         }
-        bail!(
-            "no calibration: give --calibration FILE (from `scanner-device calibrate board`; for the virtual rig, `render-calibration` writes truth-calibration.toml)"
-        );
+        return Err(ScanRefusal::NoCalibration.into());
     }
     let o = open_on(a, link)?;
     let Some(calibration) = o.calibration else {
@@ -184,12 +184,13 @@ pub(super) fn open_on(a: &ScanArgs, link: Option<Link>) -> Result<OpenedSource> 
         if let Some(n) = source.frames_left()
             && n as f64 > per_turn.round() + 1.0
         {
-            bail!(
-                "{} holds {n} frames, but the platform turns {:.4}° a frame: {:.0} frames make a turn (and one more to close it); give the turn that was recorded (--frames-per-turn {n} if these frames make one turn)",
-                a.source,
-                f64::from(f.message.turn).to_degrees(),
-                per_turn
-            );
+            return Err(ScanRefusal::BeyondOneTurn {
+                given_by: a.source.clone(),
+                frames: n,
+                turn_deg: f64::from(f.message.turn).to_degrees(),
+                per_turn,
+            }
+            .into());
         }
     }
     Ok(OpenedSource {
@@ -227,13 +228,13 @@ pub(super) fn open_source(
     opts: &SourceOptions,
 ) -> Result<Box<dyn FrameSource>> {
     if a.view.is_some() && a.scene.is_none() {
-        bail!("--view needs --scene: a scene file with [[views]]");
+        return Err(ScanRefusal::ViewWithoutScene.into());
     }
     if let Some(path) = &a.scene {
         #[cfg(feature = "rig")]
         {
             if !a.source.starts_with("rig") {
-                bail!("--scene works with the virtual rig only (--source rig)");
+                return Err(ScanRefusal::SceneNotRig.into());
             }
             let scene = super::render::view_of(super::render::load_scene(Some(path))?, a.view)?;
             let rig = scanner_rig::Rig::new(scene)
@@ -241,10 +242,7 @@ pub(super) fn open_source(
             return Ok(Box::new(crate::source::RigSource::new(rig, format)));
         }
         #[cfg(not(feature = "rig"))]
-        bail!(
-            "--scene {}: this build has no virtual rig (the `rig` feature)",
-            path.display()
-        );
+        return Err(ScanRefusal::NoRig(path.clone()).into());
     }
     open_with(&a.source, format, opts)
         .with_context(|| format!("opening the frame source {:?}", a.source))
@@ -261,12 +259,13 @@ fn read_calibration(
     let file = CalibrationFile::load(path)?;
     let (w, h) = source.size();
     if (w as u32, h as u32) != (file.image.width, file.image.height) {
-        bail!(
-            "calibration {} is for {}×{} images but {source_name} gives {w}×{h}",
-            path.display(),
-            file.image.width,
-            file.image.height,
-        );
+        return Err(ScanRefusal::CalibrationSize {
+            path: path.to_path_buf(),
+            calibration: (file.image.width, file.image.height),
+            given_by: source_name.to_string(),
+            frames: (w, h),
+        }
+        .into());
     }
     let camera = file
         .camera()
@@ -274,10 +273,7 @@ fn read_calibration(
     let board = match (fixed, file.board()) {
         (Some(f), _) => Ok(f.board),
         (None, Some(board)) => board,
-        (None, None) => bail!(
-            "{} has no board: run `scanner-device calibrate board` first",
-            path.display()
-        ),
+        (None, None) => return Err(ScanRefusal::NoBoard(path.to_path_buf()).into()),
     };
     let board = board.with_context(|| format!("board in {}", path.display()))?;
     let spread = file

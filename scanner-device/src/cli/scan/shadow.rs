@@ -1,12 +1,12 @@
 //! A shadow sweep's plan: each pixel's lit and shadowed values from two readings of the sweep
 //! beforehand, and how deep the shadow is.
 
-use anyhow::{Result, bail};
+use anyhow::Result;
 use scanner_core::stripe::PixelFormat;
 
 use crate::source::{FrameSource, SourceOptions};
 
-use super::{ScanArgs, open_source};
+use super::{ScanArgs, ScanRefusal, open_source};
 
 /// `source` with each pixel's value lit without the shadow for its reference and its value in
 /// the shadow's core for [`FrameSource::darkest`], from two readings of the sweep beforehand
@@ -34,7 +34,7 @@ pub(super) fn sweep_extremes(
         }
     }
     let Some((mut hi, mut lo)) = both else {
-        bail!("--shadow: {} has no frames", a.source);
+        return Err(ScanRefusal::NoShadowFrames(a.source.clone()).into());
     };
     let n = hi.data.len();
     let (mut sums, mut counts) = (
@@ -68,11 +68,7 @@ pub(super) fn sweep_extremes(
     }
     let depth = shadow_depth(&hi, &lo)?;
     if depth < MIN_SHADOW_DEPTH {
-        bail!(
-            "the shadow is too faint to scan: where it passed it took a median {:.0} % of the light (at least {:.0} % wanted) — a lamp too large, so that its edges are a blur, or too much other light: use a smaller bulb (or take the shade off the lamp), a thicker rod, hold the rod nearer the object, or darken the room (docs/shadow-scanner.md)",
-            100.0 * depth,
-            100.0 * MIN_SHADOW_DEPTH
-        );
+        return Err(ScanRefusal::FaintShadow(depth).into());
     }
     Ok(Box::new(crate::source::Extremes::new(source, hi, lo)))
 }
