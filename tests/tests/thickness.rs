@@ -182,7 +182,7 @@ fn the_sheet_correction_moves_a_spheres_points_onto_it() {
         let sheet = format!("--sheet={v}");
         let (ok, _, err) = run(d, "scanner-host", &[cmd, input, "--out", "bad", &sheet]);
         assert!(
-            !ok && scanner_tests::has_kind(&err, "Usage"),
+            !ok && scanner_tests::has_kind(&err, "ThicknessError"),
             "{cmd} --sheet {v}: {err}"
         );
     }

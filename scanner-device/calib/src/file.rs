@@ -398,11 +398,12 @@ pub enum FileError {
         source: toml::ser::Error,
     },
     /// Readable, but the fixed lasers or the platform are unusable.
-    #[error("calibration file {path}: {reason}")]
+    #[error("calibration file {path}")]
     Fixed {
         /// The file.
         path: String,
         /// What is wrong.
+        #[source]
         reason: FixedUnusable,
     },
     /// Readable, but the numbers are unusable.

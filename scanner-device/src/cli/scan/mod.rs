@@ -336,7 +336,7 @@ pub fn run(plan: ScanPlan, quiet: bool) -> Result<ScanReport> {
     if !quiet {
         crate::errln!("source: {}", plan.source.describe());
     }
-    Ok(crate::scan::run(plan, |s| {
+    crate::scan::run(plan, |s| {
         if !quiet && s.frames % 30 == 0 {
             crate::errln!(
                 "frames {}, packets {}, points {}",
@@ -345,7 +345,12 @@ pub fn run(plan: ScanPlan, quiet: bool) -> Result<ScanReport> {
                 s.points
             );
         }
-    })?)
+    })
+    // the session's own error (`main` reads a laser never seen from it), not its wrapper's
+    .map_err(|e| match e {
+        crate::scan::RunError::Session(s) => anyhow::Error::from(s),
+        crate::scan::RunError::Link(l) => anyhow::Error::from(l),
+    })
 }
 
 /// Runs `devices`.
