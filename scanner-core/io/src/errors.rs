@@ -151,4 +151,17 @@ mod tests {
         assert!(variant_names("\"a message\"").is_empty());
         assert!(variant_names("Custom: x").is_empty());
     }
+
+    #[test]
+    fn a_refused_command_line_is_a_record_of_two_kinds() {
+        let line = usage_record(
+            "scanner-host",
+            "ValueValidation",
+            "error: invalid value 'x' for '--sheet <MM>'\n",
+        );
+        assert_eq!(
+            line,
+            "{\"program\":\"scanner-host\",\"error\":[{\"kind\":\"Usage::ValueValidation\",\"message\":\"error: invalid value 'x' for '--sheet <MM>'\"}]}"
+        );
+    }
 }
