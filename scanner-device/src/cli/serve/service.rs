@@ -13,8 +13,8 @@ use scanner_wire::{
 
 use super::worker::{Change, Worker};
 use super::{
-    Event, LASER_SAFE_AFTER, MAX_SHOTS, MIN_PREVIEW_SIDE, MIN_TARGET_SHOTS, READ_POLL, Running,
-    Service, WORKER_STACK, Work,
+    Ended, Event, LASER_SAFE_AFTER, MAX_SHOTS, MIN_PREVIEW_SIDE, MIN_TARGET_SHOTS, READ_POLL,
+    Running, Service, WORKER_STACK, Work,
 };
 
 impl Service {
@@ -298,7 +298,16 @@ impl Service {
             .name("worker".into())
             .stack_size(WORKER_STACK)
             .spawn(move || {
-                let ended = w.run(job, shots);
+                // a panic in the work (a bug) ends it like an error: the service goes on
+                let ended =
+                    std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| w.run(job, shots)))
+                        .unwrap_or_else(|_| Ended {
+                            what: "work",
+                            result: Err(anyhow::anyhow!(
+                                "stopped on an internal error (a bug; its message is above)"
+                            )),
+                            change: Change::Nothing,
+                        });
                 let _ = tx.send(Event::Ended(id, ended));
             });
         match spawned {

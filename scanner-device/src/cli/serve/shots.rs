@@ -182,7 +182,7 @@ impl Worker {
             overlays: None,
         };
         let mut done = None;
-        match crate::calibrate::intrinsics(&intrinsics, &mut say) {
+        match guarded(|| crate::calibrate::intrinsics(&intrinsics, &mut say)) {
             Ok(r) => {
                 msg.shots = u16::try_from(r.used).unwrap_or(u16::MAX);
                 msg.rms_px = r.rms_px.map_or(f32::NAN, |v| v as f32);
@@ -200,7 +200,7 @@ impl Worker {
                     overlay: work.join("calibration-overlay.png"),
                     method: scanner_calib::BoardMethod::LayoutPose,
                 };
-                match crate::calibrate::board(&board, &mut say) {
+                match guarded(|| crate::calibrate::board(&board, &mut say)) {
                     Ok(b) => {
                         msg.board_rms_px =
                             b.sheets.iter().map(|s| s.rms_px).fold(f64::NAN, f64::max) as f32;
@@ -208,10 +208,10 @@ impl Worker {
                         msg.result = 0;
                         done = Some(calibration);
                     }
-                    Err(e) => say(Said::Line(format!("error: {}", crate::error_chain(&e)))),
+                    Err(e) => say(Said::Line(format!("error: {e:#}"))),
                 }
             }
-            Err(e) => say(Said::Line(format!("error: {}", crate::error_chain(&e)))),
+            Err(e) => say(Said::Line(format!("error: {e:#}"))),
         }
         let mut out = self.out.clone();
         out.send(&Message::Calibrated(msg))
@@ -226,6 +226,17 @@ impl Worker {
             ),
             done,
         ))
+    }
+}
+
+/// A calibration step run so that a panic inside it (a bug) is an error like any other: the
+/// host still hears the calibration's outcome, and the service stays up.
+fn guarded<T>(step: impl FnOnce() -> Result<T, crate::calibrate::CalibrateError>) -> Result<T> {
+    match std::panic::catch_unwind(std::panic::AssertUnwindSafe(step)) {
+        Ok(r) => Ok(r?),
+        Err(_) => {
+            bail!("the calibration stopped on an internal error (a bug; its message is above)")
+        }
     }
 }
 
