@@ -155,6 +155,17 @@ pub struct Link {
     stats: LinkStats,
 }
 
+/// A link dropped unfinished (a session's error on the way out) still writes what was queued:
+/// the host hears why the scan stopped before the process ends.
+impl Drop for Link {
+    fn drop(&mut self) {
+        self.tx = None;
+        if let Some(t) = self.thread.take() {
+            let _ = t.join();
+        }
+    }
+}
+
 /// Most buffers between the pipeline and the writer (`--link-depth`): 64 packets of the largest
 /// size are under 5 MB.
 pub const MAX_DEPTH: usize = 64;

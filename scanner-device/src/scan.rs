@@ -168,8 +168,12 @@ pub fn run(
         &stop,
         |s| progress(s),
         |_, _| {},
-    )?;
-    link.finish()?;
+    );
+    // Whatever the session came to, what it queued reaches the host before this returns (a
+    // scan that saw no laser has told the host so; the process may exit right after).
+    let finished = link.finish();
+    let report = report?;
+    finished?;
     Ok(report)
 }
 

@@ -93,6 +93,9 @@ pub struct Rig {
     /// A shadow sweep's lamp-lit image without the rod (supersampled, before the lens blur);
     /// empty without a shadow.
     pub(crate) lamp: Vec<[f64; 3]>,
+    /// A shadow sweep's reference: the ambient image and the rod-free lamp-lit image, through
+    /// the lens; empty without a shadow.
+    pub(crate) lamp_lit: Vec<[f32; 3]>,
     /// Normalised 1-D lens-blur kernel (odd length; `[1]` without blur).
     pub(crate) kernel: Vec<f64>,
 }
@@ -154,6 +157,7 @@ impl Rig {
             normalised: vec![[f32::NAN; 2]; w * h],
             ambient: Vec::new(),
             lamp: Vec::new(),
+            lamp_lit: Vec::new(),
             kernel: gaussian_kernel(scene_blur),
         };
         for v in 0..h {
@@ -204,7 +208,14 @@ impl Rig {
             .collect();
         if let Some(shadow) = rig.scene.shadow {
             shadow.check()?;
-            rig.lamp = rig.lamp_image(&shadow, &[]);
+            rig.lamp = rig.lamp_image(&shadow);
+            let lit = blur(&rig.lamp, w, h, &rig.kernel);
+            rig.lamp_lit = rig
+                .ambient
+                .iter()
+                .zip(lit)
+                .map(|(a, l)| core::array::from_fn(|c| a[c] + l[c] as f32))
+                .collect();
         }
         Ok(rig)
     }
@@ -600,9 +611,19 @@ impl Rig {
             return 0.0;
         }
         let e2 = u.cross(&(l / dl));
-        let delta = (r / dr).dot(&e2).asin();
-        let beta = (shadow.rod_radius_mm / dr).min(1.0).asin();
-        let alpha = (shadow.lamp_radius_mm / (lamp - p).norm()).min(1.0).asin();
+        let (x, sb, sa) = (
+            (r / dr).dot(&e2),
+            (shadow.rod_radius_mm / dr).min(1.0),
+            (shadow.lamp_radius_mm / (lamp - p).norm()).min(1.0),
+        );
+        // the rod clear of the lamp's disc, told without an arcsine (most of the image):
+        // asin is superadditive on [0, 1], so |x| ≥ sb + sa gives |δ| ≥ β + α, a share of 0
+        if x.abs() >= sb + sa {
+            return 0.0;
+        }
+        let delta = x.asin();
+        let beta = sb.asin();
+        let alpha = sa.asin();
         if alpha <= 1e-9 {
             return if delta.abs() < beta { 1.0 } else { 0.0 };
         }
@@ -629,33 +650,54 @@ impl Rig {
         shadow.power * cos * 1e6 / dist2
     }
 
-    /// The lamp-lit image of a shadow sweep (RGB radiance before the lens blur), the rod at the
-    /// times `rods` (averaged: the exposure's motion) or absent (`rods` empty).
-    fn lamp_image(
-        &self,
-        shadow: &ShadowSpec,
-        rods: &[(Point3<f64>, Vector3<f64>)],
-    ) -> Vec<[f64; 3]> {
-        let (w, h) = (self.scene.width as usize, self.scene.height as usize);
-        let lamp = self.scene.laser.source;
-        let occ_at = |p: &Point3<f64>| {
-            rods.iter()
-                .map(|(a, u)| self.occlusion(shadow, p, &lamp, (a, u)))
-                .sum::<f64>()
-                / rods.len().max(1) as f64
-        };
-        let occ: Vec<f64> = self
-            .texels
+    /// The share of the lamp's light the rod hides at each pixel's surface point, averaged over
+    /// the rod's places `rods` (the exposure's motion).
+    fn occlusions(&self, shadow: &ShadowSpec, rods: &[(Point3<f64>, Vector3<f64>)]) -> Vec<f64> {
+        self.texels
             .iter()
             .map(|t| {
                 if t.surface == u16::MAX {
                     0.0
                 } else {
-                    occ_at(&texel_point(t))
+                    self.occlusion_at(shadow, rods, &texel_point(t))
                 }
             })
-            .collect();
-        let mut out = vec![[0.0; 3]; w * h];
+            .collect()
+    }
+
+    fn occlusion_at(
+        &self,
+        shadow: &ShadowSpec,
+        rods: &[(Point3<f64>, Vector3<f64>)],
+        p: &Point3<f64>,
+    ) -> f64 {
+        let lamp = self.scene.laser.source;
+        rods.iter()
+            .map(|(a, u)| self.occlusion(shadow, p, &lamp, (a, u)))
+            .sum::<f64>()
+            / rods.len().max(1) as f64
+    }
+
+    /// The lamp-lit image of a shadow sweep without the rod (RGB radiance before the lens blur),
+    /// every pixel supersampled (the objects' outlines too): made once.
+    fn lamp_image(&self, shadow: &ShadowSpec) -> Vec<[f64; 3]> {
+        let (w, h) = (self.scene.width as usize, self.scene.height as usize);
+        (0..w * h)
+            .map(|i| self.lamp_pixel(shadow, &[], i % w, i / w, Some(0.0)))
+            .collect()
+    }
+
+    /// How the rod at the places `rods` changes the rod-free lamp-lit image: the pixels it
+    /// touches and their change (RGB radiance before the lens blur). Where the rod's share is
+    /// the same all over a pixel, the rod-free image scaled; where it varies, per sub-sample.
+    fn rod_change(
+        &self,
+        shadow: &ShadowSpec,
+        rods: &[(Point3<f64>, Vector3<f64>)],
+    ) -> Vec<(usize, [f64; 3])> {
+        let (w, h) = (self.scene.width as usize, self.scene.height as usize);
+        let occ = self.occlusions(shadow, rods);
+        let mut out = Vec::new();
         for v in 0..h {
             for u in 0..w {
                 let i = v * w + u;
@@ -670,30 +712,41 @@ impl Rig {
                                 && (vv as usize) < h
                                 && (occ[vv as usize * w + uu as usize] - occ[i]).abs() > 1e-4
                         });
-                // without the rod, or where the rod's share is the same all over the pixel,
-                // the lamp-lit image made once (supersampled: the objects' outlines too);
-                // otherwise the rod's share per sub-sample
-                if !self.lamp.is_empty() && !varies {
-                    out[i] = self.lamp[i].map(|v| v * (1.0 - occ[i]));
-                    continue;
+                if varies {
+                    let lit = self.lamp_pixel(shadow, rods, u, v, None);
+                    out.push((i, core::array::from_fn(|c| lit[c] - self.lamp[i][c])));
+                } else if occ[i] > 0.0 {
+                    out.push((i, self.lamp[i].map(|l| -l * occ[i])));
                 }
-                let n = SUPERSAMPLE * SUPERSAMPLE;
-                let mut sum = [0.0; 3];
-                for (su, sv) in subpixels(u, v, SUPERSAMPLE) {
-                    let Some(hit) = self.ray_fast(su, sv).and_then(|d| self.cast(&d)) else {
-                        continue;
-                    };
-                    let e = self.lamp_light(shadow, &hit.point, &hit.normal)
-                        * (1.0 - if varies { occ_at(&hit.point) } else { occ[i] });
-                    let a = self.albedo_of(hit.surface, &hit.point);
-                    for c in 0..3 {
-                        sum[c] += e * a[c] / n as f64;
-                    }
-                }
-                out[i] = sum;
             }
         }
         out
+    }
+
+    /// Pixel `(u, v)` of the lamp-lit image, supersampled: the rod's share per sub-sample, or
+    /// `share` for all of them.
+    fn lamp_pixel(
+        &self,
+        shadow: &ShadowSpec,
+        rods: &[(Point3<f64>, Vector3<f64>)],
+        u: usize,
+        v: usize,
+        share: Option<f64>,
+    ) -> [f64; 3] {
+        let n = SUPERSAMPLE * SUPERSAMPLE;
+        let mut sum = [0.0; 3];
+        for (su, sv) in subpixels(u, v, SUPERSAMPLE) {
+            let Some(hit) = self.ray_fast(su, sv).and_then(|d| self.cast(&d)) else {
+                continue;
+            };
+            let hidden = share.unwrap_or_else(|| self.occlusion_at(shadow, rods, &hit.point));
+            let e = self.lamp_light(shadow, &hit.point, &hit.normal) * (1.0 - hidden);
+            let a = self.albedo_of(hit.surface, &hit.point);
+            for c in 0..3 {
+                sum[c] += e * a[c] / n as f64;
+            }
+        }
+        sum
     }
 
     /// Frame `index` of a shadow sweep, or its reference (`None`: the rod away): ambient light
@@ -721,14 +774,13 @@ impl Rig {
                     .collect::<Result<_, _>>()?
             }
         };
-        let (w, h) = (self.scene.width as usize, self.scene.height as usize);
-        let lit = blur(&self.lamp_image(shadow, &rods), w, h, &self.kernel);
-        Ok(self
-            .ambient
-            .iter()
-            .zip(lit)
-            .map(|(a, l)| core::array::from_fn(|c| a[c] + l[c] as f32))
-            .collect())
+        // the rod-free image through the lens (made once), and the rod's change splatted
+        let mut out = self.lamp_lit.clone();
+        let w = self.scene.width as usize;
+        for (i, change) in self.rod_change(shadow, &rods) {
+            self.splat(&mut out, i % w, i / w, change);
+        }
+        Ok(out)
     }
 
     /// The light planes the exposure of frame `index` averages (one without motion blur).
@@ -842,25 +894,31 @@ impl Rig {
                         sum[c] += e * a[c] * colour[c];
                     }
                 }
-                // through the lens: splat the pixel's laser light with the blur kernel
-                let r = self.kernel.len() / 2;
-                for (jv, kv) in self.kernel.iter().enumerate() {
-                    let Some(vv) = (v + jv).checked_sub(r).filter(|&vv| vv < h) else {
-                        continue;
-                    };
-                    for (ju, ku) in self.kernel.iter().enumerate() {
-                        let Some(uu) = (u + ju).checked_sub(r).filter(|&uu| uu < w) else {
-                            continue;
-                        };
-                        let k = kv * ku / n as f64;
-                        for c in 0..3 {
-                            out[vv * w + uu][c] += (k * sum[c]) as f32;
-                        }
-                    }
-                }
+                self.splat(&mut out, u, v, sum.map(|s| s / n as f64));
             }
         }
         out
+    }
+
+    /// Adds light falling on pixel `(u, v)` to `out` through the lens: spread with the blur
+    /// kernel (what falls outside the image is lost).
+    fn splat(&self, out: &mut [[f32; 3]], u: usize, v: usize, light: [f64; 3]) {
+        let (w, h) = (self.scene.width as usize, self.scene.height as usize);
+        let r = self.kernel.len() / 2;
+        for (jv, kv) in self.kernel.iter().enumerate() {
+            let Some(vv) = (v + jv).checked_sub(r).filter(|&vv| vv < h) else {
+                continue;
+            };
+            for (ju, ku) in self.kernel.iter().enumerate() {
+                let Some(uu) = (u + ju).checked_sub(r).filter(|&uu| uu < w) else {
+                    continue;
+                };
+                let k = kv * ku;
+                for c in 0..3 {
+                    out[vv * w + uu][c] += (k * light[c]) as f32;
+                }
+            }
+        }
     }
 
     /// Radiance → 8-bit RGB through the sensor; `noise_seed` picks the noise realisation.

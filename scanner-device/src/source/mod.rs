@@ -207,20 +207,34 @@ pub trait FrameSource {
 
 /// A shadow sweep's source with each pixel's brightest over its frames for the reference (the
 /// scene lit without the shadow) and its darkest for [`FrameSource::darkest`] (the lamp's light
-/// all hidden); everything else is the source's own.
+/// all hidden); its frames are the ones read beforehand where they were kept, else the
+/// source's own, as is everything else.
 pub struct Extremes {
     source: Box<dyn FrameSource>,
     brightest: Option<OwnedFrame>,
     darkest: Option<OwnedFrame>,
+    kept: Option<std::collections::VecDeque<OwnedFrame>>,
 }
 
+/// Most bytes of a sweep's frames kept in memory when it is read beforehand (a sweep beyond it
+/// is read from its source again): 256 MiB, a 640×480 colour sweep of 290 frames, a quarter of
+/// the smallest Raspberry Pi's memory.
+pub const MAX_KEPT_SWEEP: usize = 256 << 20;
+
 impl Extremes {
-    /// `source` with the brightest and darkest of its frames (read beforehand).
-    pub fn new(source: Box<dyn FrameSource>, brightest: OwnedFrame, darkest: OwnedFrame) -> Self {
+    /// `source` with the brightest and darkest of its frames (read beforehand), and those
+    /// frames in order where they were `kept`.
+    pub fn new(
+        source: Box<dyn FrameSource>,
+        brightest: OwnedFrame,
+        darkest: OwnedFrame,
+        kept: Option<Vec<OwnedFrame>>,
+    ) -> Self {
         Self {
             source,
             brightest: Some(brightest),
             darkest: Some(darkest),
+            kept: kept.map(Into::into),
         }
     }
 }
@@ -248,16 +262,24 @@ impl FrameSource for Extremes {
         self.darkest.take()
     }
     fn next_frame(&mut self) -> Result<Option<OwnedFrame>, SourceError> {
-        self.source.next_frame()
+        match &mut self.kept {
+            Some(kept) => Ok(kept.pop_front()),
+            None => self.source.next_frame(),
+        }
     }
     fn pace(&self) -> Option<CameraPace> {
         self.source.pace()
     }
     fn give_back(&mut self, frame: OwnedFrame) {
-        self.source.give_back(frame);
+        if self.kept.is_none() {
+            self.source.give_back(frame);
+        }
     }
     fn frames_left(&self) -> Option<usize> {
-        self.source.frames_left()
+        match &self.kept {
+            Some(kept) => Some(kept.len()),
+            None => self.source.frames_left(),
+        }
     }
 }
 

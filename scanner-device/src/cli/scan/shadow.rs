@@ -10,8 +10,10 @@ use super::{ScanArgs, ScanRefusal, open_source};
 
 /// `source` with each pixel's value lit without the shadow for its reference and its value in
 /// the shadow's core for [`FrameSource::darkest`], from two readings of the sweep beforehand
-/// (two more openings of the same source): the brightest and the darkest of each byte, then the
-/// mean of the values in the top quarter of that range and of those in the bottom quarter. The
+/// (of its frames kept in memory up to [`crate::source::MAX_KEPT_SWEEP`], which the scan then
+/// reads too; else of two more openings of the same source): the brightest and the darkest of
+/// each byte, then the mean of the values in the top quarter of that range and of those in the
+/// bottom quarter. The
 /// extremes alone stand a few noise σ beyond the values they stand for, which would widen every
 /// band by a third of a pixel on the rig; the means do not.
 pub(super) fn sweep_extremes(
@@ -22,15 +24,24 @@ pub(super) fn sweep_extremes(
 ) -> Result<Box<dyn FrameSource>> {
     let mut first = open_source(a, format, opts)?;
     let mut both: Option<(crate::source::OwnedFrame, crate::source::OwnedFrame)> = None;
+    // the frames, kept for the second reading and the scan while they fit
+    let (mut kept, mut kept_bytes) = (Some(Vec::new()), 0usize);
     while let Some(frame) = first.next_frame()? {
         match &mut both {
-            None => both = Some((frame.clone(), frame)),
+            None => both = Some((frame.clone(), frame.clone())),
             Some((hi, lo)) => {
                 for ((h, l), v) in hi.data.iter_mut().zip(&mut lo.data).zip(&frame.data) {
                     *h = (*h).max(*v);
                     *l = (*l).min(*v);
                 }
             }
+        }
+        kept_bytes += frame.data.len();
+        if kept_bytes > crate::source::MAX_KEPT_SWEEP {
+            kept = None;
+        }
+        if let Some(k) = &mut kept {
+            k.push(frame);
         }
     }
     let Some((mut hi, mut lo)) = both else {
@@ -41,8 +52,7 @@ pub(super) fn sweep_extremes(
         [vec![0u32; n], vec![0u32; n]],
         [vec![0u32; n], vec![0u32; n]],
     );
-    let mut second = open_source(a, format, opts)?;
-    while let Some(frame) = second.next_frame()? {
+    let mut tally = |frame: &crate::source::OwnedFrame| {
         for (i, &v) in frame.data.iter().enumerate() {
             let (h, l) = (u32::from(hi.data[i]), u32::from(lo.data[i]));
             let quarter = (h - l) / 8;
@@ -54,6 +64,15 @@ pub(super) fn sweep_extremes(
             if v32 <= l + quarter {
                 sums[1][i] += v32;
                 counts[1][i] += 1;
+            }
+        }
+    };
+    match &kept {
+        Some(frames) => frames.iter().for_each(&mut tally),
+        None => {
+            let mut second = open_source(a, format, opts)?;
+            while let Some(frame) = second.next_frame()? {
+                tally(&frame);
             }
         }
     }
@@ -70,7 +89,7 @@ pub(super) fn sweep_extremes(
     if depth < MIN_SHADOW_DEPTH {
         return Err(ScanRefusal::FaintShadow(depth).into());
     }
-    Ok(Box::new(crate::source::Extremes::new(source, hi, lo)))
+    Ok(Box::new(crate::source::Extremes::new(source, hi, lo, kept)))
 }
 
 /// Least share of the light a shadow sweep's shadow must take where it passes: a sharp shadow

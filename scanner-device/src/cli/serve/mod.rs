@@ -45,6 +45,9 @@ pub(super) const MIN_PREVIEW_SIDE: usize = 8;
 pub(super) const WORKER_STACK: usize = 64 << 20;
 /// How long a read of the link waits before looking again (a serial port's timeout).
 pub(super) const READ_POLL: Duration = Duration::from_millis(100);
+/// How long a command the running work would refuse waits for that work to end: the host may
+/// hear a sweep's last packet and ask for the next before the worker has returned.
+pub(super) const ENDING_GRACE: Duration = Duration::from_millis(500);
 /// Once a host has spoken, silence this long switches every laser the head drives off: the
 /// studio says hello every 500 ms, so this is four missed in a row (a closed page, a crashed
 /// studio, a pulled or silent cable). The laser stays off until a command switches it on.
@@ -105,8 +108,8 @@ impl SharedOut {
 pub(super) enum Event {
     /// A frame from the host.
     Command(Result<CommandFrame, CommandFrameError>),
-    /// A worker finished (its job's number, and what it came to).
-    Ended(u64, Ended),
+    /// A worker finished (its job's number): what it came to is its thread's result.
+    Ended(u64),
     /// The link's input closed (standard input ended) or Ctrl-C: the service ends.
     Quit,
 }
@@ -123,7 +126,7 @@ pub(super) struct Running {
     pub(super) id: u64,
     pub(super) state: HeadState,
     pub(super) stop: Arc<AtomicBool>,
-    pub(super) thread: JoinHandle<()>,
+    pub(super) thread: JoinHandle<Ended>,
 }
 
 /// A job for the worker.

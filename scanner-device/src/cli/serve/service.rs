@@ -13,8 +13,8 @@ use scanner_wire::{
 
 use super::worker::{Change, Worker};
 use super::{
-    Ended, Event, LASER_SAFE_AFTER, MAX_SHOTS, MIN_PREVIEW_SIDE, MIN_TARGET_SHOTS, READ_POLL,
-    Running, Service, WORKER_STACK, Work,
+    ENDING_GRACE, Ended, Event, LASER_SAFE_AFTER, MAX_SHOTS, MIN_PREVIEW_SIDE, MIN_TARGET_SHOTS,
+    READ_POLL, Running, Service, WORKER_STACK, Work,
 };
 
 impl Service {
@@ -50,29 +50,49 @@ impl Service {
                     }
                     self.command(r);
                 }
-                Event::Ended(id, e) => {
-                    // a job replaced before it ended (the preview's new settings) was joined
-                    // then
-                    if self.running.as_ref().is_some_and(|r| r.id == id)
-                        && let Some(r) = self.running.take()
-                    {
-                        let _ = r.thread.join();
-                    }
-                    self.settle(e.change);
-                    match e.result {
-                        Ok(line) => crate::errln!("{}: {line}", e.what),
-                        Err(err) => crate::errln!("{} failed: {err:#}", e.what),
+                // a job already reaped (replaced by the preview's new settings, or ended
+                // while a command waited for it) was settled then
+                Event::Ended(id) => {
+                    if self.running.as_ref().is_some_and(|r| r.id == id) {
+                        self.reap();
                     }
                 }
                 Event::Quit => break,
             }
             self.watch();
         }
-        if let Some(r) = self.running.take() {
+        if let Some(r) = &self.running {
             r.stop.store(true, Ordering::SeqCst);
-            let _ = r.thread.join();
+            self.reap();
         }
         crate::errln!("service ended");
+    }
+
+    /// Waits for the running work to end and takes what it came to: a shot kept, a calibration
+    /// made, its line in the log.
+    pub(super) fn reap(&mut self) {
+        let Some(r) = self.running.take() else { return };
+        let e = r.thread.join().unwrap_or_else(|_| panicked());
+        self.settle(e.change);
+        match e.result {
+            Ok(line) => crate::errln!("{}: {line}", e.what),
+            Err(err) => crate::errln!("{} failed: {err:#}", e.what),
+        }
+    }
+
+    /// `true` when the running work ends within [`ENDING_GRACE`] (then reaped): a command
+    /// that came as it ended is decided as if it had come after.
+    pub(super) fn ended_within_grace(&mut self) -> bool {
+        let Some(r) = &self.running else { return true };
+        let until = std::time::Instant::now() + ENDING_GRACE;
+        while !r.thread.is_finished() {
+            if std::time::Instant::now() >= until {
+                return false;
+            }
+            std::thread::sleep(Duration::from_millis(5));
+        }
+        self.reap();
+        true
     }
 
     /// Switches the lasers off once the host has been silent for [`LASER_SAFE_AFTER`].
@@ -200,7 +220,9 @@ impl Service {
                 self.laser.store(on, Ordering::SeqCst);
                 (ok(self), None)
             }
-            Command::Turn { .. } if self.state() == HeadState::Sweeping => {
+            Command::Turn { .. }
+                if self.state() == HeadState::Sweeping && !self.ended_within_grace() =>
+            {
                 (self.reply(seq, Outcome::Busy, 0, 0), None)
             }
             Command::Turn { steps } => match self.rig_views {
@@ -218,12 +240,13 @@ impl Service {
                     .as_ref()
                     .is_some_and(|r| r.state == HeadState::Previewing) =>
             {
-                if let Some(r) = self.running.take() {
+                if let Some(r) = &self.running {
                     r.stop.store(true, Ordering::SeqCst);
-                    let _ = r.thread.join();
+                    self.reap();
                 }
                 self.decide(f)
             }
+            _ if busy && self.ended_within_grace() => self.decide(f),
             _ if busy => (self.reply(seq, Outcome::Busy, 0, 0), None),
             Command::Preview(p) => {
                 let (w, h) = self.frame_size;
@@ -301,14 +324,9 @@ impl Service {
                 // a panic in the work (a bug) ends it like an error: the service goes on
                 let ended =
                     std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| w.run(job, shots)))
-                        .unwrap_or_else(|_| Ended {
-                            what: "work",
-                            result: Err(anyhow::anyhow!(
-                                "stopped on an internal error (a bug; its message is above)"
-                            )),
-                            change: Change::Nothing,
-                        });
-                let _ = tx.send(Event::Ended(id, ended));
+                        .unwrap_or_else(|_| panicked());
+                let _ = tx.send(Event::Ended(id));
+                ended
             });
         match spawned {
             Ok(thread) => {
@@ -331,5 +349,16 @@ impl Service {
             Change::Kept { board: false } => self.target_shots += 1,
             Change::Calibrated(path) => self.calibration = Some(path),
         }
+    }
+}
+
+/// What work that panicked (a bug) came to.
+fn panicked() -> Ended {
+    Ended {
+        what: "work",
+        result: Err(anyhow::anyhow!(
+            "stopped on an internal error (a bug; its message is above)"
+        )),
+        change: Change::Nothing,
     }
 }
