@@ -934,7 +934,9 @@ impl Rig {
                     let sd = (s.read_noise * s.read_noise + s.shot_noise * v.max(0.0)).sqrt();
                     v += sd * unit_normal(rng.random::<u64>());
                 }
-                data.push(v.round().clamp(0.0, 255.0) as u8);
+                // rounded to the nearest level: `as` saturates (below 0 and NaN give 0, above
+                // 255 gives 255) and truncates, without a call to `round`
+                data.push((v + 0.5) as u8);
             }
         }
         Rgb8 {

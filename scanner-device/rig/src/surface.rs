@@ -241,7 +241,8 @@ impl Shape {
                 .rectangle(centre, axes, &[*radius, *radius])
                 .filter(|(t, _)| {
                     let r = ray.at(*t) - centre;
-                    r.dot(&axes[0]).hypot(r.dot(&axes[1])) <= *radius
+                    let (a, b) = (r.dot(&axes[0]), r.dot(&axes[1]));
+                    a * a + b * b <= radius * radius
                 }),
         }?;
         Some(Hit {

@@ -27,6 +27,10 @@ use self::job::Problem;
 /// How long a command may wait for its reply.
 pub const REPLY_WITHIN: Duration = Duration::from_secs(5);
 
+/// How long a command the head calls busy with a sweep whose last status has arrived is asked
+/// again: the head's worker is ending (its last packets are on the link before it returns).
+pub const SWEEP_ENDING_WITHIN: Duration = Duration::from_secs(3);
+
 /// Why the merge the studio ran failed: the merge's own words (its report says more).
 #[derive(Debug, thiserror::Error)]
 #[error("{0}")]
@@ -130,7 +134,7 @@ impl Studio {
         } else {
             None
         };
-        let asked = self.link.ask(cmd, REPLY_WITHIN);
+        let asked = self.ask_past_sweep_end(cmd);
         let mut job = self.link.shared.job();
         match asked {
             Ok(r) => {
@@ -153,6 +157,23 @@ impl Studio {
                 }
                 Err(e.into())
             }
+        }
+    }
+
+    /// Asks the head; a "busy with a sweep" while every view of the job has ended (the sweep's
+    /// last status came, its worker not yet returned) is asked again, as a new command, for up
+    /// to [`SWEEP_ENDING_WITHIN`].
+    fn ask_past_sweep_end(&self, cmd: Command) -> Result<Reply, HeadError> {
+        let until = std::time::Instant::now() + SWEEP_ENDING_WITHIN;
+        loop {
+            let asked = self.link.ask(cmd, REPLY_WITHIN);
+            let ending = matches!(&asked, Ok(r) if r.outcome == Outcome::Busy
+                && r.state == scanner_wire::HeadState::Sweeping)
+                && self.link.shared.job().views.iter().all(|v| v.done);
+            if !ending || std::time::Instant::now() >= until {
+                return asked;
+            }
+            std::thread::sleep(Duration::from_millis(100));
         }
     }
 }
