@@ -311,13 +311,16 @@ fn the_page_keeps_up_with_300_000_points_a_second_in_bounded_memory() {
         t0.elapsed().as_secs_f64()
     );
     // …and on to a 5-million-point scan. Past 2 million the host thins its history by half, so
-    // a page that lags behind then gets part of what it has not yet had: most, not all.
+    // a page that lags behind then gets part of what it has not yet had: most, not all. Asked:
+    // the first 2 million and half of the rest (3.5 million, 70 %), what the halving leaves a
+    // page that lags from 2 million on (seen: about 90 % on an idle machine, 88 % beside
+    // another test binary).
     offer_points(&v, 3_801_000, 300_000.0);
     let settled = "(() => { const n = Number(document.body.dataset.points); \
-        const same = n === window.lastSeen; window.lastSeen = n; return same && n >= 4500000; })()";
+        const same = n === window.lastSeen; window.lastSeen = n; return same && n >= 3500000; })()";
     assert!(
         b.wait_for(settled, Duration::from_secs(120)),
-        "the page received at least 90 % of the 5 001 000 points: {}",
+        "the page received at least the first 2 million and half of the other 3 001 000 points: {}",
         b.eval("document.body.dataset.points")
     );
     let received = b.eval("Number(document.body.dataset.points)");
