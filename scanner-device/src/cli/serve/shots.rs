@@ -90,6 +90,9 @@ impl Worker {
     /// A shot's picture: the rig's (the target at the next of its poses, or the board), or
     /// the source's next frame.
     pub(super) fn shot_image(&self, board: bool, kept: u16) -> Result<image::GrayImage> {
+        // a camera's shot is its next frame whatever it shows: only the rig renders the board
+        #[cfg(not(feature = "rig"))]
+        let _ = board;
         #[cfg(feature = "rig")]
         if self.scan.source.starts_with("rig") {
             use scanner_rig::target::{Pattern, TargetPose};
