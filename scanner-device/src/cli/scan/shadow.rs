@@ -13,9 +13,8 @@ use super::{ScanArgs, ScanRefusal, open_source};
 /// (of its frames kept in memory up to [`crate::source::MAX_KEPT_SWEEP`], which the scan then
 /// reads too; else of two more openings of the same source): the brightest and the darkest of
 /// each byte, then the mean of the values in the top quarter of that range and of those in the
-/// bottom quarter. The
-/// extremes alone stand a few noise σ beyond the values they stand for, which would widen every
-/// band by a third of a pixel on the rig; the means do not.
+/// bottom quarter. The extremes alone stand a few noise σ beyond the values they stand for,
+/// which would widen every band by a third of a pixel on the rig; the means do not.
 pub(super) fn sweep_extremes(
     a: &ScanArgs,
     format: PixelFormat,
