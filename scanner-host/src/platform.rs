@@ -360,9 +360,14 @@ pub fn near_model(cloud: &PlatformCloud, m: &Model, cell: f64) -> Vec<bool> {
         .points
         .iter()
         .map(|p| {
-            t.nearest_one::<kiddo::SquaredEuclidean>(&[p.x, p.y, p.z])
-                .distance
-                <= reach
+            // searched within the reach only: the points off the model lie far from it
+            !t.nearest_n_within::<kiddo::SquaredEuclidean>(
+                &[p.x, p.y, p.z],
+                reach,
+                std::num::NonZero::<usize>::MIN,
+                false,
+            )
+            .is_empty()
         })
         .collect()
 }

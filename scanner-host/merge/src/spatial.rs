@@ -15,6 +15,11 @@ pub struct Cloud {
     pub normals: Vec<Vector3<f64>>,
 }
 
+/// `k` as the count a k-d tree's n-nearest search takes (at least one).
+pub(crate) fn at_least_one(k: usize) -> std::num::NonZero<usize> {
+    std::num::NonZero::new(k).unwrap_or(std::num::NonZero::<usize>::MIN)
+}
+
 /// A k-d tree of `points`, items their indices.
 pub fn tree(points: &[Point3<f64>]) -> KdTree<f64, 3> {
     tree_of(points.iter().map(|p| [p.x, p.y, p.z]))
@@ -133,7 +138,7 @@ pub fn normals(points: &[Point3<f64>], k: usize) -> Vec<Vector3<f64>> {
     let Some(t) = balanced(points) else {
         return Vec::new();
     };
-    let k = std::num::NonZero::new(k.max(3)).unwrap_or(std::num::NonZero::<usize>::MIN);
+    let k = at_least_one(k.max(3));
     points
         .iter()
         .map(|p| {

@@ -10,7 +10,7 @@
 //! faces, fans around vertices, components, the enclosed volume; [`unseen_faces`] says which
 //! surface no view saw (for the report, or [`trim`]).
 
-use kiddo::SquaredEuclidean;
+use kiddo::{ImmutableKdTree, SquaredEuclidean};
 use scanner_core::nalgebra::{Point3, Vector3};
 
 use crate::error::FuseError;
@@ -61,6 +61,9 @@ const SURE: f64 = 0.5;
 /// it at a time (2 MB at most) — and the coarse grid holds one point in 64 (17 MB at most); the
 /// rest of the memory is the points' trees and the mesh.
 const MAX_CELLS: usize = 512 * 512 * 512;
+
+/// Most threads a fusion's slices are shared among.
+const MAX_THREADS: usize = 8;
 
 /// Quality of a fused mesh.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
@@ -140,7 +143,7 @@ pub fn fuse_cut(
 /// is the plane the object stands on, which the grid reaches down to.
 pub struct Fill<'a> {
     /// Whether a point may be the object's.
-    pub solid: &'a dyn Fn(&Point3<f64>) -> bool,
+    pub solid: &'a (dyn Fn(&Point3<f64>) -> bool + Sync),
     /// The plane the object stands on: `up · x = at`.
     pub floor: HalfSpace,
 }
@@ -204,18 +207,29 @@ pub fn fuse_filled(
     if nx.saturating_mul(ny).saturating_mul(nz) > MAX_CELLS {
         return Err(FuseError::TooLarge(nx, ny, nz, MAX_CELLS));
     }
-    let tree = crate::spatial::tree(points);
+    let Some(tree) = crate::spatial::balanced(points) else {
+        return Err(FuseError::TooFewPoints(0));
+    };
     let area = crate::fuse::winding::spacing_areas(points, &tree);
     let winding = Winding::of_cloud(points, normals, &tree, &area);
     let at = |i: usize, j: usize, k: usize| lo + Vector3::new(i as f64, j as f64, k as f64) * cell;
     // Where no view saw, the value is the winding number's (½ − w) scaled to about a cell.
     let closing = |w: f64| ((0.5 - w) * 2.0 * cell) as f32;
-    let coarse = Coarse::new((nx, ny, nz), &at, &tree, &winding);
+    // A coarse cube whose eight corners are all this far from every point holds no grid point
+    // within BAND cells of a point, and no seen surface: its winding number interpolates.
+    let far = ((BAND + COARSE as f64) * cell) as f32;
+    let coarse = Coarse::new((nx, ny, nz), &at, &tree, &winding, f64::from(far));
     // A grid point takes the signed distance along the nearest point's normal (positive
     // outside) when it lies over that point: within BAND cells of it and off its normal by less
     // than a cell and twice the points' spacing. Elsewhere — far from every point, or beside
     // the rim of a seen patch, where the tangent planes would run on as sheets — the sign is
     // the winding number's, which closes the holes.
+    let clear = (FILL_CLEAR_CELLS * cell).max(FILL_CLEAR_MM);
+    let search2 = if fill.is_some() {
+        (BAND * cell).max(clear).powi(2)
+    } else {
+        (BAND * cell).powi(2)
+    };
     let field = |i: usize, j: usize, k: usize| {
         let q = at(i, j, k);
         let wound = || {
@@ -225,7 +239,20 @@ pub fn fuse_filled(
                 winding.at(&q)
             }
         };
-        let m = tree.nearest_one::<SquaredEuclidean>(&[q.x, q.y, q.z]);
+        // Searched only as far as an answer can matter: the band, and with a fill the
+        // clearance it tests (an unbounded search far from the points visits much of the tree).
+        let Some(m) = tree
+            .nearest_n_within::<SquaredEuclidean>(
+                &[q.x, q.y, q.z],
+                search2,
+                std::num::NonZero::<usize>::MIN,
+                false,
+            )
+            .first()
+            .copied()
+        else {
+            return (closing(wound()), Some(f64::INFINITY));
+        };
         let p = m.item as usize;
         let s = (q - points[p]).dot(&normals[p]);
         let lateral2 = m.distance - s * s;
@@ -236,7 +263,10 @@ pub fn fuse_filled(
             // average instead of taking turns (the nearest alone left pits and bumps).
             let (mut sum, mut wsum) = (0.0, 0.0);
             let h2 = (area[p].sqrt() * 2.0 + 0.5 * cell).powi(2);
-            for nb in tree.nearest_n::<SquaredEuclidean>(&[q.x, q.y, q.z], NEIGHBOURS) {
+            for nb in tree.nearest_n::<SquaredEuclidean>(
+                &[q.x, q.y, q.z],
+                crate::spatial::at_least_one(NEIGHBOURS),
+            ) {
                 let i = nb.item as usize;
                 if normals[i].dot(&normals[p]) < 0.5 {
                     continue;
@@ -265,15 +295,11 @@ pub fn fuse_filled(
             (closing(wound()), Some(m.distance))
         }
     };
-    // A coarse cube whose eight corners are all this far from every point holds no grid point
-    // within BAND cells of a point, and no seen surface: its winding number interpolates.
-    let far = ((BAND + COARSE as f64) * cell) as f32;
     // Where the winding number closes (its value below 0 inside), the fill may say inside too,
     // at grid points `d2` (squared, mm²) from the nearest point: those clear of every point by
     // FILL_CLEAR (a seen surface's own outside lies nearer, where what a view saw cannot carve
     // finely enough: its bins span millimetres of depth on a slanted face), and nearer ones the
     // winding number does not put clearly outside.
-    let clear = (FILL_CLEAR_CELLS * cell).max(FILL_CLEAR_MM);
     let filled = |v: f32, d2: f64, i: usize, j: usize, k: usize| -> f32 {
         let open = d2 >= clear * clear || v < (FILL_WINDING_CELLS * cell) as f32;
         match fill {
@@ -285,9 +311,11 @@ pub fn fuse_filled(
     // grid set outside so that every surface closes inside it), two slices held: the fine grid
     // is never stored whole.
     // Each slice's values (and with a fill, the winding number's own where it differs).
-    let slice = |k: usize| -> (Vec<f32>, Vec<f32>) {
-        let mut out = Vec::with_capacity(nx * ny);
-        let mut plain = Vec::with_capacity(if fill.is_some() { nx * ny } else { 0 });
+    // Rows `rows` of slice k.
+    let rows = |k: usize, rows: std::ops::Range<usize>| -> (Vec<f32>, Vec<f32>) {
+        let len = nx * rows.len();
+        let mut out = Vec::with_capacity(len);
+        let mut plain = Vec::with_capacity(if fill.is_some() { len } else { 0 });
         let edge = |x: usize, n: usize| x < 2 || x + 2 >= n;
         let finish = |mut v: f32, i: usize, j: usize| {
             if let Some(h) = keep {
@@ -299,7 +327,7 @@ pub fn fuse_filled(
                 v
             }
         };
-        for j in 0..ny {
+        for j in rows {
             for i in 0..nx {
                 let (v, unseen) = if coarse.far(i, j, k, far) {
                     (closing(coarse.winding(i, j, k)), Some(f64::INFINITY))
@@ -312,6 +340,29 @@ pub fn fuse_filled(
                     plain.push(finish(v, i, j));
                 }
             }
+        }
+        (out, plain)
+    };
+    // A slice's rows shared among the machine's cores, in order.
+    let threads = std::thread::available_parallelism().map_or(1, |n| n.get().min(MAX_THREADS));
+    let slice = |k: usize| -> (Vec<f32>, Vec<f32>) {
+        let chunk = ny.div_ceil(threads);
+        let parts: Vec<(Vec<f32>, Vec<f32>)> = std::thread::scope(|s| {
+            let rows = &rows;
+            let handles: Vec<_> = (0..ny)
+                .step_by(chunk.max(1))
+                .map(|j| s.spawn(move || rows(k, j..(j + chunk).min(ny))))
+                .collect();
+            handles
+                .into_iter()
+                .map(|h| h.join().unwrap_or_else(|e| std::panic::resume_unwind(e)))
+                .collect()
+        });
+        let mut out = Vec::with_capacity(nx * ny);
+        let mut plain = Vec::with_capacity(if fill.is_some() { nx * ny } else { 0 });
+        for (o, p) in parts {
+            out.extend(o);
+            plain.extend(p);
         }
         (out, plain)
     };
@@ -382,7 +433,9 @@ pub fn off_surface(points: &[Point3<f64>], normals: &[Vector3<f64>], weights: &[
     if (0..points.len()).all(sure) {
         return vec![false; points.len()];
     }
-    let tree = crate::spatial::tree(points);
+    let Some(tree) = crate::spatial::balanced(points) else {
+        return Vec::new();
+    };
     let spacing = crate::fuse::winding::spacing_areas(points, &tree);
     let winding = Winding::of_cloud(points, normals, &tree, &spacing);
     points
@@ -397,7 +450,8 @@ pub fn off_surface(points: &[Point3<f64>], normals: &[Vector3<f64>], weights: &[
 /// slow part of a fusion, and nothing there needs a finer value).
 const COARSE: usize = 4;
 
-/// Every [`COARSE`]th grid point's distance to the nearest point and winding number.
+/// Every [`COARSE`]th grid point's distance to the nearest point (infinite beyond the reach it
+/// was searched to) and winding number.
 struct Coarse {
     /// Coarse points per axis.
     dims: (usize, usize, usize),
@@ -406,12 +460,15 @@ struct Coarse {
 }
 
 impl Coarse {
-    /// The coarse grid over a fine grid of `(nx, ny, nz)` points placed by `at`.
+    /// The coarse grid over a fine grid of `(nx, ny, nz)` points placed by `at`, its distances
+    /// searched within `reach` mm (an unbounded search far from the points visits much of the
+    /// tree, and [`Coarse::far`] asks no more).
     fn new(
         (nx, ny, nz): (usize, usize, usize),
         at: &impl Fn(usize, usize, usize) -> Point3<f64>,
-        tree: &kiddo::KdTree<f64, 3>,
+        tree: &ImmutableKdTree<f64, 3>,
         winding: &Winding,
+        reach: f64,
     ) -> Coarse {
         let dims = (nx / COARSE + 2, ny / COARSE + 2, nz / COARSE + 2);
         let (cx, cy, cz) = dims;
@@ -421,8 +478,15 @@ impl Coarse {
             for j in 0..cy {
                 for i in 0..cx {
                     let q = at(COARSE * i, COARSE * j, COARSE * k);
-                    let m = tree.nearest_one::<SquaredEuclidean>(&[q.x, q.y, q.z]);
-                    distance[(k * cy + j) * cx + i] = m.distance.sqrt() as f32;
+                    let near = tree.nearest_n_within::<SquaredEuclidean>(
+                        &[q.x, q.y, q.z],
+                        reach * reach,
+                        std::num::NonZero::<usize>::MIN,
+                        false,
+                    );
+                    distance[(k * cy + j) * cx + i] = near
+                        .first()
+                        .map_or(f32::INFINITY, |m| m.distance.sqrt() as f32);
                     w[(k * cy + j) * cx + i] = winding.at(&q) as f32;
                 }
             }

@@ -6,7 +6,7 @@
 //! binary tree of the points, each node summed as one dipole (its area-weighted centre and the
 //! sum of its `aᵢ nᵢ`) when the query is farther than `BETA` times the node's radius.
 
-use kiddo::SquaredEuclidean;
+use kiddo::{ImmutableKdTree, SquaredEuclidean};
 use scanner_core::nalgebra::{Point3, Vector3};
 
 /// A node is summed as one dipole when the query lies farther than `BETA` × its radius from
@@ -24,12 +24,15 @@ const AREA_K: usize = 32;
 /// takes its square root as the points' local spacing), but short of the area: on the 360°
 /// demo's points its sum falls about 3 % short, which moves the closure of a hole 60 mm wide
 /// by half a millimetre inwards; [`areas`] gives the area.
-pub(crate) fn spacing_areas(points: &[Point3<f64>], tree: &kiddo::KdTree<f64, 3>) -> Vec<f64> {
+pub(crate) fn spacing_areas(points: &[Point3<f64>], tree: &ImmutableKdTree<f64, 3>) -> Vec<f64> {
     points
         .iter()
         .map(|p| {
             let r2 = tree
-                .nearest_n::<SquaredEuclidean>(&[p.x, p.y, p.z], AREA_K + 1)
+                .nearest_n::<SquaredEuclidean>(
+                    &[p.x, p.y, p.z],
+                    crate::spatial::at_least_one(AREA_K + 1),
+                )
                 .last()
                 .map_or(0.0, |n| n.distance);
             std::f64::consts::PI * r2 / (AREA_K + 1) as f64
@@ -50,7 +53,7 @@ pub(crate) fn areas(
     points: &[Point3<f64>],
     normals: &[Vector3<f64>],
     spacing: &[f64],
-    tree: &kiddo::KdTree<f64, 3>,
+    tree: &ImmutableKdTree<f64, 3>,
 ) -> Vec<f64> {
     let mut cell: Vec<[f64; 2]> = Vec::with_capacity(4 + CELL_K);
     let mut clipped: Vec<[f64; 2]> = Vec::with_capacity(4 + CELL_K);
@@ -76,7 +79,10 @@ pub(crate) fn areas(
             cell.clear();
             cell.extend([[-half, -half], [half, -half], [half, half], [-half, half]]);
             let mut sharing = 1.0;
-            for m in tree.nearest_n::<SquaredEuclidean>(&[p.x, p.y, p.z], CELL_K + 1) {
+            for m in tree.nearest_n::<SquaredEuclidean>(
+                &[p.x, p.y, p.z],
+                crate::spatial::at_least_one(CELL_K + 1),
+            ) {
                 let j = m.item as usize;
                 if j == i || normals[j].dot(n) < 0.5 {
                     continue;
@@ -193,7 +199,7 @@ impl Winding {
     pub fn of_cloud(
         points: &[Point3<f64>],
         normals: &[Vector3<f64>],
-        tree: &kiddo::KdTree<f64, 3>,
+        tree: &ImmutableKdTree<f64, 3>,
         spacing: &[f64],
     ) -> Self {
         Winding::new(points, normals, &areas(points, normals, spacing, tree))
@@ -307,7 +313,7 @@ mod tests {
                 nn.push(d);
             }
         }
-        let tree = crate::spatial::tree(&p);
+        let tree = crate::spatial::balanced(&p).unwrap();
         let a = areas(&p, &nn, &spacing_areas(&p, &tree), &tree);
         Winding::new(&p, &nn, &a)
     }
