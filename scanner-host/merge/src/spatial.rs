@@ -15,6 +15,37 @@ pub struct Cloud {
     pub normals: Vec<Vector3<f64>>,
 }
 
+/// Most threads [`par_map`] shares its work among.
+pub(crate) const MAX_THREADS: usize = 8;
+
+/// The threads [`par_map`] and the fusion's slices use: the machine's cores, at most
+/// [`MAX_THREADS`].
+pub(crate) fn threads() -> usize {
+    std::thread::available_parallelism().map_or(1, |n| n.get().min(MAX_THREADS))
+}
+
+/// `f(i)` for every `i` in `0..n`, in order, the range shared among [`threads`] threads in
+/// contiguous runs (the searches over a cloud's points: each answer independent of the others).
+pub(crate) fn par_map<U: Send>(n: usize, f: impl Fn(usize) -> U + Sync) -> Vec<U> {
+    let threads = threads();
+    if threads <= 1 || n < 1024 {
+        return (0..n).map(f).collect();
+    }
+    let chunk = n.div_ceil(threads);
+    let f = &f;
+    std::thread::scope(|s| {
+        let parts: Vec<_> = (0..n)
+            .step_by(chunk)
+            .map(|a| s.spawn(move || (a..(a + chunk).min(n)).map(f).collect::<Vec<U>>()))
+            .collect();
+        let mut out = Vec::with_capacity(n);
+        for p in parts {
+            out.extend(p.join().unwrap_or_else(|e| std::panic::resume_unwind(e)));
+        }
+        out
+    })
+}
+
 /// `k` as the count a k-d tree's n-nearest search takes (at least one).
 pub(crate) fn at_least_one(k: usize) -> std::num::NonZero<usize> {
     std::num::NonZero::new(k).unwrap_or(std::num::NonZero::<usize>::MIN)
@@ -139,24 +170,22 @@ pub fn normals(points: &[Point3<f64>], k: usize) -> Vec<Vector3<f64>> {
         return Vec::new();
     };
     let k = at_least_one(k.max(3));
-    points
-        .iter()
-        .map(|p| {
-            let nn = t.nearest_n::<SquaredEuclidean>(&[p.x, p.y, p.z], k);
-            let mean = nn
-                .iter()
-                .fold(Vector3::zeros(), |a, n| a + points[n.item as usize].coords)
-                / nn.len() as f64;
-            let cov = nn.iter().fold(Matrix3::zeros(), |a, n| {
-                let d = points[n.item as usize].coords - mean;
-                a + d * d.transpose()
-            });
-            let e = SymmetricEigen::new(cov);
-            let i = e.eigenvalues.imin();
-            let n: Vector3<f64> = e.eigenvectors.column(i).into_owned();
-            if n.dot(&p.coords) > 0.0 { -n } else { n }
-        })
-        .collect()
+    par_map(points.len(), |i| {
+        let p = &points[i];
+        let nn = t.nearest_n::<SquaredEuclidean>(&[p.x, p.y, p.z], k);
+        let mean = nn
+            .iter()
+            .fold(Vector3::zeros(), |a, n| a + points[n.item as usize].coords)
+            / nn.len() as f64;
+        let cov = nn.iter().fold(Matrix3::zeros(), |a, n| {
+            let d = points[n.item as usize].coords - mean;
+            a + d * d.transpose()
+        });
+        let e = SymmetricEigen::new(cov);
+        let i = e.eigenvalues.imin();
+        let n: Vector3<f64> = e.eigenvectors.column(i).into_owned();
+        if n.dot(&p.coords) > 0.0 { -n } else { n }
+    })
 }
 
 /// The index of the nearest of `tree`'s items to `q` within `max_dist` mm (searched within the

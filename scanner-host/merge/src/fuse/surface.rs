@@ -62,9 +62,6 @@ const SURE: f64 = 0.5;
 /// rest of the memory is the points' trees and the mesh.
 const MAX_CELLS: usize = 512 * 512 * 512;
 
-/// Most threads a fusion's slices are shared among.
-const MAX_THREADS: usize = 8;
-
 /// Quality of a fused mesh.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
 pub struct MeshCheck {
@@ -344,7 +341,7 @@ pub fn fuse_filled(
         (out, plain)
     };
     // A slice's rows shared among the machine's cores, in order.
-    let threads = std::thread::available_parallelism().map_or(1, |n| n.get().min(MAX_THREADS));
+    let threads = crate::spatial::threads();
     let slice = |k: usize| -> (Vec<f32>, Vec<f32>) {
         let chunk = ny.div_ceil(threads);
         let parts: Vec<(Vec<f32>, Vec<f32>)> = std::thread::scope(|s| {
@@ -465,36 +462,32 @@ impl Coarse {
     /// tree, and [`Coarse::far`] asks no more).
     fn new(
         (nx, ny, nz): (usize, usize, usize),
-        at: &impl Fn(usize, usize, usize) -> Point3<f64>,
+        at: &(impl Fn(usize, usize, usize) -> Point3<f64> + Sync),
         tree: &ImmutableKdTree<f64, 3>,
         winding: &Winding,
         reach: f64,
     ) -> Coarse {
         let dims = (nx / COARSE + 2, ny / COARSE + 2, nz / COARSE + 2);
         let (cx, cy, cz) = dims;
-        let mut distance = vec![0f32; cx * cy * cz];
-        let mut w = vec![0f32; cx * cy * cz];
-        for k in 0..cz {
-            for j in 0..cy {
-                for i in 0..cx {
-                    let q = at(COARSE * i, COARSE * j, COARSE * k);
-                    let near = tree.nearest_n_within::<SquaredEuclidean>(
-                        &[q.x, q.y, q.z],
-                        reach * reach,
-                        std::num::NonZero::<usize>::MIN,
-                        false,
-                    );
-                    distance[(k * cy + j) * cx + i] = near
-                        .first()
-                        .map_or(f32::INFINITY, |m| m.distance.sqrt() as f32);
-                    w[(k * cy + j) * cx + i] = winding.at(&q) as f32;
-                }
-            }
-        }
+        let values = crate::spatial::par_map(cx * cy * cz, |n| {
+            let (i, j, k) = (n % cx, n / cx % cy, n / (cx * cy));
+            let q = at(COARSE * i, COARSE * j, COARSE * k);
+            let near = tree.nearest_n_within::<SquaredEuclidean>(
+                &[q.x, q.y, q.z],
+                reach * reach,
+                std::num::NonZero::<usize>::MIN,
+                false,
+            );
+            let d = near
+                .first()
+                .map_or(f32::INFINITY, |m| m.distance.sqrt() as f32);
+            (d, winding.at(&q) as f32)
+        });
+        let (distance, winding) = values.into_iter().unzip();
         Coarse {
             dims,
             distance,
-            winding: w,
+            winding,
         }
     }
 
