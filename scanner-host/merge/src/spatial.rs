@@ -221,3 +221,20 @@ pub fn across(axis: &Unit<Vector3<f64>>) -> (Vector3<f64>, Vector3<f64>) {
         .unwrap_or_else(|| axis.cross(&Vector3::y()).normalize());
     (e1, axis.cross(&e1))
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn par_map_keeps_the_order_below_and_above_its_threshold() {
+        for n in [0, 1, 1023, 1024, 10_007] {
+            let got = par_map(n, |i| i * 3 + 1);
+            assert_eq!(got.len(), n);
+            assert!(
+                got.iter().enumerate().all(|(i, &v)| v == i * 3 + 1),
+                "n = {n}"
+            );
+        }
+    }
+}
