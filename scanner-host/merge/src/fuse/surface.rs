@@ -216,17 +216,19 @@ pub fn fuse_filled(
     // within BAND cells of a point, and no seen surface: its winding number interpolates.
     let far = ((BAND + COARSE as f64) * cell) as f32;
     let coarse = Coarse::new((nx, ny, nz), &at, &tree, &winding, f64::from(far));
-    // A grid point takes the signed distance along the nearest point's normal (positive
-    // outside) when it lies over that point: within BAND cells of it and off its normal by less
-    // than a cell and twice the points' spacing. Elsewhere — far from every point, or beside
-    // the rim of a seen patch, where the tangent planes would run on as sheets — the sign is
-    // the winding number's, which closes the holes.
+    // How far the field's nearest-point search reaches: the band, and with a fill the clearance
+    // it tests (FILL_CLEAR, below).
     let clear = (FILL_CLEAR_CELLS * cell).max(FILL_CLEAR_MM);
     let search2 = if fill.is_some() {
         (BAND * cell).max(clear).powi(2)
     } else {
         (BAND * cell).powi(2)
     };
+    // A grid point takes the signed distance along the nearest point's normal (positive
+    // outside) when it lies over that point: within BAND cells of it and off its normal by less
+    // than a cell and twice the points' spacing. Elsewhere — far from every point, or beside
+    // the rim of a seen patch, where the tangent planes would run on as sheets — the sign is
+    // the winding number's, which closes the holes.
     let field = |i: usize, j: usize, k: usize| {
         let q = at(i, j, k);
         let wound = || {
