@@ -138,6 +138,7 @@ fn run(dir: &Path, format: &str, n: usize) -> anyhow::Result<()> {
         status_every: 30,
         scan_id: 1,
         find_axis: false,
+        find_colour: false,
         disc: None,
         fixed: None,
         shadow: false,

@@ -62,6 +62,7 @@ fn main() {
                 status_every: 30,
                 scan_id: 1,
                 find_axis: false,
+                find_colour: false,
                 disc: None,
                 fixed: None,
                 shadow: false,

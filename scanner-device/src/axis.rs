@@ -37,6 +37,29 @@ pub fn stripe_axis(
     reference: &OwnedFrame,
     cfg: &StripeConfig,
 ) -> Result<Axis, AxisError> {
+    let (columns, rows) = valid_shares(frame, reference, cfg)?;
+    if columns >= 0.1 && columns >= 2.0 * rows {
+        Ok(Axis::Columns)
+    } else if rows >= 0.1 && rows >= 2.0 * columns {
+        Ok(Axis::Rows)
+    } else {
+        Err(AxisError::Undecided {
+            columns_pct: 100.0 * columns,
+            rows_pct: 100.0 * rows,
+        })
+    }
+}
+
+/// The share of the lines the extractor (with `cfg`, its axis aside) finds a valid stripe
+/// centre on, read along columns and along rows.
+///
+/// # Errors
+/// [`AxisError::Mismatch`] when the frame and the reference differ in size or format.
+pub fn valid_shares(
+    frame: &OwnedFrame,
+    reference: &OwnedFrame,
+    cfg: &StripeConfig,
+) -> Result<(f64, f64), AxisError> {
     let (Ok(f), Ok(r)) = (frame.view(), reference.view()) else {
         return Err(AxisError::Mismatch);
     };
@@ -52,15 +75,5 @@ pub fn stripe_axis(
             valid as f64 / found.points.len().max(1) as f64
         })
     };
-    let (columns, rows) = (share(Axis::Columns), share(Axis::Rows));
-    if columns >= 0.1 && columns >= 2.0 * rows {
-        Ok(Axis::Columns)
-    } else if rows >= 0.1 && rows >= 2.0 * columns {
-        Ok(Axis::Rows)
-    } else {
-        Err(AxisError::Undecided {
-            columns_pct: 100.0 * columns,
-            rows_pct: 100.0 * rows,
-        })
-    }
+    Ok((share(Axis::Columns), share(Axis::Rows)))
 }

@@ -9,7 +9,7 @@
 //! the calibration and rig commands, which call `scanner-calib` and `scanner-rig`).
 //!
 //! The arrows run one way: `cli` → `preview` → `session` → [`axis`] (which way the stripe runs)
-//! → `source`, `link` → `scanner-core`. The head uses `scanner-calib` for what it finds in a
+//! and [`laser_colour`] (what colour it is) → `source`, `link` → `scanner-core`. The head uses `scanner-calib` for what it finds in a
 //! picture (the preview's dots, the session's turntable disc) and the CLI for its procedures;
 //! `scanner-rig` with the feature; image and text files come through `scanner-io`. Nothing here
 //! is imported by the crates it uses.
@@ -20,7 +20,7 @@
 //! cli
 //! calibrate  preview  scan
 //! session  report
-//! axis  motor
+//! axis  laser_colour  motor
 //! source  link
 //! ```
 #![deny(missing_docs)]
@@ -43,6 +43,7 @@ pub fn error_chain(e: &dyn std::error::Error) -> String {
 pub mod axis;
 pub mod calibrate;
 pub mod cli;
+pub mod laser_colour;
 pub mod link;
 pub mod motor;
 pub mod preview;

@@ -77,6 +77,12 @@ pub struct ScanData {
     /// The direction the first laser frame's stripe runs, where it tells (`columns`, `rows`):
     /// other than `axis`, the summary names the flag to give.
     pub axis_seen: Option<&'static str>,
+    /// The laser's colour the scan read with (`red`, `green`, `blue`, `white`: by brightness).
+    pub laser_colour: &'static str,
+    /// Whether it was found from the first laser frame rather than given.
+    pub laser_colour_found: bool,
+    /// What the first laser frame showed of the laser's colour, where it tells.
+    pub laser_colour_seen: Option<ColourData>,
     /// Most frames saw the stripe on one sheet only: the summary says what to change.
     pub one_sheet_only: bool,
     /// The turntable disc, when the scan looked for one (`--disc`).
@@ -190,6 +196,13 @@ impl From<&ScanReport> for ScanData {
             axis: axis_name(r.axis),
             axis_found: r.axis_found,
             axis_seen: r.axis_seen.map(axis_name),
+            laser_colour: r.colour.name(),
+            laser_colour_found: r.colour_found,
+            laser_colour_seen: r.colour_seen.map(|c| ColourData {
+                colour: c.colour.name(),
+                saturated: c.saturated,
+                pixels: c.pixels,
+            }),
             one_sheet_only: r.one_sheet_only(),
             disc: r.disc.as_ref().map(DiscData::from),
             pipeline_ms: r.pipeline_ms,
@@ -205,6 +218,18 @@ impl From<&ScanReport> for ScanData {
             }),
         }
     }
+}
+
+/// What the first laser frame showed of the laser's colour.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct ColourData {
+    /// The colour of the light added: `red`, `green`, `blue`, or `white` when no channel
+    /// carries most of it.
+    pub colour: &'static str,
+    /// Whether the line's core is clipped white (read by its colour alone it shows nothing).
+    pub saturated: bool,
+    /// The stripe's pixels it was told from.
+    pub pixels: u32,
 }
 
 /// What a shadow sweep's frames showed of the band.

@@ -2,7 +2,7 @@
 //! link open ([`ScanPlan`]); [`run`] takes frames to the link until the plan's stop, and
 //! [`report_lines`] says how it ended. The command line and the head's service build plans.
 
-use scanner_core::stripe::Axis;
+use scanner_core::stripe::{Axis, LaserColour};
 use scanner_wire::Skip;
 
 use crate::link::Link;
@@ -77,6 +77,9 @@ pub fn report_lines(r: &ScanReport) -> Vec<String> {
             ));
         }
     }
+    if let Some(line) = colour_line(r) {
+        lines.push(line);
+    }
     match &r.disc {
         Some(DiscOutcome::Found {
             pose,
@@ -109,6 +112,35 @@ pub fn report_lines(r: &ScanReport) -> Vec<String> {
         lines.push(one_plane_hint(r));
     }
     lines
+}
+
+/// What the first laser frame showed of the laser's colour, when it matters: a colour found
+/// (what was read), one that differs from what was read, or a clipped line read by a colour.
+fn colour_line(r: &ScanReport) -> Option<String> {
+    let seen = r.colour_seen?;
+    let core = if seen.saturated {
+        ", its core clipped white"
+    } else {
+        ""
+    };
+    if r.colour_found {
+        Some(format!(
+            "laser: the first laser frame shows a {} line{core}: read {}",
+            seen.colour.name(),
+            if r.colour == LaserColour::White {
+                "by brightness".to_string()
+            } else {
+                format!("as {}", r.colour.name())
+            }
+        ))
+    } else if seen.saturated && r.colour != LaserColour::White {
+        Some(format!(
+            "laser: the line's core is clipped white, which --laser {} does not read as its colour: leave --laser out (a clipped line is read by brightness) or lower the exposure",
+            r.colour.name()
+        ))
+    } else {
+        None
+    }
 }
 
 /// An axis's flag and the line it reads.

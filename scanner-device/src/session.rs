@@ -7,7 +7,7 @@ use crate::source::SourceError;
 use scanner_core::Camera;
 use scanner_core::geometry::Board;
 use scanner_core::pipeline::{Head, HeadConfig};
-use scanner_core::stripe::{Frame, LineStatus, Locate, PixelFormat};
+use scanner_core::stripe::{Frame, LineStatus, Locate, PixelFormat, StripeConfig};
 use scanner_wire::{
     Controls, DiscFound, DiscPose, FixedLaser, Header, Message, Notice, NoticeKind, Planes, Points,
     Skip, Status,
@@ -38,6 +38,10 @@ pub struct ScanOptions {
     /// Find which way the stripe runs from the first laser frame ([`crate::axis::stripe_axis`])
     /// instead of taking `head.stripe.axis`.
     pub find_axis: bool,
+    /// Read the laser's colour as the first laser frame shows it
+    /// ([`crate::laser_colour::chosen`]) instead of taking `head.stripe.colour`; when not, the
+    /// colour taken must fit the frames.
+    pub find_colour: bool,
     /// Look for this turntable disc in the reference frame and send its pose after each header.
     pub disc: Option<scanner_calib::disc::Disc>,
     /// A fixed laser over a turning platform (with `head.fixed_plane` its plane): the frames
@@ -116,6 +120,9 @@ pub enum SessionError {
     /// The first laser frame does not tell which way the stripe runs.
     #[error("{0}")]
     Axis(crate::axis::AxisError),
+    /// The first laser frame shows another colour than the one given.
+    #[error("{0}")]
+    Colour(crate::laser_colour::ColourMismatch),
     /// A message did not fit its buffer (a bug: the buffers are sized for the largest).
     #[error("encoding a message")]
     Encode(#[source] scanner_wire::WireError),
@@ -167,6 +174,12 @@ pub struct ScanReport {
     pub axis_found: bool,
     /// The direction the first laser frame's stripe runs, where it tells.
     pub axis_seen: Option<scanner_core::stripe::Axis>,
+    /// The laser's colour the scan read with.
+    pub colour: scanner_core::stripe::LaserColour,
+    /// Whether that colour was found from the first laser frame (not given).
+    pub colour_found: bool,
+    /// What the first laser frame showed of the laser's colour, where it tells.
+    pub colour_seen: Option<crate::laser_colour::ColourSeen>,
     /// What was found of the turntable disc, when the scan looked for one.
     pub disc: Option<DiscOutcome>,
     /// The pipeline's mean time per frame, ms (the head's work on a frame, the wait for the
@@ -286,6 +299,8 @@ pub struct Session {
     last_us: u64,
     /// The direction the first laser frame's stripe runs, where it tells.
     axis_seen: Option<scanner_core::stripe::Axis>,
+    /// What the first laser frame showed of the laser's colour, where it tells.
+    colour_seen: Option<crate::laser_colour::ColourSeen>,
     frames_since_header: u32,
     frames_since_status: u32,
     /// The laser planes fitted since the last status: count, RMS sum and largest, mm.
@@ -494,6 +509,7 @@ impl Session {
             started: Instant::now(),
             last_us: 0,
             axis_seen: None,
+            colour_seen: None,
             frames_since_header: 0,
             frames_since_status: 0,
             planes: (0, 0.0, 0.0),
@@ -745,6 +761,9 @@ impl Session {
             axis: self.opts.head.stripe.axis,
             axis_found: self.opts.find_axis,
             axis_seen: self.axis_seen,
+            colour: self.opts.head.stripe.colour,
+            colour_found: self.opts.find_colour,
+            colour_seen: self.colour_seen,
             disc: self.disc_found,
             pipeline_ms: 0.0,
             pace: None,
@@ -826,8 +845,14 @@ pub fn run_scan_until(
             .next_frame()
             .map_err(SessionError::FirstFrame)?
             .ok_or_else(|| SessionError::NoLaser("the source gave no frame".into()))?;
+        // black: no light, and in YUYV no colour (its chroma bytes at 128, not 0, which
+        // would read as a green light added to every pixel)
+        let data = match frame.format {
+            PixelFormat::Yuyv => [0u8, 128].repeat(frame.data.len() / 2),
+            PixelFormat::Gray8 | PixelFormat::Rgb24 => vec![0; frame.data.len()],
+        };
         let black = OwnedFrame {
-            data: vec![0; frame.data.len()],
+            data,
             time_us: None,
             ..frame.clone()
         };
@@ -859,7 +884,7 @@ pub fn run_scan_until(
     if first.is_none() {
         first = source.next_frame().map_err(SessionError::FirstFrame)?;
     }
-    let mut axis_seen = None;
+    let (mut axis_seen, mut colour_seen) = (None, None);
     if let Some(frame) = &first {
         // a shadow's band shows in its contrast frame, against black
         let contrast = opts
@@ -870,6 +895,22 @@ pub fn run_scan_until(
             Some((f, black)) => (f, black),
             None => (frame, &reference),
         };
+        // the laser's colour first (the stripe's direction is found in it), as the light the
+        // frame adds shows it (a shadow has none)
+        if !opts.shadow {
+            colour_seen = crate::laser_colour::seen(frame, reference);
+            let given = (!opts.find_colour).then_some(opts.head.stripe.colour);
+            let valid = |colour| {
+                let stripe = StripeConfig {
+                    colour,
+                    ..opts.head.stripe
+                };
+                crate::axis::valid_shares(frame, reference, &stripe).map_or(0.0, |(c, r)| c.max(r))
+            };
+            opts.head.stripe.colour =
+                crate::laser_colour::chosen(given, colour_seen, opts.head.stripe.method, valid)
+                    .map_err(SessionError::Colour)?;
+        }
         match crate::axis::stripe_axis(frame, reference, &opts.head.stripe) {
             Ok(axis) => axis_seen = Some(axis),
             Err(e) if opts.find_axis => return Err(SessionError::Axis(e)),
@@ -885,6 +926,7 @@ pub fn run_scan_until(
         *slot = Some(d);
     }
     session.axis_seen = axis_seen;
+    session.colour_seen = colour_seen;
     session.disc = disc.as_ref().map(|d| d.message(opts.scan_id));
     if let (Some(DiscOutcome::Found { pose, .. }), Some(printed)) = (&disc, &opts.disc) {
         session.head.set_turntable(turntable(pose, printed));

@@ -47,6 +47,7 @@ fn a_chessboard_board_with_nothing_in_front_gives_no_object_point() {
                 status_every: 30,
                 scan_id: 1,
                 find_axis: true,
+                find_colour: false,
                 disc: None,
                 fixed: None,
                 shadow: false,

@@ -35,6 +35,7 @@ fn assert_steady_state_allocates_nothing(
         status_every: 2,
         scan_id: 1,
         find_axis: false,
+        find_colour: false,
         disc: None,
         fixed: None,
         shadow: false,

@@ -23,6 +23,7 @@ fn options(scan_id: u32) -> ScanOptions {
         status_every: 10,
         scan_id,
         find_axis: false,
+        find_colour: false,
         disc: None,
         fixed: None,
         shadow: false,

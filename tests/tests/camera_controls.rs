@@ -57,6 +57,7 @@ fn scan(source: &mut dyn FrameSource, out: &Path) {
         status_every: 10,
         scan_id: 0x00c0_ffee,
         find_axis: false,
+        find_colour: false,
         disc: None,
         fixed: None,
         shadow: false,

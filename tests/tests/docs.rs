@@ -407,7 +407,7 @@ fn troubleshooting_covers_every_refusal_of_the_head_and_the_calibration() {
         ("scanner-device/src/session.rs", "SessionError"),
         ("scanner-device/src/axis.rs", "AxisError"),
         ("scanner-device/src/motor.rs", "MotorError"),
-        ("scanner-device/calib/src/fixed.rs", "ImportError"),
+        ("scanner-device/calib/src/import/mod.rs", "ImportError"),
         ("scanner-device/calib/src/fixed.rs", "FixedError"),
         ("scanner-device/calib/src/file.rs", "FixedUnusable"),
         ("scanner-device/src/calibrate.rs", "CalibrateError"),

@@ -113,3 +113,108 @@ fn vertices(path: &std::path::Path) -> Vec<scanner_core::nalgebra::Point3<f64>> 
         })
         .collect()
 }
+
+/// A green laser on the rig's turntable (25 frames a turn): its colour is found from the
+/// first frame and read with; a brighter one whose core the camera clips white (its light
+/// spills into red and blue, as a webcam's colour processing makes it) is found green and
+/// saturated, and read as whichever of green and brightness finds the line on more lines (as
+/// many points as the better of the two given); a red laser given for green frames is refused.
+#[test]
+fn a_green_lasers_colour_is_found_and_a_clipped_one_read_by_brightness() {
+    let (device, host) = (
+        workspace_bin("scanner-device"),
+        workspace_bin("scanner-host"),
+    );
+    for (name, colour, power, clipped) in [
+        ("green", [0.03, 1.0, 0.05], 0.15, false),
+        ("clipped", [0.35, 1.0, 0.4], 1.5, true),
+    ] {
+        let mut scan = scanner_rig::TurningScan::demo(640, 480);
+        scan.frames = 26;
+        scan.turn = std::f64::consts::TAU / 25.0;
+        scan.scene.laser.colour = colour;
+        scan.scene.laser.power = power;
+        let dir = tempfile::tempdir().unwrap();
+        std::fs::create_dir(dir.path().join("frames")).unwrap();
+        for k in 0..scan.frames {
+            let f = scan.render(k).unwrap();
+            image::RgbImage::from_raw(f.width as u32, f.height as u32, f.data)
+                .unwrap()
+                .save(dir.path().join(format!("frames/{k:03}.png")))
+                .unwrap();
+        }
+        scan.truth_calibration()
+            .save(&dir.path().join("cal.toml"))
+            .unwrap();
+        let args = |extra: &[&'static str]| {
+            let mut a = vec![
+                "scan",
+                "--source",
+                "frames",
+                "--calibration",
+                "cal.toml",
+                "--fixed-laser",
+                "0",
+                "--frames-per-turn",
+                "25",
+                "--rows",
+                "--out",
+                "s.stream",
+                "--report",
+                "r.json",
+                "-q",
+            ];
+            a.extend_from_slice(extra);
+            a
+        };
+        let (ok, _, err) = run_in(&device, dir.path(), &args(&[]));
+        assert!(ok, "{name}: {err}");
+        let r = json(&dir.path().join("r.json"));
+        println!(
+            "{name}: seen {}, read as {}, {} points",
+            r["laser_colour_seen"], r["laser_colour"], r["points"]
+        );
+        assert_eq!(r["laser_colour_seen"]["colour"], "green", "{name}: {r}");
+        assert_eq!(r["laser_colour_seen"]["saturated"], clipped, "{name}: {r}");
+        assert_eq!(r["laser_colour_found"], true, "{name}");
+        let points = r["points"].as_u64().unwrap();
+        // the colour read finds the line as well as the better of green and brightness
+        let mut best = 0;
+        for colour in ["green", "white"] {
+            let (ok, _, err) = run_in(&device, dir.path(), &args(&["--laser", colour]));
+            assert!(ok, "{name} --laser {colour}: {err}");
+            let given = json(&dir.path().join("r.json"));
+            assert_eq!(given["laser_colour_found"], false);
+            println!("{name} --laser {colour}: {} points", given["points"]);
+            best = best.max(given["points"].as_u64().unwrap());
+        }
+        if !clipped {
+            assert_eq!(r["laser_colour"], "green", "{name}");
+        }
+        assert!(
+            points > 1_000 && points as f64 >= 0.9 * best as f64,
+            "{name}: {points} points read as {}, {best} the better of green and white",
+            r["laser_colour"]
+        );
+        // the report of the scan found (the runs above rewrote it)
+        let (ok, _, err) = run_in(&device, dir.path(), &args(&[]));
+        assert!(ok, "{name}: {err}");
+        let (ok, _, err) = run_in(
+            &host,
+            dir.path(),
+            &["receive", "s.stream", "--out", "model", "-q"],
+        );
+        assert!(ok, "{name}: {err}");
+        let fixed = &json(&dir.path().join("model/summary.json"))["fixed"];
+        assert_eq!(fixed["watertight"], true, "{name}: {fixed}");
+        // red given for a green line: refused, naming both
+        let (ok, _, err) = run_in(&device, dir.path(), &args(&["--laser", "red"]));
+        assert!(!ok, "{name}");
+        assert!(
+            scanner_tests::error_kinds(&err)
+                .iter()
+                .any(|k| k.contains("Colour")),
+            "{name}: {err}"
+        );
+    }
+}

@@ -46,6 +46,7 @@ fn record(w: u32, h: u32, frames: usize, colour: bool, path: &Path) -> Rig {
         status_every: 30,
         scan_id: 5,
         find_axis: false,
+        find_colour: false,
         disc: None,
         fixed: None,
         shadow: false,

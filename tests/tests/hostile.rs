@@ -112,6 +112,7 @@ fn record(w: u32, h: u32, id: u32, path: &Path) {
         status_every: 30,
         scan_id: id,
         find_axis: false,
+        find_colour: false,
         disc: None,
         fixed: None,
         shadow: false,

@@ -1,62 +1,18 @@
-//! A turntable scanner with fixed lasers (FabScanPi, Ciclop): its calibration imported from
-//! the scanner's own files, re-expressed for the frames as the camera stores them.
+//! A turntable scanner with fixed lasers (FabScanPi, Ciclop): its laser planes and platform
+//! from the scanner's own calibration frames, and any calibration made in turned frames
+//! re-expressed for the frames as the camera stores them.
 //!
-//! FabScanPi turns and flips every frame before it reads it (its `camera.rotate`, `hflip`,
-//! `vflip`) and calibrates in that orientation. Rather than turn each frame (a pass over every
-//! pixel), the import turns the calibration: the camera, the laser planes and the platform are
-//! given in the stored frame's camera coordinates, and the head reads the frames as they are.
+//! FabScanPi and Horus turn and flip every frame before they read it (`rotate`, `hflip`, `vflip`)
+//! and calibrate in that orientation. Rather than turn each frame (a pass over every pixel), an
+//! import ([`crate::import`]) turns the calibration ([`unturn`]): the camera, the laser planes
+//! and the platform are given in the stored frame's camera coordinates, and the head reads the
+//! frames as they are.
 
-use std::path::Path;
-
+use scanner_core::Camera;
 use scanner_core::geometry::Plane;
 use scanner_core::nalgebra::{Matrix2, Matrix3, Vector2, Vector3};
-use scanner_core::{Camera, Distortion};
 
-use crate::file::{CalibrationFile, PlaneEq, PlatformSection, VERSION};
-use crate::short;
-
-/// Why a scanner's own calibration cannot be imported.
-#[derive(Debug, thiserror::Error)]
-pub enum ImportError {
-    /// Not readable.
-    #[error("cannot read {path}")]
-    Io {
-        /// The file.
-        path: String,
-        /// Why.
-        #[source]
-        source: std::io::Error,
-    },
-    /// Not JSON of FabScanPi's config's shape.
-    #[error("{path} is not a FabScanPi config")]
-    Json {
-        /// The file.
-        path: String,
-        /// What is wrong.
-        #[source]
-        source: serde_json::Error,
-    },
-    /// Read, but its values fail the checks of any calibration file (a NaN, a plane through the
-    /// camera, 0 steps).
-    #[error(transparent)]
-    Checked(crate::file::FileError),
-    /// Readable, but its frames' turn or a flag is unusable.
-    #[error("{path}: {reason}")]
-    Unusable {
-        /// The file.
-        path: String,
-        /// What is wrong.
-        reason: FixedError,
-    },
-    /// Readable, but a value is unusable.
-    #[error("{path}: {why}")]
-    Invalid {
-        /// The file.
-        path: String,
-        /// What is wrong.
-        why: String,
-    },
-}
+use crate::file::{CalibrationFile, PlaneEq, PlatformSection};
 
 /// Why a fixed-laser calibration step cannot give its result: a frame turn that mirrors, a
 /// calibration of another size, a stripe, a laser plane or a platform that the shots do not
@@ -141,7 +97,10 @@ pub struct FrameTurn {
 impl FrameTurn {
     /// The map of a stored pixel to the turned one, `p′ = P p + b`, for a stored frame of
     /// `width` × `height`; and the turned frame's size.
-    fn map(self, (width, height): (u32, u32)) -> (Matrix2<f64>, Vector2<f64>, (u32, u32)) {
+    pub(crate) fn map(
+        self,
+        (width, height): (u32, u32),
+    ) -> (Matrix2<f64>, Vector2<f64>, (u32, u32)) {
         let (mut p, mut b, mut size) = (Matrix2::identity(), Vector2::zeros(), (width, height));
         if self.rotate {
             p = Matrix2::new(0.0, 1.0, 1.0, 0.0) * p;
@@ -246,186 +205,10 @@ pub fn unturn(
     Ok(out)
 }
 
-/// The parts of FabScanPi's config the import reads.
-#[derive(Debug, serde::Deserialize)]
-struct FabScanConfig {
-    calibration: FabScanCalibration,
-    camera: FabScanCamera,
-    turntable: FabScanTurntable,
-}
-
-#[derive(Debug, serde::Deserialize)]
-struct FabScanCalibration {
-    camera_matrix: [[f64; 3]; 3],
-    distortion_vector: [f64; 5],
-    #[serde(default)]
-    laser_planes: Vec<FabScanPlane>,
-    platform_translation: [f64; 3],
-    platform_rotation: [[f64; 3]; 3],
-}
-
-#[derive(Debug, serde::Deserialize)]
-struct FabScanPlane {
-    distance: f64,
-    normal: [f64; 3],
-}
-
-#[derive(Debug, serde::Deserialize)]
-struct FabScanCamera {
-    resolution: FabScanResolution,
-    #[serde(default)]
-    rotate: Flag,
-    #[serde(default)]
-    hflip: Flag,
-    #[serde(default)]
-    vflip: Flag,
-}
-
-#[derive(Debug, serde::Deserialize)]
-struct FabScanResolution {
-    width: u32,
-    height: u32,
-}
-
-#[derive(Debug, serde::Deserialize)]
-struct FabScanTurntable {
-    steps: u32,
-    #[serde(default)]
-    radius: f64,
-    #[serde(default)]
-    height: f64,
-}
-
-/// FabScanPi's booleans are the strings "True" and "False" (or JSON booleans).
-#[derive(Debug, Default, serde::Deserialize)]
-#[serde(untagged)]
-enum Flag {
-    Bool(bool),
-    Text(String),
-    #[default]
-    Missing,
-}
-
-impl Flag {
-    fn get(&self, name: &'static str) -> Result<bool, FixedError> {
-        match self {
-            Flag::Bool(b) => Ok(*b),
-            Flag::Text(t) if t.eq_ignore_ascii_case("true") => Ok(true),
-            Flag::Text(t) if t.eq_ignore_ascii_case("false") => Ok(false),
-            Flag::Text(t) => Err(FixedError::Flag {
-                name,
-                value: t.chars().take(40).collect(),
-            }),
-            Flag::Missing => Ok(false),
-        }
-    }
-}
-
-/// What an import gives: the calibration for the stored frames and how they are turned.
-#[derive(Debug, Clone, PartialEq)]
-pub struct Imported {
-    /// The calibration, stored frames' coordinates (checked as any calibration file).
-    pub file: CalibrationFile,
-    /// How the scanner turned its frames (what the import undid).
-    pub turn: FrameTurn,
-}
-
-/// Reads a FabScanPi config (`<name>.config.json`): its camera, laser planes and platform, for
-/// the frames as the camera stores them.
-///
-/// # Errors
-/// [`ImportError`] naming the file and the value that is wrong (a NaN or a plane through the
-/// camera, a step count of 0 included).
-pub fn import_fabscan(path: &Path) -> Result<Imported, ImportError> {
-    let name = path.display().to_string();
-    let text = scanner_io::text_file::read(path).map_err(|source| ImportError::Io {
-        path: name.clone(),
-        source,
-    })?;
-    let cfg: FabScanConfig = serde_json::from_str(&text).map_err(|source| ImportError::Json {
-        path: name.clone(),
-        source,
-    })?;
-    let invalid = |why: String| ImportError::Invalid {
-        path: name.clone(),
-        why,
-    };
-    let unusable = |reason: FixedError| ImportError::Unusable {
-        path: name.clone(),
-        reason,
-    };
-    let orientation = FrameTurn {
-        rotate: cfg.camera.rotate.get("rotate").map_err(unusable)?,
-        hflip: cfg.camera.hflip.get("hflip").map_err(unusable)?,
-        vflip: cfg.camera.vflip.get("vflip").map_err(unusable)?,
-    };
-    let stored = (cfg.camera.resolution.width, cfg.camera.resolution.height);
-    let (_, _, turned_size) = orientation.map(stored);
-    let k = cfg.calibration.camera_matrix;
-    let d = cfg.calibration.distortion_vector;
-    if k[0][1] != 0.0 || k[1][0] != 0.0 || k[2] != [0.0, 0.0, 1.0] {
-        return Err(invalid(format!(
-            "calibration.camera_matrix {k:?} is not a pinhole camera's (skew or a bad last row)"
-        )));
-    }
-    let camera = Camera::new(
-        k[0][0],
-        k[1][1],
-        k[0][2],
-        k[1][2],
-        Distortion {
-            k1: d[0],
-            k2: d[1],
-            p1: d[2],
-            p2: d[3],
-            k3: d[4],
-        },
-    )
-    .map_err(|e| invalid(format!("calibration.camera_matrix: {e}")))?;
-    let mut turned = CalibrationFile::from_camera(
-        &camera,
-        turned_size,
-        format!("FabScanPi config {name}"),
-        None,
-    );
-    for (i, l) in cfg.calibration.laser_planes.iter().enumerate() {
-        // FabScanPi: normal · X = distance
-        let plane = Plane::new(Vector3::from(l.normal), -l.distance).map_err(|e| {
-            invalid(format!(
-                "calibration.laser_planes[{i}]: {e} (normal {:?}, distance {})",
-                l.normal,
-                short(l.distance)
-            ))
-        })?;
-        turned.lasers.push(PlaneEq {
-            normal: (*plane.normal()).into(),
-            offset: plane.offset(),
-        });
-    }
-    turned.platform = Some(PlatformSection {
-        rotation: cfg.calibration.platform_rotation,
-        origin: cfg.calibration.platform_translation,
-        radius: cfg.turntable.radius,
-        steps_per_turn: cfg.turntable.steps,
-        // FabScanPi undoes a frame's turn by turning its points +angle about its z: the
-        // platform turns the other way
-        clockwise: true,
-        height: cfg.turntable.height,
-    });
-    let file = unturn(&turned, orientation, stored).map_err(unusable)?;
-    // the checks of any calibration file (a NaN, a plane through the camera, 0 steps)
-    let text = toml::to_string(&file).map_err(|e| invalid(format!("cannot be written: {e}")))?;
-    let file = CalibrationFile::parse(&text, &name).map_err(ImportError::Checked)?;
-    debug_assert_eq!(file.version, VERSION);
-    Ok(Imported {
-        file,
-        turn: orientation,
-    })
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
+    use scanner_core::Distortion;
     use scanner_core::nalgebra::{Point2, Point3};
 
     /// A point seen in the turned frame and in the stored frame lands on the pixels that the

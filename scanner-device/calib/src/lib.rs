@@ -13,10 +13,14 @@
 //!   pose (default) and, where the layout is the paper's, by the paper's three-point lines.
 //!
 //! The results go into one calibration file ([`file`](mod@file)) with an annotated picture ([`overlay`]).
+//! A turntable scanner's laser planes and platform come from its own calibration frames
+//! ([`fixed`]), or with its camera from another program's files ([`import`](mod@import):
+//! FabScanPi, Horus, OpenCV, NumPy).
 //!
 //! # Layers
 //! Each module uses only modules on its own line or below (`tests/tests/layers.rs` checks it):
 //! ```text
+//! import
 //! overlay  fixed
 //! planes  distance
 //! disc
@@ -55,6 +59,7 @@ pub mod file;
 mod fit;
 pub mod fixed;
 pub mod identify;
+pub mod import;
 pub mod intrinsics;
 pub mod lattice;
 pub mod overlay;

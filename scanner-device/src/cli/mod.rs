@@ -2,6 +2,7 @@
 
 pub mod calibrate;
 pub mod capture;
+pub mod import;
 pub mod preview;
 #[cfg(feature = "rig")]
 pub mod render;
@@ -117,6 +118,11 @@ pub enum Command {
     Serve(Box<serve::ServeArgs>),
     /// List the V4L2 cameras with their formats and sizes.
     Devices,
+    /// Import another program's calibration: a FabScanPi config or a Horus calibration.json
+    /// (camera, laser planes and platform, for `scan --fixed-laser`, turned back to the frames
+    /// as the camera stores them), or a camera from OpenCV (FileStorage .yml, .yaml, .xml) or
+    /// NumPy (.npz)
+    Import(import::ImportArgs),
     /// Import a FabScanPi config (`*.config.json`): its camera, laser planes and platform into
     /// a calibration file for `scan --fixed-laser`, turned back to the frames as the camera
     /// stores them.
@@ -227,26 +233,8 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
         Some(Command::Capture(a)) => capture::capture(a)?,
         Some(Command::Serve(a)) => serve::serve(a)?,
         Some(Command::Devices) => scan::devices(),
-        Some(Command::ImportFabscan { config, out }) => {
-            let imported = scanner_calib::fixed::import_fabscan(config)?;
-            imported.file.save(out)?;
-            let o = imported.turn;
-            crate::outln!(
-                "wrote {}: {}×{} stored frames (FabScanPi turned them: rotate {}, hflip {}, vflip {}), {} laser plane(s), platform {}",
-                out.display(),
-                imported.file.image.width,
-                imported.file.image.height,
-                o.rotate,
-                o.hflip,
-                o.vflip,
-                imported.file.lasers.len(),
-                if imported.file.platform.is_some() {
-                    "yes"
-                } else {
-                    "no"
-                }
-            );
-        }
+        Some(Command::Import(a)) => import::import(a)?,
+        Some(Command::ImportFabscan { config, out }) => import::import_fabscan(config, out)?,
         None => crate::outln!("scanner-device: nothing to do yet (try --help)"),
     }
     Ok(())

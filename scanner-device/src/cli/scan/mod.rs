@@ -62,6 +62,7 @@ fn plan_with(a: &ScanArgs, link: Option<Link>) -> Result<ScanPlan> {
     let options = ScanOptions {
         head: o.head,
         find_axis: o.find_axis,
+        find_colour: o.find_colour,
         fixed: o.fixed,
         shadow: a.shadow,
         disc: a.disc.map(scanner_calib::disc::Disc::new),
@@ -89,6 +90,8 @@ pub(super) struct OpenedSource {
     pub head: HeadConfig,
     /// Whether the stripe's direction is to be found.
     pub find_axis: bool,
+    /// Whether the laser's colour is to be found (none was given).
+    pub find_colour: bool,
     /// The session id.
     pub scan_id: u32,
     /// The link.
@@ -199,6 +202,7 @@ pub(super) fn open_on(a: &ScanArgs, link: Option<Link>) -> Result<OpenedSource> 
         calibration,
         head,
         find_axis: !(a.rows || a.columns),
+        find_colour: a.laser.is_none(),
         scan_id: a.scan_id.unwrap_or_else(rand::random),
         link,
         stop,
