@@ -77,3 +77,11 @@ pub fn valid_shares(
     };
     Ok((share(Axis::Columns), share(Axis::Rows)))
 }
+
+/// An axis's flag and the line it reads: `--columns` a horizontal line, `--rows` a vertical one.
+pub fn words(a: Axis) -> (&'static str, &'static str) {
+    match a {
+        Axis::Columns => ("--columns", "horizontal"),
+        Axis::Rows => ("--rows", "vertical"),
+    }
+}

@@ -2,7 +2,7 @@
 //! link open ([`ScanPlan`]); [`run`] takes frames to the link until the plan's stop, and
 //! [`report_lines`] says how it ended. The command line and the head's service build plans.
 
-use scanner_core::stripe::{Axis, LaserColour};
+use scanner_core::stripe::LaserColour;
 use scanner_wire::Skip;
 
 use crate::link::Link;
@@ -101,14 +101,7 @@ pub fn report_lines(r: &ScanReport) -> Vec<String> {
             crate::session::pace_line(pace, r.pipeline_ms)
         ));
     }
-    if let Some(seen) = r.axis_seen.filter(|&a| a != r.axis) {
-        lines.push(format!(
-            "the first laser frame's stripe is a {} line but the scan read a {} one: give {}",
-            axis_words(seen).1,
-            axis_words(r.axis).1,
-            axis_words(seen).0
-        ));
-    } else if r.one_sheet_only() {
+    if r.one_sheet_only() {
         lines.push(one_plane_hint(r));
     }
     lines
@@ -143,17 +136,9 @@ fn colour_line(r: &ScanReport) -> Option<String> {
     }
 }
 
-/// An axis's flag and the line it reads.
-fn axis_words(a: Axis) -> (&'static str, &'static str) {
-    match a {
-        Axis::Columns => ("--columns", "horizontal"),
-        Axis::Rows => ("--rows", "vertical"),
-    }
-}
-
 /// What to do when most frames saw the stripe on one board sheet only.
 fn one_plane_hint(r: &ScanReport) -> String {
-    let (flag, line) = axis_words(r.axis);
+    let (flag, line) = crate::axis::words(r.axis);
     format!(
         "most frames showed the stripe on one sheet only: the laser line must cross the crease onto both sheets (the scan read a {line} line, {flag}, {})",
         if r.axis_found {

@@ -120,6 +120,20 @@ pub enum SessionError {
     /// The first laser frame does not tell which way the stripe runs.
     #[error("{0}")]
     Axis(crate::axis::AxisError),
+    /// The first laser frame's stripe runs the other way than the direction given.
+    #[error(
+        "the first laser frame's stripe is a {} line, but {} was given (a {} line): read that way it gives nothing or a wrong model; give {} or leave both out",
+        crate::axis::words(*seen).1,
+        crate::axis::words(*given).0,
+        crate::axis::words(*given).1,
+        crate::axis::words(*seen).0
+    )]
+    AxisContradicts {
+        /// The direction given.
+        given: scanner_core::stripe::Axis,
+        /// The direction the frame shows.
+        seen: scanner_core::stripe::Axis,
+    },
     /// The first laser frame shows another colour than the one given.
     #[error("{0}")]
     Colour(crate::laser_colour::ColourMismatch),
@@ -916,8 +930,16 @@ pub fn run_scan_until(
             Err(e) if opts.find_axis => return Err(SessionError::Axis(e)),
             Err(_) => {}
         }
-        if let (true, Some(axis)) = (opts.find_axis, axis_seen) {
-            opts.head.stripe.axis = axis;
+        match axis_seen {
+            Some(axis) if opts.find_axis => opts.head.stripe.axis = axis,
+            // read across the line it runs along, a stripe gives nothing or a wrong model
+            Some(seen) if seen != opts.head.stripe.axis => {
+                return Err(SessionError::AxisContradicts {
+                    given: opts.head.stripe.axis,
+                    seen,
+                });
+            }
+            _ => {}
         }
     }
     let disc = opts.disc.map(|d| find_disc(&reference, &d, &cal.camera));

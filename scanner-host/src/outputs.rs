@@ -121,18 +121,26 @@ impl Summary {
     pub fn text(&self) -> String {
         let c = &self.counts;
         let d = &c.decode;
+        // a fixed laser's points go to the platform's cloud, not the image grid
+        let grid = if self.fixed.is_some() {
+            String::new()
+        } else {
+            format!(" ({} in the grid, {} outliers)", c.gridded, self.outliers)
+        };
+        let coverage = if self.fixed.is_some() {
+            String::new()
+        } else {
+            format!("; coverage {:.1} % of the grid", 100.0 * self.coverage)
+        };
         let mut s = format!(
-            "frames {} ({} point packets, {} headers) from {} scan(s); points {} ({} in the grid, {} outliers); vertices {}, faces {}; coverage {:.1} % of the grid; {:.0} points/s\n",
+            "frames {} ({} point packets, {} headers) from {} scan(s); points {}{grid}; vertices {}, faces {}{coverage}; {:.0} points/s\n",
             d.frames,
             c.packets,
             c.headers,
             c.scans.len(),
             c.points,
-            c.gridded,
-            self.outliers,
             self.vertices,
             self.faces,
-            100.0 * self.coverage,
             self.point_rate
         );
         s += &format!(
@@ -179,12 +187,33 @@ impl Summary {
             return s;
         }
         s += &format!("meshes in the {}\n", self.frame);
-        s += &match self.uncertainty {
-            Some((median, p95)) => format!(
+        s += &match (self.uncertainty, &self.fixed) {
+            (Some((median, p95)), _) => format!(
                 "vertex uncertainty (scan.ply quality): median {median:.3} mm, 95 % below {p95:.3} mm\n"
             ),
-            None => "the points carried no uncertainty (a head before wire version 2): scan.ply has no quality\n".into(),
+            // the fused model of a turntable keeps no per-vertex uncertainty
+            (None, Some(_)) => String::new(),
+            (None, None) => "the points carried no uncertainty (a head before wire version 2): scan.ply has no quality\n".into(),
         };
+        if let Some(f) = &self.fixed {
+            s += &format!(
+                "turntable, laser {}: {} frames over {:.1}°; {} object points in cloud.ply ({} on the platform's top, {} beyond its radius, {} on what stood still, left out); cell {:.2} mm; model {}, volume {:.0} mm³\n",
+                f.laser,
+                f.frames,
+                f.turned_deg,
+                f.object_points,
+                f.on_top,
+                f.off_platform,
+                f.off_model,
+                f.cell_mm,
+                if f.watertight {
+                    "watertight"
+                } else {
+                    "NOT watertight"
+                },
+                f.volume_mm3
+            );
+        }
         if let Some(moved) = self.sheet_moved {
             s += &format!(
                 "laser sheet (--sheet): {moved} of {} points moved to where its middle crosses the surface\n",
