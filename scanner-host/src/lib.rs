@@ -16,6 +16,7 @@
 //!   (text and JSON), written atomically;
 //! - [`platform`]: a fixed-laser turntable scan's points in the platform's frame, and its
 //!   closed model;
+//! - [`lasers`]: two lasers' models of one object held against each other;
 //! - [`views`]: scans read as views for the 360° merge, and the merge of view folders;
 //! - [`check`]: the acceptance check on a known artefact (spheres, a plane).
 //!
@@ -26,7 +27,7 @@
 //! ```text
 //! views  check
 //! outputs
-//! platform
+//! platform  lasers
 //! collect  export
 //! mesh  journal  thickness
 //! grid  link
@@ -40,6 +41,7 @@ pub mod collect;
 pub mod export;
 pub mod grid;
 pub mod journal;
+pub mod lasers;
 pub mod link;
 pub mod mesh;
 pub mod outputs;

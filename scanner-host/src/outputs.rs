@@ -83,6 +83,8 @@ pub struct Summary {
     pub sheet_moved: Option<u64>,
     /// A fixed-laser turntable scan's figures.
     pub fixed: Option<FixedFigures>,
+    /// How its model agrees with another laser's of the same object, when compared.
+    pub lasers: Option<crate::lasers::Agreement>,
 }
 
 /// What a fixed-laser turntable scan's model was made of (`summary.json` → `fixed`).
@@ -214,6 +216,32 @@ impl Summary {
                 f.volume_mm3
             );
         }
+        if let Some(a) = &self.lasers {
+            s += &format!(
+                "laser {} against laser {} ({}): {:.2} mm apart (median, aligned; p90 {:.2} mm), volumes {:+.1} %, {:+.2} mm farther from the axis: {}\n",
+                a.lasers[0],
+                a.lasers[1],
+                a.other,
+                a.median_mm,
+                a.p90_mm,
+                100.0 * (a.volume_ratio - 1.0),
+                a.radial_mm,
+                match (a.agree, a.likely_cause, a.accepted) {
+                    (true, _, _) => "they agree".to_string(),
+                    (false, cause, accepted) => format!(
+                        "they DISAGREE beyond {:.2} mm or 2 % in volume{}{}",
+                        a.within_mm,
+                        match cause {
+                            Some("size") =>
+                                ": one model is larger about the axis, as the platform's axis off sideways or a laser plane's offset makes it",
+                            _ =>
+                                ": their shapes differ, as a tilted laser plane (or the object moved) makes them",
+                        },
+                        if accepted { " (accepted)" } else { "" }
+                    ),
+                }
+            );
+        }
         if let Some(moved) = self.sheet_moved {
             s += &format!(
                 "laser sheet (--sheet): {moved} of {} points moved to where its middle crosses the surface\n",
@@ -290,6 +318,9 @@ pub struct SummaryData {
     /// A fixed-laser turntable scan's figures (absent for any other scan).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub fixed: Option<FixedFigures>,
+    /// How its model agrees with another laser's (absent unless compared).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub lasers: Option<crate::lasers::Agreement>,
 }
 
 /// One prompt or event of the head.
@@ -429,6 +460,7 @@ impl Summary {
             previews: c.previews,
             notices: notice_data(c),
             fixed: self.fixed,
+            lasers: self.lasers.clone(),
         }
     }
 }
@@ -549,6 +581,7 @@ pub fn write_outputs(
         uncertainty: quantiles(&m.quality),
         sheet_moved: c.sheet_corrected(),
         fixed: None,
+        lasers: None,
     };
     write_summary(&summary, dir)?;
     Ok(summary)
@@ -659,6 +692,7 @@ fn fixed_outputs(
             watertight: check.watertight && check.nonmanifold_vertices == 0,
             volume_mm3: check.volume_mm3,
         }),
+        lasers: None,
     };
     write_summary(&summary, dir)?;
     Ok(summary)
@@ -691,13 +725,17 @@ fn preview_summary(counts: Counts, dir: &Path) -> Result<Summary, OutputError> {
         uncertainty: None,
         sheet_moved: None,
         fixed: None,
+        lasers: None,
     };
     write_summary(&summary, dir)?;
     Ok(summary)
 }
 
 /// Writes `summary.json` and `summary.txt` into `dir`.
-fn write_summary(summary: &Summary, dir: &Path) -> Result<(), OutputError> {
+///
+/// # Errors
+/// A file cannot be written.
+pub fn write_summary(summary: &Summary, dir: &Path) -> Result<(), OutputError> {
     let json = serde_json::to_vec_pretty(&summary.data()).map_err(|e| ExportError::Write {
         path: dir.join("summary.json"),
         source: std::io::Error::other(e),

@@ -409,6 +409,7 @@ fn troubleshooting_covers_every_refusal_of_the_head_and_the_calibration() {
         ("scanner-device/src/motor.rs", "MotorError"),
         ("scanner-device/calib/src/import/mod.rs", "ImportError"),
         ("scanner-device/calib/src/fixed.rs", "FixedError"),
+        ("scanner-host/src/lasers.rs", "LasersError"),
         ("scanner-device/calib/src/file.rs", "FixedUnusable"),
         ("scanner-device/src/calibrate.rs", "CalibrateError"),
         ("scanner-device/src/cli/scan/refusal.rs", "ScanRefusal"),

@@ -49,6 +49,19 @@ pub struct OutputArgs {
     /// as the head sent them.
     #[arg(long, value_name = "MM", default_value_t = 0.0)]
     pub sheet: f64,
+    /// A turntable scan: the output folder of the same object scanned with the scanner's
+    /// other laser. The two models are held against each other (summary.json → `lasers`), and
+    /// when they disagree the model is refused (exit status 1, every output written) unless
+    /// `--accept-disagreement`
+    #[arg(long, value_name = "DIR")]
+    pub other_laser: Option<PathBuf>,
+    /// The median distance within which two lasers' models agree, mm (their volumes within
+    /// 2 %)
+    #[arg(long, value_name = "MM", default_value_t = 0.3)]
+    pub agree_within: f64,
+    /// Keep a model whose two lasers disagree: said, not refused
+    #[arg(long)]
+    pub accept_disagreement: bool,
     /// No progress display.
     #[arg(long, short)]
     pub quiet: bool,

@@ -33,6 +33,9 @@ pub struct OutputPlan {
     pub sheet_mm: f64,
     /// No progress display.
     pub quiet: bool,
+    /// The other laser's output folder, the median distance within which the two agree (mm),
+    /// and whether a disagreement is accepted.
+    pub other_laser: Option<(PathBuf, f64, bool)>,
 }
 
 impl OutputPlan {
@@ -42,6 +45,9 @@ impl OutputPlan {
     /// A `--sheet` that is no sheet's thickness.
     pub fn new(o: &OutputArgs) -> Result<OutputPlan> {
         scanner_host::thickness::check_thickness(o.sheet)?;
+        if !(o.agree_within.is_finite() && o.agree_within > 0.0 && o.agree_within <= 100.0) {
+            return Err(scanner_host::lasers::LasersError::Within(o.agree_within).into());
+        }
         Ok(OutputPlan {
             dir: o.out.clone(),
             collect: CollectOptions {
@@ -54,6 +60,10 @@ impl OutputPlan {
             },
             sheet_mm: o.sheet,
             quiet: o.quiet,
+            other_laser: o
+                .other_laser
+                .clone()
+                .map(|d| (d, o.agree_within, o.accept_disagreement)),
         })
     }
 }
@@ -241,6 +251,7 @@ pub fn receive(plan: &ReceivePlan, finish_view: bool) -> Result<(Summary, Option
         }
         r => r?,
     };
+    let summary = compare_lasers(o, summary)?;
     if finish_view && let Some(v) = view.as_ref() {
         v.finish(
             Some(&c.counts()),
@@ -259,7 +270,34 @@ pub fn receive(plan: &ReceivePlan, finish_view: bool) -> Result<(Summary, Option
 /// The input cannot be read or an output cannot be written.
 pub fn replay(input: &Path, plan: &OutputPlan) -> Result<Summary> {
     let c = scanner_host::outputs::replay(plan.collect, input, plan.sheet_mm)?;
-    Ok(write_outputs(&c, &plan.dir, &plan.outputs)?)
+    let summary = write_outputs(&c, &plan.dir, &plan.outputs)?;
+    compare_lasers(plan, summary)
+}
+
+/// With `--other-laser`: this turntable model against the other laser's, in the summary; a
+/// disagreement refused unless accepted (the outputs stay written).
+fn compare_lasers(o: &OutputPlan, mut summary: Summary) -> Result<Summary> {
+    use scanner_host::lasers::{LasersError, agreement};
+    let Some((other, within, accept)) = &o.other_laser else {
+        return Ok(summary);
+    };
+    if summary.fixed.is_none() {
+        return Err(LasersError::NotTurntable.into());
+    }
+    let mut a = agreement(&o.dir, other, *within)?;
+    a.accepted = !a.agree && *accept;
+    summary.lasers = Some(a.clone());
+    scanner_host::outputs::write_summary(&summary, &o.dir)?;
+    if !a.agree && !*accept {
+        return Err(LasersError::Disagree {
+            median_mm: a.median_mm,
+            volume_pct: 100.0 * (a.volume_ratio - 1.0),
+            within_mm: *within,
+            cause: a.likely_cause.unwrap_or("shape"),
+        }
+        .into());
+    }
+    Ok(summary)
 }
 
 /// `ports`: the serial ports, one a line.
