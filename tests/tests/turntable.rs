@@ -66,7 +66,7 @@ fn fixture() -> &'static Fixture {
             // At 640×480 the A4 disc's dots are 4 px across and its pose 0.02–0.04° off; the
             // A3 disc's within 0.007° (`scanner-calib`'s disc test).
             .replace("paper = \"a4\"", "paper = \"a3\"");
-        scan_views(dir, &text)
+        scan_views(dir, &text, false)
     })
 }
 
@@ -242,23 +242,45 @@ fn scanned(
         env!("CARGO_MANIFEST_DIR")
     );
     let text = edit(std::fs::read_to_string(path).unwrap());
-    let f = std::sync::Arc::new(scan_views(dir.clone(), &text));
+    let f = std::sync::Arc::new(scan_views(dir.clone(), &text, without_disc));
     if without_disc {
         // The same sweeps, the head not told of the disc: every view keeps the disc's and
-        // the stand's points.
-        std::fs::copy(dir.join("s.toml"), dir.join("nd/s.toml")).unwrap();
-        std::fs::copy(dir.join("cal.toml"), dir.join("nd/cal.toml")).unwrap();
+        // the stand's points. Its frames are the disc scan's, read back from its recording
+        // (the rig renders a frame many times slower than the head reads one).
         for k in 0..f.scene.view_count() {
-            let nd = dir.join("nd");
-            scanner_tests::scan_rig_view(&nd, &k.to_string(), &[], &["--cell", "2px"]);
+            let (record, stream) = (format!("record:rec{k}"), format!("nd/v{k}.stream"));
+            let (ok, _, err) = run_in(
+                &workspace_bin("scanner-device"),
+                &dir,
+                &[
+                    "scan",
+                    "--source",
+                    &record,
+                    "--calibration",
+                    "cal.toml",
+                    "--out",
+                    &stream,
+                    "-q",
+                ],
+            );
+            assert!(ok, "scan view {k} again: {err}");
+            let out = format!("nd/v{k}");
+            let (ok, _, err) = run_in(
+                &workspace_bin("scanner-host"),
+                &dir,
+                &["receive", &stream, "--out", &out, "-q", "--cell", "2px"],
+            );
+            assert!(ok, "receive view {k} again: {err}");
+            let _ = std::fs::remove_dir_all(dir.join(format!("rec{k}")));
         }
     }
     done.push((key, f.clone()));
     f
 }
 
-/// Writes `text` as the scene, the rig's true calibration beside it, and scans every view.
-fn scan_views(dir: PathBuf, text: &str) -> Fixture {
+/// Writes `text` as the scene, the rig's true calibration beside it, and scans every view
+/// (`record`: each view's frames kept in `rec{k}` as well).
+fn scan_views(dir: PathBuf, text: &str, record: bool) -> Fixture {
     std::fs::write(dir.join("s.toml"), text).unwrap();
     let scene = scanner_rig::Scene::from_toml_in(text, &dir).unwrap();
     let rig = scanner_rig::Rig::new(scene.clone()).unwrap();
@@ -269,13 +291,12 @@ fn scan_views(dir: PathBuf, text: &str) -> Fixture {
         .map_or("a3", |t| t.disc.paper.name());
     for k in 0..scene.view_count() {
         let k = k.to_string();
-        let report = format!("r{k}.json");
-        scanner_tests::scan_rig_view(
-            &dir,
-            &k,
-            &["--disc", paper, "--report", &report],
-            &["--cell", "2px"],
-        );
+        let (report, rec) = (format!("r{k}.json"), format!("rec{k}"));
+        let mut head = vec!["--disc", paper, "--report", &report];
+        if record {
+            head.extend(["--record", &rec]);
+        }
+        scanner_tests::scan_rig_view(&dir, &k, &head, &["--cell", "2px"]);
         // The head's report says what it found of the disc: the disc in every view on it, none
         // where it was taken away.
         let disc = &json(&dir.join(&report))["disc"];

@@ -925,18 +925,24 @@ impl Rig {
     pub(crate) fn expose(&self, radiance: &[[f32; 3]], noise_seed: u64) -> Rgb8 {
         let s = &self.scene.sensor;
         let mut rng = SmallRng::seed_from_u64(s.seed ^ noise_seed);
-        let noisy = s.read_noise > 0.0 || s.shot_noise > 0.0;
-        let mut data = Vec::with_capacity(radiance.len() * 3);
-        for px in radiance {
-            for &r in px {
-                let mut v = s.gain * f64::from(r);
-                if noisy {
-                    let sd = (s.read_noise * s.read_noise + s.shot_noise * v.max(0.0)).sqrt();
-                    v += sd * unit_normal(rng.random::<u64>());
+        let (gain, read2, shot) = (s.gain, s.read_noise * s.read_noise, s.shot_noise);
+        let mut data = vec![0u8; radiance.len() * 3];
+        // rounded to the nearest level: `as` saturates (below 0 and NaN give 0, above 255
+        // gives 255) and truncates, without a call to `round`
+        let levels = data.chunks_exact_mut(3).zip(radiance);
+        if s.read_noise > 0.0 || s.shot_noise > 0.0 {
+            for (out, px) in levels {
+                for (o, &r) in out.iter_mut().zip(px) {
+                    let v = gain * f64::from(r);
+                    let sd = (read2 + shot * v.max(0.0)).sqrt();
+                    *o = (v + sd * unit_normal(rng.random::<u64>()) + 0.5) as u8;
                 }
-                // rounded to the nearest level: `as` saturates (below 0 and NaN give 0, above
-                // 255 gives 255) and truncates, without a call to `round`
-                data.push((v + 0.5) as u8);
+            }
+        } else {
+            for (out, px) in levels {
+                for (o, &r) in out.iter_mut().zip(px) {
+                    *o = (gain * f64::from(r) + 0.5) as u8;
+                }
             }
         }
         Rgb8 {
