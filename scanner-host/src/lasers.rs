@@ -10,7 +10,7 @@ use std::path::Path;
 use scanner_core::nalgebra::{Isometry3, Point3};
 use scanner_merge::spatial::{Cloud, normals, tree};
 
-/// The largest models compared, vertices (each is thinned to at most [`SAMPLES`] first).
+/// The largest models compared, vertices (each is thinned to 60 000 first).
 pub const MAX_VERTICES: usize = 5_000_000;
 
 /// The largest model file read, bytes (a model of [`MAX_VERTICES`] vertices is under it).
