@@ -465,3 +465,19 @@ pub fn read_ply(bytes: &[u8]) -> (Vec<[f32; 3]>, Vec<[u32; 3]>, Vec<f32>) {
     assert_eq!(p, bytes.len());
     (verts, faces, quality)
 }
+
+/// Renders every frame of a rig's turntable scan into `folder` (created) as `000.png`, `001.png`,
+/// …, RGB, as a turntable scanner's recording holds them.
+///
+/// # Panics
+/// When a frame cannot be rendered or written: this is a test helper.
+pub fn write_turning_frames(scan: &scanner_rig::TurningScan, folder: &std::path::Path) {
+    std::fs::create_dir_all(folder).expect("the frames' folder");
+    for k in 0..scan.frames {
+        let f = scan.render(k).expect("a rendered frame");
+        image::RgbImage::from_raw(f.width as u32, f.height as u32, f.data)
+            .expect("a frame of its size")
+            .save(folder.join(format!("{k:03}.png")))
+            .expect("a written frame");
+    }
+}

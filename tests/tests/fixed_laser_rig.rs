@@ -10,14 +10,7 @@ fn the_rigs_turntable_scan_is_accurate_and_closed() {
     let scan = scanner_rig::TurningScan::demo(640, 480);
     let dir = tempfile::tempdir().unwrap();
     let frames = dir.path().join("frames");
-    std::fs::create_dir(&frames).unwrap();
-    for k in 0..scan.frames {
-        let f = scan.render(k).unwrap();
-        image::RgbImage::from_raw(f.width as u32, f.height as u32, f.data)
-            .unwrap()
-            .save(frames.join(format!("{k:03}.png")))
-            .unwrap();
-    }
+    scanner_tests::write_turning_frames(&scan, &frames);
     scan.truth_calibration()
         .save(&dir.path().join("cal.toml"))
         .unwrap();
@@ -135,14 +128,7 @@ fn a_green_lasers_colour_is_found_and_a_clipped_one_read_by_brightness() {
         scan.scene.laser.colour = colour;
         scan.scene.laser.power = power;
         let dir = tempfile::tempdir().unwrap();
-        std::fs::create_dir(dir.path().join("frames")).unwrap();
-        for k in 0..scan.frames {
-            let f = scan.render(k).unwrap();
-            image::RgbImage::from_raw(f.width as u32, f.height as u32, f.data)
-                .unwrap()
-                .save(dir.path().join(format!("frames/{k:03}.png")))
-                .unwrap();
-        }
+        scanner_tests::write_turning_frames(&scan, &dir.path().join("frames"));
         scan.truth_calibration()
             .save(&dir.path().join("cal.toml"))
             .unwrap();

@@ -30,14 +30,7 @@ fn fixture() -> &'static Fixture {
         scan.turn = std::f64::consts::TAU / FRAMES as f64;
         let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("import-calibration");
         let _ = std::fs::remove_dir_all(&dir);
-        std::fs::create_dir_all(dir.join("frames")).unwrap();
-        for k in 0..scan.frames {
-            let f = scan.render(k).unwrap();
-            image::RgbImage::from_raw(f.width as u32, f.height as u32, f.data)
-                .unwrap()
-                .save(dir.join(format!("frames/{k:03}.png")))
-                .unwrap();
-        }
+        scanner_tests::write_turning_frames(&scan, &dir.join("frames"));
         let truth = scan.truth_calibration();
         truth.save(&dir.join("truth.toml")).unwrap();
         // a calibration whose camera is wrong (focal lengths 5 % long): a camera file put into
