@@ -341,6 +341,38 @@ fn the_host_says_whether_the_two_lasers_agree_and_refuses_them_when_not() {
             (&serde_json::json!(false), &serde_json::json!(true))
         );
     }
+    // a distance that is none, and a folder that holds no turntable scan: refused by name
+    for within in ["NaN", "0"] {
+        let (ok, _, err) = receive("own1-bad", &["--agree-within", within]);
+        assert!(!ok);
+        assert!(
+            scanner_tests::error_kinds(&err)
+                .iter()
+                .any(|k| k.contains("Within")),
+            "{within}: {err}"
+        );
+    }
+    std::fs::create_dir_all(f.path("empty")).unwrap();
+    let (ok, _, err) = run_in(
+        &host,
+        f.dir.path(),
+        &[
+            "receive",
+            "own1.stream",
+            "--out",
+            "own1-vs-empty",
+            "--other-laser",
+            "empty",
+            "-q",
+        ],
+    );
+    assert!(!ok);
+    assert!(
+        scanner_tests::error_kinds(&err)
+            .iter()
+            .any(|k| k.contains("Model") || k.contains("Summary")),
+        "{err}"
+    );
 }
 
 /// A FabScanPi config with one value replaced.
