@@ -2,7 +2,7 @@
 //! journal or recording into a collector.
 
 use std::io::{Read, Seek};
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 use scanner_wire::{Control, Header, Skip};
 
@@ -567,9 +567,7 @@ pub fn write_outputs(
         })?;
         m.into_frame(MeshFrame::board(&board));
     }
-    export::write_atomic_with(&dir.join("scan.obj"), |w| export::write_obj(&m, w))?;
-    export::write_atomic_with(&dir.join("scan.ply"), |w| export::write_ply(&m, w))?;
-    export::write_atomic_with(&dir.join("scan.stl"), |w| export::write_stl(&m, w))?;
+    export::write_files(mesh_files(dir, &m))?;
     let summary = Summary {
         point_rate: point_rate(&counts),
         counts,
@@ -587,11 +585,28 @@ pub fn write_outputs(
     Ok(summary)
 }
 
+/// A model's meshes in `dir`: `scan.obj`, `scan.ply` and `scan.stl`, for [`export::write_files`].
+fn mesh_files<'a>(dir: &Path, m: &'a Mesh) -> Vec<(PathBuf, export::FileWriter<'a>)> {
+    vec![
+        (dir.join("scan.obj"), Box::new(|w| export::write_obj(m, w))),
+        (dir.join("scan.ply"), Box::new(|w| export::write_ply(m, w))),
+        (dir.join("scan.stl"), Box::new(|w| export::write_stl(m, w))),
+    ]
+}
+
 /// The fusion's cell for a fixed-laser model: the object's size over this many, mm.
 const FIXED_CELLS_ACROSS: f64 = 400.0;
 
-/// A fixed-laser model's cell against the arc between neighbouring frames' stripes.
+/// A fixed-laser model's cell against the arc between neighbouring frames' stripes, at least:
+/// the fusion's band (two cells) bridges the gap between stripes.
 const FIXED_ARC_SHARE: f64 = 0.75;
+
+/// At finer turns a fixed-laser model's cell is the geometric mean of the arc between
+/// stripes and this share of the object's size: it shrinks as the square root of the frames,
+/// so that the grid's cells along the surface grow as the points do (the model's cost grows
+/// with the frames, not with their square), and it meets [`FIXED_ARC_SHARE`] of the arc at
+/// about 100 frames a turn on a bust and on the rig's scene.
+const FIXED_SIZE_SHARE: f64 = 0.01;
 
 /// The finest fusion cell of a fixed-laser model, mm.
 const FIXED_MIN_CELL_MM: f64 = 0.2;
@@ -606,7 +621,12 @@ fn fixed_outputs(
     dir: &Path,
 ) -> Result<Summary, OutputError> {
     let _ = std::fs::remove_file(dir.join("depth.png"));
-    let cloud = crate::platform::platform_cloud(f, c.kept())?;
+    let whole = crate::platform::platform_cloud(f, c.kept())?;
+    // The model's size, cell and grid come from the object's points alone.
+    let object = crate::platform::object(&whole, f64::from(f.turn));
+    let apart = object.iter().filter(|&&o| !o).count();
+    let cloud = whole.only(&object);
+    drop(whole);
     let (lo, hi) = cloud.points.iter().fold(
         (
             Point3::new(f64::INFINITY, f64::INFINITY, f64::INFINITY),
@@ -626,6 +646,7 @@ fn fixed_outputs(
         (size / FIXED_CELLS_ACROSS)
             .max(FIXED_MIN_CELL_MM)
             .max(FIXED_ARC_SHARE * arc)
+            .max((arc * FIXED_SIZE_SHARE * size).sqrt())
     } else {
         1.0
     };
@@ -651,22 +672,26 @@ fn fixed_outputs(
         frame: MeshFrame::Platform,
         ..Mesh::default()
     };
-    export::write_atomic_with(&dir.join("cloud.ply"), |w| {
-        export::write_ply(&cloud_mesh, w)
-    })?;
     let check = scanner_merge::fuse::check(&model);
     crate::platform::y_up(&mut model);
     let m = Mesh {
         frame: MeshFrame::Platform,
         ..Mesh::from(model)
     };
-    export::write_atomic_with(&dir.join("preview.png"), |w| {
-        export::write_png(&export::orbit_png(&m), w)
-    })?;
-    export::write_atomic_with(&dir.join("scan.obj"), |w| export::write_obj(&m, w))?;
-    export::write_atomic_with(&dir.join("scan.ply"), |w| export::write_ply(&m, w))?;
-    export::write_atomic_with(&dir.join("scan.stl"), |w| export::write_stl(&m, w))?;
-    export::write_atomic_with(&dir.join("scan.3mf"), |w| export::write_3mf(&m, w))?;
+    let (m, cloud_mesh) = (&m, &cloud_mesh);
+    let mut files = mesh_files(dir, m);
+    files.extend::<[(PathBuf, export::FileWriter); 3]>([
+        (dir.join("scan.3mf"), Box::new(|w| export::write_3mf(m, w))),
+        (
+            dir.join("preview.png"),
+            Box::new(|w| export::write_png(&export::orbit_png(m), w)),
+        ),
+        (
+            dir.join("cloud.ply"),
+            Box::new(|w| export::write_ply(cloud_mesh, w)),
+        ),
+    ]);
+    export::write_files(files)?;
     let counts = c.counts();
     let summary = Summary {
         point_rate: point_rate(&counts),
@@ -685,7 +710,7 @@ fn fixed_outputs(
             object_points: cloud.points.len() - off_model,
             on_top: cloud.on_top,
             off_platform: cloud.off_platform,
-            off_model,
+            off_model: off_model + apart,
             floor_mm: cloud.floor.at - crate::platform::TOP_MARGIN_MM,
             floor_tilt_deg: cloud.floor.up.z.clamp(-1.0, 1.0).acos().to_degrees(),
             cell_mm: cell,

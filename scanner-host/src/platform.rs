@@ -59,6 +59,8 @@ pub struct PlatformCloud {
     pub frames: usize,
     /// The turns the frames cover, degrees (from the first to the last frame).
     pub turned_deg: f64,
+    /// The median distance between neighbouring points along one frame's stripe, mm (0: none).
+    pub stripe_spacing: f64,
 }
 
 /// The platform of a scan's message.
@@ -104,7 +106,9 @@ pub fn platform_cloud(
         },
         frames: 0,
         turned_deg: 0.0,
+        stripe_spacing: 0.0,
     };
+    let mut steps = Vec::new();
     let (mut first, mut last) = (u32::MAX, 0);
     for k in frames.iter().filter(|k| k.scan_id == f.scan_id) {
         let angle = f64::from(k.frame) * f64::from(f.turn);
@@ -112,6 +116,7 @@ pub fn platform_cloud(
         cloud.frames += 1;
         first = first.min(k.frame);
         last = last.max(k.frame);
+        steps.extend(k.points.windows(2).map(|w| (w[1] - w[0]).norm()));
         for p in &k.points {
             let q = platform.to_platform(&p.cast(), angle);
             let is_still = still.contains(&cell_of(p));
@@ -120,6 +125,10 @@ pub fn platform_cloud(
             }
             all.push((q, eye, is_still));
         }
+    }
+    if !steps.is_empty() {
+        let mid = steps.len() / 2;
+        cloud.stripe_spacing = f64::from(*steps.select_nth_unstable_by(mid, f32::total_cmp).1);
     }
     cloud.floor = floor(&low_still);
     let top = cloud.floor;
@@ -238,6 +247,106 @@ fn still_cells(scan_id: u32, frames: &[KeptFrame]) -> std::collections::HashSet<
         .collect()
 }
 
+/// Points of a cloud are joined into pieces through cubes of this side, mm, at least (and
+/// twice the arc between neighbouring stripes at the cloud's outermost points): the gap a
+/// piece of one object never shows.
+const JOIN_MM: f64 = 3.0;
+
+/// A piece that does not reach down to the platform's top is the object's (a part seen apart
+/// from the rest) only when it holds at least this share of the cloud's points and is not made
+/// mostly of still points.
+const FLOATER_SHARE: f64 = 0.02;
+
+/// Which of `cloud`'s points are the object's, its platform turning `turn` radians a frame:
+/// the points joined into pieces (through touching cubes of 3 mm or more), the pieces
+/// that reach down to the platform's top kept, and those apart from it kept only when they
+/// hold 2 % of the points and most of them moved with the platform. What is left
+/// out is something lit that did not stand on the platform (the scanner's case above it, a
+/// wall behind: still things that the turn back spreads into rings) or scattered noise — which
+/// would otherwise set the model's size and cell and cost the fusion most of its time. When no
+/// piece reaches the top, every point is kept.
+pub fn object(cloud: &PlatformCloud, turn: f64) -> Vec<bool> {
+    let n = cloud.points.len();
+    let mut radii: Vec<f64> = cloud.points.iter().map(|p| p.x.hypot(p.y)).collect();
+    radii.sort_by(f64::total_cmp);
+    let outer = radii.get(n * 99 / 100).copied().unwrap_or(0.0);
+    let side = JOIN_MM.max(2.0 * outer * turn.abs());
+    let key = |p: &Point3<f64>| {
+        let c = |v: f64| (v / side).floor() as i64;
+        (c(p.x), c(p.y), c(p.z))
+    };
+    let mut cubes: std::collections::HashMap<(i64, i64, i64), usize> =
+        std::collections::HashMap::new();
+    let of_point: Vec<usize> = cloud
+        .points
+        .iter()
+        .map(|p| {
+            let next = cubes.len();
+            *cubes.entry(key(p)).or_insert(next)
+        })
+        .collect();
+    let mut parent: Vec<usize> = (0..cubes.len()).collect();
+    fn root(parent: &mut [usize], mut i: usize) -> usize {
+        while parent[i] != i {
+            parent[i] = parent[parent[i]];
+            i = parent[i];
+        }
+        i
+    }
+    for (&(x, y, z), &i) in &cubes {
+        for (dx, dy, dz) in (-1..=1)
+            .flat_map(|dx| (-1..=1).flat_map(move |dy| (-1..=1).map(move |dz| (dx, dy, dz))))
+        {
+            if let Some(&j) = cubes.get(&(x + dx, y + dy, z + dz)) {
+                let (a, b) = (root(&mut parent, i), root(&mut parent, j));
+                parent[a] = b;
+            }
+        }
+    }
+    // per piece: points, still points, whether it reaches down to the top
+    let mut pieces = vec![(0usize, 0usize, false); parent.len()];
+    let top = cloud.floor;
+    for ((p, &still), &c) in cloud.points.iter().zip(&cloud.still).zip(&of_point) {
+        let r = root(&mut parent, c);
+        let e = &mut pieces[r];
+        e.0 += 1;
+        e.1 += usize::from(still);
+        e.2 |= top.up.dot(&p.coords) - top.at <= side;
+    }
+    if !pieces.iter().any(|e| e.2) {
+        return vec![true; n];
+    }
+    let least = FLOATER_SHARE * n as f64;
+    let keep: Vec<bool> = pieces
+        .iter()
+        .map(|&(all, still, low)| low || (all as f64 >= least && 2 * still <= all))
+        .collect();
+    of_point
+        .iter()
+        .map(|&c| keep[root(&mut parent, c)])
+        .collect()
+}
+
+impl PlatformCloud {
+    /// The cloud of the points where `keep` is true (the counts of points left out before
+    /// stay).
+    pub fn only(&self, keep: &[bool]) -> PlatformCloud {
+        fn kept<T: Copy>(v: &[T], keep: &[bool]) -> Vec<T> {
+            v.iter()
+                .zip(keep)
+                .filter(|(_, k)| **k)
+                .map(|(x, _)| *x)
+                .collect()
+        }
+        PlatformCloud {
+            points: kept(&self.points, keep),
+            seen_from: kept(&self.seen_from, keep),
+            still: kept(&self.still, keep),
+            ..*self
+        }
+    }
+}
+
 /// Each point's normal, fitted to its neighbours and turned towards the camera that saw it.
 pub fn normals(cloud: &PlatformCloud) -> Vec<Vector3<f64>> {
     let mut n = spatial::normals(&cloud.points, NORMAL_NEIGHBOURS);
@@ -294,6 +403,13 @@ fn standing(m: &mut Model, cloud: &PlatformCloud, floor: HalfSpace, reach: f64) 
             let r = root(&mut parent, i);
             low[r] = true;
         }
+    }
+    // Every piece reaches down to the platform's top: all stay, no cloud point need be placed.
+    if (0..n).all(|i| {
+        let r = root(&mut parent, i);
+        low[r]
+    }) {
+        return;
     }
     // each piece's cloud points, still and in all (by the nearest vertex)
     let mut counts = vec![(0usize, 0usize); n];
@@ -380,5 +496,77 @@ pub fn y_up(m: &mut Model) {
     }
     for n in &mut m.normals {
         *n = Vector3::new(n.x, n.z, -n.y);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A cloud of `points` (each with whether it stood still), the top at 1 mm.
+    fn cloud(points: Vec<(Point3<f64>, bool)>) -> PlatformCloud {
+        PlatformCloud {
+            seen_from: vec![Point3::new(0.0, -300.0, 100.0); points.len()],
+            still: points.iter().map(|p| p.1).collect(),
+            points: points.into_iter().map(|p| p.0).collect(),
+            on_top: 0,
+            off_platform: 0,
+            floor: HalfSpace {
+                up: Vector3::z(),
+                at: TOP_MARGIN_MM,
+            },
+            frames: 200,
+            turned_deg: 360.0,
+            stripe_spacing: 0.1,
+        }
+    }
+
+    #[test]
+    fn the_object_is_what_stands_on_the_platform_and_what_moved_with_it() {
+        let mut points = Vec::new();
+        // an upright cylinder 20 mm across standing on the top, 30 mm tall: moving points
+        for k in 0..200 {
+            for h in 0..60 {
+                let a = f64::from(k) * std::f64::consts::TAU / 200.0;
+                let z = TOP_MARGIN_MM + 0.5 * f64::from(h);
+                points.push((Point3::new(10.0 * a.cos(), 10.0 * a.sin(), z), false));
+            }
+        }
+        // its top, where it meets the axis, looks the same at every turn: still, but part of it
+        for r in 0..20 {
+            points.push((Point3::new(0.5 * f64::from(r), 0.0, 30.5), true));
+        }
+        // a ring of still points 40 mm above (the scanner's case, turned back frame by frame)
+        for k in 0..2000 {
+            let a = f64::from(k) * std::f64::consts::TAU / 2000.0;
+            points.push((Point3::new(60.0 * a.cos(), 60.0 * a.sin(), 70.0), true));
+        }
+        // a loose part of the object, apart from it and moving (big enough to stay) ...
+        for k in 0..400 {
+            let a = f64::from(k) * 0.01;
+            points.push((Point3::new(30.0 + a, 0.0, 20.0 + a), false));
+        }
+        // ... and a few scattered moving points (noise)
+        for k in 0..30 {
+            points.push((Point3::new(-40.0, 3.0 * f64::from(k), 50.0), false));
+        }
+        let c = cloud(points);
+        let keep = object(&c, std::f64::consts::TAU / 200.0);
+        assert_eq!(keep.len(), c.points.len());
+        let kept = |range: std::ops::Range<usize>| keep[range].iter().filter(|&&k| k).count();
+        assert_eq!(kept(0..12_000), 12_000, "the cylinder");
+        assert_eq!(kept(12_000..12_020), 20, "the still top");
+        assert_eq!(kept(12_020..14_020), 0, "the still ring");
+        assert_eq!(kept(14_020..14_420), 400, "the moving part apart");
+        assert_eq!(kept(14_420..14_450), 0, "the scattered points");
+        let only = c.only(&keep);
+        assert_eq!(only.points.len(), 12_420);
+        assert_eq!(only.still.len(), 12_420);
+        assert_eq!(only.stripe_spacing, 0.1);
+        // no piece reaches the top: nothing is taken
+        let mut high = c.clone();
+        high.floor.at = -100.0;
+        high.floor.up = -Vector3::z();
+        assert!(object(&high, 0.03).iter().all(|&k| k));
     }
 }

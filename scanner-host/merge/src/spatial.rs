@@ -24,26 +24,62 @@ pub(crate) fn threads() -> usize {
     std::thread::available_parallelism().map_or(1, |n| n.get().min(MAX_THREADS))
 }
 
-/// `f(i)` for every `i` in `0..n`, in order, the range shared among [`threads`] threads in
-/// contiguous runs (the searches over a cloud's points: each answer independent of the others).
+/// `f(i)` for every `i` in `0..n`, in order, shared among [`threads`] threads (the searches
+/// over a cloud's points: each answer independent of the others).
 pub(crate) fn par_map<U: Send>(n: usize, f: impl Fn(usize) -> U + Sync) -> Vec<U> {
-    let threads = threads();
-    if threads <= 1 || n < 1024 {
+    if n < 1024 {
         return (0..n).map(f).collect();
     }
-    let chunk = n.div_ceil(threads);
-    let f = &f;
-    std::thread::scope(|s| {
-        let parts: Vec<_> = (0..n)
-            .step_by(chunk)
-            .map(|a| s.spawn(move || (a..(a + chunk).min(n)).map(f).collect::<Vec<U>>()))
+    let block = (n / (threads() * RUNS_PER_THREAD)).max(64);
+    par_runs(n, block, |run| run.map(&f).collect())
+}
+
+/// Runs a thread takes, about, in [`par_runs`] from [`par_map`]: enough that one thread's
+/// dense part of a cloud does not keep the others waiting.
+const RUNS_PER_THREAD: usize = 16;
+
+/// `f` over `0..n` cut into runs of `block`, each run's answers in order, the runs handed to
+/// [`threads`] threads as each finishes its last (a cloud's dense parts, a grid's slices
+/// through the surface, take longer than the rest); all the answers in order.
+pub(crate) fn par_runs<U: Send>(
+    n: usize,
+    block: usize,
+    f: impl Fn(std::ops::Range<usize>) -> Vec<U> + Sync,
+) -> Vec<U> {
+    let block = block.max(1);
+    let runs = n.div_ceil(block);
+    let threads = threads().min(runs);
+    if threads <= 1 {
+        return f(0..n);
+    }
+    let next = std::sync::atomic::AtomicUsize::new(0);
+    let (f, next) = (&f, &next);
+    let mut done: Vec<(usize, Vec<U>)> = std::thread::scope(|s| {
+        let workers: Vec<_> = (0..threads)
+            .map(|_| {
+                s.spawn(move || {
+                    let mut mine = Vec::new();
+                    loop {
+                        let r = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+                        if r >= runs {
+                            return mine;
+                        }
+                        mine.push((r, f(r * block..((r + 1) * block).min(n))));
+                    }
+                })
+            })
             .collect();
-        let mut out = Vec::with_capacity(n);
-        for p in parts {
-            out.extend(p.join().unwrap_or_else(|e| std::panic::resume_unwind(e)));
-        }
-        out
-    })
+        workers
+            .into_iter()
+            .flat_map(|w| w.join().unwrap_or_else(|e| std::panic::resume_unwind(e)))
+            .collect()
+    });
+    done.sort_unstable_by_key(|(r, _)| *r);
+    let mut out = Vec::with_capacity(n);
+    for (_, v) in done {
+        out.extend(v);
+    }
+    out
 }
 
 /// `k` as the count a k-d tree's n-nearest search takes (at least one).
@@ -235,6 +271,12 @@ mod tests {
                 got.iter().enumerate().all(|(i, &v)| v == i * 3 + 1),
                 "n = {n}"
             );
+        }
+        // runs of every length, the last one short; answers of any number per run
+        for (n, block) in [(0, 4), (1, 4), (10, 3), (10, 1), (10, 10), (1000, 7)] {
+            let got = par_runs(n, block, |run| run.flat_map(|i| [i, i]).collect());
+            let want: Vec<usize> = (0..n).flat_map(|i| [i, i]).collect();
+            assert_eq!(got, want, "n = {n}, block = {block}");
         }
     }
 }

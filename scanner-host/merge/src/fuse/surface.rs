@@ -309,12 +309,10 @@ pub fn fuse_filled(
     // One slice of the grid at a time (the field of slice k, the outermost two layers of the
     // grid set outside so that every surface closes inside it), two slices held: the fine grid
     // is never stored whole.
-    // Each slice's values (and with a fill, the winding number's own where it differs).
-    // Rows `rows` of slice k.
-    let rows = |k: usize, rows: std::ops::Range<usize>| -> (Vec<f32>, Vec<f32>) {
-        let len = nx * rows.len();
-        let mut out = Vec::with_capacity(len);
-        let mut plain = Vec::with_capacity(if fill.is_some() { len } else { 0 });
+    // Each grid point of rows `rows` of slice k: its value, and the winding number's own
+    // (without the fill).
+    let rows = |k: usize, rows: std::ops::Range<usize>| -> Vec<(f32, f32)> {
+        let mut out = Vec::with_capacity(nx * rows.len());
         let edge = |x: usize, n: usize| x < 2 || x + 2 >= n;
         let finish = |mut v: f32, i: usize, j: usize| {
             if let Some(h) = keep {
@@ -334,35 +332,21 @@ pub fn fuse_filled(
                     field(i, j, k)
                 };
                 let f = unseen.map_or(v, |d2| filled(v, d2, i, j, k));
-                out.push(finish(f, i, j));
-                if fill.is_some() {
-                    plain.push(finish(v, i, j));
-                }
+                out.push((finish(f, i, j), finish(v, i, j)));
             }
         }
-        (out, plain)
+        out
     };
-    // A slice's rows shared among the machine's cores, in order.
-    let threads = crate::spatial::threads();
+    // A slice's rows shared among the machine's cores a few at a time (where the surface
+    // crosses them they take longer), in order.
     let slice = |k: usize| -> (Vec<f32>, Vec<f32>) {
-        let chunk = ny.div_ceil(threads);
-        let parts: Vec<(Vec<f32>, Vec<f32>)> = std::thread::scope(|s| {
-            let rows = &rows;
-            let handles: Vec<_> = (0..ny)
-                .step_by(chunk.max(1))
-                .map(|j| s.spawn(move || rows(k, j..(j + chunk).min(ny))))
-                .collect();
-            handles
-                .into_iter()
-                .map(|h| h.join().unwrap_or_else(|e| std::panic::resume_unwind(e)))
-                .collect()
-        });
-        let mut out = Vec::with_capacity(nx * ny);
-        let mut plain = Vec::with_capacity(if fill.is_some() { nx * ny } else { 0 });
-        for (o, p) in parts {
-            out.extend(o);
-            plain.extend(p);
-        }
+        let values = crate::spatial::par_runs(ny, ROWS_PER_RUN, |r| rows(k, r));
+        let out = values.iter().map(|v| v.0).collect();
+        let plain = if fill.is_some() {
+            values.iter().map(|v| v.1).collect()
+        } else {
+            Vec::new()
+        };
         (out, plain)
     };
     let mut march = Tetrahedra::new((nx, ny));
@@ -389,6 +373,9 @@ pub fn fuse_filled(
     });
     Ok((m, smaller))
 }
+
+/// Rows of a grid slice a thread takes at a time.
+const ROWS_PER_RUN: usize = 4;
 
 /// Grid points at least this many cells (and [`FILL_CLEAR_MM`]) from every point may be filled
 /// ([`fuse_filled`]).
@@ -865,18 +852,26 @@ fn nonmanifold_vertices(m: &Model) -> usize {
     let mut bad = 0;
     for fan in link.chunk_by(|a, b| a.0 == b.0) {
         // A closed fan: each opposite edge's end starts exactly one other, and following them
-        // from the first returns after visiting all.
-        let next: std::collections::HashMap<u32, u32> = fan.iter().map(|e| (e.1, e.2)).collect();
+        // from the first returns after visiting all. The fan is sorted by the edges' starts.
+        if fan.windows(2).any(|w| w[0].1 == w[1].1) {
+            bad += 1;
+            continue;
+        }
+        let next = |at: u32| {
+            fan.binary_search_by_key(&at, |e| e.1)
+                .ok()
+                .map(|i| fan[i].2)
+        };
         let mut at = fan[0].1;
         let mut steps = 0;
-        while let Some(&n) = next.get(&at) {
+        while let Some(n) = next(at) {
             at = n;
             steps += 1;
             if at == fan[0].1 || steps > fan.len() {
                 break;
             }
         }
-        if next.len() != fan.len() || steps != fan.len() || at != fan[0].1 {
+        if steps != fan.len() || at != fan[0].1 {
             bad += 1;
         }
     }
@@ -885,14 +880,17 @@ fn nonmanifold_vertices(m: &Model) -> usize {
 
 /// Watertightness, components and the enclosed volume of a mesh.
 pub fn check(m: &Model) -> MeshCheck {
-    let mut edges: std::collections::HashMap<(u32, u32), u32> = std::collections::HashMap::new();
-    for f in &m.faces {
-        for k in 0..3 {
-            let (a, b) = (f[k], f[(k + 1) % 3]);
-            *edges.entry((a.min(b), a.max(b))).or_insert(0) += 1;
-        }
-    }
-    let open_edges = edges.values().filter(|&&c| c != 2).count();
+    let mut edges: Vec<(u32, u32)> = m
+        .faces
+        .iter()
+        .flat_map(|f| (0..3).map(move |k| (f[k].min(f[(k + 1) % 3]), f[k].max(f[(k + 1) % 3]))))
+        .collect();
+    edges.sort_unstable();
+    // an edge of a closed surface is shared by exactly two faces
+    let open_edges = edges
+        .chunk_by(|a, b| a == b)
+        .filter(|e| e.len() != 2)
+        .count();
     let mut parent: Vec<u32> = (0..m.vertices.len() as u32).collect();
     let mut used = vec![false; m.vertices.len()];
     for f in &m.faces {
