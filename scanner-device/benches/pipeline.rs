@@ -115,6 +115,7 @@ fn main() {
             find_colour: false,
             disc: None,
             fixed: None,
+            markers: None,
             shadow: false,
         };
         let mut session = Session::new(&cal, reference.clone(), opts).expect("session");

@@ -141,6 +141,7 @@ fn run(dir: &Path, format: &str, n: usize) -> anyhow::Result<()> {
         find_colour: false,
         disc: None,
         fixed: None,
+        markers: None,
         shadow: false,
     };
     let mut session = Session::new(&cal, reference.clone(), opts)?;

@@ -9,7 +9,8 @@
 //! the calibration and rig commands, which call `scanner-calib` and `scanner-rig`).
 //!
 //! The arrows run one way: `cli` → `preview` → `session` → [`axis`] (which way the stripe runs)
-//! and [`laser_colour`] (what colour it is) → `source`, `link` → `scanner-core`. The head uses `scanner-calib` for what it finds in a
+//! and [`laser_colour`] (what colour it is) and [`marker_turn`] (a turntable's angle from its
+//! markers) → `source`, `link` → `scanner-core`. The head uses `scanner-calib` for what it finds in a
 //! picture (the preview's dots, the session's turntable disc) and the CLI for its procedures;
 //! `scanner-rig` with the feature; image and text files come through `scanner-io`. Nothing here
 //! is imported by the crates it uses.
@@ -20,7 +21,7 @@
 //! cli
 //! calibrate  preview  scan
 //! session  report
-//! axis  laser_colour  motor
+//! axis  laser_colour  marker_turn  motor
 //! source  link
 //! ```
 #![deny(missing_docs)]
@@ -45,6 +46,7 @@ pub mod calibrate;
 pub mod cli;
 pub mod laser_colour;
 pub mod link;
+pub mod marker_turn;
 pub mod motor;
 pub mod preview;
 pub mod report;

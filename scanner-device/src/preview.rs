@@ -17,7 +17,7 @@ use scanner_wire::{
 
 use crate::link::Link;
 use crate::session::{
-    Calibration, MAX_LINES, Result, SessionError, StopWhen, encode_to_link, luma_image, prompt,
+    Calibration, MAX_LINES, Result, SessionError, StopWhen, encode_to_link, prompt,
 };
 use crate::source::{FrameSource, OwnedFrame, SourceError};
 
@@ -234,7 +234,7 @@ impl<'c> Work<'c> {
         number: u32,
         link: &mut Link,
     ) -> Result<Option<PreviewFacts>> {
-        let Some(luma) = luma_image(frame) else {
+        let Some(luma) = frame.luma() else {
             return Ok(None);
         };
         let (w, h) = (frame.width, frame.height);

@@ -87,6 +87,9 @@ pub struct ScanData {
     pub one_sheet_only: bool,
     /// The turntable disc, when the scan looked for one (`--disc`).
     pub disc: Option<DiscData>,
+    /// What the platform's markers gave, when the scan measured its turns by them
+    /// (`--markers`).
+    pub markers: Option<MarkersData>,
     /// The pipeline's mean time per frame, ms.
     pub pipeline_ms: f64,
     /// From a camera that numbers its frames: the frames it made that the head never took
@@ -205,6 +208,17 @@ impl From<&ScanReport> for ScanData {
             }),
             one_sheet_only: r.one_sheet_only(),
             disc: r.disc.as_ref().map(DiscData::from),
+            markers: r.markers.as_ref().map(|m| MarkersData {
+                frames: m.frames,
+                missed: m.missed.clone(),
+                ids: m.markers.clone(),
+                step_deg: m.step_deg,
+                unsteady: m
+                    .unsteady
+                    .iter()
+                    .map(|&(frame, deg)| UnsteadyFrame { frame, deg })
+                    .collect(),
+            }),
             pipeline_ms: r.pipeline_ms,
             camera_dropped: r.pace.map(|p| p.dropped),
             camera_period_ms: r.pace.and_then(|p| p.period_ms()),
@@ -218,6 +232,30 @@ impl From<&ScanReport> for ScanData {
             }),
         }
     }
+}
+
+/// What a platform's markers gave ([`crate::marker_turn::MarkerSummary`]).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct MarkersData {
+    /// Frames whose turn the markers gave.
+    pub frames: usize,
+    /// Frames whose turn they did not give (left out of the model).
+    pub missed: Vec<u32>,
+    /// The markers' IDs seen.
+    pub ids: Vec<usize>,
+    /// The platform's steady turn per frame, degrees.
+    pub step_deg: Option<f64>,
+    /// Frames that turned otherwise than the steady turn since the frame before.
+    pub unsteady: Vec<UnsteadyFrame>,
+}
+
+/// A frame that turned otherwise than the rest ([`MarkersData::unsteady`]).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct UnsteadyFrame {
+    /// The frame.
+    pub frame: u32,
+    /// How much more it turned than the steady turn, degrees.
+    pub deg: f64,
 }
 
 /// What the first laser frame showed of the laser's colour.

@@ -95,6 +95,9 @@ pub fn report_lines(r: &ScanReport) -> Vec<String> {
         )),
         None => {}
     }
+    if let Some(m) = &r.markers {
+        lines.push(markers_line(m, r.status.frames));
+    }
     if let Some(pace) = &r.pace {
         lines.push(format!(
             "camera: {}",
@@ -134,6 +137,39 @@ fn colour_line(r: &ScanReport) -> Option<String> {
     } else {
         None
     }
+}
+
+/// What the platform's markers gave: the frames they turned, the steady turn, the frames that
+/// turned otherwise and those they did not turn.
+fn markers_line(m: &crate::marker_turn::MarkerSummary, frames: u32) -> String {
+    let mut line = format!(
+        "markers: the turn of {} of {} frames from markers {:?}",
+        m.frames, frames, m.markers
+    );
+    if let Some(step) = m.step_deg {
+        line += &format!(", {step:.3}° a frame");
+    }
+    if !m.unsteady.is_empty() {
+        let list: Vec<String> = m
+            .unsteady
+            .iter()
+            .take(8)
+            .map(|(f, d)| format!("{f} ({d:+.2}°)"))
+            .collect();
+        line += &format!(
+            "; {} turned otherwise than the rest (the motor slipped?): {}{}",
+            count(m.unsteady.len() as u64, "frame"),
+            list.join(", "),
+            if m.unsteady.len() > 8 { ", …" } else { "" }
+        );
+    }
+    if !m.missed.is_empty() {
+        line += &format!(
+            "; {} showed no marker seen before and are left out",
+            count(m.missed.len() as u64, "frame")
+        );
+    }
+    line
 }
 
 /// What to do when most frames saw the stripe on one board sheet only.

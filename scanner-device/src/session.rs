@@ -48,6 +48,9 @@ pub struct ScanOptions {
     /// are dark and laser-only, so no laser-off reference is taken (the light-intensity method
     /// reads each frame alone), and this message follows each header.
     pub fixed: Option<scanner_wire::FixedLaser>,
+    /// ArUco markers on the fixed laser's platform: each frame's turn is measured from them
+    /// ([`crate::marker_turn`]) and sent before its points.
+    pub markers: Option<crate::marker_turn::MarkerPlatform>,
     /// A shadow sweep (no laser: a rod's shadow from a small lamp): the reference is the scene
     /// lit without the shadow, each frame is read as the share of light the shadow takes
     /// ([`scanner_core::stripe::shadow`]), and each of the band's two edges gives a packet with
@@ -196,6 +199,8 @@ pub struct ScanReport {
     pub colour_seen: Option<crate::laser_colour::ColourSeen>,
     /// What was found of the turntable disc, when the scan looked for one.
     pub disc: Option<DiscOutcome>,
+    /// What the platform's markers gave, when the scan measured its turns by them.
+    pub markers: Option<crate::marker_turn::MarkerSummary>,
     /// The pipeline's mean time per frame, ms (the head's work on a frame, the wait for the
     /// camera left out).
     pub pipeline_ms: f64,
@@ -328,6 +333,8 @@ pub struct Session {
     shadow: Option<(OwnedFrame, Option<OwnedFrame>, Vec<u8>)>,
     /// What the shadow sweep's frames showed of the band so far.
     bands: ShadowBands,
+    /// The frames' turns measured by the platform's markers, when it carries them.
+    marker_turns: Option<crate::marker_turn::MarkerTurns>,
     /// Lines refused as wider than the frame's limit so far, and the limit.
     beyond_limit: (u64, f32),
 }
@@ -388,21 +395,6 @@ impl DiscOutcome {
     }
 }
 
-/// A frame's luma as an image (the first byte of a gray or YUYV pixel, BT.601 of an RGB one);
-/// `None` for a buffer that does not match its size.
-pub(crate) fn luma_image(frame: &OwnedFrame) -> Option<image::GrayImage> {
-    let bpp = frame.format.bytes_per_pixel();
-    let luma: Vec<u8> = frame
-        .data
-        .chunks_exact(bpp)
-        .map(|p| match frame.format {
-            PixelFormat::Rgb24 => scanner_core::colour::luma([p[0], p[1], p[2]]),
-            _ => p[0],
-        })
-        .collect();
-    image::GrayImage::from_raw(frame.width as u32, frame.height as u32, luma)
-}
-
 /// Sends a prompt for the operator (waiting for the link: it must arrive).
 ///
 /// # Errors
@@ -439,7 +431,7 @@ fn find_disc(
     disc: &scanner_calib::disc::Disc,
     camera: &scanner_core::Camera<f64>,
 ) -> DiscOutcome {
-    let Some(img) = luma_image(reference) else {
+    let Some(img) = reference.luma() else {
         return DiscOutcome::Missed(scanner_calib::disc::DiscMiss::TooFewMarkers {
             found: 0,
             of: disc.layout().len(),
@@ -531,6 +523,9 @@ impl Session {
             disc_found: None,
             shadow,
             bands: ShadowBands::default(),
+            marker_turns: opts
+                .markers
+                .map(|m| crate::marker_turn::MarkerTurns::new(m, camera)),
             beyond_limit: (0, 0.0),
         })
     }
@@ -640,6 +635,21 @@ impl Session {
             .time_us
             .unwrap_or_else(|| self.started.elapsed().as_micros() as u64);
         self.last_us = time_us;
+        // the platform's turn at this frame, before its points
+        if let Some(m) = &mut self.marker_turns
+            && let Some(picture) =
+                crate::marker_turn::marker_picture(frame, self.opts.head.stripe.colour)
+            && let Some(angle) = m.observe(number, &picture)
+        {
+            let markers = m.turns().last().map_or(0, |t| t.markers);
+            let turn = Message::Turn(scanner_wire::Turn {
+                scan_id: self.opts.scan_id,
+                frame: number,
+                angle,
+                markers: u8::try_from(markers).unwrap_or(u8::MAX),
+            });
+            self.send(link, &turn, true)?;
+        }
         let ready = match &mut self.shadow {
             Some((lit, dark, buf)) => shadow_contrast(frame, (lit, dark.as_ref()), buf, number)?,
             None => true,
@@ -779,6 +789,7 @@ impl Session {
             colour_found: self.opts.find_colour,
             colour_seen: self.colour_seen,
             disc: self.disc_found,
+            markers: self.marker_turns.as_ref().map(|m| m.summary()),
             pipeline_ms: 0.0,
             pace: None,
             shadow: self.shadow.as_ref().map(|_| self.bands),

@@ -50,6 +50,7 @@ fn a_chessboard_board_with_nothing_in_front_gives_no_object_point() {
                 find_colour: false,
                 disc: None,
                 fixed: None,
+                markers: None,
                 shadow: false,
             };
             let mut link = Link::spawn(

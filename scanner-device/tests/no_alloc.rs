@@ -38,6 +38,7 @@ fn assert_steady_state_allocates_nothing(
         find_colour: false,
         disc: None,
         fixed: None,
+        markers: None,
         shadow: false,
     };
     let mut frame = reference.clone();

@@ -26,6 +26,7 @@ fn options(scan_id: u32) -> ScanOptions {
         find_colour: false,
         disc: None,
         fixed: None,
+        markers: None,
         shadow: false,
     }
 }
@@ -57,7 +58,8 @@ fn decode(bytes: &[u8]) -> Decoded {
             | Message::Notice(_)
             | Message::Preview(_)
             | Message::Picture(_)
-            | Message::FixedLaser(_) => {}
+            | Message::FixedLaser(_)
+            | Message::Turn(_) => {}
             m @ (Message::Reply(_) | Message::Shot(_) | Message::Calibrated(_)) => {
                 panic!("a scan answers no command: {m:?}")
             }

@@ -98,6 +98,11 @@ pub struct Counts {
     pub discs: BTreeMap<u32, DiscPose>,
     /// Each fixed-laser scan's platform, by scan id.
     pub fixed: BTreeMap<u32, FixedLaser>,
+    /// Frames' measured turns (a platform's markers), radians, by scan id and frame (at most
+    /// [`MAX_TURNS`]; more are counted in `turns_not_kept`).
+    pub turns: BTreeMap<(u32, u32), f64>,
+    /// Measured turns beyond [`MAX_TURNS`], not kept.
+    pub turns_not_kept: u64,
     /// Frames' points not kept for a fixed-laser model: beyond [`MAX_KEPT_POINTS`].
     pub not_kept: u64,
     /// Capture time span of the points, µs (first, last).
@@ -110,6 +115,9 @@ pub struct Counts {
 
 /// Notices kept in [`Counts::notices`] (a head repeats none; this bounds a hostile stream).
 pub const MAX_NOTICES: usize = 64;
+
+/// Most frames' measured turns kept ([`Counts::turns`]): a turn of a million frames.
+pub const MAX_TURNS: usize = 1 << 20;
 
 /// A preview picture as received ([`scanner_wire::Preview`], owned).
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -259,6 +267,11 @@ impl Collector {
     /// The first scan's fixed laser and platform, when it is a fixed-laser scan.
     pub fn fixed(&self) -> Option<&FixedLaser> {
         self.state.counts.fixed.get(&self.state.header?.scan_id)
+    }
+
+    /// The frames' measured turns (a platform's markers), radians, by scan id and frame.
+    pub fn turns(&self) -> &BTreeMap<(u32, u32), f64> {
+        &self.state.counts.turns
     }
 
     /// Every accepted frame's points, in arrival order (up to [`MAX_KEPT_POINTS`]).
@@ -428,6 +441,16 @@ impl State {
             Message::FixedLaser(f) => {
                 self.counts.scans.insert(f.scan_id);
                 self.counts.fixed.insert(f.scan_id, *f);
+            }
+            Message::Turn(t) => {
+                self.counts.scans.insert(t.scan_id);
+                if self.counts.turns.len() < MAX_TURNS
+                    || self.counts.turns.contains_key(&(t.scan_id, t.frame))
+                {
+                    self.counts.turns.insert((t.scan_id, t.frame), t.angle);
+                } else {
+                    self.counts.turns_not_kept += 1;
+                }
             }
             Message::Notice(n) => {
                 if self.counts.notices.len() == MAX_NOTICES {

@@ -96,6 +96,10 @@ pub struct FixedFigures {
     pub frames: usize,
     /// The turn they cover, degrees.
     pub turned_deg: f64,
+    /// Whether each frame's turn came measured (the platform's markers), not from the steps.
+    pub turns_measured: bool,
+    /// Frames left out because their turn was not measured (with `turns_measured`).
+    pub frames_without_turn: usize,
     /// The object's points (in `cloud.ply`).
     pub object_points: usize,
     /// Points on the platform's top, left out.
@@ -199,10 +203,18 @@ impl Summary {
         };
         if let Some(f) = &self.fixed {
             s += &format!(
-                "turntable, laser {}: {} frames over {:.1}°; {} object points in cloud.ply ({} on the platform's top, {} beyond its radius, {} on what stood still, left out); cell {:.2} mm; model {}, volume {:.0} mm³\n",
+                "turntable, laser {}: {} frames over {:.1}°{}; {} object points in cloud.ply ({} on the platform's top, {} beyond its radius, {} off the object, left out); cell {:.2} mm; model {}, volume {:.0} mm³\n",
                 f.laser,
                 f.frames,
                 f.turned_deg,
+                if f.turns_measured {
+                    format!(
+                        ", each frame's turn from the platform's markers ({} frames without one left out)",
+                        f.frames_without_turn
+                    )
+                } else {
+                    String::new()
+                },
                 f.object_points,
                 f.on_top,
                 f.off_platform,
@@ -621,9 +633,9 @@ fn fixed_outputs(
     dir: &Path,
 ) -> Result<Summary, OutputError> {
     let _ = std::fs::remove_file(dir.join("depth.png"));
-    let whole = crate::platform::platform_cloud(f, c.kept())?;
+    let whole = crate::platform::platform_cloud(f, c.kept(), c.turns())?;
     // The model's size, cell and grid come from the object's points alone.
-    let object = crate::platform::object(&whole, f64::from(f.turn));
+    let object = crate::platform::object(&whole, whole.step);
     let apart = object.iter().filter(|&&o| !o).count();
     let cloud = whole.only(&object);
     drop(whole);
@@ -641,7 +653,7 @@ fn fixed_outputs(
     radii.sort_by(f64::total_cmp);
     let arc = radii
         .get(radii.len() / 2)
-        .map_or(0.0, |r| r * f64::from(f.turn).abs());
+        .map_or(0.0, |r| r * cloud.step.abs());
     let cell = if size.is_finite() {
         (size / FIXED_CELLS_ACROSS)
             .max(FIXED_MIN_CELL_MM)
@@ -707,6 +719,8 @@ fn fixed_outputs(
             laser: f.laser,
             frames: cloud.frames,
             turned_deg: cloud.turned_deg,
+            turns_measured: cloud.measured,
+            frames_without_turn: cloud.unmeasured,
             object_points: cloud.points.len() - off_model,
             on_top: cloud.on_top,
             off_platform: cloud.off_platform,

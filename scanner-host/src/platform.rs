@@ -61,6 +61,14 @@ pub struct PlatformCloud {
     pub turned_deg: f64,
     /// The median distance between neighbouring points along one frame's stripe, mm (0: none).
     pub stripe_spacing: f64,
+    /// The platform's turn per frame, radians: the scan's, or with measured turns the mean
+    /// from the first frame to the last.
+    pub step: f64,
+    /// Whether the frames' turns were measured (markers on the platform): then frames without
+    /// one are left out.
+    pub measured: bool,
+    /// Frames left out because their turn was not measured.
+    pub unmeasured: usize,
 }
 
 /// The platform of a scan's message.
@@ -77,17 +85,24 @@ pub fn platform_of(f: &FixedLaser) -> Result<Platform<f64>, PlatformError> {
 }
 
 /// The points of scan `f.scan_id`'s frames in the platform's frame, frame `k` turned back by
-/// `k · turn`; the platform's surface as the points show it and what lies beyond its radius
-/// left out.
+/// its measured turn in `turns` (by scan id and frame) where the scan has any — frames without
+/// one left out — and by `k · turn` where it has none; the platform's surface as the points
+/// show it and what lies beyond its radius left out.
 ///
 /// # Errors
-/// An unusable platform or turn.
+/// An unusable platform, or a turn per frame that is no turn where none was measured.
 pub fn platform_cloud(
     f: &FixedLaser,
     frames: &[KeptFrame],
+    turns: &std::collections::BTreeMap<(u32, u32), f64>,
 ) -> Result<PlatformCloud, PlatformError> {
     let platform = platform_of(f)?;
-    if !(f.turn.is_finite() && f.turn != 0.0) {
+    let measured = turns
+        .range((f.scan_id, 0)..=(f.scan_id, u32::MAX))
+        .next()
+        .is_some();
+    let steady = f.turn.is_finite() && f.turn != 0.0;
+    if !(measured || steady) {
         return Err(PlatformError::Turn(f.turn));
     }
     let radius = f64::from(f.radius);
@@ -107,15 +122,31 @@ pub fn platform_cloud(
         frames: 0,
         turned_deg: 0.0,
         stripe_spacing: 0.0,
+        step: f64::from(f.turn),
+        measured,
+        unmeasured: 0,
     };
     let mut steps = Vec::new();
-    let (mut first, mut last) = (u32::MAX, 0);
+    // the first and the last frame, with their turns
+    let (mut first, mut last) = ((u32::MAX, 0.0), (0, 0.0));
     for k in frames.iter().filter(|k| k.scan_id == f.scan_id) {
-        let angle = f64::from(k.frame) * f64::from(f.turn);
+        let angle = if measured {
+            let Some(&a) = turns.get(&(f.scan_id, k.frame)) else {
+                cloud.unmeasured += 1;
+                continue;
+            };
+            a
+        } else {
+            f64::from(k.frame) * f64::from(f.turn)
+        };
         let eye = platform.camera_centre(angle);
         cloud.frames += 1;
-        first = first.min(k.frame);
-        last = last.max(k.frame);
+        if k.frame < first.0 {
+            first = (k.frame, angle);
+        }
+        if k.frame >= last.0 {
+            last = (k.frame, angle);
+        }
         steps.extend(k.points.windows(2).map(|w| (w[1] - w[0]).norm()));
         for p in &k.points {
             let q = platform.to_platform(&p.cast(), angle);
@@ -144,9 +175,10 @@ pub fn platform_cloud(
         }
     }
     if cloud.frames > 0 {
-        cloud.turned_deg = (f64::from(last - first) * f64::from(f.turn))
-            .to_degrees()
-            .abs();
+        cloud.turned_deg = (last.1 - first.1).to_degrees().abs();
+        if measured && last.0 > first.0 {
+            cloud.step = (last.1 - first.1) / f64::from(last.0 - first.0);
+        }
     }
     Ok(cloud)
 }
@@ -518,6 +550,9 @@ mod tests {
             frames: 200,
             turned_deg: 360.0,
             stripe_spacing: 0.1,
+            step: std::f64::consts::TAU / 200.0,
+            measured: false,
+            unmeasured: 0,
         }
     }
 

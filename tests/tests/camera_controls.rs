@@ -60,6 +60,7 @@ fn scan(source: &mut dyn FrameSource, out: &Path) {
         find_colour: false,
         disc: None,
         fixed: None,
+        markers: None,
         shadow: false,
     };
     // A buffer for every message of the scan (24 frames, a header, its controls and a status

@@ -47,6 +47,7 @@ fn clean_frames() -> &'static Vec<Vec<u8>> {
             find_colour: false,
             disc: None,
             fixed: None,
+            markers: None,
             shadow: false,
         };
         scanner_tests::record_scan(
@@ -389,6 +390,7 @@ fn faults_on_a_pseudo_terminal_link_between_head_and_host() {
         find_colour: false,
         disc: None,
         fixed: None,
+        markers: None,
         shadow: false,
     };
     run_scan(&mut src, &cal, opts, &mut link, |_| {}, |_, _| {}).unwrap();

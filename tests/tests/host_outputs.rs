@@ -49,6 +49,7 @@ fn record(w: u32, h: u32, frames: usize, colour: bool, path: &Path) -> Rig {
         find_colour: false,
         disc: None,
         fixed: None,
+        markers: None,
         shadow: false,
     };
     scanner_tests::record_scan(

@@ -115,6 +115,7 @@ fn record(w: u32, h: u32, id: u32, path: &Path) {
         find_colour: false,
         disc: None,
         fixed: None,
+        markers: None,
         shadow: false,
     };
     scanner_tests::record_scan(

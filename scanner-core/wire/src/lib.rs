@@ -40,7 +40,7 @@
 //! framing
 //! message
 //! preview  picture
-//! header  points  status  controls  planes  disc_pose  fixed_laser  notice  command  calibration
+//! header  points  status  controls  planes  disc_pose  fixed_laser  turn  notice  command  calibration
 //! error
 //! ```
 #![no_std]
@@ -95,6 +95,7 @@ pub mod planes;
 pub mod points;
 pub mod preview;
 pub mod status;
+pub mod turn;
 
 pub use calibration::{Calibrated, ShotTaken};
 pub use command::{
@@ -119,6 +120,7 @@ pub use preview::{
     PREVIEW_MAX_MARKERS, PREVIEW_MAX_PIXELS, PREVIEW_MAX_SIDE, Preview, PreviewState,
 };
 pub use status::{EndReason, SKIP_REASONS, Skip, Status};
+pub use turn::Turn;
 
 /// Protocol version, the first byte of every frame. Version 2 added
 /// [`Points::uncertainty`]; frames of version 1 are still read (their points carry none).

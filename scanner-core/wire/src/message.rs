@@ -4,7 +4,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::{
     Calibrated, Controls, DiscPose, FixedLaser, Header, Notice, Picture, Planes, Points, Preview,
-    Reply, ShotTaken, Status,
+    Reply, ShotTaken, Status, Turn,
 };
 
 /// A message.
@@ -39,6 +39,8 @@ pub enum Message<'a> {
     /// The camera's picture (or a part of it) at up to full resolution, with its sharpness.
     #[serde(borrow)]
     Picture(Picture<'a>),
+    /// A turning platform's measured turn at one frame (before that frame's points).
+    Turn(Turn),
 }
 
 impl Message<'_> {
@@ -56,6 +58,7 @@ impl Message<'_> {
             Message::Preview(p) => p.scan_id,
             Message::FixedLaser(f) => f.scan_id,
             Message::Picture(p) => p.scan_id,
+            Message::Turn(t) => t.scan_id,
             Message::Reply(_) | Message::Shot(_) | Message::Calibrated(_) => return None,
         })
     }

@@ -60,22 +60,16 @@ fn charuco_squares(c: &Charuco, paper: impl Fn(f64, f64) -> (f64, f64)) -> Vec<(
                 out.push(place(x0, y0, c.square));
                 continue;
             };
-            let Some(code) = b.dictionary.code(id) else {
+            let Some(dark) = b.dictionary.dark_cells(id) else {
                 continue;
             };
             let m = (c.square - c.marker) / 2.0;
-            for r in 0..n + 2 {
-                for q in 0..n + 2 {
-                    let border = r == 0 || q == 0 || r == n + 1 || q == n + 1;
-                    let light = !border && (code >> (n * n - 1 - ((r - 1) * n + q - 1))) & 1 == 1;
-                    if !light {
-                        out.push(place(
-                            x0 + m + q as f64 * cell,
-                            y0 + m + r as f64 * cell,
-                            cell,
-                        ));
-                    }
-                }
+            for (r, q) in dark {
+                out.push(place(
+                    x0 + m + q as f64 * cell,
+                    y0 + m + r as f64 * cell,
+                    cell,
+                ));
             }
         }
     }

@@ -70,4 +70,4 @@ pub use mjpeg::{MjpegError, mjpeg};
 pub use render::*;
 pub use scene::*;
 pub use surface::{Hit, Shape, SurfaceId};
-pub use turning::TurningScan;
+pub use turning::{PlatformMarkers, TurningScan};

@@ -28,6 +28,59 @@ pub struct TurningScan {
     pub frames: usize,
     /// Motor steps in one turn.
     pub steps_per_turn: u32,
+    /// Where the platform slipped: from frame `k` on it stands this much further, radians (a
+    /// motor that lost steps, a belt that jumped a tooth).
+    pub slips: Vec<(usize, f64)>,
+}
+
+/// The ambient light of a scene with markers on its platform ([`TurningScan::with_markers`]):
+/// a room lit enough to read them, the laser still the brightest.
+pub const MARKER_AMBIENT: f64 = 0.6;
+
+/// ArUco markers printed on a platform's top ([`TurningScan::with_markers`]).
+#[derive(Debug, Clone, PartialEq)]
+pub struct PlatformMarkers {
+    /// Their dictionary.
+    pub dictionary: scanner_calib::aruco::Dictionary,
+    /// Their IDs, one marker each, a quarter turn apart round the axis from the platform's
+    /// `+x` (four at most).
+    pub ids: Vec<usize>,
+    /// Their side, mm.
+    pub side: f64,
+    /// Their centres' distance from the axis, mm.
+    pub radius: f64,
+}
+
+impl PlatformMarkers {
+    /// Each marker's ID and corners in the platform's frame on its top at turn 0, mm (top left,
+    /// top right, bottom right, bottom left as printed, read from above the platform with its
+    /// `+x` to the right), each marker's top towards the axis.
+    pub fn corners(&self) -> Vec<(usize, [scanner_core::nalgebra::Point2<f64>; 4])> {
+        use scanner_core::nalgebra::{Point2, Vector2};
+        self.ids
+            .iter()
+            .take(4)
+            .enumerate()
+            .map(|(k, &id)| {
+                let a = std::f64::consts::FRAC_PI_2 * k as f64;
+                // the marker's up (towards the axis) and, from above, its right: a quarter
+                // turn clockwise from its up
+                let out = Vector2::new(a.cos(), a.sin());
+                let right = Vector2::new(-out.y, out.x);
+                let c = Point2::from(out * self.radius);
+                let h = self.side / 2.0;
+                (
+                    id,
+                    [
+                        c - right * h - out * h,
+                        c + right * h - out * h,
+                        c + right * h + out * h,
+                        c - right * h + out * h,
+                    ],
+                )
+            })
+            .collect()
+    }
 }
 
 impl TurningScan {
@@ -96,12 +149,88 @@ impl TurningScan {
             turn: std::f64::consts::TAU / frames as f64,
             frames: frames + 1,
             steps_per_turn: 6400,
+            slips: Vec::new(),
         }
     }
 
-    /// The scene of frame `k`: the objects turned `k · turn` about the platform's axis.
+    /// This scan with `markers` printed black on the platform's top (a sheet of paper on it),
+    /// the camera looking down `tilt_deg` at the platform instead (markers on the top need a
+    /// steeper view than the demo's 12°).
+    pub fn with_markers(mut self, markers: &PlatformMarkers, tilt_deg: f64) -> TurningScan {
+        use scanner_calib::disc::{Disc, Paper};
+        let rotation = UnitQuaternion::from_axis_angle(
+            &Vector3::x_axis(),
+            std::f64::consts::FRAC_PI_2 + tilt_deg.to_radians(),
+        );
+        // the platform's pose turned about its origin: the objects stand on it as before
+        let to_new = Isometry3::from_parts(
+            Translation3::from(self.platform.translation.vector),
+            rotation,
+        ) * self.platform.inverse();
+        for o in &mut self.scene.objects {
+            o.shape = o.shape.moved(&to_new);
+        }
+        self.platform = to_new * self.platform;
+        // a room lit enough to read the markers by, a white sheet on the platform
+        self.scene.ambient = MARKER_AMBIENT;
+        self.scene.objects[0].albedo = [0.85, 0.85, 0.85];
+        // the laser's plane holds the turned axis
+        let up = self.platform * Vector3::z();
+        let source = self.scene.laser.source;
+        self.scene.laser.fixed = Some((source - self.platform * Point3::origin()).cross(&up));
+        let disc = Disc::new(Paper::A4);
+        let cell = markers.side / (markers.dictionary.n + 2) as f64;
+        let mut squares = Vec::new();
+        for (id, c) in markers.corners() {
+            let Some(dark) = markers.dictionary.dark_cells(id) else {
+                continue;
+            };
+            // the marker's cells along its top edge (c0 → c1) and down its left (c0 → c3)
+            let (along, down) = ((c[1] - c[0]) / markers.side, (c[3] - c[0]) / markers.side);
+            for (r, q) in dark {
+                // the cell's centre; the markers stand a quarter turn apart, so their cells
+                // are squares of the sheet
+                let p = c[0] + along * ((q as f64 + 0.5) * cell) + down * ((r as f64 + 0.5) * cell);
+                let (x, y) = disc.to_sheet(&p);
+                squares.push((x - cell / 2.0, y - cell / 2.0, cell));
+            }
+        }
+        let sheet = scanner_calib::print::Sheet {
+            title: String::new(),
+            width: 210.0,
+            height: 297.0,
+            dots: Vec::new(),
+            squares,
+            crease_x: None,
+            bars: Vec::new(),
+            circles: Vec::new(),
+        };
+        self.scene.turntable = Some(crate::scene::TurntableSpec {
+            object: 0,
+            disc,
+            sheet: std::sync::Arc::new(sheet),
+            pose: self.platform,
+            ink: [0.03, 0.03, 0.03],
+            absent_in: Vec::new(),
+        });
+        self
+    }
+
+    /// The platform's true turn at frame `k`, radians: `k · turn` and the slips before it.
+    pub fn angle(&self, k: usize) -> f64 {
+        k as f64 * self.turn
+            + self
+                .slips
+                .iter()
+                .filter(|(from, _)| *from <= k)
+                .map(|(_, a)| a)
+                .sum::<f64>()
+    }
+
+    /// The scene of frame `k`: the objects turned [`TurningScan::angle`] about the platform's
+    /// axis.
     pub fn frame_scene(&self, k: usize) -> Scene {
-        let turn = Isometry3::rotation(Vector3::z() * (k as f64 * self.turn));
+        let turn = Isometry3::rotation(Vector3::z() * self.angle(k));
         let pose = self.platform * turn * self.platform.inverse();
         let mut s = self.scene.clone();
         for o in &mut s.objects {
@@ -171,5 +300,60 @@ impl TurningScan {
             height: 120.0,
         });
         f
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The demo with four markers of DICT_4X4_50 (IDs 0–3), 20 mm, 50 mm from the axis, seen
+    /// from 30° above.
+    fn marked() -> TurningScan {
+        let markers = PlatformMarkers {
+            dictionary: scanner_calib::aruco::Dictionary::named("DICT_4X4_50").unwrap(),
+            ids: vec![0, 1, 2, 3],
+            side: 20.0,
+            radius: 50.0,
+        };
+        TurningScan::demo(640, 480).with_markers(&markers, 30.0)
+    }
+
+    #[test]
+    fn the_markers_on_the_platform_read_as_their_ids_where_the_truth_puts_them() {
+        let scan = marked();
+        let frame = scan.render(0).unwrap();
+        let gray = image::GrayImage::from_fn(frame.width as u32, frame.height as u32, |x, y| {
+            let i = 3 * (y as usize * frame.width + x as usize);
+            image::Luma([frame.data[i + 1]])
+        });
+        let dict = scanner_calib::aruco::Dictionary::named("DICT_4X4_50").unwrap();
+        let quads = scanner_calib::aruco::quads(&gray, scanner_calib::aruco::MIN_QUAD_SIDE_PX);
+        let found = scanner_calib::aruco::find_aruco(&gray, &quads, &dict);
+        eprintln!(
+            "{:?}",
+            found.markers.iter().map(|m| m.id).collect::<Vec<_>>()
+        );
+        assert!(found.markers.len() >= 2, "{found:?}");
+        // each found marker's corners where the truth projects them
+        let truth = PlatformMarkers {
+            dictionary: dict,
+            ids: vec![0, 1, 2, 3],
+            side: 20.0,
+            radius: 50.0,
+        }
+        .corners();
+        for m in &found.markers {
+            let (_, c) = truth.iter().find(|(id, _)| *id == m.id).unwrap();
+            for (seen, t) in m.corners.iter().zip(c) {
+                let p = scan.platform * Point3::new(t.x, t.y, 0.0);
+                let px = scan.scene.camera.project(&p).unwrap();
+                assert!(
+                    (px - seen).norm() < 1.0,
+                    "marker {}: {seen} against {px}",
+                    m.id
+                );
+            }
+        }
     }
 }

@@ -43,6 +43,21 @@ pub struct OwnedFrame {
 }
 
 impl OwnedFrame {
+    /// Its luma as an image (the first byte of a gray or YUYV pixel, BT.601 of an RGB one);
+    /// `None` for a buffer that does not match its size.
+    pub fn luma(&self) -> Option<image::GrayImage> {
+        let bpp = self.format.bytes_per_pixel();
+        let luma: Vec<u8> = self
+            .data
+            .chunks_exact(bpp)
+            .map(|p| match self.format {
+                PixelFormat::Rgb24 => scanner_core::colour::luma([p[0], p[1], p[2]]),
+                _ => p[0],
+            })
+            .collect();
+        image::GrayImage::from_raw(self.width as u32, self.height as u32, luma)
+    }
+
     /// A borrowed view for the extractor.
     ///
     /// # Errors

@@ -40,6 +40,7 @@ fn recording(dir: &std::path::Path) -> std::path::PathBuf {
         find_colour: false,
         disc: None,
         fixed: None,
+        markers: None,
         shadow: false,
     };
     scanner_device::session::run_scan(&mut src, &cal, opts, &mut link, |_| {}, |_, _| {}).unwrap();
@@ -255,6 +256,7 @@ fn head_to_host_over_a_pseudo_terminal() {
         find_colour: false,
         disc: None,
         fixed: None,
+        markers: None,
         shadow: false,
     };
     let report =

@@ -111,6 +111,22 @@ impl Dictionary {
         self.codes().get(id).copied()
     }
 
+    /// The dark cells of marker `id` as printed, `(row, column)` from its top left among its
+    /// `(n + 2)²` cells (the border all dark); `None` beyond the dictionary.
+    pub fn dark_cells(&self, id: usize) -> Option<Vec<(usize, usize)>> {
+        let code = self.code(id)?;
+        let n = self.n;
+        Some(
+            (0..n + 2)
+                .flat_map(|r| (0..n + 2).map(move |q| (r, q)))
+                .filter(|&(r, q)| {
+                    let border = r == 0 || q == 0 || r == n + 1 || q == n + 1;
+                    border || (code >> (n * n - 1 - ((r - 1) * n + q - 1))) & 1 == 0
+                })
+                .collect(),
+        )
+    }
+
     /// How many wrong cells a read code may have and still be taken for a marker of this
     /// dictionary: OpenCV's rate (0.6) of the cells its codes are apart beyond detection.
     pub fn tolerance(&self) -> u32 {

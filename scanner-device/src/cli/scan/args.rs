@@ -95,6 +95,12 @@ pub struct ScanArgs {
     /// platform's `clockwise` direction.
     #[arg(long)]
     pub frames_per_turn: Option<u32>,
+    /// With --fixed-laser: the platform carries ArUco markers of this dictionary
+    /// (`DICT_4X4_50` … `DICT_7X7_1000`) printed on its top, in a lit room: each frame's turn is
+    /// measured from them (no step count needed; frames that turned otherwise than the rest
+    /// are reported, frames that show none of them left out).
+    #[arg(long, value_name = "DICT", requires = "fixed_laser")]
+    pub markers: Option<String>,
     /// With --fixed-laser: the turntable's motor board, `serial:PATH[@BAUD]`:
     /// the platform is turned `--steps-per-frame` before every frame after the first, and the
     /// laser switched on for the scan, by its firmware (`--firmware`).

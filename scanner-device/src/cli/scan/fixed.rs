@@ -68,6 +68,8 @@ pub(super) struct Fixed {
     /// The part of the picture where the platform's cylinder shows (its radius and the
     /// scanner's height), when both are known.
     pub(super) roi: Option<scanner_core::stripe::Roi>,
+    /// The markers on the platform each frame's turn is measured by (`--markers`).
+    pub(super) markers: Option<crate::marker_turn::MarkerPlatform>,
 }
 
 /// The platform's radius taken when the calibration does not know it, mm.
@@ -127,8 +129,22 @@ pub(super) fn read_fixed(path: &std::path::Path, n: usize, a: &ScanArgs) -> Resu
         }
         (_, _, Some(f)) if f >= 2 => sense * std::f64::consts::TAU / f64::from(f),
         (_, _, Some(f)) => return Err(ScanRefusal::FramesPerTurn(f).into()),
+        // each frame's turn comes measured by the markers
+        _ if a.markers.is_some() => 0.0,
         _ => return Err(ScanRefusal::NoTurn.into()),
     };
+    let markers = a
+        .markers
+        .as_ref()
+        .map(|name| {
+            scanner_calib::aruco::Dictionary::named(name)
+                .map(|dictionary| crate::marker_turn::MarkerPlatform {
+                    dictionary,
+                    platform,
+                })
+                .ok_or_else(|| ScanRefusal::UnknownDictionary(name.clone()))
+        })
+        .transpose()?;
     let r = platform.rotation();
     let o = platform.origin();
     let camera = file.camera().with_context(|| format!("camera in {name}"))?;
@@ -141,6 +157,7 @@ pub(super) fn read_fixed(path: &std::path::Path, n: usize, a: &ScanArgs) -> Resu
         )
     });
     Ok(Fixed {
+        markers,
         roi: roi.flatten(),
         plane,
         board,

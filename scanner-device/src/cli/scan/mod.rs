@@ -64,6 +64,7 @@ fn plan_with(a: &ScanArgs, link: Option<Link>) -> Result<ScanPlan> {
         find_axis: o.find_axis,
         find_colour: o.find_colour,
         fixed: o.fixed,
+        markers: o.markers,
         shadow: a.shadow,
         disc: a.disc.map(scanner_calib::disc::Disc::new),
         header_every: 30,
@@ -100,6 +101,8 @@ pub(super) struct OpenedSource {
     pub stop: StopWhen,
     /// A fixed laser's platform and turn, for its message after each header.
     pub fixed: Option<scanner_wire::FixedLaser>,
+    /// The markers on its platform each frame's turn is measured by.
+    pub markers: Option<crate::marker_turn::MarkerPlatform>,
 }
 
 /// Checks the options and opens the source, the calibration (if given), the link.
@@ -180,8 +183,9 @@ pub(super) fn open_on(a: &ScanArgs, link: Option<Link>) -> Result<OpenedSource> 
         // the contrast is the share of the lamp's light hidden: half of it is the edge
         head.stripe.edge_level = 127.5;
     }
-    if let Some(f) = &fixed {
-        head = fixed_head(head, f);
+    if let Some(f) = &fixed
+        && f.message.turn != 0.0
+    {
         // frames beyond one turn and its closing frame would lay the object over itself
         let per_turn = std::f64::consts::TAU / f64::from(f.message.turn).abs();
         if let Some(n) = source.frames_left()
@@ -196,7 +200,11 @@ pub(super) fn open_on(a: &ScanArgs, link: Option<Link>) -> Result<OpenedSource> 
             .into());
         }
     }
+    if let Some(f) = &fixed {
+        head = fixed_head(head, f);
+    }
     Ok(OpenedSource {
+        markers: fixed.as_ref().and_then(|f| f.markers),
         fixed: fixed.map(|f| f.message),
         source,
         calibration,

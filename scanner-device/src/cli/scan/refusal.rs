@@ -9,6 +9,11 @@ use super::shadow::MIN_SHADOW_DEPTH;
 /// A scan's options that cannot make a scan.
 #[derive(Debug, thiserror::Error)]
 pub enum ScanRefusal {
+    /// `--markers` names no ArUco dictionary.
+    #[error(
+        "--markers {0:?} is no ArUco dictionary: give one of OpenCV's, DICT_4X4_50 … DICT_7X7_1000"
+    )]
+    UnknownDictionary(String),
     /// No calibration file given.
     #[error(
         "no calibration: give --calibration FILE (from `scanner-device calibrate board`; for the virtual rig, `render-calibration` writes truth-calibration.toml)"
