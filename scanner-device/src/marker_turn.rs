@@ -67,7 +67,7 @@ pub fn marker_picture(
 
 /// A frame's turn as its markers gave it.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct FrameTurn {
+pub struct TurnSeen {
     /// The frame, from 0.
     pub frame: u32,
     /// Its turn from the first frame, radians, counter-clockwise seen from above (unwrapped:
@@ -84,7 +84,7 @@ pub struct MarkerTurns {
     camera: Camera<f64>,
     /// Each marker's corners on the top at turn 0 (a running mean) and its sightings.
     known: BTreeMap<usize, ([Point2<f64>; 4], u32)>,
-    turns: Vec<FrameTurn>,
+    turns: Vec<TurnSeen>,
     /// Frames looked at that gave no turn (no known marker read).
     missed: Vec<u32>,
 }
@@ -102,7 +102,7 @@ impl MarkerTurns {
     }
 
     /// Frame `frame`'s turn from the markers its luma `picture` shows, radians (see
-    /// [`FrameTurn::angle`]); `None` when it shows none of the markers seen before (or, for the
+    /// [`TurnSeen::angle`]); `None` when it shows none of the markers seen before (or, for the
     /// first frame with markers, none at all).
     pub fn observe(&mut self, frame: u32, picture: &image::GrayImage) -> Option<f64> {
         let found = find_aruco(
@@ -141,7 +141,7 @@ impl MarkerTurns {
                 .or_insert_with(|| (corners.map(|p| back(&p)), 0))
                 .1 += 1;
         }
-        self.turns.push(FrameTurn {
+        self.turns.push(TurnSeen {
             frame,
             angle,
             markers: on_top.len(),
@@ -187,7 +187,7 @@ impl MarkerTurns {
     }
 
     /// The frames' turns so far, in order.
-    pub fn turns(&self) -> &[FrameTurn] {
+    pub fn turns(&self) -> &[TurnSeen] {
         &self.turns
     }
 
@@ -237,7 +237,7 @@ pub struct MarkerSummary {
 
 /// The median of the frames' turns per frame (each from the frame measured before), radians;
 /// `None` for fewer than two frames.
-fn median_step(turns: &[FrameTurn]) -> Option<f64> {
+fn median_step(turns: &[TurnSeen]) -> Option<f64> {
     let mut steps: Vec<f64> = turns
         .windows(2)
         .filter(|w| w[1].frame > w[0].frame)
@@ -261,8 +261,8 @@ fn wrap(a: f64) -> f64 {
 mod tests {
     use super::*;
 
-    fn turn(frame: u32, deg: f64) -> FrameTurn {
-        FrameTurn {
+    fn turn(frame: u32, deg: f64) -> TurnSeen {
+        TurnSeen {
             frame,
             angle: deg.to_radians(),
             markers: 2,
@@ -272,7 +272,7 @@ mod tests {
     #[test]
     fn the_steady_turn_is_the_median_step_and_a_slip_is_reported_at_its_frame() {
         // 3.6° a frame; from frame 40 on, 1.8° further (a lost full step)
-        let turns: Vec<FrameTurn> = (0..100)
+        let turns: Vec<TurnSeen> = (0..100)
             .map(|k| turn(k, 3.6 * f64::from(k) + if k >= 40 { 1.8 } else { 0.0 }))
             .collect();
         let step = median_step(&turns).unwrap();

@@ -642,7 +642,7 @@ impl Session {
             && let Some(angle) = m.observe(number, &picture)
         {
             let markers = m.turns().last().map_or(0, |t| t.markers);
-            let turn = Message::Turn(scanner_wire::Turn {
+            let turn = Message::Turn(scanner_wire::MeasuredTurn {
                 scan_id: self.opts.scan_id,
                 frame: number,
                 angle,

@@ -648,3 +648,72 @@ fn a_firmware_that_falls_silent_ends_the_scan_with_what_it_took() {
     let turned = summary["fixed"]["turned_deg"].as_f64().unwrap();
     assert!((turned - 108.0).abs() < 0.01, "{turned}");
 }
+
+/// Both lasers' recordings in one folder (`laser0_NNN.jpg` and `laser1_NNN.jpg`, as a scanner
+/// that takes each step with each laser saves them): refused without `--series`, naming both
+/// series; with `--series laser0_*.jpg`, the frames of laser 0 alone, as the recording alone
+/// gives them.
+#[test]
+fn a_folder_of_both_lasers_frames_is_read_one_series_at_a_time() {
+    let f = fixture();
+    let data = fabscan();
+    let mixed = f.path("mixed");
+    std::fs::create_dir_all(&mixed).unwrap();
+    for (laser, rec) in [(0, "1_1"), (1, "1_2")] {
+        for k in 0..=100 {
+            let from = data.join(rec).join(format!("20210213-230202_{k:03}.jpg"));
+            let to = mixed.join(format!("laser{laser}_{k:03}.jpg"));
+            if !to.exists() {
+                std::os::unix::fs::symlink(&from, &to).unwrap();
+            }
+        }
+    }
+    let device = workspace_bin("scanner-device");
+    let args = |extra: &[&'static str]| {
+        let mut a = vec![
+            "scan",
+            "--source",
+            "mixed",
+            "--calibration",
+            "imported.toml",
+            "--fixed-laser",
+            "0",
+            "--frames-per-turn",
+            "100",
+            "--columns",
+            "--out",
+            "mixed.stream",
+            "--report",
+            "mixed.json",
+            "-q",
+        ];
+        a.extend_from_slice(extra);
+        a
+    };
+    let (ok, _, err) = run_in(&device, f.dir.path(), &args(&[]));
+    assert!(!ok);
+    assert!(
+        scanner_tests::error_kinds(&err)
+            .iter()
+            .any(|k| k == "Series"),
+        "{err}"
+    );
+    assert!(
+        err.contains("laser0_*.jpg") && err.contains("laser1_*.jpg"),
+        "{err}"
+    );
+    let (ok, _, err) = run_in(&device, f.dir.path(), &args(&["--series", "laser2_*.jpg"]));
+    assert!(!ok);
+    assert!(
+        scanner_tests::error_kinds(&err)
+            .iter()
+            .any(|k| k == "NoSuchSeries"),
+        "{err}"
+    );
+    let (ok, _, err) = run_in(&device, f.dir.path(), &args(&["--series", "laser0_*.jpg"]));
+    assert!(ok, "{err}");
+    let r = json(&f.path("mixed.json"));
+    assert_eq!(r["frames"], 101, "{r}");
+    let alone = json(&f.path("imported0/summary.json"));
+    assert_eq!(r["points"], alone["points"], "{r}");
+}

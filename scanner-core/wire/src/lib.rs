@@ -120,7 +120,7 @@ pub use preview::{
     PREVIEW_MAX_MARKERS, PREVIEW_MAX_PIXELS, PREVIEW_MAX_SIDE, Preview, PreviewState,
 };
 pub use status::{EndReason, SKIP_REASONS, Skip, Status};
-pub use turn::Turn;
+pub use turn::MeasuredTurn;
 
 /// Protocol version, the first byte of every frame. Version 2 added
 /// [`Points::uncertainty`]; frames of version 1 are still read (their points carry none).

@@ -3,8 +3,8 @@
 use serde::{Deserialize, Serialize};
 
 use crate::{
-    Calibrated, Controls, DiscPose, FixedLaser, Header, Notice, Picture, Planes, Points, Preview,
-    Reply, ShotTaken, Status, Turn,
+    Calibrated, Controls, DiscPose, FixedLaser, Header, MeasuredTurn, Notice, Picture, Planes,
+    Points, Preview, Reply, ShotTaken, Status,
 };
 
 /// A message.
@@ -40,7 +40,7 @@ pub enum Message<'a> {
     #[serde(borrow)]
     Picture(Picture<'a>),
     /// A turning platform's measured turn at one frame (before that frame's points).
-    Turn(Turn),
+    Turn(MeasuredTurn),
 }
 
 impl Message<'_> {

@@ -1,4 +1,4 @@
-//! A turning platform's measured turn at one frame ([`Turn`]).
+//! A turning platform's measured turn at one frame ([`MeasuredTurn`]).
 
 use serde::{Deserialize, Serialize};
 
@@ -7,7 +7,7 @@ use serde::{Deserialize, Serialize};
 /// the host takes each frame's turn from them instead of `frame · turn`, and leaves out the
 /// points of frames without one.
 #[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
-pub struct Turn {
+pub struct MeasuredTurn {
     /// Scan id.
     pub scan_id: u32,
     /// The frame (as its points are numbered).
@@ -28,7 +28,7 @@ mod golden_tests {
     #[test]
     fn turn_golden_frame() {
         crate::golden::check(
-            Message::Turn(Turn {
+            Message::Turn(MeasuredTurn {
                 scan_id: 7,
                 frame: 40,
                 angle: 2.5,

@@ -126,6 +126,7 @@ impl ImageDir {
     fn list(
         dir: &std::path::Path,
         reference: Option<std::path::PathBuf>,
+        series: Option<&str>,
     ) -> Result<(Vec<std::path::PathBuf>, Option<std::path::PathBuf>), SourceError> {
         let io = |source: std::io::Error| SourceError::Folder {
             path: dir.to_path_buf(),
@@ -147,6 +148,35 @@ impl ImageDir {
                 continue;
             }
             files.push(path);
+        }
+        let patterns = series_patterns(&files);
+        let mut found: Vec<(String, usize)> = Vec::new();
+        for p in &patterns {
+            match found.iter_mut().find(|(q, _)| q == p) {
+                Some(f) => f.1 += 1,
+                None => found.push((p.clone(), 1)),
+            }
+        }
+        found.sort();
+        match series {
+            Some(given) if !found.iter().any(|(p, _)| p == given) => {
+                return Err(SourceError::NoSuchSeries {
+                    dir: dir.to_path_buf(),
+                    given: given.to_string(),
+                    found,
+                });
+            }
+            Some(given) => {
+                let mut keep = patterns.iter().map(|p| p == given);
+                files.retain(|_| keep.next().unwrap_or(false));
+            }
+            None if found.len() > 1 => {
+                return Err(SourceError::Series {
+                    dir: dir.to_path_buf(),
+                    found,
+                });
+            }
+            None => {}
         }
         files.sort_by_key(|p| frame_order(p));
         if let Some(w) = files
@@ -170,8 +200,11 @@ impl ImageDir {
     ///
     /// # Errors
     /// As [`ImageDir::open`].
-    pub fn native_format(dir: &std::path::Path) -> Result<PixelFormat, SourceError> {
-        let (files, _) = Self::list(dir, None)?;
+    pub fn native_format(
+        dir: &std::path::Path,
+        series: Option<&str>,
+    ) -> Result<PixelFormat, SourceError> {
+        let (files, _) = Self::list(dir, None, series)?;
         native_format(&files[0])
     }
 
@@ -186,7 +219,7 @@ impl ImageDir {
         format: PixelFormat,
         opts: &SourceOptions,
     ) -> Result<ImageDir, SourceError> {
-        let (files, reference) = Self::list(dir, opts.reference.clone())?;
+        let (files, reference) = Self::list(dir, opts.reference.clone(), opts.series.as_deref())?;
         let f = load_frame(&files[0], format, 0)?;
         Ok(ImageDir {
             dir: dir.to_path_buf(),
@@ -282,6 +315,75 @@ enum NamePart {
     Text(String),
 }
 
+/// Each file's series: its name with the frame number as `*`. Names of one shape (the same
+/// text between their numbers) are one series but where another of their numbers differs (a
+/// laser's index): the frame number is the number that takes the most values among them (the
+/// last of equals). So `laser0_frame12.png` and `laser1_frame12.png` are of `laser0_frame*.png`
+/// and `laser1_frame*.png`, FabScanPi's `20210213-230202_000.jpg` of `20210213-230202_*.jpg`.
+fn series_patterns(files: &[std::path::PathBuf]) -> Vec<String> {
+    // each name's runs of text and of digits
+    let runs: Vec<Vec<(bool, String)>> = files
+        .iter()
+        .map(|p| {
+            let name = p
+                .file_name()
+                .map(|n| n.to_string_lossy().into_owned())
+                .unwrap_or_default();
+            let mut out: Vec<(bool, String)> = Vec::new();
+            for c in name.chars() {
+                let d = c.is_ascii_digit();
+                match out.last_mut() {
+                    Some((digits, run)) if *digits == d => run.push(c),
+                    _ => out.push((d, c.to_string())),
+                }
+            }
+            out
+        })
+        .collect();
+    let shape = |r: &[(bool, String)]| -> Vec<Option<String>> {
+        r.iter().map(|(d, t)| (!*d).then(|| t.clone())).collect()
+    };
+    // per shape, the position of its frame number
+    let mut frame_at: Vec<(Vec<Option<String>>, Option<usize>)> = Vec::new();
+    for r in &runs {
+        let s = shape(r);
+        if frame_at.iter().any(|(t, _)| *t == s) {
+            continue;
+        }
+        let same: Vec<&Vec<(bool, String)>> = runs.iter().filter(|q| shape(q) == s).collect();
+        let at = (0..r.len())
+            .filter(|&i| r[i].0)
+            .map(|i| {
+                let mut values: Vec<&str> = same.iter().map(|q| q[i].1.as_str()).collect();
+                values.sort_unstable();
+                values.dedup();
+                (values.len(), i)
+            })
+            .max()
+            .map(|(_, i)| i);
+        frame_at.push((s, at));
+    }
+    runs.iter()
+        .map(|r| {
+            let s = shape(r);
+            let at = frame_at.iter().find(|(t, _)| *t == s).and_then(|(_, a)| *a);
+            r.iter()
+                .enumerate()
+                .map(|(i, (_, t))| if Some(i) == at { "*" } else { t.as_str() })
+                .collect()
+        })
+        .collect()
+}
+
+/// The series of a folder and their frames, as words: `laser0_*.jpg (100 frames), …`.
+pub(crate) fn series_list(found: &[(String, usize)]) -> String {
+    found
+        .iter()
+        .map(|(p, n)| format!("{p} ({n} frame{})", if *n == 1 { "" } else { "s" }))
+        .collect::<Vec<_>>()
+        .join(", ")
+}
+
 /// The frames' order of a file: its name's runs of text and of digits, the digits read as
 /// numbers, so that `2.png` comes before `10.png` (a folder of `1.png … 320.png` in byte order
 /// would put 10 before 2, and the turn's angles out of place).
@@ -329,7 +431,7 @@ mod tests {
             std::fs::write(d.path().join(format!("{k}.png")), b"").unwrap();
         }
         std::fs::write(d.path().join("notes.txt"), b"").unwrap();
-        let (files, reference) = ImageDir::list(d.path(), None).unwrap();
+        let (files, reference) = ImageDir::list(d.path(), None, None).unwrap();
         assert!(reference.is_none());
         let names: Vec<String> = files
             .iter()
@@ -339,33 +441,82 @@ mod tests {
         assert_eq!(names, want);
         // text around the numbers, zero-padded or not, orders the same way
         let e = tempfile::tempdir().unwrap();
-        for name in [
-            "scan_10_b.jpg",
-            "scan_2_b.jpg",
-            "scan_2_a.jpg",
-            "scan_0003_a.jpg",
-        ] {
+        for name in ["scan_10_b.jpg", "scan_2_b.jpg", "scan_0003_b.jpg"] {
             std::fs::write(e.path().join(name), b"").unwrap();
         }
-        let (files, _) = ImageDir::list(e.path(), None).unwrap();
-        let names: Vec<String> = files
-            .iter()
-            .map(|p| p.file_name().unwrap().to_string_lossy().into_owned())
-            .collect();
+        let (files, _) = ImageDir::list(e.path(), None, None).unwrap();
         assert_eq!(
-            names,
-            [
-                "scan_2_a.jpg",
-                "scan_2_b.jpg",
-                "scan_0003_a.jpg",
-                "scan_10_b.jpg"
-            ]
+            names_of(&files),
+            ["scan_2_b.jpg", "scan_0003_b.jpg", "scan_10_b.jpg"]
         );
-        std::fs::write(e.path().join("scan_02_a.jpg"), b"").unwrap();
-        let err = ImageDir::list(e.path(), None).unwrap_err();
+        std::fs::write(e.path().join("scan_02_b.jpg"), b"").unwrap();
+        let err = ImageDir::list(e.path(), None, None).unwrap_err();
         assert!(
             matches!(err, crate::source::SourceError::Images(_)),
             "{err}"
+        );
+    }
+
+    fn names_of(files: &[std::path::PathBuf]) -> Vec<String> {
+        files
+            .iter()
+            .map(|p| p.file_name().unwrap().to_string_lossy().into_owned())
+            .collect()
+    }
+
+    /// Two lasers' frames in one folder, named either way round, are two series: refused
+    /// without `--series`, naming both; with it, one series in its frames' order; a pattern
+    /// the folder has not, refused naming what it has. One recording's names are one series.
+    #[test]
+    fn a_folder_of_two_series_is_read_one_series_at_a_time() {
+        use crate::source::SourceError;
+        type Name = fn(u32, u32) -> String;
+        let names: [(Name, &str, &str); 2] = [
+            (
+                |l: u32, k: u32| format!("laser{l}_frame{k}.png"),
+                "laser0_frame*.png",
+                "laser1_frame*.png",
+            ),
+            (
+                |l: u32, k: u32| format!("frame{k:03}_laser{l}.png"),
+                "frame*_laser0.png",
+                "frame*_laser1.png",
+            ),
+        ];
+        for (name, first, second) in names {
+            let d = tempfile::tempdir().unwrap();
+            for k in 1..=12 {
+                for l in 0..2 {
+                    std::fs::write(d.path().join(name(l, k)), b"").unwrap();
+                }
+            }
+            match ImageDir::list(d.path(), None, None) {
+                Err(SourceError::Series { found, .. }) => {
+                    assert_eq!(found, [(first.to_string(), 12), (second.to_string(), 12)])
+                }
+                other => panic!("{other:?}"),
+            }
+            let (files, _) = ImageDir::list(d.path(), None, Some(second)).unwrap();
+            let want: Vec<String> = (1..=12).map(|k| name(1, k)).collect();
+            assert_eq!(names_of(&files), want);
+            match ImageDir::list(d.path(), None, Some("laser2_*.png")) {
+                Err(SourceError::NoSuchSeries { given, found, .. }) => {
+                    assert_eq!(given, "laser2_*.png");
+                    assert_eq!(found.len(), 2);
+                }
+                other => panic!("{other:?}"),
+            }
+        }
+        // FabScanPi's names: one series, the date and time fixed, the frame number varying
+        let f = tempfile::tempdir().unwrap();
+        for k in 0..=100 {
+            std::fs::write(f.path().join(format!("20210213-230202_{k:03}.jpg")), b"").unwrap();
+        }
+        let (files, _) = ImageDir::list(f.path(), None, None).unwrap();
+        assert_eq!(files.len(), 101);
+        assert_eq!(
+            super::series_patterns(&files)[0..1],
+            ["20210213-230202_*.jpg"]
         );
     }
 }

@@ -124,6 +124,34 @@ pub enum SourceError {
         #[source]
         source: std::io::Error,
     },
+    /// A folder of frames holding several series (names that differ other than by their frame
+    /// number: two lasers' frames, or frames and other pictures).
+    #[error(
+        "{} holds {} series of frames: {}; read one with --series PATTERN",
+        dir.display(),
+        found.len(),
+        images::series_list(found)
+    )]
+    Series {
+        /// The folder.
+        dir: std::path::PathBuf,
+        /// Each series' pattern and its frames.
+        found: Vec<(String, usize)>,
+    },
+    /// `--series` names no series of the folder.
+    #[error(
+        "--series {given:?}: {} holds no such series; it holds {}",
+        dir.display(),
+        images::series_list(found)
+    )]
+    NoSuchSeries {
+        /// The folder.
+        dir: std::path::PathBuf,
+        /// The pattern given.
+        given: String,
+        /// Each series' pattern and its frames.
+        found: Vec<(String, usize)>,
+    },
     /// Images that do not make a scan (none, of different sizes, a reference of another size).
     #[error("{0}")]
     Images(String),
@@ -436,6 +464,9 @@ pub struct SourceOptions {
     /// The local mains frequency, Hz (50 or 60), for the camera's power-line filter; the
     /// camera's automatic choice without it.
     pub mains_hz: Option<u32>,
+    /// A folder's frames: only the series of this pattern (the names with their frame number
+    /// as `*`: `laser0_*.jpg`), for a folder that holds several ([`SourceError::Series`]).
+    pub series: Option<String>,
 }
 
 impl SourceOptions {
@@ -523,7 +554,7 @@ pub fn native_format(name: &str, opts: &SourceOptions) -> Result<PixelFormat, So
     }
     let dir = name.strip_prefix("dir:").unwrap_or(name);
     if std::path::Path::new(dir).is_dir() {
-        return ImageDir::native_format(std::path::Path::new(dir));
+        return ImageDir::native_format(std::path::Path::new(dir), opts.series.as_deref());
     }
     // the virtual rig and unknown names: gray, and `open` names a wrong one
     Ok(PixelFormat::Gray8)

@@ -46,6 +46,11 @@ pub struct ScanArgs {
     /// Otherwise average this many first frames, laser off.
     #[arg(long, default_value_t = crate::source::REFERENCE_FRAMES)]
     pub reference_frames: usize,
+    /// A folder that holds several series of frames (two lasers' frames side by side): read
+    /// the series of this pattern, the names with their frame number as `*`
+    /// (`laser0_*.jpg`; the refusal without it lists the folder's).
+    #[arg(long, value_name = "PATTERN")]
+    pub series: Option<String>,
     /// Calibration file (`calibrate board`; the virtual rig's truth is
     /// `render-calibration`'s `truth-calibration.toml`).
     #[arg(long)]

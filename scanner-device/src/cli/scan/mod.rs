@@ -124,6 +124,7 @@ pub(super) fn open_on(a: &ScanArgs, link: Option<Link>) -> Result<OpenedSource> 
     let opts = SourceOptions {
         reference: a.reference.clone(),
         reference_frames: a.reference_frames,
+        series: a.series.clone(),
         ..a.camera.options()?
     };
     let format = source_format(a, &opts)?;
