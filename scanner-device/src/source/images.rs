@@ -170,7 +170,7 @@ impl ImageDir {
                 let mut keep = patterns.iter().map(|p| p == given);
                 files.retain(|_| keep.next().unwrap_or(false));
             }
-            None if found.len() > 1 => {
+            None if parallel_series(&files, &patterns, &found) => {
                 return Err(SourceError::Series {
                     dir: dir.to_path_buf(),
                     found,
@@ -375,6 +375,42 @@ fn series_patterns(files: &[std::path::PathBuf]) -> Vec<String> {
         .collect()
 }
 
+/// Whether two of a folder's series run side by side (two lasers' frames, interleaved): the
+/// smaller has at least three quarters of the larger's frames, and at least half of its frame
+/// numbers are also the other's. Series that do not (a few laser-off frames `a*.png` before
+/// the laser's `b*.png`, a named frame before a numbered run) are one sequence in name order.
+fn parallel_series(
+    files: &[std::path::PathBuf],
+    patterns: &[String],
+    found: &[(String, usize)],
+) -> bool {
+    let numbers = |series: &str| -> std::collections::BTreeSet<String> {
+        let Some((head, tail)) = series.split_once('*') else {
+            return Default::default();
+        };
+        files
+            .iter()
+            .zip(patterns)
+            .filter(|(_, p)| *p == series)
+            .filter_map(|(f, _)| {
+                let name = f.file_name()?.to_str()?;
+                Some(name.strip_prefix(head)?.strip_suffix(tail)?.to_string())
+            })
+            .collect()
+    };
+    found.iter().enumerate().any(|(i, (a, na))| {
+        found[i + 1..].iter().any(|(b, nb)| {
+            let (small, large) = if na <= nb { (a, b) } else { (b, a) };
+            let (n_small, n_large) = (*na.min(nb), *na.max(nb));
+            if 4 * n_small < 3 * n_large {
+                return false;
+            }
+            let (s, l) = (numbers(small), numbers(large));
+            !s.is_empty() && 2 * s.intersection(&l).count() >= s.len()
+        })
+    })
+}
+
 /// The series of a folder and their frames, as words: `laser0_*.jpg (100 frames), …`.
 pub(crate) fn series_list(found: &[(String, usize)]) -> String {
     found
@@ -466,7 +502,8 @@ mod tests {
 
     /// Two lasers' frames in one folder, named either way round, are two series: refused
     /// without `--series`, naming both; with it, one series in its frames' order; a pattern
-    /// the folder has not, refused naming what it has. One recording's names are one series.
+    /// the folder has not, refused naming what it has. One recording's names are one series,
+    /// and so are series that do not run side by side.
     #[test]
     fn a_folder_of_two_series_is_read_one_series_at_a_time() {
         use crate::source::SourceError;
@@ -518,5 +555,16 @@ mod tests {
             super::series_patterns(&files)[0..1],
             ["20210213-230202_*.jpg"]
         );
+        // a few laser-off frames before the laser's, a named frame before a numbered run: one
+        // sequence in name order
+        let g = tempfile::tempdir().unwrap();
+        let names = [
+            "a0.png", "a1.png", "b0.png", "b1.png", "b2.png", "b3.png", "b4.png",
+        ];
+        for n in names.iter().chain(&["c-cross.png"]) {
+            std::fs::write(g.path().join(n), b"").unwrap();
+        }
+        let (files, _) = ImageDir::list(g.path(), None, None).unwrap();
+        assert_eq!(files.len(), 8);
     }
 }
