@@ -117,6 +117,7 @@ fn main() {
             fixed: None,
             markers: None,
             shadow: false,
+            temporal: false,
         };
         let mut session = Session::new(&cal, reference.clone(), opts).expect("session");
         let mut decoded = reference.clone();

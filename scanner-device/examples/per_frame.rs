@@ -143,6 +143,7 @@ fn run(dir: &Path, format: &str, n: usize) -> anyhow::Result<()> {
         fixed: None,
         markers: None,
         shadow: false,
+        temporal: false,
     };
     let mut session = Session::new(&cal, reference.clone(), opts)?;
     let mut link = Link::spawn(Box::new(std::io::sink()), 64, MAX_ENCODED);

@@ -67,6 +67,7 @@ fn main() {
                 fixed: None,
                 markers: None,
                 shadow: false,
+                temporal: false,
             };
             let mut session = Session::new(&cal, reference.clone(), opts).expect("session");
             let mut link = Link::spawn(Box::new(std::io::sink()), 64, MAX_ENCODED);

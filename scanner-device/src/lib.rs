@@ -10,7 +10,7 @@
 //!
 //! The arrows run one way: `cli` → `preview` → `session` → [`axis`] (which way the stripe runs)
 //! and [`laser_colour`] (what colour it is) and [`marker_turn`] (a turntable's angle from its
-//! markers) → `source`, `link` → `scanner-core`. The head uses `scanner-calib` for what it finds in a
+//! markers) and [`temporal`] (a shadow sweep read through time) → `source`, `link` → `scanner-core`. The head uses `scanner-calib` for what it finds in a
 //! picture (the preview's dots, the session's turntable disc) and the CLI for its procedures;
 //! `scanner-rig` with the feature; image and text files come through `scanner-io`. Nothing here
 //! is imported by the crates it uses.
@@ -21,7 +21,7 @@
 //! cli
 //! calibrate  preview  scan
 //! session  report
-//! axis  laser_colour  marker_turn  motor
+//! axis  laser_colour  marker_turn  motor  temporal
 //! source  link
 //! ```
 #![deny(missing_docs)]
@@ -53,5 +53,6 @@ pub mod report;
 pub mod scan;
 pub mod session;
 pub mod source;
+pub mod temporal;
 
 pub use cli::{Args, Command, run};

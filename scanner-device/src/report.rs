@@ -105,6 +105,9 @@ pub struct ScanData {
     pub width_limit_px: f32,
     /// …and the frames it sent that did not decode (corrupt MJPEG frames, skipped).
     pub camera_undecodable: Option<u64>,
+    /// A shadow sweep read through time (`--shadow --temporal`): its planes, pixels, points,
+    /// the object's coverage and the two edges' agreement.
+    pub temporal: Option<crate::temporal::TemporalReport>,
 }
 
 /// What the head found of the turntable disc.
@@ -225,6 +228,7 @@ impl From<&ScanReport> for ScanData {
             camera_undecodable: r.pace.map(|p| p.undecodable),
             beyond_width_limit: r.beyond_limit.0,
             width_limit_px: r.beyond_limit.1,
+            temporal: r.temporal.clone(),
             shadow: r.shadow.map(|b| ShadowData {
                 band_lines: b.lines,
                 edged_lines: b.edged,

@@ -98,6 +98,9 @@ pub fn report_lines(r: &ScanReport) -> Vec<String> {
     if let Some(m) = &r.markers {
         lines.push(markers_line(m, r.status.frames));
     }
+    if let Some(t) = &r.temporal {
+        lines.extend(temporal_lines(t));
+    }
     if let Some(pace) = &r.pace {
         lines.push(format!(
             "camera: {}",
@@ -108,6 +111,41 @@ pub fn report_lines(r: &ScanReport) -> Vec<String> {
         lines.push(one_plane_hint(r));
     }
     lines
+}
+
+/// What a shadow sweep read through time gave: the planes, the object's pixels with a point,
+/// the two edges' agreement, and the pixels left without a point and why.
+fn temporal_lines(t: &crate::temporal::TemporalReport) -> Vec<String> {
+    let pct = |n: u64| 100.0 * n as f64 / t.pixels.max(1) as f64;
+    vec![
+        format!(
+            "shadow through time: the band moved along {}; edge planes in {} and {} of {} frames, their board points {:.2}/{:.2} and {:.2}/{:.2} mm RMS (left/right sheet)",
+            t.along.unwrap_or("no line (no band seen moving)"),
+            t.planes[0],
+            t.planes[1],
+            t.frames,
+            t.plane_rms_mm[0][0],
+            t.plane_rms_mm[0][1],
+            t.plane_rms_mm[1][0],
+            t.plane_rms_mm[1][1],
+        ),
+        format!(
+            "  the object: {:.1} % of its {} pixels with a point; its two edges {:.2} mm apart (median; 90 % within {:.2}), on the board {:.2} mm",
+            100.0 * t.coverage,
+            t.object_pixels,
+            t.edges_apart_mm[0],
+            t.edges_apart_mm[1],
+            t.edges_apart_board_mm[0],
+        ),
+        format!(
+            "  pixels without a point: {:.1} % too little contrast, {:.1} % crossed more than once, {:.1} % with no plane to place them, {:.1} % whose edges disagree by more than {:.1} mm",
+            pct(t.low_contrast),
+            pct(t.crossed_again[0].max(t.crossed_again[1])),
+            pct(t.no_plane[0].max(t.no_plane[1])),
+            pct(t.edges_disagree),
+            t.edges_agree_within_mm,
+        ),
+    ]
 }
 
 /// What the first laser frame showed of the laser's colour, when it matters: a colour found

@@ -56,6 +56,12 @@ pub struct ScanOptions {
     /// ([`scanner_core::stripe::shadow`]), and each of the band's two edges gives a packet with
     /// its own plane — numbered `2 × frame` (the rising edge) and `2 × frame + 1` (the falling).
     pub shadow: bool,
+    /// A shadow sweep read through time ([`crate::temporal`]): each pixel placed by the moment
+    /// the shadow's edges cross it, its points sent at the sweep's end, a packet per frame and
+    /// edge polarity — numbered `2 × frame + polarity`, and from `2 × frames` on where one
+    /// holds more than [`scanner_wire::MAX_POINTS`]. Needs the sweep read beforehand (its
+    /// brightest and darkest).
+    pub temporal: bool,
 }
 
 /// Share of a shadow frame's pixels allowed brighter than the shadow-free frame by more than
@@ -146,6 +152,15 @@ pub enum SessionError {
     /// The link failed.
     #[error(transparent)]
     Link(#[from] crate::link::LinkError),
+    /// A shadow sweep read through time from a source whose frames were not read beforehand
+    /// (a live camera): each pixel's lit and shadowed values are not known.
+    #[error(
+        "a shadow sweep read through time needs its frames read beforehand for each pixel's lit and shadowed values: record the sweep (--record DIR) and scan the folder"
+    )]
+    SweepNotRead,
+    /// The sweep's frames could not be read through time.
+    #[error("the shadow sweep")]
+    Temporal(#[from] crate::temporal::TemporalError),
 }
 
 pub(crate) type Result<T, E = SessionError> = std::result::Result<T, E>;
@@ -212,6 +227,8 @@ pub struct ScanReport {
     /// Lines refused because their stripe was wider than the frame's limit, and that limit
     /// (pixels: [`scanner_core::stripe::band_limit`]).
     pub beyond_limit: (u64, f32),
+    /// A shadow sweep read through time: what it gave.
+    pub temporal: Option<crate::temporal::TemporalReport>,
 }
 
 /// What a shadow sweep's frames showed of the shadow's band.
@@ -728,6 +745,12 @@ impl Session {
         if let Some(s) = outcome {
             self.status.skipped[s as usize] += 1;
         }
+        self.repeat_header_and_status(link)?;
+        Ok(outcome)
+    }
+
+    /// The header again, and the status, when their frames have come.
+    fn repeat_header_and_status(&mut self, link: &mut Link) -> Result<()> {
         if self.frames_since_header >= self.opts.header_every {
             self.send_header(link)?;
         }
@@ -737,7 +760,56 @@ impl Session {
             self.send(link, &s, false)?;
             self.frames_since_status = 0;
         }
-        Ok(outcome)
+        Ok(())
+    }
+
+    /// Counts a frame read by the sweep through time ([`crate::temporal`]): its points go at
+    /// the sweep's end.
+    fn sweep_frame(&mut self, link: &mut Link) -> Result<()> {
+        self.status.frames += 1;
+        self.frames_since_header += 1;
+        self.frames_since_status += 1;
+        self.repeat_header_and_status(link)
+    }
+
+    /// Sends points of the sweep through time as packet `number`, waiting for the link
+    /// (nothing the sweep found is dropped).
+    fn send_sweep_points(
+        &mut self,
+        link: &mut Link,
+        number: u32,
+        (time_us, plane): (u64, [f32; 4]),
+        points: &[[f32; 3]],
+        on_points: &mut impl FnMut(u32, &[[i32; 3]]),
+    ) -> Result<()> {
+        let q: Vec<[i32; 3]> = points
+            .iter()
+            .filter_map(|p| {
+                Some([
+                    scanner_wire::points::quantise(p[0])?,
+                    scanner_wire::points::quantise(p[1])?,
+                    scanner_wire::points::quantise(p[2])?,
+                ])
+            })
+            .collect();
+        let n = scanner_wire::points::encode(&q, &mut self.xyz).map_err(SessionError::Encode)?;
+        let msg = Message::Points(Points {
+            scan_id: self.opts.scan_id,
+            frame: number,
+            time_us,
+            plane,
+            count: q.len() as u32,
+            xyz: &self.xyz[..n],
+            rgb: &[],
+            uncertainty: &[],
+        });
+        on_points(number, &q);
+        if let Some(len) = encode_to_link(link, &mut self.scratch, &msg, true)? {
+            self.status.bytes += len as u64;
+            self.status.packets += 1;
+            self.status.points += q.len() as u64;
+        }
+        Ok(())
     }
 
     /// Adds the last frame's band lines to [`ShadowBands`].
@@ -794,6 +866,7 @@ impl Session {
             pace: None,
             shadow: self.shadow.as_ref().map(|_| self.bands),
             beyond_limit: self.beyond_limit,
+            temporal: None,
         })
     }
 }
@@ -886,6 +959,19 @@ pub fn run_scan_until(
     } else {
         source.reference().map_err(SessionError::Reference)?
     };
+    if opts.shadow && opts.temporal {
+        let dark = source.darkest().ok_or(SessionError::SweepNotRead)?;
+        return run_temporal(
+            source,
+            cal,
+            (reference, dark),
+            opts,
+            link,
+            stop,
+            progress,
+            on_points,
+        );
+    }
     if let (Some(limit), None, false) = (waits, opts.fixed, opts.shadow) {
         let seconds = limit.as_secs_f64().ceil() as u64;
         prompt(link, id, NoticeKind::SwitchLaserOn, seconds)?;
@@ -1001,6 +1087,83 @@ pub fn run_scan_until(
     let mut report = session.finish(link, ending)?;
     report.pipeline_ms = mean_ms(working, report.status.frames);
     report.pace = source.pace();
+    Ok(report)
+}
+
+/// [`run_scan_until`] for a shadow sweep read through time ([`crate::temporal`]): every frame
+/// read, then the points of the pixels it placed, a packet per frame and edge polarity.
+#[allow(clippy::too_many_arguments)]
+fn run_temporal(
+    source: &mut dyn FrameSource,
+    cal: &Calibration,
+    (lit, dark): (OwnedFrame, OwnedFrame),
+    opts: ScanOptions,
+    link: &mut Link,
+    stop: &StopWhen,
+    mut progress: impl FnMut(&Status),
+    mut on_points: impl FnMut(u32, &[[i32; 3]]),
+) -> Result<ScanReport> {
+    let size = (lit.width, lit.height);
+    let luma = |f: &OwnedFrame| f.luma().map(image::GrayImage::into_raw).unwrap_or_default();
+    let mut sweep = crate::temporal::TemporalSweep::new(
+        cal.camera,
+        cal.board,
+        size,
+        &luma(&lit),
+        &luma(&dark),
+    )?;
+    let mut session = Session::new(cal, lit, opts)?;
+    session.set_controls(source.controls());
+    session.send_header(link)?;
+    let started = Instant::now();
+    let mut working = std::time::Duration::ZERO;
+    let mut times = Vec::new();
+    let ending = loop {
+        if let Some(why) = stop.reason(session.status().frames, started.elapsed()) {
+            break Ending::Stopped(why);
+        }
+        match source.next_frame() {
+            Ok(Some(frame)) => {
+                let t = Instant::now();
+                sweep.frame(&luma(&frame))?;
+                working += t.elapsed();
+                times.push(
+                    frame
+                        .time_us
+                        .unwrap_or_else(|| session.started.elapsed().as_micros() as u64),
+                );
+                source.give_back(frame);
+                session.sweep_frame(link)?;
+                progress(&session.status());
+            }
+            Ok(None) => break Ending::Ran,
+            Err(e) => break Ending::Failed(crate::error_chain(&e)),
+        }
+    };
+    let t = Instant::now();
+    let (placed, found) = sweep.finish();
+    working += t.elapsed();
+    let frames = times.len() as u32;
+    let mut extra = 2 * frames;
+    for bucket in &placed {
+        let time = (
+            times.get(bucket.frame as usize).copied().unwrap_or(0),
+            bucket.plane,
+        );
+        for (k, chunk) in bucket.points.chunks(scanner_wire::MAX_POINTS).enumerate() {
+            let number = if k == 0 {
+                2 * bucket.frame + u32::from(bucket.polarity)
+            } else {
+                extra += 1;
+                extra - 1
+            };
+            session.send_sweep_points(link, number, time, chunk, &mut on_points)?;
+        }
+    }
+    let mut report = session.finish(link, ending)?;
+    report.pipeline_ms = mean_ms(working, report.status.frames);
+    report.pace = source.pace();
+    report.temporal = Some(found);
     Ok(report)
 }
 

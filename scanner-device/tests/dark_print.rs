@@ -52,6 +52,7 @@ fn a_chessboard_board_with_nothing_in_front_gives_no_object_point() {
                 fixed: None,
                 markers: None,
                 shadow: false,
+                temporal: false,
             };
             let mut link = Link::spawn(
                 Box::new(std::io::sink()),

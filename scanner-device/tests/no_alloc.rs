@@ -40,6 +40,7 @@ fn assert_steady_state_allocates_nothing(
         fixed: None,
         markers: None,
         shadow: false,
+        temporal: false,
     };
     let mut frame = reference.clone();
     let mut session = Session::new(cal, reference, opts).unwrap();

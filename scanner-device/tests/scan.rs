@@ -28,6 +28,7 @@ fn options(scan_id: u32) -> ScanOptions {
         fixed: None,
         markers: None,
         shadow: false,
+        temporal: false,
     }
 }
 

@@ -62,6 +62,7 @@ fn scan(source: &mut dyn FrameSource, out: &Path) {
         fixed: None,
         markers: None,
         shadow: false,
+        temporal: false,
     };
     // A buffer for every message of the scan (24 frames, a header, its controls and a status
     // every 10, the last status: under 40): on a busy machine a shallower link drops point

@@ -405,6 +405,7 @@ fn troubleshooting_covers_every_refusal_of_the_head_and_the_calibration() {
         ("scanner-device/src/source/mod.rs", "SourceError"),
         ("scanner-device/src/source/convert.rs", "ConvertError"),
         ("scanner-device/src/session.rs", "SessionError"),
+        ("scanner-device/src/temporal.rs", "TemporalError"),
         ("scanner-device/src/axis.rs", "AxisError"),
         ("scanner-device/src/motor.rs", "MotorError"),
         ("scanner-device/calib/src/import/mod.rs", "ImportError"),

@@ -49,6 +49,7 @@ fn clean_frames() -> &'static Vec<Vec<u8>> {
             fixed: None,
             markers: None,
             shadow: false,
+            temporal: false,
         };
         scanner_tests::record_scan(
             &mut src,
@@ -392,6 +393,7 @@ fn faults_on_a_pseudo_terminal_link_between_head_and_host() {
         fixed: None,
         markers: None,
         shadow: false,
+        temporal: false,
     };
     run_scan(&mut src, &cal, opts, &mut link, |_| {}, |_, _| {}).unwrap();
     link.finish().unwrap();

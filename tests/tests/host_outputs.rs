@@ -51,6 +51,7 @@ fn record(w: u32, h: u32, frames: usize, colour: bool, path: &Path) -> Rig {
         fixed: None,
         markers: None,
         shadow: false,
+        temporal: false,
     };
     scanner_tests::record_scan(
         &mut source,

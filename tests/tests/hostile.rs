@@ -117,6 +117,7 @@ fn record(w: u32, h: u32, id: u32, path: &Path) {
         fixed: None,
         markers: None,
         shadow: false,
+        temporal: false,
     };
     scanner_tests::record_scan(
         &mut source,

@@ -42,6 +42,7 @@ fn recording(dir: &std::path::Path) -> std::path::PathBuf {
         fixed: None,
         markers: None,
         shadow: false,
+        temporal: false,
     };
     scanner_device::session::run_scan(&mut src, &cal, opts, &mut link, |_| {}, |_, _| {}).unwrap();
     let stats = link.finish().unwrap();
@@ -258,6 +259,7 @@ fn head_to_host_over_a_pseudo_terminal() {
         fixed: None,
         markers: None,
         shadow: false,
+        temporal: false,
     };
     let report =
         scanner_device::session::run_scan(&mut source, &cal, opts, &mut link, |_| {}, |_, _| {})

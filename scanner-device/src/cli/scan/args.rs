@@ -127,6 +127,13 @@ pub struct ScanArgs {
     /// before the rod enters) is the lit scene and the shadow's core is taken for black.
     #[arg(long, conflicts_with_all = ["fixed_laser", "lim", "laser", "colour"])]
     pub shadow: bool,
+    /// With --shadow: read the sweep through time (Bouguet and Perona): each pixel placed by
+    /// the moment the shadow's edges cross it, each moment's planes from the edges on the two
+    /// sheets; one point per pixel and edge, the way the band moves found from the frames. For
+    /// soft shadows on real objects. Needs frames that can be read twice (a folder, a
+    /// recording, the rig).
+    #[arg(long, requires = "shadow", conflicts_with_all = ["reference", "rows", "columns"])]
+    pub temporal: bool,
 
     /// Send the stripe's board points too.
     #[arg(long)]

@@ -66,6 +66,7 @@ fn plan_with(a: &ScanArgs, link: Option<Link>) -> Result<ScanPlan> {
         fixed: o.fixed,
         markers: o.markers,
         shadow: a.shadow,
+        temporal: a.temporal,
         disc: a.disc.map(scanner_calib::disc::Disc::new),
         header_every: 30,
         status_every: 30,
