@@ -1057,6 +1057,25 @@ pub fn run_scan_until(
         session.frame(&frame, link, &mut on_points)?;
         progress(&session.status());
     }
+    let (ending, working) = frame_loop(source, &mut session, stop, &mut progress, |s, frame| {
+        s.frame(frame, link, &mut on_points).map(|_| ())
+    })?;
+    let mut report = session.finish(link, ending)?;
+    report.pipeline_ms = mean_ms(working, report.status.frames);
+    report.pace = source.pace();
+    Ok(report)
+}
+
+/// Takes frames from `source` through `each` until the stop or the source's end, saying the
+/// progress after each and the camera's dropped frames as they happen; returns how it ended and
+/// the time spent in `each`.
+fn frame_loop(
+    source: &mut dyn FrameSource,
+    session: &mut Session,
+    stop: &StopWhen,
+    progress: &mut impl FnMut(&Status),
+    mut each: impl FnMut(&mut Session, &OwnedFrame) -> Result<()>,
+) -> Result<(Ending, std::time::Duration)> {
     let started = Instant::now();
     let (mut working, mut dropped_told) = (std::time::Duration::ZERO, 0);
     let ending = loop {
@@ -1066,13 +1085,13 @@ pub fn run_scan_until(
         match source.next_frame() {
             Ok(Some(frame)) => {
                 let t = Instant::now();
-                session.frame(&frame, link, &mut on_points)?;
+                each(session, &frame)?;
                 working += t.elapsed();
                 source.give_back(frame);
                 let s = session.status();
                 progress(&s);
                 // Frames the camera made while the pipeline was busy: said as they happen.
-                if s.frames % 30 == 0
+                if s.frames.is_multiple_of(30)
                     && let Some(pace) = source.pace()
                     && pace.dropped > dropped_told
                 {
@@ -1084,10 +1103,7 @@ pub fn run_scan_until(
             Err(e) => break Ending::Failed(crate::error_chain(&e)),
         }
     };
-    let mut report = session.finish(link, ending)?;
-    report.pipeline_ms = mean_ms(working, report.status.frames);
-    report.pace = source.pace();
-    Ok(report)
+    Ok((ending, working))
 }
 
 /// [`run_scan_until`] for a shadow sweep read through time ([`crate::temporal`]): every frame
@@ -1115,31 +1131,17 @@ fn run_temporal(
     let mut session = Session::new(cal, lit, opts)?;
     session.set_controls(source.controls());
     session.send_header(link)?;
-    let started = Instant::now();
-    let mut working = std::time::Duration::ZERO;
     let mut times = Vec::new();
-    let ending = loop {
-        if let Some(why) = stop.reason(session.status().frames, started.elapsed()) {
-            break Ending::Stopped(why);
-        }
-        match source.next_frame() {
-            Ok(Some(frame)) => {
-                let t = Instant::now();
-                sweep.frame(&luma(&frame))?;
-                working += t.elapsed();
-                times.push(
-                    frame
-                        .time_us
-                        .unwrap_or_else(|| session.started.elapsed().as_micros() as u64),
-                );
-                source.give_back(frame);
-                session.sweep_frame(link)?;
-                progress(&session.status());
-            }
-            Ok(None) => break Ending::Ran,
-            Err(e) => break Ending::Failed(crate::error_chain(&e)),
-        }
-    };
+    let (ending, mut working) =
+        frame_loop(source, &mut session, stop, &mut progress, |s, frame| {
+            sweep.frame(&luma(frame))?;
+            times.push(
+                frame
+                    .time_us
+                    .unwrap_or_else(|| s.started.elapsed().as_micros() as u64),
+            );
+            s.sweep_frame(link)
+        })?;
     let t = Instant::now();
     let (placed, found) = sweep.finish();
     working += t.elapsed();
