@@ -119,11 +119,13 @@ fn temporal_lines(t: &crate::temporal::TemporalReport) -> Vec<String> {
     let pct = |n: u64| 100.0 * n as f64 / t.pixels.max(1) as f64;
     vec![
         format!(
-            "shadow through time: the band moved along {}; edge planes in {} and {} of {} frames, their board points {:.2}/{:.2} and {:.2}/{:.2} mm RMS (left/right sheet)",
+            "shadow through time: the band moved along {}; edge planes in {} and {} of {} frames ({} and {} more blended across gaps), their board points {:.2}/{:.2} and {:.2}/{:.2} mm RMS (left/right sheet)",
             t.along.unwrap_or("no line (no band seen moving)"),
             t.planes[0],
             t.planes[1],
             t.frames,
+            t.planes_blended[0],
+            t.planes_blended[1],
             t.plane_rms_mm[0][0],
             t.plane_rms_mm[0][1],
             t.plane_rms_mm[1][0],

@@ -219,6 +219,16 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
             if done.status.points == 0 && lines > 0 {
                 return Err(scan::ScanFailed::TooWide { lines, limit }.into());
             }
+            if let Some(t) = &done.temporal
+                && let Some(polarity) = t.contradicted()
+            {
+                return Err(scan::ScanFailed::PlanesContradicted {
+                    polarity,
+                    planes: t.planes[polarity],
+                    tried: t.planes_tried[polarity],
+                }
+                .into());
+            }
             if let Some(b) = done.shadow.filter(crate::session::ShadowBands::blurred) {
                 return Err(scan::ScanFailed::BlurredShadow {
                     lines: b.lines,

@@ -150,4 +150,18 @@ pub enum ScanFailed {
         /// Lines with an edge.
         edged: u64,
     },
+    /// A shadow sweep read through time whose edges did not lie in one plane on the board's
+    /// planes in enough frames.
+    #[error(
+        "the board's planes do not hold for this sweep: the shadow's edges of polarity {polarity} lay in one plane on them in only {planes} of the {tried} frames they crossed both planes in (at least {:.0} % wanted) — the board or the camera moved since its planes were measured, or the calibration is another setup's: measure the planes again (docs/shadow-scanner.md)",
+        100.0 * crate::temporal::MIN_PLANE_SHARE
+    )]
+    PlanesContradicted {
+        /// The edges' polarity along the image lines (0: dark to lit, 1: lit to dark).
+        polarity: usize,
+        /// Frames that gave its plane.
+        planes: u32,
+        /// Frames its plane was looked for in.
+        tried: u32,
+    },
 }
