@@ -9,17 +9,19 @@
 //! frame `k + 1` (each frame's edges: where it crosses the threshold along each line, to a
 //! subpixel, of two polarities — the band's two sides); the moment is where between those two
 //! places the pixel lies. Each frame's edges of one polarity on the two board planes, away from
-//! the object, are two straight lines of one plane through the lamp: fitted per frame, the
-//! plane at the pixel's moment is the blend of the two frames' planes, and the pixel's ray
-//! meets it in the pixel's point. Each pixel gets one point per edge — the shadow's way in
-//! (leading) and its way out (trailing) — two surfaces that must agree: where they do not,
-//! both are left out. A pixel crossed again (the rod went back, or its edge shook) keeps its
-//! first point where the later crossings agree with it.
+//! the object, are two straight lines of one plane through the lamp: fitted per frame (a frame
+//! without one gets the blend of the nearest frames' planes across a short gap, which is why
+//! a crossing in such a frame waits for the sweep's end), the plane at the pixel's moment is
+//! the blend of the two frames' planes, and the pixel's ray meets it in a point. Each pixel is
+//! crossed by two edges — the shadow's way in (leading) and its way out (trailing) — whose
+//! points must agree; the pixel's point is their middle (see [`EDGES_AGREE_TIMES`]). A pixel
+//! crossed again (the rod went back, or its edge shook) keeps its first crossing where the later
+//! ones agree with it.
 //!
-//! Memory is fixed by the image: about 30 bytes a pixel (its threshold, margin, last value and
-//! state, and per edge the frame, depth and spread of its crossings), two frames' edge lists,
-//! and a record a frame for the report. Pixels whose contrast is too low, that were never
-//! crossed, or whose crossings disagree get no point and are counted.
+//! Memory is fixed by the image: about 42 bytes a pixel (its threshold, margin, last value and
+//! state, and per edge the frame, depth, spread and place between frames of its crossings),
+//! two frames' edge lists, and a record a frame for the report. Pixels whose contrast is too
+//! low, that were never crossed, or whose crossings disagree get no point and are counted.
 
 use scanner_core::Camera;
 use scanner_core::geometry::{Board, Plane, Surface};
