@@ -1,6 +1,7 @@
-//! A triangle mesh from the grid: one vertex per filled cell, two triangles per 2×2 block of
-//! filled cells (one where three are filled), none across a depth jump or a hole; vertex normals
-//! from the faces, facing the camera.
+//! A triangle mesh from the grid: one vertex per filled cell (and, where asked, one for each
+//! empty cell of a short gap between two stripes' cells on one surface), two triangles per 2×2
+//! block of filled cells (one where three are filled), none across a depth jump or a hole;
+//! vertex normals from the faces, facing the camera.
 
 use scanner_core::geometry::Board;
 use scanner_core::nalgebra::{Matrix3, Point3, Vector3};
@@ -23,6 +24,9 @@ pub struct Mesh {
     pub faces: Vec<[u32; 3]>,
     /// Grid cell of each vertex (column, row).
     pub cells: Vec<(u32, u32)>,
+    /// The last `bridged.len()` vertices were not measured: each lies between these two
+    /// vertices, across a gap between stripes (see [`MeshOptions::bridge_cells`]).
+    pub bridged: Vec<[u32; 2]>,
     /// The frame the vertices and normals are in.
     pub frame: MeshFrame,
 }
@@ -151,6 +155,12 @@ pub struct MeshOptions {
     pub min_count: u32,
     /// An edge longer than this many expected cell spacings is a depth jump (no face).
     pub max_edge_cells: f32,
+    /// Empty cells in a gap of up to this many cells along a column or a row, between two
+    /// filled cells on one surface (no depth jump between them), get a vertex on the straight
+    /// line between those two: a hand's sweep moves unevenly, and where its stripe jumped
+    /// more than a cell between two frames a row of cells got no point (slits across the
+    /// model). 0: none.
+    pub bridge_cells: usize,
 }
 
 impl Default for MeshOptions {
@@ -158,6 +168,7 @@ impl Default for MeshOptions {
         MeshOptions {
             min_count: 1,
             max_edge_cells: 4.0,
+            bridge_cells: 0,
         }
     }
 }
@@ -178,6 +189,31 @@ pub fn build(grid: &Grid, fx: f64, opts: &MeshOptions, colour: bool) -> Mesh {
                     m.colours
                         .push(cell.rgb.map(|v| v.round().clamp(0.0, 255.0) as u8));
                 }
+            }
+        }
+    }
+    // vertices across the gaps between stripes, after the measured ones
+    for r in 0..rows {
+        for c in 0..cols {
+            if index[r * cols + c] != u32::MAX {
+                continue;
+            }
+            let Some(((a, ka), (b, kb))) = gap_ends(grid, fx, opts, (c, r), opts.bridge_cells)
+            else {
+                continue;
+            };
+            let (ia, ib) = (index[a.1 * cols + a.0], index[b.1 * cols + b.0]);
+            let t = ka as f32 / (ka + kb) as f32;
+            let (pa, pb) = (m.vertices[ia as usize], m.vertices[ib as usize]);
+            index[r * cols + c] = m.vertices.len() as u32;
+            m.vertices.push(pa + (pb - pa) * t);
+            m.cells.push((c as u32, r as u32));
+            m.bridged.push([ia, ib]);
+            if colour {
+                let (ca, cb) = (m.colours[ia as usize], m.colours[ib as usize]);
+                m.colours.push([0, 1, 2].map(|k| {
+                    (f32::from(ca[k]) + (f32::from(cb[k]) - f32::from(ca[k])) * t).round() as u8
+                }));
             }
         }
     }
@@ -262,6 +298,52 @@ fn cell_spacing(grid: &Grid, fx: f64, p: &Point3<f32>) -> f32 {
     }
 }
 
+/// Whether filled cells `a` and `b`, `steps` cell spacings apart, lie on one surface (no
+/// depth jump between them: within the mesh's `max_edge_cells` spacings a step).
+fn on_one_surface(
+    grid: &Grid,
+    fx: f64,
+    opts: &MeshOptions,
+    a: (usize, usize),
+    b: (usize, usize),
+    steps: f32,
+) -> bool {
+    let (p, q) = (
+        Point3::from(grid.at(a.0, a.1).mean),
+        Point3::from(grid.at(b.0, b.1).mean),
+    );
+    (p - q).norm() <= opts.max_edge_cells * cell_spacing(grid, fx, &p) * steps
+}
+
+/// A filled cell (column, row) at the end of a gap, and how many cells from the gap's cell.
+type GapEnd = ((usize, usize), usize);
+
+/// The two filled cells on one surface that the empty cell `at` lies between, along its
+/// column or else its row, each at most `gap` cells from it, and how many cells away.
+fn gap_ends(
+    grid: &Grid,
+    fx: f64,
+    opts: &MeshOptions,
+    (c, r): (usize, usize),
+    gap: usize,
+) -> Option<(GapEnd, GapEnd)> {
+    let (cols, rows) = (grid.cols, grid.rows);
+    let filled = |c: usize, r: usize| grid.at(c, r).count >= opts.min_count.max(1);
+    let along = |step: (isize, isize)| -> Option<((usize, usize), usize)> {
+        (1..=gap).find_map(|k| {
+            let cc = c.checked_add_signed(step.0 * k as isize)?;
+            let rr = r.checked_add_signed(step.1 * k as isize)?;
+            (cc < cols && rr < rows && filled(cc, rr)).then_some(((cc, rr), k))
+        })
+    };
+    [((0, -1), (0, 1)), ((-1, 0), (1, 0))]
+        .into_iter()
+        .find_map(|(back, ahead)| {
+            let (a, b) = (along(back)?, along(ahead)?);
+            on_one_surface(grid, fx, opts, a.0, b.0, (a.1 + b.1) as f32).then_some((a, b))
+        })
+}
+
 /// Gaps between sweeps' stripes up to this many cells along a row or column are bridged when
 /// [`edge_cells`] looks for the view's edges: a sweep leaves rows of empty cells between its
 /// stripes that are not the surface's edge.
@@ -280,29 +362,11 @@ pub const EDGE_GAP_CELLS: usize = 2;
 pub fn edge_cells(grid: &Grid, fx: f64, opts: &MeshOptions, reach: usize) -> Vec<bool> {
     let (cols, rows) = (grid.cols, grid.rows);
     let filled = |c: usize, r: usize| grid.at(c, r).count >= opts.min_count.max(1);
-    let point = |c: usize, r: usize| Point3::from(grid.at(c, r).mean);
     // Two filled cells `steps` cells apart lie on one surface.
     let continuous = |a: (usize, usize), b: (usize, usize), steps: f32| {
-        let (p, q) = (point(a.0, a.1), point(b.0, b.1));
-        (p - q).norm() <= opts.max_edge_cells * cell_spacing(grid, fx, &p) * steps
+        on_one_surface(grid, fx, opts, a, b, steps)
     };
-    // An empty cell between two continuous filled cells at most EDGE_GAP_CELLS + 1 apart along
-    // its column or its row.
-    let bridged = |c: usize, r: usize| {
-        let along = |step: (isize, isize)| -> Option<((usize, usize), usize)> {
-            (1..=EDGE_GAP_CELLS).find_map(|k| {
-                let cc = c.checked_add_signed(step.0 * k as isize)?;
-                let rr = r.checked_add_signed(step.1 * k as isize)?;
-                (cc < cols && rr < rows && filled(cc, rr)).then_some(((cc, rr), k))
-            })
-        };
-        [((0, -1), (0, 1)), ((-1, 0), (1, 0))]
-            .into_iter()
-            .any(|(back, ahead)| match (along(back), along(ahead)) {
-                (Some((a, ka)), Some((b, kb))) => continuous(a, b, (ka + kb) as f32),
-                _ => false,
-            })
-    };
+    let bridged = |c: usize, r: usize| gap_ends(grid, fx, opts, (c, r), EDGE_GAP_CELLS).is_some();
     // Edge sources: filled cells beside the outside or across a jump.
     let mut distance = vec![usize::MAX; cols * rows];
     let mut queue = std::collections::VecDeque::new();
@@ -386,6 +450,37 @@ mod tests {
             }
         }
         (grid, fx)
+    }
+
+    #[test]
+    fn gaps_between_stripes_are_bridged_on_one_surface_and_not_across_a_jump() {
+        let (grid, fx) = swept_wall();
+        let open = build(&grid, fx, &MeshOptions::default(), false);
+        let opts = MeshOptions {
+            bridge_cells: EDGE_GAP_CELLS,
+            ..MeshOptions::default()
+        };
+        let m = build(&grid, fx, &opts, false);
+        assert!(open.bridged.is_empty());
+        assert!(!m.bridged.is_empty());
+        assert_eq!(m.vertices.len(), open.vertices.len() + m.bridged.len());
+        assert!(m.faces.len() > open.faces.len());
+        for (k, &[a, b]) in m.bridged.iter().enumerate() {
+            let v = m.vertices[open.vertices.len() + k];
+            let (pa, pb) = (m.vertices[a as usize], m.vertices[b as usize]);
+            // on the wall or on the block, never between them
+            assert!((pa.z - pb.z).abs() < 1.0, "{pa} {pb}");
+            assert!(
+                (v.z - 500.0).abs() < 1.0 || (v.z - 450.0).abs() < 1.0,
+                "{v}"
+            );
+        }
+        // no cell between the block and the wall got a vertex
+        let depth = |p: &Point3<f32>| p.z;
+        assert!(m.vertices.iter().all(|p| {
+            let z = depth(p);
+            (z - 500.0).abs() < 1.0 || (z - 450.0).abs() < 1.0
+        }));
     }
 
     #[test]

@@ -68,6 +68,11 @@ pub struct Summary {
     pub vertices: usize,
     /// Mesh faces.
     pub faces: usize,
+    /// Vertices across short gaps between stripes, interpolated (see
+    /// [`OutputOptions::bridge_gaps`]).
+    pub bridged: usize,
+    /// Cells without a vertex inside the surface (see [`interior_holes`]).
+    pub interior_holes: usize,
     /// Filled cells over all cells of the grid.
     pub coverage: f64,
     /// Points per second of capture time.
@@ -136,7 +141,22 @@ impl Summary {
         let coverage = if self.fixed.is_some() {
             String::new()
         } else {
-            format!("; coverage {:.1} % of the grid", 100.0 * self.coverage)
+            let bridged = if self.bridged > 0 {
+                format!(
+                    " ({} vertices across gaps between stripes, interpolated)",
+                    self.bridged
+                )
+            } else {
+                String::new()
+            };
+            let bridged = format!(
+                "{bridged}; {} holes inside the surface",
+                self.interior_holes
+            );
+            format!(
+                "{bridged}; coverage {:.1} % of the grid",
+                100.0 * self.coverage
+            )
         };
         let mut s = format!(
             "frames {} ({} point packets, {} headers) from {} scan(s); points {}{grid}; vertices {}, faces {}{coverage}; {:.0} points/s\n",
@@ -301,6 +321,11 @@ pub struct SummaryData {
     pub vertices: usize,
     /// Mesh faces.
     pub faces: usize,
+    /// Vertices across short gaps between stripes: interpolated, not measured.
+    pub bridged: usize,
+    /// Grid cells without a vertex that have vertices within [`HOLE_REACH_CELLS`] on both
+    /// sides along their row or their column: slits and holes inside the surface.
+    pub interior_holes: usize,
     /// Filled cells over all cells of the grid (0–1).
     pub coverage: f64,
     /// Points per second of capture time.
@@ -421,6 +446,8 @@ impl Summary {
             outliers: self.outliers,
             vertices: self.vertices,
             faces: self.faces,
+            bridged: self.bridged,
+            interior_holes: self.interior_holes,
             coverage: self.coverage,
             points_per_second: self.point_rate,
             link: LinkData {
@@ -507,6 +534,9 @@ pub struct OutputOptions {
     pub min_count: u32,
     /// The meshes' frame.
     pub frame: FrameChoice,
+    /// Short gaps between stripes bridged in the mesh ([`MeshOptions::bridge_cells`], up to
+    /// [`mesh::EDGE_GAP_CELLS`] cells): the vertices there interpolated, not measured.
+    pub bridge_gaps: bool,
 }
 
 impl Default for OutputOptions {
@@ -514,6 +544,7 @@ impl Default for OutputOptions {
         OutputOptions {
             min_count: 1,
             frame: FrameChoice::Board,
+            bridge_gaps: true,
         }
     }
 }
@@ -585,6 +616,8 @@ pub fn write_outputs(
         counts,
         vertices: m.vertices.len(),
         faces: m.faces.len(),
+        bridged: m.bridged.len(),
+        interior_holes: interior_holes(&m.cells, (grid.cols, grid.rows)),
         coverage: grid.filled() as f64 / (grid.cols * grid.rows) as f64,
         outliers: grid.rejected(),
         frame: m.frame.describe(),
@@ -710,6 +743,8 @@ fn fixed_outputs(
         counts,
         vertices: m.vertices.len(),
         faces: m.faces.len(),
+        bridged: m.bridged.len(),
+        interior_holes: 0,
         coverage: 0.0,
         outliers: 0,
         frame: m.frame.describe(),
@@ -737,6 +772,40 @@ fn fixed_outputs(
     Ok(summary)
 }
 
+/// A cell without a vertex counts as a hole inside the surface when vertices lie within this
+/// many cells of it on both sides, along its row or its column.
+pub const HOLE_REACH_CELLS: usize = 3;
+
+/// The cells of a `cols`×`rows` grid without a vertex (`cells`: those with one) that have
+/// vertices within [`HOLE_REACH_CELLS`] on both sides along their row or their column.
+pub fn interior_holes(cells: &[(u32, u32)], (cols, rows): (usize, usize)) -> usize {
+    let mut has = vec![false; cols * rows];
+    for &(c, r) in cells {
+        if let Some(h) = has.get_mut(r as usize * cols + c as usize) {
+            *h = true;
+        }
+    }
+    let at = |c: isize, r: isize| {
+        c >= 0
+            && r >= 0
+            && (c as usize) < cols
+            && (r as usize) < rows
+            && has[r as usize * cols + c as usize]
+    };
+    let near = |c: usize, r: usize, step: (isize, isize)| {
+        (1..=HOLE_REACH_CELLS as isize)
+            .any(|k| at(c as isize + step.0 * k, r as isize + step.1 * k))
+    };
+    (0..rows)
+        .flat_map(|r| (0..cols).map(move |c| (c, r)))
+        .filter(|&(c, r)| {
+            !has[r * cols + c]
+                && ((near(c, r, (0, -1)) && near(c, r, (0, 1)))
+                    || (near(c, r, (-1, 0)) && near(c, r, (1, 0))))
+        })
+        .count()
+}
+
 /// Points per second of the frames' capture time (0 without a span).
 fn point_rate(counts: &Counts) -> f64 {
     let span = counts.time_us.map_or(0.0, |(a, b)| (b - a) as f64 / 1e6);
@@ -757,6 +826,8 @@ fn preview_summary(counts: Counts, dir: &Path) -> Result<Summary, OutputError> {
         counts,
         vertices: 0,
         faces: 0,
+        bridged: 0,
+        interior_holes: 0,
         coverage: 0.0,
         point_rate: 0.0,
         outliers: 0,
@@ -814,15 +885,25 @@ fn camera_mesh(
 ) -> Mesh {
     let opts = MeshOptions {
         min_count: out.min_count,
+        bridge_cells: if out.bridge_gaps {
+            mesh::EDGE_GAP_CELLS
+        } else {
+            0
+        },
         ..MeshOptions::default()
     };
     let mut m = mesh::build(grid, f64::from(header.camera.fx), &opts, colour);
     if uncertainty {
-        m.quality = m
-            .cells
+        let measured = m.vertices.len() - m.bridged.len();
+        m.quality = m.cells[..measured]
             .iter()
             .map(|&(c, r)| grid.at(c as usize, r as usize).uncertainty())
             .collect();
+        // a vertex across a gap: as uncertain as the less certain of its two ends
+        for &[a, b] in &m.bridged {
+            let q = m.quality[a as usize].max(m.quality[b as usize]);
+            m.quality.push(q);
+        }
     }
     m
 }

@@ -188,7 +188,14 @@ pub fn load_view(k: usize, path: &Path, cell: Cell, sheet_mm: f64) -> Result<Vie
     })?;
     let (Some(grid), Some(m), Some(header)) = (
         c.grid(),
-        crate::outputs::mesh_of(&c, &OutputOptions::default()),
+        // a merge fuses the views' measured points: its own surface spans their gaps
+        crate::outputs::mesh_of(
+            &c,
+            &OutputOptions {
+                bridge_gaps: false,
+                ..OutputOptions::default()
+            },
+        ),
         c.header(),
     ) else {
         return Err(ViewsError::Empty {

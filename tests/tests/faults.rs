@@ -25,6 +25,7 @@ use scanner_wire::{Decoder, MAX_ENCODED};
 const CAMERA: scanner_host::OutputOptions = scanner_host::OutputOptions {
     min_count: 1,
     frame: scanner_host::FrameChoice::Camera,
+    bridge_gaps: true,
 };
 
 /// A clean recorded stream of a small rig scan, split into its frames (each with its delimiters).

@@ -38,6 +38,11 @@ pub struct OutputArgs {
     /// Cells with fewer samples are left out of the mesh.
     #[arg(long, default_value_t = 1)]
     pub min_count: u32,
+    /// Leave the gaps between stripes open: by default an empty cell in a gap of up to two
+    /// cells between two cells of one surface gets a vertex between them (interpolated, not
+    /// measured; the summary counts them), where an uneven sweep skipped a row.
+    #[arg(long)]
+    pub no_bridge: bool,
     /// The meshes' frame: `board` (y up, for MeshLab/Blender/CloudCompare) or `camera` (+y
     /// down, +z forward). The pictures are the camera's view either way.
     #[arg(long, value_enum, default_value_t = FrameArg::Board)]

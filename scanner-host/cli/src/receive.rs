@@ -57,6 +57,7 @@ impl OutputPlan {
             outputs: OutputOptions {
                 min_count: o.min_count,
                 frame: o.frame.into(),
+                bridge_gaps: !o.no_bridge,
             },
             sheet_mm: o.sheet,
             quiet: o.quiet,
