@@ -243,7 +243,14 @@ pub fn run(plan: &MergePlan, view: Option<&LiveView>) -> Result<()> {
         out.display()
     );
     if let Some(v) = view {
-        v.finish(None, Some(model), out, &MODEL_FILES, "merged");
+        // a model in pieces is not said to be merged: the page shows how many
+        let pieces = merged.report.fusion.as_ref().map_or(1, |f| f.pieces.len());
+        let ended = if pieces > 1 {
+            format!("a model in {pieces} pieces, not one: see the report")
+        } else {
+            "merged".to_string()
+        };
+        v.finish(None, Some(model), out, &MODEL_FILES, &ended);
     }
     Ok(())
 }

@@ -463,5 +463,32 @@ fn fusion_lines(f: &FusionFigures) -> String {
         },
         c.components,
     );
+    if f.pieces.len() > 1 {
+        let _ = writeln!(
+            s,
+            "the model is {} pieces, not one (the merge refuses to call it merged): {}",
+            f.pieces.len(),
+            f.pieces
+                .iter()
+                .map(|p| format!(
+                    "{} {:.0}×{:.0}×{:.0} mm at ({:.0}, {:.0}, {:.0}), {:.1} % of the area",
+                    match p.kind {
+                        crate::fuse::PieceKind::Main => "the largest",
+                        crate::fuse::PieceKind::Part =>
+                            "a part (a view in the wrong place, or a second object)",
+                        crate::fuse::PieceKind::Floater => "a floater",
+                    },
+                    p.extent_mm[0],
+                    p.extent_mm[1],
+                    p.extent_mm[2],
+                    p.centre_mm[0],
+                    p.centre_mm[1],
+                    p.centre_mm[2],
+                    100.0 * p.area_share
+                ))
+                .collect::<Vec<_>>()
+                .join("; ")
+        );
+    }
     s
 }

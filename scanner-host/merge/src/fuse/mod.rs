@@ -8,8 +8,9 @@ mod surface;
 mod winding;
 
 pub use surface::{
-    Fill, HalfSpace, MeshCheck, Model, area, area_on, area_share, check, fuse, fuse_cut,
-    fuse_filled, fuse_with, inliers, off_surface, trim, unseen_faces,
+    FLOATER_SHARE, Fill, HalfSpace, MeshCheck, Model, Piece, PieceKind, area, area_on, area_share,
+    check, fuse, fuse_cut, fuse_filled, fuse_with, inliers, off_surface, pieces, trim,
+    unseen_faces,
 };
 pub(crate) use surface::{OFF_SURFACE_MARGIN, colour_from};
 pub use winding::Winding;
@@ -290,6 +291,8 @@ pub struct FusionFigures {
     pub faces: usize,
     /// Its checks: watertight, components, volume.
     pub check: MeshCheck,
+    /// Its pieces, largest first: one for a model of one object.
+    pub pieces: Vec<Piece>,
 }
 
 /// The fused model and what the report says of it.
@@ -378,6 +381,7 @@ pub(crate) fn fuse_views(
         vertices: model.vertices.len(),
         faces: model.faces.len(),
         check,
+        pieces: crate::fuse::pieces(&model),
     };
     Ok(Fused { model, figures })
 }

@@ -878,19 +878,87 @@ fn nonmanifold_vertices(m: &Model) -> usize {
     bad
 }
 
-/// Watertightness, components and the enclosed volume of a mesh.
-pub fn check(m: &Model) -> MeshCheck {
-    let mut edges: Vec<(u32, u32)> = m
-        .faces
-        .iter()
-        .flat_map(|f| (0..3).map(move |k| (f[k].min(f[(k + 1) % 3]), f[k].max(f[(k + 1) % 3]))))
+/// A piece under this share of the model's area is a floater: a few points fused apart from
+/// the object (a stray view's edge, a speck of the stand), not a part of it.
+pub const FLOATER_SHARE: f64 = 0.02;
+
+/// What a piece of a model is.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum PieceKind {
+    /// The largest piece.
+    Main,
+    /// A second piece of [`FLOATER_SHARE`] of the area or more: a view placed in the wrong
+    /// place, or two objects scanned as one.
+    Part,
+    /// A piece under [`FLOATER_SHARE`] of the area.
+    Floater,
+}
+
+/// One connected piece of a model.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct Piece {
+    /// What it is.
+    pub kind: PieceKind,
+    /// Its faces.
+    pub faces: usize,
+    /// Its area, mm², and its share of the model's.
+    pub area_mm2: f64,
+    /// See `area_mm2`.
+    pub area_share: f64,
+    /// Its bounding box's size along the model's axes, mm.
+    pub extent_mm: [f64; 3],
+    /// Its bounding box's centre, mm.
+    pub centre_mm: [f64; 3],
+}
+
+/// The pieces of `m` (connected by faces), largest area first.
+pub fn pieces(m: &Model) -> Vec<Piece> {
+    let (roots, _) = components(m);
+    let mut by_root: std::collections::BTreeMap<u32, (usize, f64, Point3<f64>, Point3<f64>)> =
+        std::collections::BTreeMap::new();
+    for f in &m.faces {
+        let e = by_root.entry(roots[f[0] as usize]).or_insert((
+            0,
+            0.0,
+            Point3::from([f64::INFINITY; 3]),
+            Point3::from([f64::NEG_INFINITY; 3]),
+        ));
+        e.0 += 1;
+        e.1 += face_area(m, f);
+        for &i in f {
+            let p = m.vertices[i as usize].cast::<f64>();
+            e.2 = e.2.inf(&p);
+            e.3 = e.3.sup(&p);
+        }
+    }
+    let total: f64 = by_root.values().map(|e| e.1).sum();
+    let mut out: Vec<Piece> = by_root
+        .into_values()
+        .map(|(faces, area, lo, hi)| Piece {
+            kind: PieceKind::Part,
+            faces,
+            area_mm2: area,
+            area_share: if total > 0.0 { area / total } else { 0.0 },
+            extent_mm: (hi - lo).into(),
+            centre_mm: nalgebra::center(&lo, &hi).coords.into(),
+        })
         .collect();
-    edges.sort_unstable();
-    // an edge of a closed surface is shared by exactly two faces
-    let open_edges = edges
-        .chunk_by(|a, b| a == b)
-        .filter(|e| e.len() != 2)
-        .count();
+    out.sort_by(|a, b| b.area_mm2.total_cmp(&a.area_mm2));
+    for (k, p) in out.iter_mut().enumerate() {
+        p.kind = if k == 0 {
+            PieceKind::Main
+        } else if p.area_share < FLOATER_SHARE {
+            PieceKind::Floater
+        } else {
+            PieceKind::Part
+        };
+    }
+    out
+}
+
+/// Each vertex's component (a root vertex of it) and which vertices faces use.
+fn components(m: &Model) -> (Vec<u32>, Vec<bool>) {
     let mut parent: Vec<u32> = (0..m.vertices.len() as u32).collect();
     let mut used = vec![false; m.vertices.len()];
     for f in &m.faces {
@@ -904,8 +972,28 @@ pub fn check(m: &Model) -> MeshCheck {
             }
         }
     }
-    let components = (0..m.vertices.len() as u32)
-        .filter(|&i| used[i as usize] && root(&mut parent, i) == i)
+    let roots = (0..m.vertices.len() as u32)
+        .map(|i| root(&mut parent, i))
+        .collect();
+    (roots, used)
+}
+
+/// Watertightness, components and the enclosed volume of a mesh.
+pub fn check(m: &Model) -> MeshCheck {
+    let mut edges: Vec<(u32, u32)> = m
+        .faces
+        .iter()
+        .flat_map(|f| (0..3).map(move |k| (f[k].min(f[(k + 1) % 3]), f[k].max(f[(k + 1) % 3]))))
+        .collect();
+    edges.sort_unstable();
+    // an edge of a closed surface is shared by exactly two faces
+    let open_edges = edges
+        .chunk_by(|a, b| a == b)
+        .filter(|e| e.len() != 2)
+        .count();
+    let (roots, used) = components(m);
+    let components = (0..m.vertices.len())
+        .filter(|&i| used[i] && roots[i] == i as u32)
         .count();
     let volume_mm3 = volume(m);
     MeshCheck {
@@ -1007,6 +1095,36 @@ mod tests {
         assert!(rim > 50);
         let off = off_surface(&points, &normals, &weights);
         assert_eq!(off.iter().filter(|&&o| o).count(), 0, "of {rim} rim points");
+    }
+
+    #[test]
+    fn a_models_pieces_are_named_by_size_largest_first() {
+        // a sphere of radius 30 mm, one of 4.5 mm 100 mm away (a floater) and one of 20 mm 150 mm
+        // away (a part)
+        let mut cloud = sphere(30.0, 6000, |_| true);
+        for (r, x) in [(4.5, 100.0), (20.0, -150.0)] {
+            cloud.extend(
+                sphere(r, 3000, |_| true)
+                    .into_iter()
+                    .map(|(p, n)| (p + Vector3::new(x, 0.0, 0.0), n)),
+            );
+        }
+        let (points, normals): (Vec<_>, Vec<_>) = cloud.into_iter().unzip();
+        let m = fuse(&points, &normals, 1.0).unwrap();
+        let p = pieces(&m);
+        assert_eq!(check(&m).components, p.len());
+        let kinds: Vec<PieceKind> = p.iter().map(|p| p.kind).collect();
+        assert_eq!(
+            kinds,
+            [PieceKind::Main, PieceKind::Part, PieceKind::Floater],
+            "{p:?}"
+        );
+        for (piece, (r, x)) in p.iter().zip([(30.0, 0.0), (20.0, -150.0), (4.5, 100.0)]) {
+            assert!((piece.extent_mm[0] - 2.0 * r).abs() < 1.0, "{piece:?}");
+            assert!((piece.centre_mm[0] - x).abs() < 0.5, "{piece:?}");
+        }
+        let shares: f64 = p.iter().map(|p| p.area_share).sum();
+        assert!((shares - 1.0).abs() < 1e-9);
     }
 
     #[test]

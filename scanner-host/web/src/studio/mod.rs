@@ -198,10 +198,33 @@ pub fn merge_verdict(
     if let Some(c) = r["fusion"]["check"]["components"].as_u64()
         && c > 1
     {
+        // each piece by its size and share of the surface, largest first
+        let pieces: Vec<String> = r["fusion"]["pieces"]
+            .as_array()
+            .map(Vec::as_slice)
+            .unwrap_or_default()
+            .iter()
+            .map(|p| {
+                let mm = |k: usize| p["extent_mm"][k].as_f64().unwrap_or(f64::NAN);
+                let what = match p["kind"].as_str() {
+                    Some("floater") => "a floater",
+                    Some("part") => "a part",
+                    _ => "the largest",
+                };
+                format!(
+                    "{what} {:.0} × {:.0} × {:.0} mm ({:.1} % of the surface)",
+                    mm(0),
+                    mm(1),
+                    mm(2),
+                    100.0 * p["area_share"].as_f64().unwrap_or(f64::NAN)
+                )
+            })
+            .collect();
         out.push(Problem {
             kind: "pieces".into(),
             words: format!(
-                "the model is {c} pieces, not one: a view sits in the wrong place (is the disc size on the page the one you printed?) or a piece floats apart; untick the view that does not fit and merge again"
+                "the model is {c} pieces, not one ({}): a view sits in the wrong place (is the disc size on the page the one you printed?) or a piece floats apart; untick the view that does not fit and merge again",
+                pieces.join("; ")
             ),
         });
     }
@@ -405,6 +428,24 @@ mod tests {
 
     fn read(json: &str) -> Result<Command, serde_json::Error> {
         serde_json::from_str::<PageCommand>(json).map(Command::from)
+    }
+
+    #[test]
+    fn a_model_in_pieces_is_a_problem_and_one_piece_is_not() {
+        let piece = |kind: &str, share: f64| {
+            serde_json::json!({"kind": kind, "faces": 10, "area_mm2": 1.0, "area_share": share,
+                "extent_mm": [60.0, 40.0, 20.0], "centre_mm": [0.0, 0.0, 0.0]})
+        };
+        let two = serde_json::json!({"fusion": {"check": {"components": 2},
+            "pieces": [piece("main", 0.99), piece("floater", 0.01)]}});
+        let kinds: Vec<String> = merge_verdict(Some(&two), &[])
+            .into_iter()
+            .map(|p| p.kind)
+            .collect();
+        assert_eq!(kinds, ["pieces"]);
+        let one = serde_json::json!({"fusion": {"check": {"components": 1},
+            "pieces": [piece("main", 1.0)]}});
+        assert!(merge_verdict(Some(&one), &[]).is_empty());
     }
 
     #[test]
