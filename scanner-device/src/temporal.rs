@@ -20,7 +20,8 @@
 //!
 //! Memory is fixed by the image: about 42 bytes a pixel (its threshold, margin, last value and
 //! state, and per edge the frame, depth, spread and place between frames of its crossings),
-//! two frames' edge lists, and a record a frame for the report. Pixels whose contrast is too
+//! two frames' edge lists and a frame's board points (buffers refilled frame after frame: no
+//! allocation once they have grown), and a record a frame for the report. Pixels whose contrast is too
 //! low, that were never crossed, or whose crossings disagree get no point and are counted.
 
 use scanner_core::Camera;
@@ -291,6 +292,8 @@ pub struct TemporalSweep {
     crossing: Vec<Crossing>,
     /// The previous frame's and this frame's edges per polarity.
     edges: [[LineEdges; 2]; 2],
+    /// An edge's board points on the left and the right plane (a buffer kept between frames).
+    sides: [Vec<Point3<f64>>; 2],
     /// Their planes.
     planes: [[Option<Plane<f64>>; 2]; 2],
     fits: Vec<[EdgePlaneFit; 2]>,
@@ -357,6 +360,7 @@ impl TemporalSweep {
                 n
             ],
             edges: Default::default(),
+            sides: Default::default(),
             planes: [[None; 2]; 2],
             fits: Vec::new(),
             frames: 0,
@@ -392,7 +396,10 @@ impl TemporalSweep {
         self.edges.swap(0, 1);
         self.planes.swap(0, 1);
         if let Some(axis) = self.axis {
-            self.edges[1] = self.line_edges(axis);
+            // the frame before last's buffers, refilled: no allocation once they are grown
+            let mut edges = std::mem::take(&mut self.edges[1]);
+            self.line_edges(axis, &mut edges);
+            self.edges[1] = edges;
             for (p, f) in fit.iter_mut().enumerate() {
                 let (plane, got) = self.edge_plane(axis, p);
                 self.planes[1][p] = plane;
@@ -451,10 +458,11 @@ impl TemporalSweep {
     }
 
     /// This frame's threshold crossings along every line, per polarity.
-    fn line_edges(&self, axis: Axis) -> [LineEdges; 2] {
+    fn line_edges(&self, axis: Axis, out: &mut [LineEdges; 2]) {
         let (lines, len, step_line, step) = self.line_shape(axis);
-        let mut out: [LineEdges; 2] = Default::default();
-        for e in &mut out {
+        for e in out.iter_mut() {
+            e.start.clear();
+            e.at.clear();
             e.start.push(0);
         }
         for l in 0..lines {
@@ -474,11 +482,10 @@ impl TemporalSweep {
                 let t = da as f32 / (da - db) as f32;
                 out[polarity].at.push(a as f32 + t);
             }
-            for e in &mut out {
+            for e in out.iter_mut() {
                 e.start.push(e.at.len() as u32);
             }
         }
-        out
     }
 
     fn next_random(&mut self, n: usize) -> usize {
@@ -493,7 +500,10 @@ impl TemporalSweep {
     /// (one per board plane) of one plane, which must be neither board plane.
     fn edge_plane(&mut self, axis: Axis, polarity: usize) -> (Option<Plane<f64>>, EdgePlaneFit) {
         let (lines, ..) = self.line_shape(axis);
-        let mut sides: [Vec<Point3<f64>>; 2] = Default::default();
+        let mut sides = std::mem::take(&mut self.sides);
+        for s in &mut sides {
+            s.clear();
+        }
         for l in 0..lines {
             for &at in self.edges[1][polarity].line(l) {
                 let px = self.pixel(axis, l, f64::from(at));
@@ -514,19 +524,22 @@ impl TemporalSweep {
             tried: lines.iter().all(Option::is_some),
             ..EdgePlaneFit::default()
         };
-        let Some(plane) = self.two_lines(&sides, &lines) else {
+        let plane = self.two_lines(&sides, &lines);
+        if let Some(plane) = plane {
+            for (s, pts) in sides.iter().enumerate() {
+                let (n, sq) = pts
+                    .iter()
+                    .map(|p| plane.signed_distance(p))
+                    .filter(|r| r.abs() < PLANE_TOL_MM)
+                    .fold((0u32, 0.0), |(n, sq), r| (n + 1, sq + r * r));
+                fit.points[s] = n;
+                fit.rms_mm[s] = (sq / f64::from(n.max(1))).sqrt();
+            }
+        }
+        self.sides = sides;
+        let Some(plane) = plane else {
             return (None, fit);
         };
-        for (s, pts) in sides.iter().enumerate() {
-            let near: Vec<f64> = pts
-                .iter()
-                .map(|p| plane.signed_distance(p))
-                .filter(|r| r.abs() < PLANE_TOL_MM)
-                .collect();
-            fit.points[s] = near.len() as u32;
-            fit.rms_mm[s] =
-                (near.iter().map(|r| r * r).sum::<f64>() / near.len().max(1) as f64).sqrt();
-        }
         let (n, d) = (plane.normal(), plane.offset());
         fit.plane = [n.x as f32, n.y as f32, n.z as f32, d as f32];
         fit.used = fit.points.iter().all(|&n| n as usize >= MIN_LINE_POINTS)
@@ -574,16 +587,11 @@ impl TemporalSweep {
         }
         let (_, mut plane) = best?;
         for _ in 0..3 {
-            let inliers: Vec<Point3<f64>> = sides
-                .iter()
-                .flatten()
-                .filter(|q| near(&plane, q))
-                .copied()
-                .collect();
-            if inliers.len() < 2 * MIN_LINE_POINTS {
+            let inliers = || sides.iter().flatten().filter(|q| near(&plane, q));
+            if inliers().count() < 2 * MIN_LINE_POINTS {
                 return None;
             }
-            plane = least_squares_plane(&inliers)?;
+            plane = least_squares_plane(inliers())?;
             if boards.iter().any(|m| m.dot(plane.normal()).abs() > 0.985) {
                 return None;
             }
@@ -618,14 +626,11 @@ impl TemporalSweep {
             return None;
         }
         // its ends among the points on it
-        let along: Vec<f64> = pts
+        let (lo, hi) = pts
             .iter()
             .filter(|p| off(&a, &d, p) < PLANE_TOL_MM)
             .map(|p| (p - a).dot(&d))
-            .collect();
-        let (lo, hi) = along
-            .iter()
-            .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), &t| {
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), t| {
                 (l.min(t), h.max(t))
             });
         Some((a + d * lo, a + d * hi))
@@ -1083,8 +1088,13 @@ fn fill_holes(mask: &[bool], (w, h): (usize, usize), reach: usize) -> Vec<bool> 
 }
 
 /// The plane nearest `pts` (least squares).
-fn least_squares_plane(pts: &[Point3<f64>]) -> Option<Plane<f64>> {
-    let c = pts.iter().fold(Vector3::zeros(), |s, p| s + p.coords) / pts.len() as f64;
+fn least_squares_plane<'a>(
+    pts: impl Iterator<Item = &'a Point3<f64>> + Clone,
+) -> Option<Plane<f64>> {
+    let (n, sum) = pts.clone().fold((0usize, Vector3::zeros()), |(n, s), p| {
+        (n + 1, s + p.coords)
+    });
+    let c = sum / n.max(1) as f64;
     let mut m = Matrix3::zeros();
     for p in pts {
         let v = p.coords - c;

@@ -60,8 +60,8 @@ fn a_real_shadow_sweep_read_through_time_covers_the_object() {
     // the band moves sideways: its edges placed along rows, found from the frames
     assert_eq!(t["along"], "rows", "{t}");
     assert_eq!(t["frames"], 200, "{t}");
-    // measured: edge planes in 152 and 143 of 200 frames (the others: the band at the
-    // picture's sides, on one sheet only, or its lines not in one plane), and 15 and 9 more
+    // measured: edge planes in 154 and 144 of 200 frames (the others: the band at the
+    // picture's sides, on one sheet only, or its lines not in one plane), and 12 and 8 more
     // blended across short gaps (frames 142–152, where the desk's line is short beside the
     // frog)
     assert!(
