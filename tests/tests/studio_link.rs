@@ -334,6 +334,20 @@ fn a_cable_fault_mid_sweep_loses_nothing_received_and_the_job_goes_on() {
     };
     let mut merged_views = 4;
     if !merge("0.4") {
+        // a refusal names the side view as the table numbers it (the merge counts from 0)
+        let m = state(&url)["merge"].clone();
+        eprintln!("the first merge: {}", m["refusal"]);
+        if !m["refusal"].is_null() {
+            assert_eq!(m["state"], "refused", "{m}");
+            assert!(m["refusal"]["kind"].is_string(), "{m}");
+            let views: Vec<u64> = m["refusal"]["views"]
+                .as_array()
+                .unwrap()
+                .iter()
+                .map(|v| v.as_u64().unwrap())
+                .collect();
+            assert!(views.contains(&4), "{m}");
+        }
         let (status, _) = request(&url, "POST", "/api/view", r#"{"view":4,"left_out":true}"#);
         assert_eq!(status, 200);
         merged_views = 3;

@@ -16,6 +16,22 @@ use scanner_web::studio::{MergeFailed, MergeFn, Studio, StudioServer};
 
 use crate::args::StudioArgs;
 
+/// A merge's error as the studio shows it: the merge's refusal typed (the page words it),
+/// anything else in the merge's words.
+fn refusal_of(e: anyhow::Error) -> MergeFailed {
+    let e = match e.downcast::<scanner_host::views::ViewsError>() {
+        Ok(scanner_host::views::ViewsError::Merge(refused)) => {
+            return MergeFailed::Refused(refused);
+        }
+        Ok(other) => anyhow::Error::from(other),
+        Err(e) => e,
+    };
+    match e.downcast::<scanner_merge::MergeError>() {
+        Ok(refused) => MergeFailed::Refused(refused),
+        Err(e) => MergeFailed::Other(format!("{e:#}")),
+    }
+}
+
 /// How often the studio asks the head how it is.
 const HEARTBEAT: Duration = Duration::from_millis(500);
 
@@ -59,8 +75,8 @@ pub fn studio(a: &StudioArgs) -> Result<()> {
             options,
             true,
         )
-        .map_err(|e| MergeFailed(format!("{e:#}")))?;
-        crate::merge::run(&plan, None).map_err(|e| MergeFailed(format!("{e:#}")))
+        .map_err(|e| MergeFailed::Other(format!("{e:#}")))?;
+        crate::merge::run(&plan, None).map_err(refusal_of)
     });
     let studio = Arc::new(Studio::new(link, merge));
     let server = StudioServer::start(a.listen, &a.allow_host, studio.clone())?;

@@ -238,6 +238,9 @@ pub struct Problem {
     pub words: String,
 }
 
+/// A view the merge leaves out: its number in the table (from 1) and why.
+pub type LeftOutView = (usize, &'static str);
+
 /// The merge's outcome.
 #[derive(Debug, Clone, Serialize, Deserialize)]
 pub struct Merge {
@@ -245,6 +248,9 @@ pub struct Merge {
     pub state: String,
     /// Its error, as words.
     pub error: Option<String>,
+    /// A refusal's kind and the views it names, as the table numbers them.
+    #[serde(default)]
+    pub refusal: Option<super::merge_words::PageRefusal>,
     /// The report (`merge-report.json`), when written.
     pub report: Option<serde_json::Value>,
     /// Files to download.
@@ -444,9 +450,10 @@ impl Job {
         self.log.push(line.into());
     }
 
-    /// The journals of the views the merge takes, and every view it leaves out (from 1) with
-    /// why: `left_out` (by the maker), `no_points`, `not_ended`.
-    pub fn merge_views(&self, project: &Path) -> (Vec<PathBuf>, Vec<(usize, &'static str)>) {
+    /// The views the merge takes (their number in the table, from 1, and their journals), and
+    /// every view it leaves out (from 1) with why: `left_out` (by the maker), `no_points`,
+    /// `not_ended`.
+    pub fn merge_views(&self, project: &Path) -> (Vec<(usize, PathBuf)>, Vec<LeftOutView>) {
         let mut taken = Vec::new();
         let mut left = Vec::new();
         for (k, v) in self.views.iter().enumerate() {
@@ -461,7 +468,7 @@ impl Job {
             };
             match why {
                 Some(w) => left.push((k + 1, w)),
-                None => taken.push(project.join(&v.journal)),
+                None => taken.push((k + 1, project.join(&v.journal))),
             }
         }
         (taken, left)
@@ -840,7 +847,7 @@ mod tests {
             ..Job::default()
         };
         let (taken, left) = job.merge_views(std::path::Path::new("p"));
-        assert_eq!(taken.len(), 1);
+        assert_eq!(taken, [(1, std::path::PathBuf::from("p/views/v.stream"))]);
         assert_eq!(
             left,
             vec![(2, "left_out"), (3, "no_points"), (4, "not_ended")]

@@ -10,6 +10,7 @@
 
 pub mod head;
 pub mod job;
+pub mod merge_words;
 mod server;
 
 pub use server::StudioServer;
@@ -31,10 +32,16 @@ pub const REPLY_WITHIN: Duration = Duration::from_secs(5);
 /// again: the head's worker is ending (its last packets are on the link before it returns).
 pub const SWEEP_ENDING_WITHIN: Duration = Duration::from_secs(3);
 
-/// Why the merge the studio ran failed: the merge's own words (its report says more).
+/// Why the merge the studio ran failed (its report says more).
 #[derive(Debug, thiserror::Error)]
-#[error("{0}")]
-pub struct MergeFailed(pub String);
+pub enum MergeFailed {
+    /// The merge refused the views: shown in the page's terms ([`merge_words::merge_refusal`]).
+    #[error(transparent)]
+    Refused(scanner_merge::MergeError),
+    /// Anything else (a file that cannot be read or written): the merge's own words.
+    #[error("{0}")]
+    Other(String),
+}
 
 /// What the studio's merge runs: the views' journals into the output folder, with the least
 /// overlap a match needs (the command line's own merge, handed in).

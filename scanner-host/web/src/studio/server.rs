@@ -17,7 +17,7 @@ use axum::routing::{get, post};
 use serde::Deserialize;
 
 use super::job::{MAX_VIEWS, Merge};
-use super::{MODEL_FILES, PageCommand, Studio, merge_verdict};
+use super::{MODEL_FILES, MergeFailed, PageCommand, Studio, merge_verdict};
 use crate::assets;
 use crate::front::{
     Access, FrontError, FrontLimits, Served, download, json_body, read_inside, refusal, serve,
@@ -334,6 +334,7 @@ async fn merge(State(studio): State<Arc<Studio>>, req: Request) -> Response {
         job.merge = Some(Merge {
             state: "running".into(),
             error: None,
+            refusal: None,
             report: None,
             files: Vec::new(),
             left_out: left
@@ -348,7 +349,8 @@ async fn merge(State(studio): State<Arc<Studio>>, req: Request) -> Response {
         job.say(format!("merging {} views", views.len()));
         (views, papers)
     };
-    let (views, papers) = views;
+    let (taken, papers) = views;
+    let (numbers, views): (Vec<usize>, Vec<std::path::PathBuf>) = taken.into_iter().unzip();
     let s = studio.clone();
     let started = std::thread::Builder::new()
         .name("studio-merge".into())
@@ -371,21 +373,32 @@ async fn merge(State(studio): State<Arc<Studio>>, req: Request) -> Response {
                 .map(|m| std::mem::take(&mut m.left_out))
                 .unwrap_or_default();
             let problems = merge_verdict(report.as_ref(), &papers);
+            let refusal = match &result {
+                Err(MergeFailed::Refused(e)) => {
+                    Some(super::merge_words::merge_refusal(e, &numbers))
+                }
+                _ => None,
+            };
             let (state, error) = match result {
                 Ok(()) if problems.is_empty() => ("merged", None),
                 Ok(()) => ("refused", None),
                 Err(e) => (
-                    if report.is_some() {
+                    if report.is_some() || refusal.is_some() {
                         "refused"
                     } else {
                         "failed"
                     },
-                    Some(e.to_string()),
+                    Some(
+                        refusal
+                            .as_ref()
+                            .map_or_else(|| e.to_string(), |r| r.words.clone()),
+                    ),
                 ),
             };
             job.merge = Some(Merge {
                 state: state.into(),
                 error,
+                refusal,
                 report,
                 files,
                 left_out,
