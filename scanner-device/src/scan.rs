@@ -132,12 +132,14 @@ fn temporal_lines(t: &crate::temporal::TemporalReport) -> Vec<String> {
             t.plane_rms_mm[1][1],
         ),
         format!(
-            "  the object: {:.1} % of its {} pixels with a point; its two edges {:.2} mm apart (median; 90 % within {:.2}), on the board {:.2} mm",
+            "  the object: {:.1} % of its {} pixels with a point; its two edges {:.2} mm apart (median; 90 % within {:.2}), on the board {:.2} mm; the board's points {:.2} mm from its planes (median; 90 % within {:.2})",
             100.0 * t.coverage,
             t.object_pixels,
             t.edges_apart_mm[0],
             t.edges_apart_mm[1],
             t.edges_apart_board_mm[0],
+            t.board_off_mm[0],
+            t.board_off_mm[1],
         ),
         format!(
             "  pixels without a point: {:.1} % too little contrast, {:.1} % crossed more than once, {:.1} % with no plane to place them, {:.1} % whose edges disagree by more than {:.1} mm",

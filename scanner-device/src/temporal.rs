@@ -229,6 +229,10 @@ pub struct TemporalReport {
     pub edges_compared: u64,
     /// The same on the board's pixels (within [`OBJECT_MM`] of it): the method's own noise.
     pub edges_apart_board_mm: [f64; 2],
+    /// The points on the board (within [`OBJECT_MM`] of it): their distance from its planes,
+    /// mm (median, 90th percentile) — how flat the desk and the wall come out, a check on
+    /// real frames where no other truth is known.
+    pub board_off_mm: [f64; 2],
     /// A pixel's two edges' points are used when they lie within this, mm:
     /// [`EDGES_AGREE_TIMES`] the board's median, at least [`AGREE_MIN_MM`].
     pub edges_agree_within_mm: f64,
@@ -806,6 +810,7 @@ impl TemporalSweep {
             edges_apart_mm: [f64::NAN; 2],
             edges_compared: 0,
             edges_apart_board_mm: [f64::NAN; 2],
+            board_off_mm: [f64::NAN; 2],
             edges_agree_within_mm: f64::NAN,
             crossings_agree_within_mm: f64::NAN,
             fits: Vec::new(),
@@ -890,6 +895,7 @@ impl TemporalSweep {
         let mut object = vec![false; w * h];
         let mut has_point = vec![false; w * h];
         let mut apart = Vec::new();
+        let mut board_off = Vec::new();
         for (i, ray, behind, mut depths) in placed {
             let c = &self.crossing[i];
             for (k, d) in depths.iter_mut().enumerate() {
@@ -929,6 +935,9 @@ impl TemporalSweep {
                 report.points_one_edge[k] += 1;
                 depths[k]
             };
+            if !object[i] {
+                board_off.push(f64::from((behind - z).abs() * along(&ray)));
+            }
             let p = ray * f64::from(z);
             buckets
                 .entry((c.frame[k], c.polarity[k]))
@@ -947,6 +956,11 @@ impl TemporalSweep {
             .filter(|(r, p)| **r && **p)
             .count() as u64;
         report.coverage = report.object_covered as f64 / report.object_pixels.max(1) as f64;
+        if !board_off.is_empty() {
+            board_off.sort_by(f64::total_cmp);
+            let n = board_off.len();
+            report.board_off_mm = [board_off[n / 2], board_off[n * 9 / 10]];
+        }
         report.edges_compared = apart.len() as u64;
         if !apart.is_empty() {
             apart.sort_by(f64::total_cmp);
