@@ -149,12 +149,9 @@ impl Summary {
             } else {
                 String::new()
             };
-            let bridged = format!(
-                "{bridged}; {} holes inside the surface",
-                self.interior_holes
-            );
             format!(
-                "{bridged}; coverage {:.1} % of the grid",
+                "{bridged}; {} holes inside the surface; coverage {:.1} % of the grid",
+                self.interior_holes,
                 100.0 * self.coverage
             )
         };

@@ -15,6 +15,13 @@ pub struct PageRefusal {
     pub words: String,
 }
 
+/// A view taken off the disc whose shape does not tell where it belongs.
+fn off_disc(view: usize) -> String {
+    format!(
+        "view {view} was not taken on the disc, and its shape does not tell where it belongs among the others: take it again on the disc, or untick it"
+    )
+}
+
 /// `e` in the page's terms; `numbers`: the table's number of each view the merge was given, in
 /// the order given (the merge numbers them from 0).
 pub fn merge_refusal(e: &MergeError, numbers: &[usize]) -> PageRefusal {
@@ -84,18 +91,10 @@ pub fn merge_refusal(e: &MergeError, numbers: &[usize]) -> PageRefusal {
                 n(seen_by)
             ),
         ),
-        MergeError::ShapeNowhere { view, .. } | MergeError::ShapeAmbiguous { view, .. } => (
-            if matches!(e, MergeError::ShapeNowhere { .. }) {
-                "ShapeNowhere"
-            } else {
-                "ShapeAmbiguous"
-            },
-            vec![n(view)],
-            format!(
-                "view {} was not taken on the disc, and its shape does not tell where it belongs among the others: take it again on the disc, or untick it",
-                n(view)
-            ),
-        ),
+        MergeError::ShapeNowhere { view, .. } => ("ShapeNowhere", vec![n(view)], off_disc(n(view))),
+        MergeError::ShapeAmbiguous { view, .. } => {
+            ("ShapeAmbiguous", vec![n(view)], off_disc(n(view)))
+        }
         MergeError::DiscMoved { view, seen_by, .. } => (
             "DiscMoved",
             vec![n(view), n(seen_by)],
