@@ -319,6 +319,10 @@ impl ScanReport {
     }
 }
 
+/// Longest time between two statuses of a sweep that has frames: a slow source (the virtual
+/// rig renders a frame in about half a second) still shows its progress every second.
+pub const STATUS_AT_MOST_APART: std::time::Duration = std::time::Duration::from_secs(1);
+
 /// One scan's state: the pipeline and its buffers, allocated once.
 pub struct Session {
     head: Box<Head<MAX_LINES>>,
@@ -339,6 +343,8 @@ pub struct Session {
     colour_seen: Option<crate::laser_colour::ColourSeen>,
     frames_since_header: u32,
     frames_since_status: u32,
+    /// When the last status went (the sweep's start before the first).
+    last_status: Instant,
     /// The laser planes fitted since the last status: count, RMS sum and largest, mm.
     planes: (u32, f64, f32),
     /// The turntable disc's message, sent after each header, when one was looked for.
@@ -535,6 +541,7 @@ impl Session {
             colour_seen: None,
             frames_since_header: 0,
             frames_since_status: 0,
+            last_status: Instant::now(),
             planes: (0, 0.0, 0.0),
             disc: None,
             disc_found: None,
@@ -754,7 +761,13 @@ impl Session {
         if self.frames_since_header >= self.opts.header_every {
             self.send_header(link)?;
         }
-        if self.frames_since_status >= self.opts.status_every {
+        // the status every `status_every` frames, after the first frame (the host shows the
+        // sweep under way at once) and at least every STATUS_AT_MOST_APART (a slow source)
+        if self.frames_since_status >= self.opts.status_every
+            || self.status.frames == 1
+            || self.last_status.elapsed() >= STATUS_AT_MOST_APART
+        {
+            self.last_status = Instant::now();
             self.send_planes(link)?;
             let s = Message::Status(self.status());
             self.send(link, &s, false)?;

@@ -245,7 +245,8 @@ fn bad_commands_are_refused_with_their_reasons() {
     h.write(&damaged);
     assert_eq!(h.ask(Command::Hello).outcome, Outcome::Accepted);
 
-    // busy: a preview runs; a second preview, a shot, a sweep wait for it to stop
+    // busy: a preview runs; a sweep waits for it to stop; a shot does not (the preview makes
+    // way and comes back after it)
     let on = Command::Preview(PreviewRequest {
         on: true,
         every: 2,
@@ -258,13 +259,23 @@ fn bad_commands_are_refused_with_their_reasons() {
         (r.outcome, r.state),
         (Outcome::Accepted, HeadState::Previewing)
     );
+    let from = h.heard.len();
     let r = h.ask(Command::Shot { board: false });
-    assert_eq!((r.outcome, r.state), (Outcome::Busy, HeadState::Previewing));
+    assert_eq!(
+        (r.outcome, r.state),
+        (Outcome::Accepted, HeadState::Calibrating)
+    );
+    h.until(from, Duration::from_secs(60), |x| match x {
+        Heard::Shot(s) => Some(s.seq),
+        _ => None,
+    });
     let from = h.heard.len();
     h.until(from, Duration::from_secs(20), |x| match x {
         Heard::Preview(_, w, hh) => Some((*w, *hh)),
         _ => None,
     });
+    let r = h.ask(sweep(10));
+    assert_eq!((r.outcome, r.state), (Outcome::Busy, HeadState::Previewing));
     let r = h.ask(Command::Stop);
     assert_eq!(r.outcome, Outcome::Accepted);
     let t0 = Instant::now();

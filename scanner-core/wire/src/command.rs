@@ -132,6 +132,10 @@ impl Adjustable {
 pub const MAX_CONTROL_VALUE: i32 = 1_000_000;
 /// Most turntable steps one command turns, either way.
 pub const MAX_TURN_STEPS: i32 = 1_000_000;
+/// An accepted turn's reply carries the angle turned in its `detail` (hundredths of a degree)
+/// and where the turntable stands now in its `field` (from 1); this `detail`: the angle is not
+/// known (a motor without its steps' angle).
+pub const TURN_UNKNOWN: i32 = i32::MIN;
 
 /// Which field of a command is out of range (the reply's `field`), numbered from 1 in the
 /// command's order of fields.

@@ -33,7 +33,22 @@ struct File {
     /// `tilt_pivot` (default: the objects' mean centre). The board keeps its own pitch.
     tilt_deg: Option<f64>,
     tilt_pivot: Option<[f64; 3]>,
+    /// Where the virtual operator holds the intrinsics target for the first calibration
+    /// shots, in order (then the evenly spread poses of [`crate::target::TargetPose::sweep`]).
+    shots: Option<Vec<ShotFile>>,
 }
+
+/// A calibration shot's target pose: its centre (mm, camera coordinates) and its turns about
+/// x, y and z (degrees).
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct ShotFile {
+    centre: [f64; 3],
+    turn_deg: Option<[f64; 3]>,
+}
+
+/// Most calibration shot poses a scene may list.
+pub const MAX_SHOT_POSES: usize = 64;
 
 /// One view of a 360° scan: the objects turned by `angle_deg` about `axis` through `pivot`
 /// (default: the mean of the objects' centres), then moved by `translate` (mm).
@@ -405,6 +420,29 @@ impl Scene {
             }
             for v in &mut s.views {
                 *v = tilt * *v * tilt.inverse();
+            }
+        }
+        if let Some(shots) = f.shots {
+            if shots.len() > MAX_SHOT_POSES {
+                return Err(RigError::Scene(format!(
+                    "{} shots: at most {MAX_SHOT_POSES}",
+                    shots.len()
+                )));
+            }
+            for (k, p) in shots.iter().enumerate() {
+                let turn = p.turn_deg.unwrap_or([0.0; 3]);
+                if !p.centre.iter().chain(&turn).all(|v| v.is_finite())
+                    || p.centre[2] <= 0.0
+                    || turn.iter().any(|t| t.abs() >= 80.0)
+                {
+                    return Err(RigError::Scene(format!(
+                        "shots[{k}]: the centre must lie in front of the camera (z > 0) and each turn within ±80°"
+                    )));
+                }
+                s.shots.push(crate::target::TargetPose {
+                    centre: Point3::from(p.centre),
+                    turn_deg: turn,
+                });
             }
         }
         if let Some(n) = f.sensor {

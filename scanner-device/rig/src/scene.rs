@@ -244,6 +244,9 @@ pub struct Scene {
     /// rod held in front of it casts its shadow, swept as the laser would be (its `sweep`,
     /// `frames`, wobble and jitter); the reference frame is the scene lit without the rod.
     pub shadow: Option<ShadowSpec>,
+    /// Where the virtual operator holds the intrinsics target for the first calibration shots,
+    /// in order; later shots take [`crate::target::TargetPose::sweep`]'s poses.
+    pub shots: Vec<crate::target::TargetPose>,
 }
 
 /// The lamp and the rod of a shadow sweep ([`Scene::shadow`]).
@@ -425,6 +428,7 @@ impl Scene {
             turntable: None,
             fixed: Vec::new(),
             shadow: None,
+            shots: Vec::new(),
         }
     }
 

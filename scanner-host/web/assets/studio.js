@@ -11,9 +11,6 @@ const withToken = (url) => (token ? `${url}${url.includes("?") ? "&" : "?"}token
 /** Why the merge left a view out, in the page's words. */
 const LEFT_OUT = { left_out: "you unticked it", no_points: "it has no points", not_ended: "its sweep has not ended" };
 
-/** Shots of the target the calibration asks for. */
-const TARGET_SHOTS = 6;
-
 /** What the page last read, for tests and the console. */
 window.studio = { state: null, lastAnswer: null };
 
@@ -70,17 +67,25 @@ const ADVICE = {
   out_of_focus: "The picture is blurred: turn the focus until the edges' width is smallest.",
 };
 
-function drawCover(cover, shots) {
+/** The coverage map: each cell the target was seen in, green; the guide's regions still
+ * missing, outlined orange; each kept shot's tilt as a dot from the centre. */
+function drawCover(cover, shots, guide) {
   const c = q("cover").getContext("2d");
   c.clearRect(0, 0, 160, 120);
   for (let r = 0; r < 8; r++) {
     for (let k = 0; k < 8; k++) {
-      const on = (BigInt(cover) >> BigInt(r * 8 + k)) & 1n;
+      const on = cover[r * 8 + k] === "1";
       c.fillStyle = on ? "#7bc47f" : "#eee";
       c.fillRect(k * 20 + 1, r * 15 + 1, 18, 13);
     }
   }
-  // each kept shot's tilt as a dot from the centre
+  c.strokeStyle = "#e8590c";
+  c.lineWidth = 2;
+  for (const g of guide ? guide.regions : []) {
+    if (g.done) continue;
+    const [x0, y0, x1, y1] = g.rect;
+    c.strokeRect(x0 * 160 + 1, y0 * 120 + 1, (x1 - x0) * 160 - 2, (y1 - y0) * 120 - 2);
+  }
   c.fillStyle = "#2d3b45";
   for (const s of shots) {
     if (!s.kept || s.board) continue;
@@ -90,10 +95,61 @@ function drawCover(cover, shots) {
   }
 }
 
-function cellsFree(cover) {
-  let n = 0;
-  for (let i = 0; i < 64; i++) if (!((BigInt(cover) >> BigInt(i)) & 1n)) n++;
-  return n;
+/** Where the next target shot should go, drawn over the live picture: the region the guide
+ * asks for first, in orange. */
+function drawGuideBox(guide) {
+  const img = q("picture");
+  const box = q("guide-box");
+  box.width = img.clientWidth;
+  box.height = img.clientHeight;
+  const c = box.getContext("2d");
+  c.clearRect(0, 0, box.width, box.height);
+  const s = window.studio.state;
+  const ask = guide && guide.asks.find((a) => a.region != null);
+  // only over the whole picture (a zoom shows part of it) while the target is asked for
+  if (!ask || zoom || !s.preview || s.calibration) return;
+  const [x0, y0, x1, y1] = guide.regions[ask.region].rect;
+  c.strokeStyle = "#e8590c";
+  c.lineWidth = 3;
+  c.setLineDash([8, 5]);
+  c.strokeRect(x0 * box.width + 2, y0 * box.height + 2, (x1 - x0) * box.width - 4, (y1 - y0) * box.height - 4);
+  c.fillStyle = "#e8590c";
+  c.font = "bold 14px system-ui";
+  // the label inside the box, on the side away from the picture's edge
+  const right = x0 > 0.5;
+  c.textAlign = right ? "right" : "left";
+  c.fillText("next shot here", right ? x1 * box.width - 8 : x0 * box.width + 8, y0 * box.height + 20);
+}
+
+const GRADE = { good: "good", usable: "usable", redo: "redo" };
+/** Each figure's name on the page. */
+const FIGURE = {
+  rms_px: "reprojection error (RMS)",
+  halves_px: "two halves' calibrations apart",
+  regions: "regions of the picture covered",
+  board_rms_px: "sheets' dots off their layout (RMS)",
+  board_angle_deg: "angle between the sheets",
+  laser_lines_pct: "picture lines the laser crosses",
+};
+
+/** The calibration's figures, each with its value, unit, verdict and what to do. */
+function drawVerdicts(verdicts) {
+  q("verdicts").style.display = verdicts && verdicts.length ? "" : "none";
+  const body = q("verdicts").tBodies[0];
+  body.innerHTML = "";
+  for (const v of verdicts || []) {
+    const tr = body.insertRow();
+    tr.dataset.part = v.part;
+    tr.dataset.figure = v.figure;
+    tr.dataset.grade = v.grade;
+    const digits = v.unit === "px" ? 3 : v.unit === "of 9" ? 0 : 1;
+    const value = v.value == null ? "–" : `${v.value.toFixed(digits)} ${v.unit}`;
+    for (const t of [v.part, FIGURE[v.figure] || v.figure, value]) tr.insertCell().textContent = t;
+    const g = tr.insertCell();
+    g.textContent = GRADE[v.grade] || v.grade;
+    g.className = v.grade === "good" ? "good" : v.grade === "usable" ? "usable" : "bad";
+    tr.insertCell().textContent = v.words;
+  }
 }
 
 function render(s) {
@@ -112,14 +168,23 @@ function render(s) {
     q("verdict").className = p.verdict === "good" ? "good" : "bad";
     q("advice").textContent = ADVICE[p.verdict] || "";
   }
-  const targets = s.shots.filter((x) => x.kept && !x.board).length;
-  const boards = s.shots.filter((x) => x.kept && x.board).length;
-  drawCover(s.cover, s.shots);
-  const more = Math.max(0, TARGET_SHOTS - targets);
-  q("asked").dataset.more = String(more + (boards ? 0 : 1));
-  q("asked").textContent = more > 0
-    ? `Take ${more} more shot(s) of the target: tilt it, and fill the grey cells (${cellsFree(s.cover)} of 64 still empty).`
-    : boards === 0 ? "Enough target shots. Now one shot of the board, laser off." : "Enough shots: calibrate.";
+  const g = s.guide;
+  drawCover(s.cover, s.shots, g);
+  drawGuideBox(g);
+  q("asked").dataset.more = String(g.asks.length);
+  q("asked").dataset.next = g.asks.length ? g.asks[0].kind : "calibrate";
+  q("asked").textContent = g.asks.length
+    ? `${g.asks[0].words}${g.asks.length > 1 ? ` (then ${g.asks.length - 1} more thing(s) below)` : ""}`
+    : `Every region covered by ${g.target_shots} target shots, tilted ${g.tilt_spread_deg[0]}° and ${g.tilt_spread_deg[1]}°, and the board's shot taken: press Calibrate.`;
+  q("asks").innerHTML = "";
+  for (const a of g.asks.slice(1)) {
+    const li = document.createElement("li");
+    li.dataset.kind = a.kind;
+    li.textContent = a.words;
+    q("asks").appendChild(li);
+  }
+  q("calibrate").className = g.ready ? "" : "waiting";
+  q("calibrate").title = g.ready ? "calibrate from the shots taken" : "not yet: the guide still asks for shots";
   if (s.calibration) {
     const c = s.calibration;
     const f = (v, d) => (v == null ? "–" : v.toFixed(d));
@@ -129,13 +194,15 @@ function render(s) {
       img.onload = () => { img.style.display = "block"; };
       img.src = withToken(`/api/overlay.png?t=${Date.now()}`);
     }
-    q("calibration-result").innerHTML = `<b class="${c.result === "calibrated" ? "good" : "bad"}">${c.result}</b>: ${c.shots} shots, ${f(c.rms_px, 3)} px RMS, halves differ by ${f(c.halves_px, 3)} px; board ${f(c.board_rms_px, 2)} px, sheets at ${f(c.board_angle_deg, 1)}°`;
+    q("calibration-result").innerHTML = `<b class="${c.result === "calibrated" ? "good" : "bad"}">${c.result}</b> from ${c.shots} target shots`;
+    drawVerdicts(s.verdicts);
   }
   const body = q("views").tBodies[0];
   body.innerHTML = "";
   s.views.forEach((v, i) => {
     const tr = body.insertRow();
-    for (const t of [i + 1, v.points, v.disc || "not looked for", v.done ? v.ended : "sweeping…"]) tr.insertCell().textContent = t;
+    tr.dataset.frames = v.frames;
+    for (const t of [i + 1, v.frames, v.points, v.disc || "not looked for", v.done ? v.ended : "sweeping…"]) tr.insertCell().textContent = t;
     // a view the merge refuses can be left out, and taken back
     const box = document.createElement("input");
     box.type = "checkbox";
@@ -159,7 +226,11 @@ function render(s) {
   }
   for (const v of s.views) if (v.rebuilt) q("next").textContent = "A view cut when the studio stopped was rebuilt from its journal (see the log).";
   if (window.studioViewerButtons) window.studioViewerButtons(s.views, !!(s.merge && s.merge.files.includes("model.stl")));
-  q("log").textContent = s.log.join("\n");
+  // the log follows its newest line unless the maker scrolled up to read
+  const log = q("log");
+  const atEnd = log.scrollTop + log.clientHeight >= log.scrollHeight - 4;
+  log.textContent = s.log.join("\n");
+  if (atEnd) log.scrollTop = log.scrollHeight;
 }
 
 /** The picture, fetched again as soon as the last one is shown: as fast as the head sends them. */

@@ -152,6 +152,9 @@ pub(super) struct Service {
     pub(super) laser: Arc<AtomicBool>,
     /// Views of the rig's scene (its turntable's steps); `None`: no rig.
     pub(super) rig_views: Option<usize>,
+    /// The rotation of the rig's objects in each of its views, degrees about an axis (the
+    /// turntable's steps' angles are the differences).
+    pub(super) rig_turns: Vec<scanner_core::nalgebra::UnitQuaternion<f64>>,
     pub(super) frame_size: (usize, usize),
     /// Jobs started.
     pub(super) jobs: u64,
@@ -159,6 +162,10 @@ pub(super) struct Service {
     pub(super) heard: Option<std::time::Instant>,
     /// The lasers were switched off for the host's silence (its length), not yet told.
     pub(super) silenced: Option<Duration>,
+    /// The running preview's settings.
+    pub(super) previewing: Option<PreviewRequest>,
+    /// The preview a shot interrupted, started again when the shot ends.
+    pub(super) resume: Option<PreviewRequest>,
 }
 
 /// Runs the service until its input closes or Ctrl-C.
@@ -201,6 +208,7 @@ pub fn serve(a: &ServeArgs) -> Result<()> {
         .clone()
         .or_else(|| made.exists().then_some(made));
     let mut s = Service {
+        rig_turns: rig_turns(&a.scan)?,
         rig_views: rig_views(&a.scan)?,
         args: a.clone(),
         out: SharedOut(Arc::new(Mutex::new(output))),
@@ -216,6 +224,8 @@ pub fn serve(a: &ServeArgs) -> Result<()> {
         jobs: 0,
         heard: None,
         silenced: None,
+        previewing: None,
+        resume: None,
     };
     crate::errln!("serving {describe} on {}; waiting for commands", a.scan.out);
     s.dispatch(&rx);
@@ -292,4 +302,18 @@ fn rig_views(a: &ScanArgs) -> Result<Option<usize>> {
     }
     #[cfg(not(feature = "rig"))]
     Ok(None)
+}
+
+/// The rotation of the rig scene's objects in each of its views (none without the rig).
+fn rig_turns(a: &ScanArgs) -> Result<Vec<scanner_core::nalgebra::UnitQuaternion<f64>>> {
+    if !a.source.starts_with("rig") {
+        return Ok(Vec::new());
+    }
+    #[cfg(feature = "rig")]
+    {
+        let scene = super::render::load_scene(a.scene.as_deref())?;
+        Ok(scene.views.iter().map(|v| v.rotation).collect())
+    }
+    #[cfg(not(feature = "rig"))]
+    Ok(Vec::new())
 }

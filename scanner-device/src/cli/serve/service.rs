@@ -55,6 +55,10 @@ impl Service {
                 Event::Ended(id) => {
                     if self.running.as_ref().is_some_and(|r| r.id == id) {
                         self.reap();
+                        // the preview a shot interrupted comes back
+                        if let Some(p) = self.resume.take() {
+                            self.start(Work::Preview(p));
+                        }
                     }
                 }
                 Event::Quit => break,
@@ -193,6 +197,7 @@ impl Service {
         let busy = self.running.is_some();
         match f.command {
             Command::Hello => (ok(self), None),
+            Command::Stop if self.resume.take().is_some() => (ok(self), None),
             Command::Stop => match &self.running {
                 Some(r) => {
                     r.stop.store(true, Ordering::SeqCst);
@@ -200,6 +205,8 @@ impl Service {
                 }
                 None => (self.reply(seq, Outcome::NothingToStop, 0, 0), None),
             },
+            // the preview a shot interrupted stays off
+            Command::Preview(p) if !p.on && self.resume.take().is_some() => (ok(self), None),
             Command::Preview(p) if !p.on => match &self.running {
                 Some(r) if r.state == HeadState::Previewing => {
                     r.stop.store(true, Ordering::SeqCst);
@@ -228,8 +235,18 @@ impl Service {
             Command::Turn { steps } => match self.rig_views {
                 Some(views) if views > 1 => {
                     let n = views as i64;
+                    let from = self.view;
                     self.view = (self.view as i64 + i64::from(steps)).rem_euclid(n) as usize;
-                    (ok(self), None)
+                    // the answer tells where the turntable stands (from 1) and the angle
+                    // it turned, hundredths of a degree
+                    let turned = match (self.rig_turns.get(from), self.rig_turns.get(self.view)) {
+                        (Some(a), Some(b)) => {
+                            ((b * a.inverse()).angle().to_degrees() * 100.0).round() as i32
+                        }
+                        _ => scanner_wire::TURN_UNKNOWN,
+                    };
+                    let at = u8::try_from(self.view + 1).unwrap_or(u8::MAX);
+                    (self.reply(seq, Outcome::Accepted, at, turned), None)
                 }
                 _ => (self.reply(seq, Outcome::NotHere, 0, 0), None),
             },
@@ -245,6 +262,29 @@ impl Service {
                     self.reap();
                 }
                 self.decide(f)
+            }
+            // a shot or the calibration while the preview runs: the preview makes way and
+            // comes back after it
+            Command::Shot { .. } | Command::Calibrate
+                if self
+                    .running
+                    .as_ref()
+                    .is_some_and(|r| r.state == HeadState::Previewing) =>
+            {
+                if let Some(r) = &self.running {
+                    r.stop.store(true, Ordering::SeqCst);
+                    self.reap();
+                }
+                let preview = self.previewing.take();
+                let (reply, job) = self.decide(f);
+                match (job, preview) {
+                    (Some(job), p) => {
+                        self.resume = p;
+                        (reply, Some(job))
+                    }
+                    // refused: the preview goes on as it was
+                    (None, p) => (reply, p.map(Work::Preview)),
+                }
             }
             _ if busy && self.ended_within_grace() => self.decide(f),
             _ if busy => (self.reply(seq, Outcome::Busy, 0, 0), None),
@@ -296,6 +336,10 @@ impl Service {
 
     pub(super) fn start(&mut self, job: Work) {
         let stop = Arc::new(AtomicBool::new(false));
+        self.previewing = match job {
+            Work::Preview(p) => Some(p),
+            _ => None,
+        };
         let state = match job {
             Work::Preview(_) => HeadState::Previewing,
             Work::Sweep(_) => HeadState::Sweeping,

@@ -106,6 +106,8 @@ impl Worker {
                 scene.fixed.clear();
                 scene.turntable = None;
             }
+            let poses = std::mem::take(&mut scene.shots);
+            let (camera, width, height) = (scene.camera.clone(), scene.width, scene.height);
             let rig = scanner_rig::Rig::new(scene)
                 .map_err(|e| anyhow::anyhow!("building the virtual rig: {e}"))?;
             if board {
@@ -117,7 +119,15 @@ impl Worker {
                 );
             };
             let k = usize::from(kept);
-            let pose = TargetPose::sweep(k % RIG_POSES, RIG_POSES);
+            // the scene's own poses first (a maker's first shots), then the regions the
+            // studio's guide asks for, in its order
+            let size = [
+                (grid.cols - 1) as f64 * grid.pitch + grid.dot,
+                (grid.rows - 1) as f64 * grid.pitch + grid.dot,
+            ];
+            let pose = poses.get(k).copied().unwrap_or_else(|| {
+                TargetPose::guided(k - poses.len(), &camera, (width, height), size)
+            });
             return Ok(rig
                 .shot(&Pattern::from(&grid), &pose, k as u64)
                 .image
@@ -242,10 +252,6 @@ fn guarded<T>(step: impl FnOnce() -> Result<T, crate::calibrate::CalibrateError>
         }
     }
 }
-
-/// Poses the rig's virtual operator holds the target at, in turn.
-#[cfg(feature = "rig")]
-pub(super) const RIG_POSES: usize = 12;
 
 /// A shot's file name in the work folder's `shots/`.
 pub(super) fn shot_name(board: bool, k: u16) -> String {

@@ -8,6 +8,7 @@
 //! Where a command is refused, the page says why in words ([`words`]) and by kind: the wire
 //! carries only numbers.
 
+pub mod guide;
 pub mod head;
 pub mod job;
 pub mod merge_words;
@@ -54,6 +55,11 @@ pub enum SendError {
     /// head, or race the first).
     #[error("a sweep runs already: wait for it to end, or press Stop")]
     SweepRuns,
+    /// The studio holds the calibration back: the guide still asks for shots (the coverage
+    /// map has an empty region, the shots are not tilted enough, or the board's shot is
+    /// missing).
+    #[error("calibrate: not yet: {} thing(s) to do first, the list under the coverage map; the first: {}", .0.len(), .0.first().map_or("", |a| a.words.as_str()))]
+    NotReady(Vec<guide::Ask>),
     /// The head did not answer, or the link cannot be written.
     #[error(transparent)]
     Head(#[from] HeadError),
@@ -64,6 +70,7 @@ impl SendError {
     pub fn kind(&self) -> &'static str {
         match self {
             SendError::SweepRuns => "busy",
+            SendError::NotReady(_) => "not_ready",
             SendError::Head(HeadError::NoAnswer(_)) => "no_answer",
             SendError::Head(HeadError::Write(_)) => "link_failed",
         }
@@ -72,7 +79,7 @@ impl SendError {
     /// The status answered.
     pub fn status(&self) -> StatusCode {
         match self {
-            SendError::SweepRuns => StatusCode::CONFLICT,
+            SendError::SweepRuns | SendError::NotReady(_) => StatusCode::CONFLICT,
             SendError::Head(_) => StatusCode::GATEWAY_TIMEOUT,
         }
     }
@@ -122,6 +129,12 @@ impl Studio {
     /// # Errors
     /// [`SendError`]: held back, or not answered.
     pub fn send(&self, cmd: Command) -> Result<(Reply, String), SendError> {
+        if matches!(cmd, Command::Calibrate) {
+            let g = guide::guide(&self.link.shared.job());
+            if !g.ready {
+                return Err(SendError::NotReady(g.asks));
+            }
+        }
         let sweep = matches!(cmd, Command::Sweep(_));
         let _one = if sweep {
             let gate = self.sweeping.try_lock().map_err(|_| SendError::SweepRuns)?;
@@ -148,6 +161,9 @@ impl Studio {
                 let said = words(&cmd, &r);
                 if r.outcome == Outcome::Accepted && matches!(cmd, Command::Laser { on: true }) {
                     job.head.laser_off_unheard_s = None;
+                }
+                if r.outcome == Outcome::Accepted && matches!(cmd, Command::Turn { .. }) {
+                    job.say(said.clone());
                 }
                 if r.outcome != Outcome::Accepted {
                     if sweep {
@@ -401,7 +417,22 @@ pub fn words(command: &Command, r: &Reply) -> String {
         scanner_wire::HeadState::Calibrating => "a shot or the calibration",
     };
     match r.outcome {
-        Outcome::Accepted => format!("{name}: done"),
+        Outcome::Accepted => match command {
+            Command::Turn { .. } if r.detail != scanner_wire::TURN_UNKNOWN => format!(
+                "{name}: done, turned {:.1}°{}",
+                f64::from(r.detail) / 100.0,
+                if r.field > 0 {
+                    format!(" (now at position {})", r.field)
+                } else {
+                    String::new()
+                }
+            ),
+            // work that runs on: its outcome comes in the job (a shot, the calibration, a view)
+            Command::Shot { .. } | Command::Calibrate | Command::Sweep(_) => {
+                format!("{name}: started")
+            }
+            _ => format!("{name}: done"),
+        },
         Outcome::Unknown => format!("{name}: the head does not know this command (update it)"),
         Outcome::OutOfRange => format!(
             "{name}: field {} is out of range (limit {})",

@@ -119,7 +119,16 @@ fn json(status: StatusCode, v: &serde_json::Value) -> Response {
 async fn state(State(studio): State<Arc<Studio>>) -> Response {
     let job = studio.link.shared.job();
     let mut v = serde_json::to_value(&*job).unwrap_or_default();
-    v["cover"] = job.cover().into();
+    // the coverage map as 64 characters, cell i (row by row) the i-th: a 64-bit number
+    // would lose its last rows as a JavaScript number
+    v["cover"] = format!("{:064b}", job.cover().reverse_bits()).into();
+    let guide = super::guide::guide(&job);
+    if let Some(c) = &job.calibration {
+        v["verdicts"] =
+            serde_json::to_value(super::guide::verdicts(c, &guide, job.preview.as_ref()))
+                .unwrap_or_default();
+    }
+    v["guide"] = serde_json::to_value(guide).unwrap_or_default();
     v["link_closed"] = studio.link.shared.closed.load(Ordering::SeqCst).into();
     json(StatusCode::OK, &v)
 }
@@ -253,10 +262,13 @@ async fn command(State(studio): State<Arc<Studio>>, req: Request) -> Response {
                 "words": said,
             }),
         ),
-        Ok(Err(e)) => json(
-            e.status(),
-            &serde_json::json!({"outcome": e.kind(), "words": e.to_string()}),
-        ),
+        Ok(Err(e)) => {
+            let mut v = serde_json::json!({"outcome": e.kind(), "words": e.to_string()});
+            if let super::SendError::NotReady(asks) = &e {
+                v["asks"] = serde_json::to_value(asks).unwrap_or_default();
+            }
+            json(e.status(), &v)
+        }
         Err(_) => refusal(
             StatusCode::INTERNAL_SERVER_ERROR,
             "failed",
