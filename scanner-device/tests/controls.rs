@@ -76,3 +76,34 @@ fn a_camera_without_manual_controls_is_reported_not_refused() {
         "{r}"
     );
 }
+
+/// A control set by hand (the studio's camera controls) is found by its V4L2 id and checked
+/// against the camera's own range: a webcam's exposure 3–2047 and white balance 2000–6500 K;
+/// a focus it has not got is named.
+#[test]
+fn controls_set_by_hand_are_checked_against_the_cameras_range() {
+    use scanner_device::source::controls::{AdjustError, by_hand};
+    use scanner_wire::Adjustable;
+    let c = list("uvc-webcam.txt");
+    let s = by_hand(&c, Adjustable::Exposure, 100).unwrap();
+    assert_eq!((s.id, s.value), (id::EXPOSURE_ABSOLUTE, 100));
+    assert_eq!(
+        by_hand(&c, Adjustable::Exposure, 5000),
+        Err(AdjustError::OutOfRange {
+            control: "exposure",
+            value: 5000,
+            min: 3,
+            max: 2047
+        })
+    );
+    assert_eq!(
+        by_hand(&c, Adjustable::WhiteBalance, 5000).map(|s| s.id),
+        Ok(id::WHITE_BALANCE_TEMPERATURE)
+    );
+    assert_eq!(by_hand(&c, Adjustable::Gain, 40).map(|s| s.id), Ok(id::GAIN));
+    let fixed = list("fixed-focus-auto-mains.txt");
+    assert_eq!(
+        by_hand(&fixed, Adjustable::Focus, 10),
+        Err(AdjustError::NotOffered("focus"))
+    );
+}

@@ -46,11 +46,15 @@ impl Drop for Head {
 
 impl Head {
     fn start(work: &Path, extra: &[&str]) -> Head {
+        Head::start_on("rig", work, extra)
+    }
+
+    fn start_on(source: &str, work: &Path, extra: &[&str]) -> Head {
         let (mut port, device) = TTYPort::pair().expect("a pseudo-terminal pair");
         port.set_timeout(Duration::from_millis(50)).unwrap();
         let name = device.name().unwrap();
         let child = Process::new(workspace_bin("scanner-device"))
-            .args(["serve", "--source", "rig", "--out"])
+            .args(["serve", "--source", source, "--out"])
             .arg(format!("serial:{name}"))
             .arg("--work")
             .arg(work)
@@ -204,12 +208,17 @@ fn bad_commands_are_refused_with_their_reasons() {
     let r = h.ask(Command::Turn { steps: 0 });
     assert_eq!((r.outcome, r.field), (Outcome::OutOfRange, 1));
 
-    // what this head has not got: a camera's controls, a turntable (the demo scene has one view)
-    let r = h.ask(Command::Camera {
-        control: 0,
-        value: 100,
-    });
-    assert_eq!(r.outcome, Outcome::NotHere);
+    // the rig's camera: exposure and gain, within their ranges (its limit told); no focus
+    let camera = |control, value| Command::Camera { control, value };
+    assert_eq!(h.ask(camera(0, 100)).outcome, Outcome::Accepted);
+    let r = h.ask(camera(0, 0));
+    assert_eq!((r.outcome, r.field, r.detail), (Outcome::OutOfRange, 2, 1));
+    let r = h.ask(camera(1, 5000));
+    assert_eq!((r.outcome, r.field, r.detail), (Outcome::OutOfRange, 2, 1000));
+    let r = h.ask(camera(4, 100));
+    assert_eq!((r.outcome, r.field), (Outcome::OutOfRange, 1));
+    // what this head has not got: a focus, a turntable (the demo scene has one view)
+    assert_eq!(h.ask(camera(2, 100)).outcome, Outcome::NotHere);
     assert_eq!(h.ask(Command::Turn { steps: 1 }).outcome, Outcome::NotHere);
 
     // unknown: a newer host's command 12, its number kept
@@ -466,4 +475,20 @@ fn a_silent_host_gets_the_laser_switched_off_and_is_told() {
         "{:?}",
         &h.heard[from..]
     );
+}
+
+/// A real camera's exposure set by hand through the service: accepted and set on the device
+/// (the head's log names it), refused as out of range beyond the camera's own limit.
+#[test]
+#[ignore = "needs a V4L2 camera with a manual exposure (SCANNER_CAMERA=/dev/videoN, default /dev/video0)"]
+fn a_real_cameras_exposure_is_set_by_hand_through_the_service() {
+    let device = std::env::var("SCANNER_CAMERA").unwrap_or_else(|_| "/dev/video0".into());
+    let tmp = tempfile::tempdir().unwrap();
+    let mut h = Head::start_on(&device, &tmp.path().join("work"), &[]);
+    let camera = |control, value| Command::Camera { control, value };
+    let r = h.ask(camera(0, 100));
+    assert_eq!(r.outcome, Outcome::Accepted, "exposure 100 (10 ms): {r:?}");
+    let r = h.ask(camera(0, 1_000_000));
+    assert_eq!((r.outcome, r.field), (Outcome::OutOfRange, 2), "{r:?}");
+    assert!(r.detail > 100, "the camera's largest exposure: {r:?}");
 }

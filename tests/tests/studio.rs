@@ -627,3 +627,133 @@ fn keep_picture(b: &mut Browser, name: &str) {
     std::thread::sleep(Duration::from_millis(700));
     b.screenshot().save(Path::new(&dir).join(name)).unwrap();
 }
+
+/// The camera's controls from the page, on the rig's simulated camera (exposure and gain scale
+/// its signal; it has no focus): a short exposure makes the laser faint and the page asks for
+/// a longer one, a long one clips the picture and the page offers half, applied with one
+/// click; what the camera has not got or not at that value is refused by kind; the values are
+/// kept with the job and sent to the head again when the studio opens it.
+#[test]
+fn camera_controls_from_the_page_change_the_picture_and_are_kept_with_the_job() {
+    let Some(exe) = chromium() else { return };
+    let tmp = tempfile::tempdir().unwrap();
+    std::fs::write(tmp.path().join("job.toml"), CORNER_SCENE).unwrap();
+    let laser_dn = |b: &mut Browser| count(b, "s.preview.laser_dn");
+    let set = |b: &mut Browser, id: &str, value: i64| -> serde_json::Value {
+        b.eval(&format!(
+            "document.getElementById('{id}').value = '{value}'"
+        ));
+        let button = if id == "focus-value" {
+            "set-focus".to_string()
+        } else {
+            format!("set-{id}")
+        };
+        click_answer(b, &button)
+    };
+    let dn_10 = {
+        let studio = scanner_tests::StudioProcess::on_rig(tmp.path(), "--scene job.toml");
+        let mut b = Browser::launch(&exe);
+        b.navigate(&studio.url);
+        wait(&mut b, "s.head !== undefined", 30, "the page reads the job");
+        click(&mut b, "preview-on");
+        wait(
+            &mut b,
+            "s.preview && s.preview.verdict === 'good'",
+            60,
+            "a good set-up",
+        );
+        let dn0 = laser_dn(&mut b);
+
+        // short: the laser faint, a longer exposure asked for
+        let answer = set(&mut b, "exposure", 10);
+        assert_eq!(answer["outcome"].as_str(), Some("accepted"), "{answer}");
+        wait(
+            &mut b,
+            &format!(
+                "s.preview.laser_dn < {} && s.camera_advice && s.camera_advice.why === 'laser_faint'",
+                dn0 / 2
+            ),
+            60,
+            "a faint laser at a short exposure, and the advice",
+        );
+        assert_eq!(
+            b.eval("window.studio.state.camera_advice.value").as_i64(),
+            Some(20)
+        );
+        // long: the picture clipped; the advice applied until the verdict is good
+        let answer = set(&mut b, "exposure", 400);
+        assert_eq!(answer["outcome"].as_str(), Some("accepted"), "{answer}");
+        wait(
+            &mut b,
+            "s.preview.verdict === 'too_bright' && s.camera_advice && s.camera_advice.why === 'clipped'",
+            60,
+            "a clipped picture at a long exposure, and the advice",
+        );
+        for _ in 0..4 {
+            if b.eval("window.studio.state.preview.verdict").as_str() == Some("good") {
+                break;
+            }
+            let asked = count(&mut b, "s.camera_advice.value");
+            let answer = click_answer(&mut b, "apply-advice");
+            assert_eq!(answer["outcome"].as_str(), Some("accepted"), "{answer}");
+            wait(
+                &mut b,
+                &format!("s.camera.exposure === {asked}"),
+                30,
+                "the advice applied",
+            );
+            std::thread::sleep(Duration::from_secs(2));
+        }
+        wait(&mut b, "s.preview.verdict === 'good'", 60, "good again");
+        assert!(count(&mut b, "s.camera.exposure") < 400);
+        // refused by kind: no focus on the rig, a gain below its range (with its limit)
+        let answer = set(&mut b, "focus-value", 50);
+        assert_eq!(answer["outcome"].as_str(), Some("not_here"), "{answer}");
+        let answer = set(&mut b, "gain", 5);
+        assert_eq!(
+            (
+                answer["outcome"].as_str(),
+                answer["field"].as_u64(),
+                answer["detail"].as_i64()
+            ),
+            (Some("out_of_range"), Some(2), Some(10)),
+            "{answer}"
+        );
+        // a value kept for the next studio
+        let answer = set(&mut b, "exposure", 10);
+        assert_eq!(answer["outcome"].as_str(), Some("accepted"), "{answer}");
+        wait(&mut b, "s.camera.exposure === 10", 30, "exposure 10 kept");
+        std::thread::sleep(Duration::from_secs(2));
+        let dn = laser_dn(&mut b);
+        eprintln!("laser: {dn0} DN at the rig's own exposure, {dn} DN at 10");
+        assert!(dn < dn0 / 2, "{dn} DN at 10 against {dn0}");
+        dn
+    };
+    let job = scanner_tests::json(&tmp.path().join("project/job.json"));
+    assert_eq!(job["camera"]["exposure"].as_i64(), Some(10), "{job}");
+
+    // the studio again on the same project: the head is told the kept exposure
+    let studio = scanner_tests::StudioProcess::on_rig(tmp.path(), "--scene job.toml");
+    let mut b = Browser::launch(&exe);
+    b.navigate(&studio.url);
+    wait(
+        &mut b,
+        "s.head !== undefined && s.head.heard",
+        30,
+        "the page reads the job",
+    );
+    click(&mut b, "preview-on");
+    wait(
+        &mut b,
+        "s.preview && s.head.state === 'previewing'",
+        60,
+        "the preview",
+    );
+    std::thread::sleep(Duration::from_secs(2));
+    let again = laser_dn(&mut b);
+    eprintln!("laser at 10 after the studio started again: {again} DN");
+    assert!(
+        again.abs_diff(dn_10) * 4 <= dn_10,
+        "the kept exposure reached the head: {again} DN against {dn_10}"
+    );
+}

@@ -114,15 +114,28 @@ pub enum Adjustable {
     Gain = 1,
     /// Focus (V4L2 `focus_absolute`).
     Focus = 2,
+    /// White balance (V4L2 `white_balance_temperature`, kelvin).
+    WhiteBalance = 3,
 }
 
 impl Adjustable {
+    /// Its name, for people (`exposure`, `gain`, `focus`, `white balance`).
+    pub fn name(self) -> &'static str {
+        match self {
+            Adjustable::Exposure => "exposure",
+            Adjustable::Gain => "gain",
+            Adjustable::Focus => "focus",
+            Adjustable::WhiteBalance => "white balance",
+        }
+    }
+
     /// The control numbered `n`.
     pub fn from_u8(n: u8) -> Option<Adjustable> {
         match n {
             0 => Some(Adjustable::Exposure),
             1 => Some(Adjustable::Gain),
             2 => Some(Adjustable::Focus),
+            3 => Some(Adjustable::WhiteBalance),
             _ => None,
         }
     }
@@ -171,7 +184,7 @@ impl Command {
             }
             Command::Camera { control, value } => {
                 if Adjustable::from_u8(control).is_none() {
-                    return Err((1, 2));
+                    return Err((1, 3));
                 }
                 if !(0..=MAX_CONTROL_VALUE).contains(&value) {
                     return Err((2, MAX_CONTROL_VALUE));

@@ -225,6 +225,12 @@ impl Rig {
         &self.scene
     }
 
+    /// Sets the sensor's digital numbers per unit of radiance (a camera's exposure × gain):
+    /// every frame rendered after it, the reference included, takes it.
+    pub fn set_sensor_gain(&mut self, gain: f64) {
+        self.scene.sensor.gain = gain;
+    }
+
     /// The true board planes, left and right, normals towards the camera.
     pub fn board_planes(&self) -> [Plane<f64>; 2] {
         self.board.planes()

@@ -59,6 +59,75 @@ pub mod id {
     pub const FOCUS_AUTO: u32 = 0x009a_090c;
     /// `V4L2_CID_POWER_LINE_FREQUENCY` (menu: 0 off, 1 50 Hz, 2 60 Hz, 3 auto).
     pub const POWER_LINE_FREQUENCY: u32 = 0x0098_0918;
+    /// `V4L2_CID_EXPOSURE_ABSOLUTE` (units of 100 µs).
+    pub const EXPOSURE_ABSOLUTE: u32 = 0x009a_0902;
+    /// `V4L2_CID_GAIN`.
+    pub const GAIN: u32 = 0x0098_0913;
+    /// `V4L2_CID_FOCUS_ABSOLUTE`.
+    pub const FOCUS_ABSOLUTE: u32 = 0x009a_090a;
+    /// `V4L2_CID_WHITE_BALANCE_TEMPERATURE` (kelvin).
+    pub const WHITE_BALANCE_TEMPERATURE: u32 = 0x0098_091a;
+}
+
+/// Why a control set by hand (the studio's camera controls) cannot be set.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum AdjustError {
+    /// The camera (or the source) has no such control.
+    #[error("the camera has no {0} control")]
+    NotOffered(&'static str),
+    /// The value lies outside what the camera offers.
+    #[error("{control} {value} is outside the camera's {min}–{max}")]
+    OutOfRange {
+        /// The control.
+        control: &'static str,
+        /// The value asked for.
+        value: i64,
+        /// The camera's smallest.
+        min: i64,
+        /// The camera's largest.
+        max: i64,
+    },
+}
+
+/// The setting that gives `control` the value `value` on a camera offering `controls`
+/// (V4L2's own units: exposure in 100 µs, white balance in kelvin). Setting it by hand needs
+/// the control's automatic mode off, which [`plan`] does for every scan.
+///
+/// # Errors
+/// [`AdjustError`]: the camera has no such control, or not this value.
+pub fn by_hand(
+    controls: &[CameraControl],
+    control: scanner_wire::Adjustable,
+    value: i32,
+) -> Result<Setting, AdjustError> {
+    use scanner_wire::Adjustable as A;
+    let name = control.name();
+    let wanted = match control {
+        A::Exposure => id::EXPOSURE_ABSOLUTE,
+        A::Gain => id::GAIN,
+        A::Focus => id::FOCUS_ABSOLUTE,
+        A::WhiteBalance => id::WHITE_BALANCE_TEMPERATURE,
+    };
+    let c = controls
+        .iter()
+        .find(|c| c.id == wanted && !c.read_only && c.kind == ControlKind::Integer)
+        .ok_or(AdjustError::NotOffered(name))?;
+    let value = i64::from(value);
+    if !c.offers(value) {
+        return Err(AdjustError::OutOfRange {
+            control: name,
+            value,
+            min: c.min,
+            max: c.max,
+        });
+    }
+    Ok(Setting {
+        id: c.id,
+        control: c.name.clone(),
+        kind: c.kind,
+        value,
+        meaning: "set by hand",
+    })
 }
 
 /// One control to set, and what the value means.

@@ -15,7 +15,7 @@ pub mod convert;
 mod images;
 pub mod record;
 #[cfg(feature = "rig")]
-mod rig;
+pub mod rig;
 pub mod v4l2;
 
 use scanner_core::stripe::{Frame, FrameError, PixelFormat};
@@ -167,6 +167,9 @@ pub enum SourceError {
         #[source]
         source: convert::ConvertError,
     },
+    /// A camera control set by hand cannot be set (the camera has none, or not this value).
+    #[error(transparent)]
+    Control(#[from] controls::AdjustError),
     /// The camera failed or delivered a bad buffer.
     #[error("camera {device}: {what}")]
     Camera {
@@ -464,6 +467,9 @@ pub struct SourceOptions {
     /// The local mains frequency, Hz (50 or 60), for the camera's power-line filter; the
     /// camera's automatic choice without it.
     pub mains_hz: Option<u32>,
+    /// Camera controls set by hand, applied as the source opens (after the automatic modes
+    /// are switched off).
+    pub adjust: Vec<(scanner_wire::Adjustable, i32)>,
     /// A folder's frames: only the series of this pattern (the names with their frame number
     /// as `*`: `laser0_*.jpg`), for a folder that holds several ([`SourceError::Series`]).
     pub series: Option<String>,
@@ -594,6 +600,31 @@ pub fn open(name: &str, format: PixelFormat) -> Result<Box<dyn FrameSource>, Sou
     open_with(name, format, &SourceOptions::default())
 }
 
+/// Sets a camera control of the source `name` by hand, now where it is a camera (V4L2), or
+/// checks it against what the source offers (the virtual rig: exposure and gain, applied as
+/// its frames are rendered, [`rig::RIG_CONTROLS`]).
+///
+/// # Errors
+/// [`SourceError::Control`]: no such control, or not this value; [`SourceError::Camera`]: the
+/// device cannot be opened or refused the value.
+pub fn adjust_control(
+    name: &str,
+    control: scanner_wire::Adjustable,
+    value: i32,
+) -> Result<(), SourceError> {
+    if name.starts_with("/dev/video") || name.starts_with("v4l:") {
+        let path = name.strip_prefix("v4l:").unwrap_or(name);
+        return v4l2::adjust(path, control, value);
+    }
+    #[cfg(feature = "rig")]
+    if name.starts_with("rig") {
+        return controls::by_hand(&rig::offered(), control, value)
+            .map(|_| ())
+            .map_err(SourceError::from);
+    }
+    Err(controls::AdjustError::NotOffered(control.name()).into())
+}
+
 /// [`open`] with options.
 ///
 /// # Errors
@@ -633,7 +664,7 @@ pub fn open_with(
     }
     match name.split_once(':').unwrap_or((name, "")) {
         #[cfg(feature = "rig")]
-        ("rig", params) => rig::open(name, params, format),
+        ("rig", params) => rig::open(name, params, format, opts),
         _ => Err(SourceError::Unknown(name.to_string())),
     }
 }

@@ -5,22 +5,72 @@ use scanner_rig::{Rig, Scene};
 
 use super::{FrameSource, OwnedFrame, SourceError};
 
+/// The exposure (V4L2 units of 100 µs) and gain at which the rig renders a scene as written;
+/// other values scale every pixel's signal in proportion.
+pub const RIG_CONTROLS: [(scanner_wire::Adjustable, i32); 2] = [
+    (scanner_wire::Adjustable::Exposure, 100),
+    (scanner_wire::Adjustable::Gain, 100),
+];
+
+/// The controls the rig offers, as a camera lists them: exposure 1–5000 (0.1–500 ms), gain
+/// 10–1000.
+pub fn offered() -> Vec<super::controls::CameraControl> {
+    use super::controls::{CameraControl, ControlKind, id};
+    let c = |id, name: &str, min, max| CameraControl {
+        id,
+        name: name.into(),
+        kind: ControlKind::Integer,
+        min,
+        max,
+        menu: Vec::new(),
+        read_only: false,
+    };
+    vec![
+        c(id::EXPOSURE_ABSOLUTE, "exposure_time_absolute", 1, 5000),
+        c(id::GAIN, "gain", 10, 1000),
+    ]
+}
+
 /// The virtual rig as a frame source: its reference, then each frame of its laser sweep.
 #[derive(Debug)]
 pub struct RigSource {
     rig: Rig,
     format: PixelFormat,
     next: usize,
+    /// The scene's sensor gain, before any control set by hand.
+    base_gain: f64,
 }
 
 impl RigSource {
     /// A source over a built rig, delivering `format`.
     pub fn new(rig: Rig, format: PixelFormat) -> Self {
         Self {
+            base_gain: rig.scene().sensor.gain,
             rig,
             format,
             next: 0,
         }
+    }
+
+    /// Sets the controls `settings` (by hand, [`RIG_CONTROLS`]' units): the sensor's gain
+    /// scales by each one's ratio to the rig's own.
+    ///
+    /// # Errors
+    /// A control the rig has not got, or a value outside its range ([`offered`]).
+    pub fn adjust(
+        &mut self,
+        settings: &[(scanner_wire::Adjustable, i32)],
+    ) -> Result<(), SourceError> {
+        let mut scale = 1.0;
+        for &(control, value) in settings {
+            super::controls::by_hand(&offered(), control, value)?;
+            if let Some((_, own)) = RIG_CONTROLS.iter().find(|(c, _)| *c == control) {
+                scale *= f64::from(value) / f64::from(*own);
+            }
+        }
+        let gain = self.base_gain * scale;
+        self.rig.set_sensor_gain(gain);
+        Ok(())
     }
 
     /// The rig (for ground truth).
@@ -87,6 +137,7 @@ pub(super) fn open(
     name: &str,
     params: &str,
     format: PixelFormat,
+    opts: &super::SourceOptions,
 ) -> Result<Box<dyn FrameSource>, SourceError> {
     let (w, h) = if params.is_empty() {
         (640, 480)
@@ -99,8 +150,7 @@ pub(super) fn open(
         )));
     }
     Scene::check_size(w, h).map_err(|e| SourceError::BadSpec(format!("{name:?}: {e}")))?;
-    Ok(Box::new(RigSource::new(
-        Rig::new(Scene::demo(w, h))?,
-        format,
-    )))
+    let mut source = RigSource::new(Rig::new(Scene::demo(w, h))?, format);
+    source.adjust(&opts.adjust)?;
+    Ok(Box::new(source))
 }

@@ -183,6 +183,28 @@ mod imp {
         )
     }
 
+    /// Sets the controls `settings` by hand ([`controls::by_hand`]), in order.
+    pub(super) fn set_by_hand(
+        path: &str,
+        dev: &Device,
+        settings: &[(wire::Adjustable, i32)],
+    ) -> Result<(), SourceError> {
+        if settings.is_empty() {
+            return Ok(());
+        }
+        let offered = offered(dev);
+        for &(control, value) in settings {
+            let s = controls::by_hand(&offered, control, value)?;
+            dev.set_control(Control {
+                id: s.id,
+                value: Value::Integer(s.value),
+            })
+            .map_err(|e| cam(path, &format!("refused {} {}", s.control, s.value), e))?;
+            crate::errln!("{path}: {} set to {} by hand", s.control, s.value);
+        }
+        Ok(())
+    }
+
     /// A streaming V4L2 camera.
     pub struct V4lSource {
         path: String,
@@ -222,6 +244,7 @@ mod imp {
             }
             let (controls, locked) = lock_controls(&dev, opts.mains_hz);
             crate::errln!("{path}: {controls}");
+            set_by_hand(path, &dev, &opts.adjust)?;
             let stream = Stream::with_buffers(&dev, Type::VideoCapture, 4)
                 .map_err(|e| cam(path, "cannot start streaming", e))?;
             Ok(V4lSource {
@@ -394,6 +417,40 @@ pub fn open(
         Err(SourceError::Camera {
             device: path.to_string(),
             what: "this build has no V4L2 support (built without the `v4l` feature)".into(),
+            source: None,
+        })
+    }
+}
+
+/// Sets a control of the camera at `path` by hand, now (the device opened beside a stream
+/// that may run: V4L2 controls are the device's, not the stream's).
+///
+/// # Errors
+/// [`SourceError::Control`]: the camera has no such control or not this value;
+/// [`SourceError::Camera`]: the device cannot be opened or refused it.
+pub fn adjust(
+    path: &str,
+    control: scanner_wire::Adjustable,
+    value: i32,
+) -> Result<(), SourceError> {
+    #[cfg(feature = "v4l")]
+    {
+        let dev = v4l::Device::with_path(path).map_err(|e| SourceError::Camera {
+            device: path.to_string(),
+            what: "cannot open the device".into(),
+            source: Some(e),
+        })?;
+        imp::set_by_hand(path, &dev, &[(control, value)])
+    }
+    #[cfg(not(feature = "v4l"))]
+    {
+        let _ = value;
+        Err(SourceError::Camera {
+            device: path.to_string(),
+            what: format!(
+                "cannot set its {}: this build has no V4L2 support (built without the `v4l` feature)",
+                control.name()
+            ),
             source: None,
         })
     }

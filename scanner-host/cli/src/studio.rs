@@ -97,11 +97,17 @@ pub fn studio(a: &StudioArgs) -> Result<()> {
         std::thread::Builder::new()
             .name("heartbeat".into())
             .spawn(move || {
+                let mut restored = false;
                 while !stop.load(Ordering::SeqCst) {
                     let answered = studio
                         .link
                         .ask(scanner_wire::Command::Hello, Duration::from_secs(2))
                         .is_ok();
+                    // the job's camera controls, once the head first answers
+                    if answered && !restored {
+                        studio.restore_camera();
+                        restored = true;
+                    }
                     if !answered {
                         let mut job = studio.link.shared.job();
                         job.head.heard = false;

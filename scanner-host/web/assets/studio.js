@@ -33,6 +33,17 @@ q("preview-on").onclick = previewOn;
 q("preview-off").onclick = () => send("preview", { on: false });
 q("laser-on").onclick = () => send("laser", { on: true });
 q("laser-off").onclick = () => send("laser", { on: false });
+// the camera's controls, by their number on the wire; the box shows what the job keeps
+const CONTROLS = [["exposure", 0], ["gain", 1], ["focus-value", 2], ["white-balance", 3]];
+const setControl = (control, value) => send("camera", { control, value: Math.round(Number(value)) });
+for (const [id, n] of CONTROLS) {
+  const set = id === "focus-value" ? "set-focus" : `set-${id}`;
+  q(set).onclick = () => setControl(n, q(id).value);
+}
+q("apply-advice").onclick = () => {
+  const a = window.studio.state && window.studio.state.camera_advice;
+  if (a && a.value != null) setControl(a.number, a.value);
+};
 q("shot-target").onclick = () => send("shot", { board: false });
 q("shot-board").onclick = () => send("shot", { board: true });
 q("calibrate").onclick = () => send("calibrate");
@@ -168,6 +179,13 @@ function render(s) {
     q("verdict").className = p.verdict === "good" ? "good" : "bad";
     q("advice").textContent = ADVICE[p.verdict] || "";
   }
+  // what the job keeps of the camera's controls, unless the maker is typing
+  const kept = { exposure: s.camera.exposure, gain: s.camera.gain, "focus-value": s.camera.focus, "white-balance": s.camera.white_balance };
+  for (const [id] of CONTROLS) if (document.activeElement !== q(id)) q(id).value = kept[id] == null ? "" : kept[id];
+  const a = s.camera_advice;
+  q("camera-advice").textContent = a ? a.words : "";
+  q("camera-advice").dataset.why = a ? a.why : "";
+  q("apply-advice").style.display = a && a.value != null ? "" : "none";
   const g = s.guide;
   drawCover(s.cover, s.shots, g);
   drawGuideBox(g);

@@ -206,9 +206,47 @@ pub struct CameraArgs {
     /// 50). Frames the head cannot keep up with are dropped and counted.
     #[arg(long)]
     pub fourcc: Option<String>,
+    /// Exposure time set by hand, the camera's units (V4L2: 100 µs); the camera's own
+    /// exposure, locked for the scan, without it. The virtual rig renders its scenes at 100.
+    #[arg(long)]
+    pub exposure: Option<i32>,
+    /// Gain set by hand, the camera's units (the virtual rig: 100 as written).
+    #[arg(long)]
+    pub gain: Option<i32>,
+    /// Focus set by hand, the camera's units (V4L2 `focus_absolute`).
+    #[arg(long)]
+    pub focus: Option<i32>,
+    /// White balance set by hand, kelvin.
+    #[arg(long)]
+    pub white_balance: Option<i32>,
 }
 
 impl CameraArgs {
+    /// The controls set by hand, in the order they are set.
+    pub fn by_hand(&self) -> Vec<(scanner_wire::Adjustable, i32)> {
+        use scanner_wire::Adjustable as A;
+        [
+            (A::Exposure, self.exposure),
+            (A::Gain, self.gain),
+            (A::Focus, self.focus),
+            (A::WhiteBalance, self.white_balance),
+        ]
+        .into_iter()
+        .filter_map(|(c, v)| v.map(|v| (c, v)))
+        .collect()
+    }
+
+    /// Sets a control by hand (the service's camera command).
+    pub fn set_by_hand(&mut self, control: scanner_wire::Adjustable, value: i32) {
+        use scanner_wire::Adjustable as A;
+        *match control {
+            A::Exposure => &mut self.exposure,
+            A::Gain => &mut self.gain,
+            A::Focus => &mut self.focus,
+            A::WhiteBalance => &mut self.white_balance,
+        } = Some(value);
+    }
+
     /// The source options these give (size parsed and checked).
     ///
     /// # Errors
@@ -223,6 +261,7 @@ impl CameraArgs {
             fps: self.fps,
             fourcc: self.fourcc.clone(),
             mains_hz: self.mains,
+            adjust: self.by_hand(),
             ..SourceOptions::default()
         })
     }

@@ -253,7 +253,9 @@ pub(super) fn open_source(
             let scene = super::render::view_of(super::render::load_scene(Some(path))?, a.view)?;
             let rig = scanner_rig::Rig::new(scene)
                 .map_err(|e| anyhow::anyhow!("building the virtual rig: {e}"))?;
-            return Ok(Box::new(crate::source::RigSource::new(rig, format)));
+            let mut source = crate::source::RigSource::new(rig, format);
+            source.adjust(&opts.adjust)?;
+            return Ok(Box::new(source));
         }
         #[cfg(not(feature = "rig"))]
         return Err(ScanRefusal::NoRig(path.clone()).into());

@@ -215,10 +215,41 @@ impl Service {
                 _ => (self.reply(seq, Outcome::NothingToStop, 0, 0), None),
             },
             // the camera, the laser and the turntable may change while the preview runs
-            Command::Camera { .. } => {
-                // the rig and image folders have no camera; a camera's controls are set as
-                // the scan fixes them (`--exposure` and the like) until this sets them live
-                (self.reply(seq, Outcome::NotHere, 0, 0), None)
+            // a control set by hand: now on a camera, and for every job after (a sweep's
+            // exposure stays as its reference was taken: refused while one runs)
+            Command::Camera { control, value } => {
+                let Some(c) = scanner_wire::Adjustable::from_u8(control) else {
+                    return (self.reply(seq, Outcome::OutOfRange, 1, 3), None);
+                };
+                if self.state() == HeadState::Sweeping && !self.ended_within_grace() {
+                    return (self.reply(seq, Outcome::Busy, 0, 0), None);
+                }
+                use crate::source::{SourceError, controls::AdjustError};
+                match crate::source::adjust_control(&self.args.scan.source, c, value) {
+                    Ok(()) => {}
+                    Err(SourceError::Control(AdjustError::NotOffered(_))) => {
+                        return (self.reply(seq, Outcome::NotHere, 0, 0), None);
+                    }
+                    Err(SourceError::Control(AdjustError::OutOfRange { min, max, .. })) => {
+                        let limit = if i64::from(value) < min { min } else { max };
+                        let limit = i32::try_from(limit).unwrap_or(i32::MAX);
+                        return (self.reply(seq, Outcome::OutOfRange, 2, limit), None);
+                    }
+                    Err(e) => {
+                        crate::errln!("camera control: {e}");
+                        return (self.reply(seq, Outcome::Failed, 0, 0), None);
+                    }
+                }
+                self.args.scan.camera.set_by_hand(c, value);
+                // the preview starts again with it: a new reference, taken alike
+                match (&self.running, self.previewing) {
+                    (Some(r), Some(p)) if r.state == HeadState::Previewing => {
+                        r.stop.store(true, Ordering::SeqCst);
+                        self.reap();
+                        (ok(self), Some(Work::Preview(p)))
+                    }
+                    _ => (ok(self), None),
+                }
             }
             Command::Laser { on } => {
                 if self.rig_views.is_none() {

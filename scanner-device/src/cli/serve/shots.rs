@@ -107,7 +107,7 @@ impl Worker {
                 scene.turntable = None;
             }
             let poses = std::mem::take(&mut scene.shots);
-            let (camera, width, height) = (scene.camera.clone(), scene.width, scene.height);
+            let (camera, width, height) = (scene.camera, scene.width, scene.height);
             let rig = scanner_rig::Rig::new(scene)
                 .map_err(|e| anyhow::anyhow!("building the virtual rig: {e}"))?;
             if board {

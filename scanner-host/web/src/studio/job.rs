@@ -37,6 +37,9 @@ pub struct Job {
     /// The disc the last sweep asked for (`a4`, `a3`), for the view it opens.
     #[serde(skip)]
     pub asked_disc: Option<String>,
+    /// The camera's controls set by hand on the page.
+    #[serde(default)]
+    pub camera: super::camera::CameraSettings,
     /// The merge, once asked for.
     pub merge: Option<Merge>,
     /// What happened, newest last.

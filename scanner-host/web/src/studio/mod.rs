@@ -8,6 +8,7 @@
 //! Where a command is refused, the page says why in words ([`words`]) and by kind: the wire
 //! carries only numbers.
 
+pub mod camera;
 pub mod guide;
 pub mod head;
 pub mod job;
@@ -156,7 +157,8 @@ impl Studio {
         };
         let asked = self.ask_past_sweep_end(cmd);
         let mut job = self.link.shared.job();
-        match asked {
+        let mut save = false;
+        let answer = match asked {
             Ok(r) => {
                 let said = words(&cmd, &r);
                 if r.outcome == Outcome::Accepted && matches!(cmd, Command::Laser { on: true }) {
@@ -164,6 +166,13 @@ impl Studio {
                 }
                 if r.outcome == Outcome::Accepted && matches!(cmd, Command::Turn { .. }) {
                     job.say(said.clone());
+                }
+                if let (Outcome::Accepted, Command::Camera { control, value }) = (r.outcome, cmd)
+                    && let Some(c) = scanner_wire::Adjustable::from_u8(control)
+                {
+                    job.camera.set(c, value);
+                    job.say(said.clone());
+                    save = true;
                 }
                 if r.outcome != Outcome::Accepted {
                     if sweep {
@@ -180,6 +189,27 @@ impl Studio {
                 }
                 Err(e.into())
             }
+        };
+        if save && let Err(e) = job.save(self.project()) {
+            job.say(format!("the job could not be kept: {e}"));
+        }
+        answer
+    }
+
+    /// Sends the head the camera controls the job keeps (set by hand on the page before the
+    /// studio stopped), each once; what the head says goes into the log.
+    pub fn restore_camera(&self) {
+        let settings = self.link.shared.job().camera;
+        for (control, value) in settings.all() {
+            let cmd = Command::Camera {
+                control: control as u8,
+                value,
+            };
+            let line = match self.link.ask(cmd, REPLY_WITHIN) {
+                Ok(r) => format!("restored from the job: {}", words(&cmd, &r)),
+                Err(e) => format!("camera: not restored from the job: {e}"),
+            };
+            self.link.shared.job().say(line);
         }
     }
 
@@ -418,6 +448,11 @@ pub fn words(command: &Command, r: &Reply) -> String {
     };
     match r.outcome {
         Outcome::Accepted => match command {
+            Command::Camera { control, value } => format!(
+                "{name}: {} set to {value}",
+                scanner_wire::Adjustable::from_u8(*control)
+                    .map_or("control", scanner_wire::Adjustable::name)
+            ),
             Command::Turn { .. } if r.detail != scanner_wire::TURN_UNKNOWN => format!(
                 "{name}: done, turned {:.1}°{}",
                 f64::from(r.detail) / 100.0,

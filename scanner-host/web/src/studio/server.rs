@@ -129,6 +129,10 @@ async fn state(State(studio): State<Arc<Studio>>) -> Response {
                 .unwrap_or_default();
     }
     v["guide"] = serde_json::to_value(guide).unwrap_or_default();
+    if let Some(p) = &job.preview {
+        v["camera_advice"] =
+            serde_json::to_value(super::camera::advice(p, &job.camera)).unwrap_or_default();
+    }
     v["link_closed"] = studio.link.shared.closed.load(Ordering::SeqCst).into();
     json(StatusCode::OK, &v)
 }
