@@ -100,7 +100,10 @@ fn controls_set_by_hand_are_checked_against_the_cameras_range() {
         by_hand(&c, Adjustable::WhiteBalance, 5000).map(|s| s.id),
         Ok(id::WHITE_BALANCE_TEMPERATURE)
     );
-    assert_eq!(by_hand(&c, Adjustable::Gain, 40).map(|s| s.id), Ok(id::GAIN));
+    assert_eq!(
+        by_hand(&c, Adjustable::Gain, 40).map(|s| s.id),
+        Ok(id::GAIN)
+    );
     let fixed = list("fixed-focus-auto-mains.txt");
     assert_eq!(
         by_hand(&fixed, Adjustable::Focus, 10),

@@ -214,7 +214,10 @@ fn bad_commands_are_refused_with_their_reasons() {
     let r = h.ask(camera(0, 0));
     assert_eq!((r.outcome, r.field, r.detail), (Outcome::OutOfRange, 2, 1));
     let r = h.ask(camera(1, 5000));
-    assert_eq!((r.outcome, r.field, r.detail), (Outcome::OutOfRange, 2, 1000));
+    assert_eq!(
+        (r.outcome, r.field, r.detail),
+        (Outcome::OutOfRange, 2, 1000)
+    );
     let r = h.ask(camera(4, 100));
     assert_eq!((r.outcome, r.field), (Outcome::OutOfRange, 1));
     // what this head has not got: a focus, a turntable (the demo scene has one view)
