@@ -757,3 +757,89 @@ fn camera_controls_from_the_page_change_the_picture_and_are_kept_with_the_job() 
         "the kept exposure reached the head: {again} DN against {dn_10}"
     );
 }
+
+/// A fixed-laser turntable through the page: the head reads a turntable's recording (rendered
+/// by the rig: a sphere and a cylinder on a turning platform, 100 frames a turn) with its
+/// calibration; the page's sweep shows progress from the start, and the view's own model is
+/// the turntable's closed model, downloaded as the file the host wrote.
+#[test]
+fn a_fixed_laser_turntable_scan_through_the_page_ends_in_its_closed_model() {
+    let Some(exe) = chromium() else { return };
+    let scan = scanner_rig::TurningScan::demo(640, 480);
+    let tmp = tempfile::tempdir().unwrap();
+    let frames = tmp.path().join("frames");
+    scanner_tests::write_turning_frames(&scan, &frames);
+    let cal = tmp.path().join("cal.toml");
+    scan.truth_calibration().save(&cal).unwrap();
+    let head_args = format!(
+        "--calibration {} --fixed-laser 0 --frames-per-turn 100 --rows",
+        cal.display()
+    );
+    let studio = scanner_tests::StudioProcess::start(
+        tmp.path(),
+        &[
+            "--listen",
+            "127.0.0.1:0",
+            "--project",
+            "project",
+            "--source",
+            frames.to_str().unwrap(),
+            "--head-args",
+            &head_args,
+        ],
+    );
+    let mut b = Browser::launch(&exe);
+    b.navigate(&studio.url);
+    wait(
+        &mut b,
+        "s.head !== undefined && s.head.heard",
+        30,
+        "the page reads the job",
+    );
+    // no disc: the turntable's own turn places the points
+    b.eval("document.getElementById('disc').value = '0'");
+    let answer = click_answer(&mut b, "sweep");
+    assert_eq!(answer["outcome"].as_str(), Some("accepted"), "{answer}");
+    let t0 = std::time::Instant::now();
+    let expr = "(() => { const s = window.studio.state; return s.views.length === 1 && s.views[0].frames > 0; })()";
+    if !b.wait_for(expr, Duration::from_secs(60)) {
+        panic!(
+            "no progress; the head said:\n{}",
+            std::fs::read_to_string(tmp.path().join("project/head.log")).unwrap_or_default()
+        );
+    }
+    eprintln!(
+        "turntable: first progress {:.1} s after the click",
+        t0.elapsed().as_secs_f64()
+    );
+    wait(
+        &mut b,
+        "s.views.length === 1 && s.views[0].done",
+        300,
+        "the sweep",
+    );
+    let ended = b.eval("window.studio.state.views[0].ended");
+    assert_eq!(ended.as_str(), Some("completed"));
+    let answer = click_answer(&mut b, "view-model-1");
+    assert_eq!(answer["outcome"].as_str(), Some("accepted"), "{answer}");
+    wait(
+        &mut b,
+        "s.views[0].model && s.views[0].model.state !== 'running'",
+        300,
+        "the view's model",
+    );
+    let model = b.eval("window.studio.state.views[0].model");
+    assert_eq!(model["state"].as_str(), Some("made"), "{model}");
+    let fixed = &model["summary"]["fixed"];
+    assert_eq!(fixed["watertight"], true, "{model}");
+    assert_eq!(fixed["frames"].as_u64(), Some(101), "{model}");
+    // the download, read by the page, is the file the host wrote
+    let got = b.eval_await(
+        "fetch(document.getElementById('view-1-scan-stl').href).then(r => r.arrayBuffer()).then(b => b.byteLength)",
+    );
+    let on_disk = std::fs::metadata(tmp.path().join("project/views/view-1/scan.stl"))
+        .unwrap()
+        .len();
+    assert_eq!(got.as_u64(), Some(on_disk));
+    keep_picture(&mut b, "studio-turntable.png");
+}

@@ -187,15 +187,19 @@ function render(s) {
   q("camera-advice").dataset.why = a ? a.why : "";
   q("apply-advice").style.display = a && a.value != null ? "" : "none";
   const g = s.guide;
-  drawCover(s.cover, s.shots, g);
-  drawGuideBox(g);
-  q("asked").dataset.more = String(g.asks.length);
-  q("asked").dataset.next = g.asks.length ? g.asks[0].kind : "calibrate";
-  q("asked").textContent = g.asks.length
+  // a head started with its calibration sweeps without the guide's shots
+  const given = !s.calibration && s.views.length > 0 && s.shots.length === 0;
+  drawCover(s.cover, s.shots, given ? null : g);
+  drawGuideBox(given ? null : g);
+  q("asked").dataset.more = String(given ? 0 : g.asks.length);
+  q("asked").dataset.next = given ? "given" : g.asks.length ? g.asks[0].kind : "calibrate";
+  q("asked").textContent = given
+    ? "The head scans with the calibration it was started with (its --calibration): no shots needed."
+    : g.asks.length
     ? `${g.asks[0].words}${g.asks.length > 1 ? ` (then ${g.asks.length - 1} more thing(s) below)` : ""}`
     : `Every region covered by ${g.target_shots} target shots, tilted ${g.tilt_spread_deg[0]}° and ${g.tilt_spread_deg[1]}°, and the board's shot taken: press Calibrate.`;
   q("asks").innerHTML = "";
-  for (const a of g.asks.slice(1)) {
+  for (const a of given ? [] : g.asks.slice(1)) {
     const li = document.createElement("li");
     li.dataset.kind = a.kind;
     li.textContent = a.words;
@@ -228,9 +232,30 @@ function render(s) {
     box.checked = !v.left_out;
     box.onchange = () => post("/api/view", { view: i + 1, left_out: !box.checked });
     tr.insertCell().appendChild(box);
+    // the view's own model (a fixed-laser turntable's whole model, one view's surface)
+    const own = tr.insertCell();
+    const m = v.model;
+    own.dataset.state = m ? m.state : "";
+    if (m && m.state === "made") {
+      const fixed = m.summary && m.summary.fixed;
+      own.innerHTML = m.files
+        .filter((f) => /\.(stl|obj|ply)$/.test(f))
+        .map((f) => `<a id="view-${i + 1}-${f.replace(".", "-")}" href="${withToken(`/files/view/${i + 1}/${f}`)}" download>${f}</a>`)
+        .join(" ") + (fixed ? ` <span class="${fixed.watertight ? "good" : "bad"}">${fixed.watertight ? "closed" : "not closed"}</span>` : "");
+    } else if (m && m.state === "running") {
+      own.textContent = "making…";
+    } else if (v.done && v.points > 0) {
+      const b = document.createElement("button");
+      b.id = `view-model-${i + 1}`;
+      b.textContent = m && m.state === "failed" ? "again" : "model";
+      b.title = m && m.error ? m.error : "the model of this view alone (a turntable's whole model)";
+      b.onclick = () => post("/api/view-model", { view: i + 1 });
+      own.appendChild(b);
+    }
   });
   const last = s.views[s.views.length - 1];
-  q("next").textContent = !last ? "Calibrated? Start the first sweep." : !last.done ? "Sweeping…" : "Turn the disc (or lay the object on its side), then start the next sweep; merge when every side is seen.";
+  q("next").dataset.failed = s.sweep_failed ? "1" : "";
+  q("next").textContent = s.sweep_failed ? `The last sweep failed before its first frame: ${s.sweep_failed}` : !last ? "Calibrated? Start the first sweep." : !last.done ? "Sweeping…" : "Turn the disc (or lay the object on its side), then start the next sweep; merge when every side is seen.";
   if (s.merge) {
     const m = s.merge;
     let t = `<b class="${m.state === "merged" ? "good" : "bad"}">${m.state}</b>`;

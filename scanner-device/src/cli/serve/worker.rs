@@ -93,8 +93,11 @@ impl Worker {
             2 => Some(scanner_calib::disc::Paper::A3),
             _ => None,
         };
-        a.rows = s.axis == 1;
-        a.columns = s.axis == 2;
+        // 0: as the head was started (`--rows`, `--columns`, or found from the first frame)
+        if s.axis != 0 {
+            a.rows = s.axis == 1;
+            a.columns = s.axis == 2;
+        }
         a.colour = s.colour;
         a.keep_board = s.keep_board;
         a.frames = (s.frames > 0).then_some(s.frames);

@@ -34,6 +34,14 @@ pub struct Job {
     /// A sweep asked for whose header has not come yet.
     #[serde(skip)]
     pub awaiting_sweep: bool,
+    /// The head accepted the sweep asked for (its header has not come yet): a head idle then
+    /// has failed it before its first frame.
+    #[serde(skip)]
+    pub sweep_accepted: bool,
+    /// Why the last sweep asked for failed before its first frame (the head's own words where
+    /// the studio started it and reads its log); `None`: it did not.
+    #[serde(default)]
+    pub sweep_failed: Option<String>,
     /// The disc the last sweep asked for (`a4`, `a3`), for the view it opens.
     #[serde(skip)]
     pub asked_disc: Option<String>,
@@ -221,6 +229,23 @@ pub struct SweepRecord {
     /// sweep): its points and frames are the journal's.
     #[serde(default)]
     pub rebuilt: bool,
+    /// The model of this view alone (a fixed-laser turntable's whole model, or one view's
+    /// surface), once asked for.
+    #[serde(default)]
+    pub model: Option<ViewModel>,
+}
+
+/// A view's own model: what the host's `receive` makes of its journal, in `views/view-N/`.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct ViewModel {
+    /// `running`, `made`, `failed`.
+    pub state: String,
+    /// Why it failed, as words.
+    pub error: Option<String>,
+    /// Files to download.
+    pub files: Vec<String>,
+    /// Its `summary.json`, when written.
+    pub summary: Option<serde_json::Value>,
 }
 
 /// A view the merge did not take, and why.
@@ -426,6 +451,11 @@ impl Job {
         if job.merge.as_ref().is_some_and(|m| m.state == "running") {
             job.merge = None;
         }
+        for v in &mut job.views {
+            if v.model.as_ref().is_some_and(|m| m.state == "running") {
+                v.model = None;
+            }
+        }
         Ok(job)
     }
 
@@ -521,6 +551,17 @@ pub fn take(
     match msg {
         Message::Reply(r) => {
             take_reply(job, r);
+            // the sweep accepted, and the head idle with no header: it failed at its start
+            if job.awaiting_sweep && job.sweep_accepted && r.state == scanner_wire::HeadState::Idle
+            {
+                job.awaiting_sweep = false;
+                job.sweep_accepted = false;
+                let why = head_failure(project, "sweep failed: ")
+                    .unwrap_or_else(|| "see the head's log".into());
+                job.say(format!("the sweep failed before its first frame: {why}"));
+                job.sweep_failed = Some(why);
+                save = true;
+            }
             // the head answers after everything of an ended sweep is on the link: a view
             // still open then lost its last status to the link (its points stay)
             if r.state != scanner_wire::HeadState::Sweeping && !job.awaiting_sweep {
@@ -655,6 +696,8 @@ pub fn take(
                     return Err(JobError::TooManyViews);
                 }
                 job.awaiting_sweep = false;
+                job.sweep_accepted = false;
+                job.sweep_failed = None;
                 let n = job.views.len() + 1;
                 let rel = PathBuf::from(format!("views/view-{n}.stream"));
                 let path = project.join(&rel);
@@ -678,6 +721,7 @@ pub fn take(
                     left_out: false,
                     disc_paper: job.asked_disc.clone(),
                     rebuilt: false,
+                    model: None,
                 });
                 job.say(format!("view {n}: sweeping"));
                 save = true;
@@ -757,6 +801,25 @@ pub fn take(
         _ => {}
     }
     Ok(Update { save })
+}
+
+/// Largest tail of the head's log read for its last failure, bytes.
+const HEAD_LOG_TAIL: u64 = 64 << 10;
+
+/// The head's own words for its last failure of `what` (a line of `head.log` starting with
+/// it), where the studio started the head and keeps its log in the project folder.
+fn head_failure(project: &Path, what: &str) -> Option<String> {
+    use std::io::{Read, Seek, SeekFrom};
+    let mut f = std::fs::File::open(project.join("head.log")).ok()?;
+    let len = f.metadata().ok()?.len();
+    f.seek(SeekFrom::Start(len.saturating_sub(HEAD_LOG_TAIL)))
+        .ok()?;
+    let mut tail = Vec::new();
+    f.read_to_end(&mut tail).ok()?;
+    String::from_utf8_lossy(&tail)
+        .lines()
+        .rev()
+        .find_map(|l| l.strip_prefix(what).map(str::to_string))
 }
 
 fn take_reply(job: &mut Job, r: &Reply) {
@@ -839,6 +902,7 @@ mod tests {
             left_out,
             disc_paper: None,
             rebuilt: false,
+            model: None,
         };
         let job = Job {
             views: vec![
@@ -865,6 +929,48 @@ mod tests {
             field: 0,
             detail: 0,
         })
+    }
+
+    /// A sweep the head accepted and then failed before its first frame (no header; the head
+    /// idle): the studio stops waiting for it and gives the head's own words from its log.
+    #[test]
+    fn a_sweep_that_failed_at_its_start_is_told_with_the_heads_words() {
+        let dir = tempfile::tempdir().unwrap();
+        std::fs::write(
+            dir.path().join("head.log"),
+            "serving\nsweep failed: the first laser frame does not tell which way\n",
+        )
+        .unwrap();
+        let (mut job, mut journals) = (Job::default(), Journals::default());
+        job.awaiting_sweep = true;
+        // idle before the head accepted it: not yet a failure
+        take(&mut job, &mut journals, dir.path(), &reply(HeadState::Idle)).unwrap();
+        assert!(job.awaiting_sweep && job.sweep_failed.is_none());
+        job.sweep_accepted = true;
+        take(
+            &mut job,
+            &mut journals,
+            dir.path(),
+            &reply(HeadState::Sweeping),
+        )
+        .unwrap();
+        assert!(job.awaiting_sweep);
+        let u = take(&mut job, &mut journals, dir.path(), &reply(HeadState::Idle)).unwrap();
+        assert!(u.save && !job.awaiting_sweep && job.views.is_empty());
+        assert_eq!(
+            job.sweep_failed.as_deref(),
+            Some("the first laser frame does not tell which way")
+        );
+        // the next sweep's header clears it
+        job.awaiting_sweep = true;
+        take(
+            &mut job,
+            &mut journals,
+            dir.path(),
+            &Message::Header(header(9)),
+        )
+        .unwrap();
+        assert!(job.sweep_failed.is_none() && job.views.len() == 1);
     }
 
     /// A sweep whose last status the link lost is closed when the head says it is idle, and

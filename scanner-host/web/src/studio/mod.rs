@@ -164,6 +164,9 @@ impl Studio {
                 if r.outcome == Outcome::Accepted && matches!(cmd, Command::Laser { on: true }) {
                     job.head.laser_off_unheard_s = None;
                 }
+                if r.outcome == Outcome::Accepted && sweep && job.awaiting_sweep {
+                    job.sweep_accepted = true;
+                }
                 if r.outcome == Outcome::Accepted && matches!(cmd, Command::Turn { .. }) {
                     job.say(said.clone());
                 }

@@ -100,6 +100,8 @@ fn router(studio: Arc<Studio>, access: &Access) -> Router {
         .route("/api/model.stl", get(model_stl))
         .route("/api/view/{n}/points", get(view_points))
         .route("/files/{name}", get(file))
+        .route("/files/view/{n}/{name}", get(view_file))
+        .route("/api/view-model", post(view_model))
         .route("/api/command", post(command))
         .route("/api/merge", post(merge))
         .route("/api/view", post(view))
@@ -278,6 +280,136 @@ async fn command(State(studio): State<Arc<Studio>>, req: Request) -> Response {
             "failed",
             "the command's thread failed",
         ),
+    }
+}
+
+/// Makes the model of one view alone (`{"view": N}`, from 1): the host's outputs of its
+/// journal in `views/view-N/` — a fixed-laser turntable's whole model, or one view's surface.
+async fn view_model(State(studio): State<Arc<Studio>>, req: Request) -> Response {
+    let v = match json_body(req, &FrontLimits::DEFAULT).await {
+        Ok(v) => v,
+        Err(r) => return r,
+    };
+    let n = usize::try_from(v["view"].as_u64().unwrap_or(0)).unwrap_or(0);
+    let journal = {
+        let mut job = studio.link.shared.job();
+        let Some(view) = n.checked_sub(1).and_then(|k| job.views.get_mut(k)) else {
+            return refusal(StatusCode::BAD_REQUEST, "no_such_view", "no such view");
+        };
+        if !view.done {
+            return json(
+                StatusCode::CONFLICT,
+                &serde_json::json!({"outcome": "busy", "words": "its sweep runs: wait for it to end, or press Stop"}),
+            );
+        }
+        if view.model.as_ref().is_some_and(|m| m.state == "running") {
+            return json(
+                StatusCode::CONFLICT,
+                &serde_json::json!({"outcome": "busy", "words": "its model is being made already"}),
+            );
+        }
+        if view.points == 0 {
+            return json(
+                StatusCode::CONFLICT,
+                &serde_json::json!({"outcome": "no_points", "words": "this view has no points: sweep again"}),
+            );
+        }
+        view.model = Some(super::job::ViewModel {
+            state: "running".into(),
+            error: None,
+            files: Vec::new(),
+            summary: None,
+        });
+        let journal = studio.project().join(&view.journal);
+        job.say(format!("view {n}: making its model"));
+        journal
+    };
+    let s = studio.clone();
+    let started = std::thread::Builder::new()
+        .name("studio-view-model".into())
+        .spawn(move || {
+            let dir = format!("view-{n}");
+            let out = s.project().join("views").join(&dir);
+            let made = scanner_host::outputs::replay(
+                scanner_host::collect::CollectOptions::default(),
+                &journal,
+                0.0,
+            )
+            .and_then(|c| {
+                scanner_host::write_outputs(&c, &out, &scanner_host::OutputOptions::default())
+            });
+            let summary = read_inside(s.project(), &["views", &dir, "summary.json"], 16 << 20)
+                .ok()
+                .and_then(|b| serde_json::from_slice(&b).ok());
+            let files = scanner_host::outputs::OUTPUT_FILES
+                .iter()
+                .filter(|f| out.join(f).is_file())
+                .map(|f| (*f).to_string())
+                .collect();
+            let mut job = s.link.shared.job();
+            let line = match &made {
+                Ok(_) => format!("view {n}: its model is ready to download"),
+                Err(e) => format!("view {n}: no model: {e}"),
+            };
+            if let Some(view) = job.views.get_mut(n - 1) {
+                view.model = Some(super::job::ViewModel {
+                    state: if made.is_ok() { "made" } else { "failed" }.into(),
+                    error: made.err().map(|e| e.to_string()),
+                    files,
+                    summary,
+                });
+            }
+            job.say(line);
+            if let Err(e) = job.save(s.project()) {
+                job.say(e.to_string());
+            }
+        });
+    match started {
+        Ok(_) => json(
+            StatusCode::ACCEPTED,
+            &serde_json::json!({"outcome": "accepted"}),
+        ),
+        Err(e) => refusal(
+            StatusCode::INTERNAL_SERVER_ERROR,
+            "failed",
+            format!("cannot start the view's model: {e}"),
+        ),
+    }
+}
+
+/// A file of one view's model, by the view's number (from 1) and a name from the host's fixed
+/// list of outputs.
+async fn view_file(
+    State(studio): State<Arc<Studio>>,
+    Path((n, name)): Path<(usize, String)>,
+) -> Response {
+    let Some(name) = scanner_host::outputs::OUTPUT_FILES
+        .iter()
+        .find(|f| **f == name)
+    else {
+        return refusal(StatusCode::NOT_FOUND, "no_such_file", "no such file");
+    };
+    if n == 0 || n > MAX_VIEWS {
+        return refusal(StatusCode::NOT_FOUND, "no_such_view", "no such view");
+    }
+    download(
+        studio.project(),
+        &["views", &format!("view-{n}"), name],
+        MAX_FILE,
+        media_type(name),
+    )
+}
+
+/// A download's media type, by its file's extension.
+fn media_type(name: &str) -> &'static str {
+    match name.rsplit('.').next() {
+        Some("png") => "image/png",
+        Some("json") => "application/json",
+        Some("3mf") => "model/3mf",
+        Some("stl") => "model/stl",
+        Some("obj") => "model/obj",
+        Some("txt") => "text/plain; charset=utf-8",
+        _ => "application/octet-stream",
     }
 }
 
@@ -527,12 +659,10 @@ async fn file(State(studio): State<Arc<Studio>>, Path(name): Path<String>) -> Re
     let Some(name) = MODEL_FILES.iter().find(|f| **f == name) else {
         return refusal(StatusCode::NOT_FOUND, "no_such_file", "no such file");
     };
-    let kind = match name.rsplit('.').next() {
-        Some("png") => "image/png",
-        Some("json") => "application/json",
-        Some("3mf") => "model/3mf",
-        Some("stl") => "model/stl",
-        _ => "application/octet-stream",
-    };
-    download(studio.project(), &["model", name], MAX_FILE, kind)
+    download(
+        studio.project(),
+        &["model", name],
+        MAX_FILE,
+        media_type(name),
+    )
 }
