@@ -843,3 +843,85 @@ fn a_fixed_laser_turntable_scan_through_the_page_ends_in_its_closed_model() {
     assert_eq!(got.as_u64(), Some(on_disk));
     keep_picture(&mut b, "studio-turntable.png");
 }
+
+/// Shadow scanning through the page: a lamp and a rod's shadow swept over the rig's demo
+/// objects, read through time (`--shadow --temporal` in the head's arguments, with the rig's
+/// true calibration). Its points come at the sweep's end, so the page shows the frames from the
+/// start; the view's own model is made from them.
+#[test]
+fn a_shadow_sweep_through_the_page_shows_its_frames_and_ends_in_a_model() {
+    let Some(exe) = chromium() else { return };
+    let tmp = tempfile::tempdir().unwrap();
+    let scene = "width = 640\nheight = 480\n\n[laser]\nframes = 120\n\n[shadow]\n";
+    std::fs::write(tmp.path().join("job.toml"), scene).unwrap();
+    let rig = scanner_rig::Rig::new(scanner_rig::Scene::from_toml_in(scene, tmp.path()).unwrap())
+        .unwrap();
+    rig.truth_calibration()
+        .save(&tmp.path().join("cal.toml"))
+        .unwrap();
+    let studio = scanner_tests::StudioProcess::on_rig(
+        tmp.path(),
+        "--scene job.toml --calibration cal.toml --shadow --temporal",
+    );
+    let mut b = Browser::launch(&exe);
+    b.navigate(&studio.url);
+    wait(
+        &mut b,
+        "s.head !== undefined && s.head.heard",
+        30,
+        "the page reads the job",
+    );
+    b.eval("document.getElementById('disc').value = '0'");
+    let answer = click_answer(&mut b, "sweep");
+    assert_eq!(answer["outcome"].as_str(), Some("accepted"), "{answer}");
+    let t0 = std::time::Instant::now();
+    // at once: the page says the head takes its reference (the rig renders a lamp-lit
+    // reference for some seconds), then counts the frames
+    assert!(
+        b.wait_for(
+            "(() => { const s = window.studio.state; return s.sweep_starting || s.views.length === 1; })()",
+            Duration::from_secs(2)
+        ),
+        "the page shows the sweep starting within 2 s"
+    );
+    wait(
+        &mut b,
+        "s.views.length === 1 && s.views[0].frames > 0",
+        60,
+        "the sweep's first progress",
+    );
+    eprintln!(
+        "shadow: first frames counted {:.1} s after the click (the reference first)",
+        t0.elapsed().as_secs_f64()
+    );
+    // read through time: frames counted while no point has come yet
+    wait(
+        &mut b,
+        "s.views[0].frames >= 30 && s.views[0].points === 0 && !s.views[0].done",
+        120,
+        "frames counted before the points",
+    );
+    wait(&mut b, "s.views[0].done", 300, "the sweep");
+    let points = count(&mut b, "s.views[0].points");
+    assert!(points > 20_000, "{points} points");
+    let answer = click_answer(&mut b, "view-model-1");
+    assert_eq!(answer["outcome"].as_str(), Some("accepted"), "{answer}");
+    wait(
+        &mut b,
+        "s.views[0].model && s.views[0].model.state !== 'running'",
+        300,
+        "the view's model",
+    );
+    let model = b.eval("window.studio.state.views[0].model");
+    assert_eq!(model["state"].as_str(), Some("made"), "{model}");
+    assert!(
+        model["summary"]["faces"].as_u64().unwrap_or(0) > 10_000,
+        "{model}"
+    );
+    assert!(
+        b.eval("document.getElementById('view-1-scan-stl') !== null")
+            .as_bool()
+            .unwrap_or(false),
+        "the model's download on the page"
+    );
+}

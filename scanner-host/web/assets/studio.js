@@ -255,7 +255,7 @@ function render(s) {
   });
   const last = s.views[s.views.length - 1];
   q("next").dataset.failed = s.sweep_failed ? "1" : "";
-  q("next").textContent = s.sweep_failed ? `The last sweep failed before its first frame: ${s.sweep_failed}` : !last ? "Calibrated? Start the first sweep." : !last.done ? "Sweeping…" : "Turn the disc (or lay the object on its side), then start the next sweep; merge when every side is seen.";
+  q("next").textContent = s.sweep_starting ? "Starting the sweep: the head takes its reference (the scene as it is, before the laser or the shadow moves)…" : s.sweep_failed ? `The last sweep failed before its first frame: ${s.sweep_failed}` : !last ? "Calibrated? Start the first sweep." : !last.done ? "Sweeping…" : "Turn the disc (or lay the object on its side), then start the next sweep; merge when every side is seen.";
   if (s.merge) {
     const m = s.merge;
     let t = `<b class="${m.state === "merged" ? "good" : "bad"}">${m.state}</b>`;

@@ -131,6 +131,8 @@ async fn state(State(studio): State<Arc<Studio>>) -> Response {
                 .unwrap_or_default();
     }
     v["guide"] = serde_json::to_value(guide).unwrap_or_default();
+    // a sweep asked for whose first frame has not come: the head takes its reference
+    v["sweep_starting"] = job.awaiting_sweep.into();
     if let Some(p) = &job.preview {
         v["camera_advice"] =
             serde_json::to_value(super::camera::advice(p, &job.camera)).unwrap_or_default();
