@@ -141,6 +141,44 @@ impl Adjustable {
     }
 }
 
+/// Camera controls set by hand, in the camera's units (V4L2: exposure in 100 µs, white balance
+/// in kelvin); `None`: the camera's own, which the head locks for each scan.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub struct ByHand {
+    /// Exposure.
+    pub exposure: Option<i32>,
+    /// Gain.
+    pub gain: Option<i32>,
+    /// Focus.
+    pub focus: Option<i32>,
+    /// White balance.
+    pub white_balance: Option<i32>,
+}
+
+impl ByHand {
+    /// Sets one.
+    pub fn set(&mut self, control: Adjustable, value: i32) {
+        *match control {
+            Adjustable::Exposure => &mut self.exposure,
+            Adjustable::Gain => &mut self.gain,
+            Adjustable::Focus => &mut self.focus,
+            Adjustable::WhiteBalance => &mut self.white_balance,
+        } = Some(value);
+    }
+
+    /// Those set, in the order they are set on a camera.
+    pub fn each(&self) -> impl Iterator<Item = (Adjustable, i32)> {
+        [
+            (Adjustable::Exposure, self.exposure),
+            (Adjustable::Gain, self.gain),
+            (Adjustable::Focus, self.focus),
+            (Adjustable::WhiteBalance, self.white_balance),
+        ]
+        .into_iter()
+        .filter_map(|(c, v)| v.map(|v| (c, v)))
+    }
+}
+
 /// Largest value of a camera control on the wire (a camera's own range is narrower).
 pub const MAX_CONTROL_VALUE: i32 = 1_000_000;
 /// Most turntable steps one command turns, either way.

@@ -99,8 +99,8 @@ pub mod turn;
 
 pub use calibration::{Calibrated, ShotTaken};
 pub use command::{
-    Adjustable, Command, CommandError, CommandFrame, HeadState, MAX_COMMAND, MAX_COMMAND_ENCODED,
-    Outcome, PreviewRequest, Reply, SweepRequest, TURN_UNKNOWN,
+    Adjustable, ByHand, Command, CommandError, CommandFrame, HeadState, MAX_COMMAND,
+    MAX_COMMAND_ENCODED, Outcome, PreviewRequest, Reply, SweepRequest, TURN_UNKNOWN,
 };
 pub use controls::{Control, Controls};
 pub use disc_pose::{DiscFound, DiscPose};

@@ -469,7 +469,7 @@ pub struct SourceOptions {
     pub mains_hz: Option<u32>,
     /// Camera controls set by hand, applied as the source opens (after the automatic modes
     /// are switched off).
-    pub adjust: Vec<(scanner_wire::Adjustable, i32)>,
+    pub adjust: scanner_wire::ByHand,
     /// A folder's frames: only the series of this pattern (the names with their frame number
     /// as `*`: `laser0_*.jpg`), for a folder that holds several ([`SourceError::Series`]).
     pub series: Option<String>,

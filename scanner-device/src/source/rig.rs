@@ -57,12 +57,9 @@ impl RigSource {
     ///
     /// # Errors
     /// A control the rig has not got, or a value outside its range ([`offered`]).
-    pub fn adjust(
-        &mut self,
-        settings: &[(scanner_wire::Adjustable, i32)],
-    ) -> Result<(), SourceError> {
+    pub fn adjust(&mut self, settings: &scanner_wire::ByHand) -> Result<(), SourceError> {
         let mut scale = 1.0;
-        for &(control, value) in settings {
+        for (control, value) in settings.each() {
             super::controls::by_hand(&offered(), control, value)?;
             if let Some((_, own)) = RIG_CONTROLS.iter().find(|(c, _)| *c == control) {
                 scale *= f64::from(value) / f64::from(*own);

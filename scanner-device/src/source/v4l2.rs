@@ -183,17 +183,22 @@ mod imp {
         )
     }
 
+    /// The device at `path`, opened.
+    pub(super) fn device(path: &str) -> Result<Device, SourceError> {
+        Device::with_path(path).map_err(|e| cam(path, "cannot open the device", e))
+    }
+
     /// Sets the controls `settings` by hand ([`controls::by_hand`]), in order.
     pub(super) fn set_by_hand(
         path: &str,
         dev: &Device,
-        settings: &[(wire::Adjustable, i32)],
+        settings: &wire::ByHand,
     ) -> Result<(), SourceError> {
-        if settings.is_empty() {
+        if settings.each().next().is_none() {
             return Ok(());
         }
         let offered = offered(dev);
-        for &(control, value) in settings {
+        for (control, value) in settings.each() {
             let s = controls::by_hand(&offered, control, value)?;
             dev.set_control(Control {
                 id: s.id,
@@ -234,8 +239,7 @@ mod imp {
             format: PixelFormat,
             opts: &SourceOptions,
         ) -> Result<Self, SourceError> {
-            let dev =
-                Device::with_path(path).map_err(|e| cam(path, "cannot open the device", e))?;
+            let dev = device(path)?;
             let camera = choose_format(path, &dev, opts.fourcc.as_deref())?;
             let fmt = set_format(path, &dev, camera.fourcc(), opts.size)?;
             if let Some(fps) = opts.fps {
@@ -435,12 +439,10 @@ pub fn adjust(
 ) -> Result<(), SourceError> {
     #[cfg(feature = "v4l")]
     {
-        let dev = v4l::Device::with_path(path).map_err(|e| SourceError::Camera {
-            device: path.to_string(),
-            what: "cannot open the device".into(),
-            source: Some(e),
-        })?;
-        imp::set_by_hand(path, &dev, &[(control, value)])
+        let dev = imp::device(path)?;
+        let mut one = scanner_wire::ByHand::default();
+        one.set(control, value);
+        imp::set_by_hand(path, &dev, &one)
     }
     #[cfg(not(feature = "v4l"))]
     {
@@ -464,11 +466,7 @@ pub fn adjust(
 pub fn native_format(path: &str, opts: &SourceOptions) -> Result<PixelFormat, SourceError> {
     #[cfg(feature = "v4l")]
     {
-        let dev = v4l::Device::with_path(path).map_err(|e| SourceError::Camera {
-            device: path.to_string(),
-            what: "cannot open the device".into(),
-            source: Some(e),
-        })?;
+        let dev = imp::device(path)?;
         Ok(imp::choose_format(path, &dev, opts.fourcc.as_deref())?.native())
     }
     #[cfg(not(feature = "v4l"))]

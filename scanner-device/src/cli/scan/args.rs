@@ -222,29 +222,20 @@ pub struct CameraArgs {
 }
 
 impl CameraArgs {
-    /// The controls set by hand, in the order they are set.
-    pub fn by_hand(&self) -> Vec<(scanner_wire::Adjustable, i32)> {
-        use scanner_wire::Adjustable as A;
-        [
-            (A::Exposure, self.exposure),
-            (A::Gain, self.gain),
-            (A::Focus, self.focus),
-            (A::WhiteBalance, self.white_balance),
-        ]
-        .into_iter()
-        .filter_map(|(c, v)| v.map(|v| (c, v)))
-        .collect()
+    /// The controls set by hand.
+    pub fn by_hand(&self) -> scanner_wire::ByHand {
+        scanner_wire::ByHand {
+            exposure: self.exposure,
+            gain: self.gain,
+            focus: self.focus,
+            white_balance: self.white_balance,
+        }
     }
 
-    /// Sets a control by hand (the service's camera command).
-    pub fn set_by_hand(&mut self, control: scanner_wire::Adjustable, value: i32) {
-        use scanner_wire::Adjustable as A;
-        *match control {
-            A::Exposure => &mut self.exposure,
-            A::Gain => &mut self.gain,
-            A::Focus => &mut self.focus,
-            A::WhiteBalance => &mut self.white_balance,
-        } = Some(value);
+    /// Sets the controls set by hand (the service's camera command).
+    pub fn set_by_hand(&mut self, b: scanner_wire::ByHand) {
+        (self.exposure, self.gain, self.focus, self.white_balance) =
+            (b.exposure, b.gain, b.focus, b.white_balance);
     }
 
     /// The source options these give (size parsed and checked).

@@ -7,8 +7,8 @@ use std::time::Duration;
 
 use anyhow::Result;
 use scanner_wire::{
-    Command, CommandError, CommandFrame, CommandFrameError, HeadState, Message, Outcome, Reply,
-    WireError,
+    Command, CommandError, CommandFrame, CommandFrameError, HeadState, Message, Outcome,
+    PreviewRequest, Reply, WireError,
 };
 
 use super::worker::{Change, Worker};
@@ -240,16 +240,16 @@ impl Service {
                         return (self.reply(seq, Outcome::Failed, 0, 0), None);
                     }
                 }
-                self.args.scan.camera.set_by_hand(c, value);
+                let mut by_hand = self.args.scan.camera.by_hand();
+                by_hand.set(c, value);
+                self.args.scan.camera.set_by_hand(by_hand);
                 // the preview starts again with it: a new reference, taken alike
-                match (&self.running, self.previewing) {
-                    (Some(r), Some(p)) if r.state == HeadState::Previewing => {
-                        r.stop.store(true, Ordering::SeqCst);
-                        self.reap();
-                        (ok(self), Some(Work::Preview(p)))
-                    }
-                    _ => (ok(self), None),
-                }
+                let again = if self.previews() {
+                    self.stop_preview().map(Work::Preview)
+                } else {
+                    None
+                };
+                (ok(self), again)
             }
             Command::Laser { on } => {
                 if self.rig_views.is_none() {
@@ -282,31 +282,14 @@ impl Service {
                 _ => (self.reply(seq, Outcome::NotHere, 0, 0), None),
             },
             // the preview's new settings (a zoom): the running preview makes way
-            Command::Preview(_)
-                if self
-                    .running
-                    .as_ref()
-                    .is_some_and(|r| r.state == HeadState::Previewing) =>
-            {
-                if let Some(r) = &self.running {
-                    r.stop.store(true, Ordering::SeqCst);
-                    self.reap();
-                }
+            Command::Preview(_) if self.previews() => {
+                self.stop_preview();
                 self.decide(f)
             }
             // a shot or the calibration while the preview runs: the preview makes way and
             // comes back after it
-            Command::Shot { .. } | Command::Calibrate
-                if self
-                    .running
-                    .as_ref()
-                    .is_some_and(|r| r.state == HeadState::Previewing) =>
-            {
-                if let Some(r) = &self.running {
-                    r.stop.store(true, Ordering::SeqCst);
-                    self.reap();
-                }
-                let preview = self.previewing.take();
+            Command::Shot { .. } | Command::Calibrate if self.previews() => {
+                let preview = self.stop_preview();
                 let (reply, job) = self.decide(f);
                 match (job, preview) {
                     (Some(job), p) => {
@@ -363,6 +346,22 @@ impl Service {
                 (ok(self), Some(Work::Sweep(s)))
             }
         }
+    }
+
+    /// Whether the preview runs.
+    fn previews(&self) -> bool {
+        self.running
+            .as_ref()
+            .is_some_and(|r| r.state == HeadState::Previewing)
+    }
+
+    /// Stops the running preview and waits for it; its settings.
+    fn stop_preview(&mut self) -> Option<PreviewRequest> {
+        if let Some(r) = &self.running {
+            r.stop.store(true, Ordering::SeqCst);
+            self.reap();
+        }
+        self.previewing.take()
     }
 
     pub(super) fn start(&mut self, job: Work) {

@@ -2,50 +2,12 @@
 //! when the studio opens the job), and the values scanning needs, suggested from the preview:
 //! the picture not clipped, the laser line bright enough against the board.
 
-use serde::{Deserialize, Serialize};
+use serde::Serialize;
 
 use super::job::SetupCheck;
 
-/// The controls set by hand, in the camera's units (V4L2: exposure in 100 µs, white balance in
-/// kelvin); `None`: the camera's own, locked by the head for each scan.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
-pub struct CameraSettings {
-    /// Exposure.
-    pub exposure: Option<i32>,
-    /// Gain.
-    pub gain: Option<i32>,
-    /// Focus.
-    pub focus: Option<i32>,
-    /// White balance.
-    pub white_balance: Option<i32>,
-}
-
-impl CameraSettings {
-    /// Records a value the head accepted.
-    pub fn set(&mut self, control: scanner_wire::Adjustable, value: i32) {
-        use scanner_wire::Adjustable as A;
-        *match control {
-            A::Exposure => &mut self.exposure,
-            A::Gain => &mut self.gain,
-            A::Focus => &mut self.focus,
-            A::WhiteBalance => &mut self.white_balance,
-        } = Some(value);
-    }
-
-    /// The values set, in the order they are sent again.
-    pub fn all(&self) -> Vec<(scanner_wire::Adjustable, i32)> {
-        use scanner_wire::Adjustable as A;
-        [
-            (A::Exposure, self.exposure),
-            (A::Gain, self.gain),
-            (A::Focus, self.focus),
-            (A::WhiteBalance, self.white_balance),
-        ]
-        .into_iter()
-        .filter_map(|(c, v)| v.map(|v| (c, v)))
-        .collect()
-    }
-}
+/// The controls set by hand on the page, as the job keeps them.
+pub type CameraSettings = scanner_wire::ByHand;
 
 /// Clipped pixels beyond which the exposure is too long, per mille (the set-up's own verdict).
 pub const CLIPPED_PERMILLE: u16 = 20;

@@ -203,7 +203,7 @@ impl Studio {
     /// studio stopped), each once; what the head says goes into the log.
     pub fn restore_camera(&self) {
         let settings = self.link.shared.job().camera;
-        for (control, value) in settings.all() {
+        for (control, value) in settings.each() {
             let cmd = Command::Camera {
                 control: control as u8,
                 value,

@@ -285,6 +285,21 @@ async fn command(State(studio): State<Arc<Studio>>, req: Request) -> Response {
     }
 }
 
+/// The answer to work started in its own thread: accepted, or why it could not start.
+fn accepted<T>(started: std::io::Result<std::thread::JoinHandle<T>>, what: &str) -> Response {
+    match started {
+        Ok(_) => json(
+            StatusCode::ACCEPTED,
+            &serde_json::json!({"outcome": "accepted"}),
+        ),
+        Err(e) => refusal(
+            StatusCode::INTERNAL_SERVER_ERROR,
+            "failed",
+            format!("cannot start {what}: {e}"),
+        ),
+    }
+}
+
 /// Makes the model of one view alone (`{"view": N}`, from 1): the host's outputs of its
 /// journal in `views/view-N/` — a fixed-laser turntable's whole model, or one view's surface.
 async fn view_model(State(studio): State<Arc<Studio>>, req: Request) -> Response {
@@ -366,17 +381,7 @@ async fn view_model(State(studio): State<Arc<Studio>>, req: Request) -> Response
                 job.say(e.to_string());
             }
         });
-    match started {
-        Ok(_) => json(
-            StatusCode::ACCEPTED,
-            &serde_json::json!({"outcome": "accepted"}),
-        ),
-        Err(e) => refusal(
-            StatusCode::INTERNAL_SERVER_ERROR,
-            "failed",
-            format!("cannot start the view's model: {e}"),
-        ),
-    }
+    accepted(started, "the view's model")
 }
 
 /// A file of one view's model, by the view's number (from 1) and a name from the host's fixed
@@ -572,17 +577,7 @@ async fn merge(State(studio): State<Arc<Studio>>, req: Request) -> Response {
                 job.say(e.to_string());
             }
         });
-    match started {
-        Ok(_) => json(
-            StatusCode::ACCEPTED,
-            &serde_json::json!({"outcome": "accepted"}),
-        ),
-        Err(e) => refusal(
-            StatusCode::INTERNAL_SERVER_ERROR,
-            "failed",
-            format!("cannot start the merge: {e}"),
-        ),
-    }
+    accepted(started, "the merge")
 }
 
 /// The board's calibration overlay (what `calibrate board` found), where a child head left it
