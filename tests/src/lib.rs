@@ -315,6 +315,15 @@ impl StudioProcess {
     /// # Panics
     /// As [`StudioProcess::start`].
     pub fn on_rig(dir: &std::path::Path, head_args: &str) -> StudioProcess {
+        StudioProcess::on_source(dir, "rig", head_args)
+    }
+
+    /// The studio as [`StudioProcess::on_rig`], its head reading `source` (a camera, a folder
+    /// of frames).
+    ///
+    /// # Panics
+    /// As [`StudioProcess::start`].
+    pub fn on_source(dir: &std::path::Path, source: &str, head_args: &str) -> StudioProcess {
         StudioProcess::start(
             dir,
             &[
@@ -323,7 +332,7 @@ impl StudioProcess {
                 "--project",
                 "project",
                 "--source",
-                "rig",
+                source,
                 "--head-args",
                 head_args,
             ],

@@ -931,6 +931,16 @@ mod tests {
         })
     }
 
+    /// The head's replies "sweeping", then "idle"; the update of the second.
+    fn sweeping_then_idle(
+        job: &mut Job,
+        journals: &mut Journals,
+        dir: &std::path::Path,
+    ) -> super::Update {
+        take(job, journals, dir, &reply(HeadState::Sweeping)).unwrap();
+        take(job, journals, dir, &reply(HeadState::Idle)).unwrap()
+    }
+
     /// A sweep the head accepted and then failed before its first frame (no header; the head
     /// idle): the studio stops waiting for it and gives the head's own words from its log.
     #[test]
@@ -947,15 +957,7 @@ mod tests {
         take(&mut job, &mut journals, dir.path(), &reply(HeadState::Idle)).unwrap();
         assert!(job.awaiting_sweep && job.sweep_failed.is_none());
         job.sweep_accepted = true;
-        take(
-            &mut job,
-            &mut journals,
-            dir.path(),
-            &reply(HeadState::Sweeping),
-        )
-        .unwrap();
-        assert!(job.awaiting_sweep);
-        let u = take(&mut job, &mut journals, dir.path(), &reply(HeadState::Idle)).unwrap();
+        let u = sweeping_then_idle(&mut job, &mut journals, dir.path());
         assert!(u.save && !job.awaiting_sweep && job.views.is_empty());
         assert_eq!(
             job.sweep_failed.as_deref(),
@@ -999,15 +1001,7 @@ mod tests {
             1,
             "a header once more opens no second view"
         );
-        take(
-            &mut job,
-            &mut journals,
-            dir.path(),
-            &reply(HeadState::Sweeping),
-        )
-        .unwrap();
-        assert!(!job.views[0].done);
-        let u = take(&mut job, &mut journals, dir.path(), &reply(HeadState::Idle)).unwrap();
+        let u = sweeping_then_idle(&mut job, &mut journals, dir.path());
         assert!(u.save);
         assert!(job.views[0].done);
         assert_eq!(job.views[0].ended.as_deref(), Some("end_lost"));
