@@ -215,10 +215,10 @@ fn fields_out_of_range_are_named_with_their_limit() {
         ),
         (
             Command::Camera {
-                control: 3,
+                control: 4,
                 value: 0,
             },
-            (1, 2),
+            (1, 3),
         ),
         (
             Command::Camera {

@@ -34,7 +34,7 @@ struct File {
     tilt_deg: Option<f64>,
     tilt_pivot: Option<[f64; 3]>,
     /// Where the virtual operator holds the intrinsics target for the first calibration
-    /// shots, in order (then the evenly spread poses of [`crate::target::TargetPose::sweep`]).
+    /// shots, in order (then those of [`crate::TargetPose::guided`]).
     shots: Option<Vec<ShotFile>>,
 }
 
@@ -439,7 +439,7 @@ impl Scene {
                         "shots[{k}]: the centre must lie in front of the camera (z > 0) and each turn within ±80°"
                     )));
                 }
-                s.shots.push(crate::target::TargetPose {
+                s.shots.push(crate::TargetPose {
                     centre: Point3::from(p.centre),
                     turn_deg: turn,
                 });

@@ -245,8 +245,8 @@ pub struct Scene {
     /// `frames`, wobble and jitter); the reference frame is the scene lit without the rod.
     pub shadow: Option<ShadowSpec>,
     /// Where the virtual operator holds the intrinsics target for the first calibration shots,
-    /// in order; later shots take [`crate::target::TargetPose::sweep`]'s poses.
-    pub shots: Vec<crate::target::TargetPose>,
+    /// in order; later shots take [`TargetPose::guided`]'s poses.
+    pub shots: Vec<TargetPose>,
 }
 
 /// The lamp and the rod of a shadow sweep ([`Scene::shadow`]).
@@ -585,5 +585,80 @@ impl BoardGeometry {
             }
         }
         best
+    }
+}
+
+/// Where the target sheet is: the pattern's centre in camera coordinates and the sheet's turn
+/// (degrees about the camera's x, y, z axes, applied in that order) from facing the camera.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TargetPose {
+    /// Pattern centre, mm.
+    pub centre: Point3<f64>,
+    /// Turns about x, y, z, degrees.
+    pub turn_deg: [f64; 3],
+}
+
+impl TargetPose {
+    /// Pose `i` of `n` for an intrinsics calibration: the target 550–850 mm away, spread over the
+    /// image and turned up to ±35° in every direction (what a user waving a printed target in
+    /// front of the camera does, evenly).
+    pub fn sweep(i: usize, n: usize) -> TargetPose {
+        let a = i as f64 / n as f64 * std::f64::consts::TAU;
+        let z = 550.0 + 300.0 * ((i * 7) % n) as f64 / n as f64;
+        TargetPose {
+            centre: Point3::new(0.22 * z * a.cos(), 0.15 * z * a.sin(), z),
+            turn_deg: [
+                35.0 * a.sin(),
+                -35.0 * a.cos(),
+                10.0 * (i as f64 - n as f64 / 2.0) / n as f64,
+            ],
+        }
+    }
+}
+
+/// The picture's nine regions, the corners first, as the studio's guide asks for them: each
+/// region's column and row (0, 1, 2).
+const GUIDED: [(u8, u8); 9] = [
+    (0, 0),
+    (2, 0),
+    (0, 2),
+    (2, 2),
+    (1, 0),
+    (0, 1),
+    (2, 1),
+    (1, 2),
+    (1, 1),
+];
+
+impl TargetPose {
+    /// Pose `k` of a maker who follows the studio's guide: the target (`size_mm`, its width
+    /// and height) held two fifths of the picture wide or farther in each of its nine regions in
+    /// turn, the corners first, tilted 25° alternately each way about both axes; after the
+    /// nine, [`TargetPose::sweep`]'s twelve poses. `camera` is the rig's (`width × height`).
+    pub fn guided(
+        k: usize,
+        camera: &Camera<f64>,
+        (width, height): (u32, u32),
+        size_mm: [f64; 2],
+    ) -> TargetPose {
+        let Some(&(col, row)) = GUIDED.get(k) else {
+            return TargetPose::sweep((k - GUIDED.len()) % 12, 12);
+        };
+        let (w, h) = (f64::from(width), f64::from(height));
+        // two fifths of the picture wide at most (a target small in the picture pins the
+        // focal length down poorly), and farther every other shot
+        let z = (size_mm[0] * camera.fx() / (0.4 * w)).max(size_mm[1] * camera.fy() / (0.4 * h))
+            * [1.0, 1.15, 1.3][k % 3];
+        let at = |band: u8, side: f64| side * [0.27, 0.5, 0.73][usize::from(band)];
+        let c = camera.principal_point();
+        let sign = |odd: bool| if odd { -30.0 } else { 30.0 };
+        TargetPose {
+            centre: Point3::new(
+                (at(col, w) - c.x) / camera.fx() * z,
+                (at(row, h) - c.y) / camera.fy() * z,
+                z,
+            ),
+            turn_deg: [sign(k % 2 == 1), sign((k / 2) % 2 == 1), 0.0],
+        }
     }
 }

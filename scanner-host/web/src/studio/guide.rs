@@ -37,7 +37,7 @@ const ORDER: [usize; 9] = [0, 2, 6, 8, 1, 3, 5, 7, 4];
 
 /// One region of the picture (a third of it each way, the outer bands narrower).
 #[derive(Debug, Clone, PartialEq, Serialize)]
-pub struct Region {
+pub struct MapRegion {
     /// Its name (`top left`, …, `centre`).
     pub name: &'static str,
     /// `x0, y0, x1, y1` as fractions of the picture: where to draw it.
@@ -77,7 +77,7 @@ pub struct Ask {
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct Guide {
     /// The nine regions, row by row.
-    pub regions: Vec<Region>,
+    pub regions: Vec<MapRegion>,
     /// What is still missing, the next first.
     pub asks: Vec<Ask>,
     /// Nothing is missing: the calibration may run.
@@ -103,7 +103,7 @@ pub fn guide(job: &Job) -> Guide {
                     covered += ((cover >> (y * 8 + x)) & 1) as u32;
                 }
             }
-            regions.push(Region {
+            regions.push(MapRegion {
                 name: NAMES[r * 3 + c],
                 rect: [
                     cols.0 as f32 / 8.0,
@@ -191,7 +191,7 @@ pub enum Grade {
 
 /// One figure of the calibration, judged.
 #[derive(Debug, Clone, PartialEq, Serialize)]
-pub struct Verdict {
+pub struct FigureVerdict {
     /// `camera`, `board`, `laser`.
     pub part: &'static str,
     /// The figure (`rms_px`, `halves_px`, `regions`, `board_rms_px`, `board_angle_deg`,
@@ -239,7 +239,7 @@ pub fn verdicts(
     c: &CalibrationResult,
     guide: &Guide,
     preview: Option<&SetupCheck>,
-) -> Vec<Verdict> {
+) -> Vec<FigureVerdict> {
     let f = |v: Option<f32>| v.map(f64::from);
     let intrinsics = c.result != "intrinsics_failed";
     let mut out = Vec::new();
@@ -248,7 +248,7 @@ pub fn verdicts(
     } else {
         (Grade::Redo, "failed")
     };
-    out.push(Verdict {
+    out.push(FigureVerdict {
         part: "camera",
         figure: "rms_px",
         value: f(c.rms_px),
@@ -265,7 +265,7 @@ pub fn verdicts(
         None if intrinsics => (Grade::Usable, "not_measured"),
         v => graded(v, HALVES_PX),
     };
-    out.push(Verdict {
+    out.push(FigureVerdict {
         part: "camera",
         figure: "halves_px",
         value: f(c.halves_px),
@@ -284,7 +284,7 @@ pub fn verdicts(
         n if n >= REGIONS.1 => (Grade::Usable, "regions_missing"),
         _ => (Grade::Redo, "regions_missing"),
     };
-    out.push(Verdict {
+    out.push(FigureVerdict {
         part: "camera",
         figure: "regions",
         value: Some(f64::from(covered)),
@@ -307,7 +307,7 @@ pub fn verdicts(
         (true, false) => (Grade::Redo, "failed"),
         _ => graded(f(c.board_rms_px), BOARD_RMS_PX),
     };
-    out.push(Verdict {
+    out.push(FigureVerdict {
         part: "board",
         figure: "board_rms_px",
         value: f(c.board_rms_px),
@@ -327,7 +327,7 @@ pub fn verdicts(
     } else {
         (Grade::Redo, "not_measured")
     };
-    out.push(Verdict {
+    out.push(FigureVerdict {
         part: "board",
         figure: "board_angle_deg",
         value: f(c.board_angle_deg),
@@ -345,7 +345,7 @@ pub fn verdicts(
         Some(p) if p.verdict == "good" => (Grade::Good, "within", Some(p.laser_lines_pct)),
         Some(p) => (Grade::Redo, "setup_not_good", Some(p.laser_lines_pct)),
     };
-    out.push(Verdict {
+    out.push(FigureVerdict {
         part: "laser",
         figure: "laser_lines_pct",
         value,
@@ -438,7 +438,7 @@ mod tests {
         }
     }
 
-    fn grades(v: &[Verdict]) -> Vec<(&'static str, Grade)> {
+    fn grades(v: &[FigureVerdict]) -> Vec<(&'static str, Grade)> {
         v.iter().map(|v| (v.figure, v.grade)).collect()
     }
 

@@ -47,7 +47,7 @@ pub struct Job {
     pub asked_disc: Option<String>,
     /// The camera's controls set by hand on the page.
     #[serde(default)]
-    pub camera: super::camera::CameraSettings,
+    pub camera: scanner_wire::ByHand,
     /// The merge, once asked for.
     pub merge: Option<Merge>,
     /// What happened, newest last.
