@@ -852,6 +852,12 @@ fn a_fixed_laser_turntable_scan_through_the_page_ends_in_its_closed_model() {
     let got = b.eval_await(
         "fetch(document.getElementById('view-1-scan-stl').href).then(r => r.arrayBuffer()).then(b => b.byteLength)",
     );
+    assert_eq!(
+        b.eval("document.getElementById('next').dataset.kind")
+            .as_str(),
+        Some("model_ready"),
+        "the page says the model is ready"
+    );
     let on_disk = std::fs::metadata(tmp.path().join("project/views/view-1/scan.stl"))
         .unwrap()
         .len();

@@ -254,8 +254,16 @@ function render(s) {
     }
   });
   const last = s.views[s.views.length - 1];
-  q("next").dataset.failed = s.sweep_failed ? "1" : "";
-  q("next").textContent = s.sweep_starting ? "Starting the sweep: the head takes its reference (the scene as it is, before the laser or the shadow moves)…" : s.sweep_failed ? `The last sweep failed before its first frame: ${s.sweep_failed}` : !last ? "Calibrated? Start the first sweep." : !last.done ? "Sweeping…" : "Turn the disc (or lay the object on its side), then start the next sweep; merge when every side is seen.";
+  // what to do next, by kind (for tests and the console) and in words
+  const model = last && last.model && last.model.state === "made";
+  const [kind, words] = s.sweep_starting ? ["starting", "Starting the sweep: the head takes its reference (the scene as it is, before the laser or the shadow moves)…"]
+    : s.sweep_failed ? ["failed", `The last sweep failed before its first frame: ${s.sweep_failed}`]
+    : !last ? ["first", "Calibrated? Start the first sweep."]
+    : !last.done ? ["sweeping", "Sweeping…"]
+    : model ? ["model_ready", `View ${s.views.length}'s model is ready: download it from the table's last column, or take another view.`]
+    : ["next_view", "Turn the disc (or lay the object on its side), then start the next sweep; merge when every side is seen."];
+  q("next").dataset.kind = kind;
+  q("next").textContent = words;
   if (s.merge) {
     const m = s.merge;
     let t = `<b class="${m.state === "merged" ? "good" : "bad"}">${m.state}</b>`;
