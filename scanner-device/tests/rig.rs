@@ -530,3 +530,29 @@ fn shadow_scene_errors_name_the_key() {
     let s = Scene::from_toml("[shadow]\nlamp_radius_mm = 1.5\n").unwrap();
     assert_eq!(s.shadow.map(|sh| sh.lamp_radius_mm), Some(1.5));
 }
+
+/// A scene's own calibration shots are read in order; a pose behind the camera, turned 80° or
+/// more, or not a number is refused naming the shot, never rendered.
+#[test]
+fn a_scenes_calibration_shots_are_read_or_refused_by_number() {
+    let s = Scene::from_toml(
+        "[[shots]]\ncentre = [10.0, -5.0, 700.0]\nturn_deg = [20.0, 0.0, 0.0]\n\n[[shots]]\ncentre = [0.0, 0.0, 600.0]\n",
+    )
+    .unwrap();
+    assert_eq!(s.shots.len(), 2);
+    assert_eq!(s.shots[0].turn_deg, [20.0, 0.0, 0.0]);
+    assert_eq!(s.shots[1].turn_deg, [0.0; 3]);
+    for bad in [
+        "centre = [0.0, 0.0, -5.0]",
+        "centre = [0.0, 0.0, 600.0]\nturn_deg = [85.0, 0.0, 0.0]",
+        "centre = [nan, 0.0, 600.0]",
+    ] {
+        let text = format!("[[shots]]\ncentre = [0.0, 0.0, 600.0]\n\n[[shots]]\n{bad}\n");
+        match Scene::from_toml(&text) {
+            Err(scanner_rig::RigError::Scene(why)) => {
+                assert!(why.starts_with("shots[1]"), "{bad}: {why}")
+            }
+            other => panic!("{bad}: {other:?}"),
+        }
+    }
+}
